@@ -1,0 +1,34 @@
+# Two entry points that work on a fresh machine with only python3 (3.11+) and make.
+PYTHON ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP_RUN := $(VENV)/.installed-run
+STAMP_TEST := $(VENV)/.installed-test
+
+.PHONY: demo test test-fast clean
+
+$(BIN)/python:
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+
+$(STAMP_RUN): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e .
+	touch $@
+
+$(STAMP_TEST): pyproject.toml | $(BIN)/python
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	touch $@ $(STAMP_RUN)
+
+demo: $(STAMP_RUN)
+	$(BIN)/aerostereo-mission --demo --out demo/mission.csv --kml demo/mission.kml \
+		--geojson demo/mission.geojson --plot demo/mission.png --summary-json demo/summary.json
+
+test: $(STAMP_TEST)
+	$(BIN)/python -m pytest
+
+# Skips the slow end-to-end tests (CI runs everything).
+test-fast: $(STAMP_TEST)
+	$(BIN)/python -m pytest -m "not slow"
+
+clean:
+	rm -rf $(VENV) demo .pytest_cache

@@ -1,0 +1,1 @@
+"""flightplan: geodesy, circular-orbit planning and Litchi Mission Hub CSV export."""
