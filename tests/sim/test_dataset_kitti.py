@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import json
 import shutil
+import signal
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -170,6 +173,49 @@ def test_rerun_after_interrupted_frame_completes_to_identical_bytes(dataset, tmp
     writer = KittiDatasetWriter(tmp_path, spec(FRAMES, formats=ALL_FORMATS))
     assert writer.pending(range(FRAMES)) == [2]
     writer.write_frame(frame_record(2))
+    finalize_dataset(tmp_path)
+    assert tree_bytes(tmp_path) == tree_bytes(dataset)
+    assert not list(tmp_path.rglob("*.tmp"))
+
+
+KILLED_WRITER = """
+import os, signal, sys
+sys.path[:0] = sys.argv[1:3]
+import sim.dataset.atomic as atomic
+from dataset_helpers import frame_record, spec
+from sim.dataset import FORMATS, KittiDatasetWriter
+
+renames = 0
+rename = atomic.os.replace
+
+
+def rename_or_die(source, target):
+    global renames
+    renames += 1
+    if renames == int(sys.argv[4]):  # the temporary file is written, the rename never happens
+        os.kill(os.getpid(), signal.SIGKILL)
+    rename(source, target)
+
+
+atomic.os.replace = rename_or_die
+writer = KittiDatasetWriter(sys.argv[3], spec(4, formats=FORMATS))
+for index in range(4):
+    writer.write_frame(frame_record(index))
+"""
+
+
+def test_rerun_after_a_writer_killed_mid_frame_completes_to_identical_bytes(dataset, tmp_path):
+    files_per_frame = 2 * len(ALL_FORMATS) + 2 * 2 + 1  # per view: formats, colour, grey; then the record
+    kill_at = 2 + 2 * files_per_frame + 5  # dataset.json, calib.txt, two frames, five files into frame 2
+    helpers = Path(__file__).parent
+    killed = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(helpers.parents[1]), str(helpers),
+                             str(tmp_path), str(kill_at)], capture_output=True, text=True, timeout=60)
+    assert killed.returncode == -signal.SIGKILL, killed.stderr
+    assert len(list(tmp_path.rglob(".*.tmp"))) == 1
+    writer = KittiDatasetWriter(tmp_path, spec(FRAMES, formats=ALL_FORMATS))
+    assert writer.pending(range(FRAMES)) == [2, 3]
+    for index in writer.pending(range(FRAMES)):
+        writer.write_frame(frame_record(index))
     finalize_dataset(tmp_path)
     assert tree_bytes(tmp_path) == tree_bytes(dataset)
     assert not list(tmp_path.rglob("*.tmp"))
