@@ -101,7 +101,7 @@ def disparity_from_depth(depth_m: np.ndarray, fx_px: float, baseline_m: float) -
 
 
 def kitti_disparity_png(disparity_px: np.ndarray) -> np.ndarray:
-    """KITTI 16-bit disparity: ``round(d * 256)``, 0 where invalid (d <= 0 or not finite), valid clipped to [1, 65535]."""
+    """KITTI 16-bit disparity ``round(d * 256)``: 0 where invalid (d <= 0, not finite), valid clipped to [1, 65535]."""
     disparity_px = np.asarray(disparity_px, dtype=np.float64)
     valid = np.isfinite(disparity_px) & (disparity_px > 0)
     scaled = np.clip(np.rint(np.where(valid, disparity_px, 0.0) * KITTI_DISPARITY_SCALE), 1, UINT16_MAX)

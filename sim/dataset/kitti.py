@@ -146,7 +146,7 @@ def format_numbers(values) -> str:
 
 
 def calib_text(projections: dict[str, Sequence[float]]) -> str:
-    """``calib.txt``: one ``Pn:`` line per camera (12 numbers, row-major) and an identity ``Tr:`` line; no blank line."""
+    """``calib.txt``: a ``Pn:`` line per camera (12 numbers, row-major), an identity ``Tr:`` line, no blank line."""
     lines = [f"{key}: {format_numbers(projections[key])}" for key in sorted(projections, key=lambda k: int(k[1:]))]
     lines.append(f"Tr: {format_numbers(np.eye(4)[:3])}")
     return "\n".join(lines) + "\n"

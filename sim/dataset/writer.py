@@ -272,7 +272,8 @@ class KittiDatasetWriter:
         if not 0 <= record.index < self.spec.frame_count:
             raise DatasetError(f"frame index {record.index} outside 0..{self.spec.frame_count - 1}")
         if len(record.views) != len(self.spec.cameras):
-            raise DatasetError(f"frame {record.index}: {len(record.views)} views for a {len(self.spec.cameras)}-camera rig")
+            raise DatasetError(f"frame {record.index}: {len(record.views)} views for a "
+                               f"{len(self.spec.cameras)}-camera rig")
         for view, (data, camera) in enumerate(zip(record.views, self.spec.cameras)):
             size = (int(camera.height), int(camera.width))
             rgb, depth = np.asarray(data.rgb), np.asarray(data.depth)

@@ -62,7 +62,7 @@ def spec(frame_count: int, camera_count: int = 2, **kwargs) -> DatasetSpec:
 
 
 def looking_down_pose(index: int) -> np.ndarray:
-    """Left camera over the plane: about 30 m up, tilted so the sky shows at the top, turning and moving with the frame index."""
+    """Left camera about 30 m over the plane, tilted so the sky shows at the top, turning and moving with the index."""
     R_nadir = np.array([[1.0, 0, 0], [0, -1.0, 0], [0, 0, -1.0]])  # x east, y south, z down
     R = Rotation.from_euler("z", 20.0 * index, degrees=True).as_matrix() @ R_nadir
     R = R @ Rotation.from_euler("xy", [70.0 + 2.0 * index, -5.0], degrees=True).as_matrix()

@@ -65,7 +65,8 @@ def test_random_poses_respect_the_papers_ranges():
         assert 20.0 <= z - GROUND.ground_height(x, y) <= 100.0
         # Undo heading and nadir: what is left must be Rx(a) @ Ry(b) with |a|, |b| <= 45 deg.
         heading = sample.details["heading_deg"]
-        tilt = R_WORLD_NADIR.T @ Rotation.from_euler("z", heading, degrees=True).as_matrix() @ sample.T_world_cam[:3, :3]
+        unturn = Rotation.from_euler("z", heading, degrees=True).as_matrix()
+        tilt = R_WORLD_NADIR.T @ unturn @ sample.T_world_cam[:3, :3]
         a, b = math.degrees(math.atan2(tilt[2, 1], tilt[1, 1])), math.degrees(math.atan2(tilt[0, 2], tilt[0, 0]))
         assert abs(a) <= 45 and abs(b) <= 45 and abs(tilt[1, 0]) < 1e-12
         assert 0 <= heading < 360 and angle_from_nadir_deg(sample.T_world_cam) <= 60.0 + 1e-9
@@ -171,7 +172,8 @@ def write_geotags(folder, origin: LocalFrame, poses, start=datetime(2026, 5, 1, 
         time = (start + timedelta(seconds=2.5 * number)).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
         east, north, up = (float(value) for value in T[:3, 3])
         qx, qy, qz, qw = (float(value) for value in (qx, qy, qz, qw))
-        rows.append(f"DJI_{number:04d}.JPG,{time},,,,,,,,,,,test,0,{east!r},{north!r},{up!r},{qw!r},{qx!r},{qy!r},{qz!r}")
+        numbers = ",".join(repr(value) for value in (east, north, up, qw, qx, qy, qz))
+        rows.append(f"DJI_{number:04d}.JPG,{time},,,,,,,,,,,test,0,{numbers}")
     csv_path = folder / "geotags.csv"
     csv_path.write_text("\n".join(rows) + "\n", encoding="utf-8")
     (folder / "geotags.json").write_text(json.dumps({"origin": origin.to_dict()}), encoding="utf-8")
