@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import OpenEXR
@@ -16,8 +17,9 @@ import pytest
 
 from dataset_helpers import BASELINE_M, CAMERA, ORIGIN, frame_record, looking_down_pose, spec
 from sim.dataset import FORMATS as ALL_FORMATS
-from sim.dataset import AsyncFrameWriter, DatasetError, KittiDatasetWriter, finalize_dataset, shard_frames
+from sim.dataset import AsyncFrameWriter, DatasetError, DatasetSpec, KittiDatasetWriter, finalize_dataset, shard_frames
 from sim.dataset.images import read_exr, read_png
+from sim.dataset.writer import dataset_description
 
 FRAMES = 4
 
@@ -275,3 +277,16 @@ def test_reopening_with_other_settings_is_refused(tmp_path):
 def test_finalize_names_a_folder_that_is_no_dataset(tmp_path):
     with pytest.raises(DatasetError, match="dataset.json: not found"):
         finalize_dataset(tmp_path)
+
+
+def test_spec_from_a_rig_object_matches_the_explicit_spec():
+    rig = SimpleNamespace(cameras=[CAMERA, CAMERA], T_rig_cam=[np.eye(4), np.array(spec(1).T_rig_cams[1])])
+    from_rig = DatasetSpec.from_rig(rig, ORIGIN, FRAMES, command_line=["test"])
+    assert dataset_description(from_rig) == dataset_description(spec(FRAMES))
+
+
+def test_an_unwritable_output_is_a_clear_error(tmp_path):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    with pytest.raises(DatasetError, match="file/sub: cannot write the dataset there"):
+        KittiDatasetWriter(blocker / "sub", spec(FRAMES))
