@@ -334,6 +334,8 @@ def _parse_geotag(path: Path, line: int, row: dict) -> tuple[str, datetime, np.n
         time = datetime.fromisoformat(row["utc_time"])
     except (TypeError, ValueError):
         raise ValueError(f"{path} line {line}: utc_time {row['utc_time']!r} is not ISO 8601") from None
+    if time.tzinfo is None:
+        raise ValueError(f"{path} line {line}: utc_time {row['utc_time']!r} has no zone (expected a trailing Z)")
     quaternion = np.array([values["qx"], values["qy"], values["qz"], values["qw"]])
     if not abs(np.linalg.norm(quaternion) - 1.0) < 1e-3:
         raise ValueError(f"{path} line {line}: quaternion (qw, qx, qy, qz) has norm {np.linalg.norm(quaternion):.6f}, "

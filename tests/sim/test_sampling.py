@@ -212,6 +212,9 @@ def test_replay_names_the_bad_line_and_a_missing_sidecar(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(ValueError, match="geotags.csv line 3: column north_m: expected a number, got 'north\\?'"):
         replay_poses(path, SCENE_ORIGIN, GROUND)
+    path.write_text(path.read_text().replace(".000000Z,", ".000000,", 1))
+    with pytest.raises(ValueError, match="geotags.csv line 2: utc_time '2026-05-01T10:00:00.000000' has no zone"):
+        replay_poses(path, SCENE_ORIGIN, GROUND)
     (tmp_path / "geotags.json").unlink()
     with pytest.raises(ValueError, match="geotags.json: geotags sidecar not found"):
         replay_poses(path, SCENE_ORIGIN, GROUND)
