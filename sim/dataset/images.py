@@ -1,0 +1,115 @@
+"""Pixel encodings of the dataset: PNG (8-bit colour/grey, 16-bit KITTI/VKITTI) and float32 EXR.
+
+Conventions (see notes/README-dataset.md):
+
+* depth is planar z in metres (OpenCV camera z), float32, ``+inf`` where the ray hit nothing;
+* disparity in pixels is ``fx * B / z`` for a rectified pair with baseline ``B`` metres
+  (exactly 0 where depth is ``+inf``);
+* KITTI disparity PNG: uint16 ``round(d * 256)``, 0 = invalid, valid values clipped to
+  ``[1, 65535]`` so that a valid pixel never reads as invalid;
+* VKITTI-style depth PNG: uint16 centimetres ``round(z * 100)``, clipped to 65535 (655.35 m),
+  which is also the value of a miss (VKITTI2 stores the sky that way).
+
+PNGs are encoded by OpenCV with its default parameters (fast, deterministic); EXRs hold one
+lossless float32 channel named ``Y`` with ZIP compression, the layout OpenCV 4.x reads as a
+2-D float32 image.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import OpenEXR
+
+from sim.dataset.atomic import write_atomically, write_bytes_atomically
+
+EXR_CHANNEL = "Y"
+KITTI_DISPARITY_SCALE = 256.0
+VKITTI_DEPTH_SCALE = 100.0
+UINT16_MAX = 65535
+
+
+def _check_image(image: np.ndarray, what: str) -> np.ndarray:
+    image = np.asarray(image)
+    if image.dtype not in (np.uint8, np.uint16) or image.ndim not in (2, 3):
+        raise ValueError(f"{what}: expected an (H, W) or (H, W, 3) uint8/uint16 array, got {image.dtype} {image.shape}")
+    if image.ndim == 3 and image.shape[2] != 3:
+        raise ValueError(f"{what}: expected 3 colour channels, got shape {image.shape}")
+    return image
+
+
+def encode_png(image: np.ndarray) -> bytes:
+    """PNG bytes of an (H, W) grey or (H, W, 3) **RGB** uint8/uint16 image (OpenCV default parameters)."""
+    image = _check_image(image, "PNG image")
+    if image.ndim == 3:
+        image = cv2.cvtColor(image, cv2.COLOR_RGB2BGR)
+    ok, buffer = cv2.imencode(".png", image)
+    if not ok:
+        raise RuntimeError(f"OpenCV could not encode a {image.dtype} {image.shape} image as PNG")
+    return buffer.tobytes()
+
+
+def write_png(path: Path, image: np.ndarray) -> None:
+    """Encode ``image`` (RGB or grey) as PNG and write it atomically."""
+    write_bytes_atomically(Path(path), encode_png(image))
+
+
+def read_png(path: Path) -> np.ndarray:
+    """Read a PNG written by :func:`write_png` back as RGB (or grey / uint16) with its stored dtype."""
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None:
+        raise ValueError(f"{path}: not a readable image")
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if image.ndim == 3 else image
+
+
+def rgb_to_grey(rgb: np.ndarray) -> np.ndarray:
+    """ITU-R BT.601 luma of an (H, W, 3) uint8 RGB image, as OpenCV computes it (uint8)."""
+    return cv2.cvtColor(_check_image(rgb, "RGB image"), cv2.COLOR_RGB2GRAY)
+
+
+def write_exr(path: Path, values: np.ndarray) -> None:
+    """Write an (H, W) array as a lossless float32 EXR, single channel ``Y``, ZIP compression, atomically."""
+    values = np.ascontiguousarray(values, dtype=np.float32)
+    if values.ndim != 2:
+        raise ValueError(f"{path}: EXR writer expects an (H, W) array, got shape {values.shape}")
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+
+    def encode(temp: Path) -> None:
+        with OpenEXR.File(header, {EXR_CHANNEL: values}) as exr:
+            exr.write(str(temp))
+
+    write_atomically(Path(path), encode)
+
+
+def read_exr(path: Path) -> np.ndarray:
+    """Read the ``Y`` channel of an EXR as a float32 (H, W) array."""
+    with OpenEXR.File(str(path)) as exr:
+        channels = exr.channels()
+        if EXR_CHANNEL not in channels:
+            raise ValueError(f"{path}: EXR has channels {sorted(channels)}, expected {EXR_CHANNEL!r}")
+        return np.asarray(channels[EXR_CHANNEL].pixels, dtype=np.float32)
+
+
+def disparity_from_depth(depth_m: np.ndarray, fx_px: float, baseline_m: float) -> np.ndarray:
+    """Disparity in pixels ``fx * B / z`` from planar depth (0 where depth is ``+inf``), float32."""
+    depth_m = np.asarray(depth_m, dtype=np.float64)
+    with np.errstate(divide="ignore"):
+        disparity = fx_px * baseline_m / depth_m
+    return disparity.astype(np.float32)
+
+
+def kitti_disparity_png(disparity_px: np.ndarray) -> np.ndarray:
+    """KITTI 16-bit disparity ``round(d * 256)``: 0 where invalid (d <= 0, not finite), valid clipped to [1, 65535]."""
+    disparity_px = np.asarray(disparity_px, dtype=np.float64)
+    valid = np.isfinite(disparity_px) & (disparity_px > 0)
+    scaled = np.clip(np.rint(np.where(valid, disparity_px, 0.0) * KITTI_DISPARITY_SCALE), 1, UINT16_MAX)
+    return np.where(valid, scaled, 0).astype(np.uint16)
+
+
+def vkitti_depth_png(depth_m: np.ndarray) -> np.ndarray:
+    """VKITTI-style 16-bit depth in centimetres, clipped to 65535 (655.35 m, also the value of a miss)."""
+    depth_m = np.asarray(depth_m, dtype=np.float64)
+    centimetres = np.where(np.isfinite(depth_m), depth_m * VKITTI_DEPTH_SCALE, UINT16_MAX)
+    return np.clip(np.rint(centimetres), 0, UINT16_MAX).astype(np.uint16)

@@ -1,0 +1,362 @@
+"""Write rendered frames into the KITTI layout, atomically and resumably; finalize the global files.
+
+Resumability. Each frame's files are written to temporary names and renamed; its record
+``frame_meta/NNNNNN.json`` is written **last**, so a frame is complete exactly when that record
+and all its files exist. A rerun skips complete frames and rewrites the others from scratch
+(removing leftover temporary files first). All encodings are deterministic, so a run killed
+at any moment and rerun ends with the same bytes as an uninterrupted run; the only values
+that differ between runs are the measured ``render_time_s`` fields of the frame records.
+
+Shards. Frames are independent files, so shards (``shard_frames(total, i, n)``) write
+disjoint frames into one folder (or into copies that are merged by copying the folders
+together). The global files that depend on all frames -- ``frames.jsonl``, ``poses/NN.txt``,
+``times.txt`` -- are written by :func:`finalize_dataset` once every frame exists; it is
+deterministic and can be run again at any time. ``dataset.json`` and ``calib.txt`` depend only
+on the rig and the run's settings and are written when the writer opens the folder.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import sys
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from importlib import metadata
+from pathlib import Path
+
+import numpy as np
+
+from flightplan.geodesy import LocalFrame
+from sim.dataset import images
+from sim.dataset.atomic import remove_stale_temps, write_text_atomically
+from sim.dataset.kitti import (
+    KittiLayout,
+    calib_text,
+    colour_camera_number,
+    frame_file_name,
+    poses_text,
+    projection_matrices,
+    stereo_baseline_m,
+    times_text,
+)
+
+DATASET_FORMAT = "aerostereo-dataset/1"
+FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png")
+DEFAULT_FORMATS = ("depth_exr", "disparity_png", "disparity_exr")
+STEREO_VIEWS = (0, 1)
+
+
+class DatasetError(ValueError):
+    """A dataset folder that cannot be written or finalized as asked (message names the file)."""
+
+
+def generator_version() -> str:
+    """The installed aerostereo version, or ``unknown`` when run from a source tree."""
+    try:
+        return metadata.version("aerostereo")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Everything that is the same for all frames of a dataset.
+
+    ``cameras``: objects with ``fx, fy, cx, cy`` (pixels) and ``width, height``; camera 0 is the
+    left camera, 1 the right. ``T_rig_cams``: 4x4 rig-from-camera transforms (OpenCV camera axes).
+    ``origin``: the scene's geodetic origin (world = ENU metres there). ``scene`` and ``sampling``
+    are free JSON-ready provenance dicts.
+    """
+
+    cameras: Sequence
+    T_rig_cams: Sequence[np.ndarray]
+    origin: LocalFrame
+    frame_count: int
+    sequence: str = "00"
+    formats: Sequence[str] = DEFAULT_FORMATS
+    scene: Mapping = field(default_factory=dict)
+    sampling: Mapping = field(default_factory=dict)
+    command_line: Sequence[str] = field(default_factory=lambda: list(sys.argv))
+
+    @classmethod
+    def from_rig(cls, rig, origin: LocalFrame, frame_count: int, **kwargs) -> "DatasetSpec":
+        """Build from a rig object with ``cameras`` and ``T_rig_cam`` lists (sim/camera.py ``Rig``)."""
+        return cls(cameras=list(rig.cameras), T_rig_cams=list(rig.T_rig_cam), origin=origin,
+                   frame_count=frame_count, **kwargs)
+
+
+@dataclass
+class FrameRecord:
+    """One rendered frame to write.
+
+    ``views[v]`` has ``rgb`` (H, W, 3) uint8 and ``depth`` (H, W) float32 planar z metres (+inf on
+    miss) for rig camera ``v``. ``T_world_cam`` is the **left** camera's camera-to-world pose (4x4,
+    ENU world, OpenCV camera axes). ``sun``: an object with ``azimuth_deg, elevation_deg,
+    intensity`` (or a dataclass with more fields), or None.
+    """
+
+    index: int
+    views: Sequence
+    T_world_cam: np.ndarray
+    time_s: float
+    seed: int
+    sun: object = None
+    render_time_s: float | None = None
+    extra: Mapping = field(default_factory=dict)
+
+
+def camera_description(camera) -> dict:
+    """JSON description of a camera's intrinsics (plus model/distortion when the object has them)."""
+    description = {key: float(getattr(camera, key)) for key in ("fx", "fy", "cx", "cy")}
+    description.update(width=int(camera.width), height=int(camera.height))
+    for optional in ("model", "dist"):
+        value = getattr(camera, optional, None)
+        if value is not None:
+            description[optional] = value if isinstance(value, str) else np.asarray(value, dtype=float).tolist()
+    return description
+
+
+def dataset_description(spec: DatasetSpec) -> dict:
+    """The content of ``dataset.json``."""
+    unknown = sorted(set(spec.formats) - set(FORMATS))
+    if unknown:
+        raise DatasetError(f"unknown output formats {unknown}; known: {list(FORMATS)}")
+    if spec.frame_count < 1:
+        raise DatasetError(f"frame_count must be >= 1, got {spec.frame_count}")
+    projections = projection_matrices(spec.cameras, spec.T_rig_cams)
+    baseline = stereo_baseline_m(spec.T_rig_cams[0], spec.T_rig_cams[1]) if _needs_disparity(spec.formats) else None
+    return {
+        "format": DATASET_FORMAT,
+        "generator": {"name": "aerostereo", "version": generator_version()},
+        "sequence": spec.sequence,
+        "frame_count": int(spec.frame_count),
+        "origin": spec.origin.to_dict(),
+        "world_frame": "ENU metres at origin; poses are T_world_cam (camera-to-world), OpenCV camera axes",
+        "depth": {"kind": "planar_z", "units": "m", "miss": "+inf"},
+        "formats": [name for name in FORMATS if name in spec.formats],
+        "baseline_m": baseline,
+        "cameras": [
+            {"rig_index": view, "kitti_camera": colour_camera_number(view), **camera_description(camera),
+             "T_rig_cam": np.asarray(T, dtype=float).tolist()}
+            for view, (camera, T) in enumerate(zip(spec.cameras, spec.T_rig_cams))
+        ],
+        "kitti_projections": {key: P.ravel().tolist() for key, P in projections.items()},
+        "scene": dict(spec.scene),
+        "sampling": dict(spec.sampling),
+        "command_line": list(spec.command_line),
+    }
+
+
+def _needs_disparity(formats: Iterable[str]) -> bool:
+    return any(name.startswith("disparity") for name in formats)
+
+
+def _dumps(record: Mapping) -> str:
+    return json.dumps(record, indent=2, allow_nan=False) + "\n"
+
+
+def _open_description(layout: KittiLayout, description: dict) -> dict:
+    """Write ``dataset.json`` if absent; otherwise check it describes the same dataset (command line aside)."""
+    if layout.dataset_json.exists():
+        existing = read_dataset_json(layout.root)
+        differing = sorted(key for key in description.keys() | existing.keys()
+                           if key != "command_line" and description.get(key) != existing.get(key))
+        if differing:
+            raise DatasetError(f"{layout.dataset_json}: the folder holds a different dataset (differs in "
+                               f"{', '.join(differing)}); use another --out or delete it")
+        return existing
+    layout.dataset_json.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomically(layout.dataset_json, _dumps(description))
+    return description
+
+
+def read_dataset_json(root: Path) -> dict:
+    """Read ``ROOT/dataset.json`` with a clear error when it is missing or not ours."""
+    path = Path(root) / "dataset.json"
+    try:
+        description = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: not found; is {root} a dataset folder?") from None
+    except json.JSONDecodeError as error:
+        raise DatasetError(f"{path}: invalid JSON at line {error.lineno}: {error.msg}") from None
+    if description.get("format") != DATASET_FORMAT:
+        raise DatasetError(f"{path}: format is {description.get('format')!r}, expected {DATASET_FORMAT!r}")
+    return description
+
+
+def view_files(layout: KittiLayout, formats: Sequence[str], view: int, index: int) -> dict[Path, str]:
+    """Files of rig camera ``view`` in frame ``index``, mapped to the kind of content they hold."""
+    files = {layout.colour_dir(view) / frame_file_name(index, ".png"): "rgb"}
+    if view in STEREO_VIEWS:
+        files[layout.grey_dir(view) / frame_file_name(index, ".png")] = "grey"
+    if "depth_exr" in formats:
+        files[layout.depth_dir(view) / frame_file_name(index, ".exr")] = "depth_exr"
+    if "depth_cm_png" in formats:
+        files[layout.depth_cm_dir(view) / frame_file_name(index, ".png")] = "depth_cm_png"
+    if view in STEREO_VIEWS and "disparity_png" in formats:
+        files[layout.disparity_dir(view) / frame_file_name(index, ".png")] = "disparity_png"
+    if view in STEREO_VIEWS and "disparity_exr" in formats:
+        files[layout.disparity_dir(view) / frame_file_name(index, ".exr")] = "disparity_exr"
+    return files
+
+
+class KittiDatasetWriter:
+    """Writes frames of one sequence; opening an existing folder resumes it (same settings required)."""
+
+    def __init__(self, out_dir: Path, spec: DatasetSpec):
+        self.spec = spec
+        self.layout = KittiLayout(Path(out_dir), spec.sequence)
+        try:
+            self.description = _open_description(self.layout, dataset_description(spec))
+            self.layout.sequence_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise DatasetError(f"{out_dir}: cannot write the dataset there ({error.strerror})") from None
+        write_text_atomically(self.layout.calib_txt, calib_text(self.description["kitti_projections"]))
+        self.baseline_m = self.description["baseline_m"]
+        for directory in self._directories():
+            directory.mkdir(parents=True, exist_ok=True)
+
+    def _files(self, view: int, index: int) -> dict[Path, str]:
+        return view_files(self.layout, self.spec.formats, view, index)
+
+    def _directories(self) -> set[Path]:
+        files = [path for view in range(len(self.spec.cameras)) for path in self._files(view, 0)]
+        return {path.parent for path in files} | {self.layout.frame_meta_dir}
+
+    def frame_files(self, index: int) -> list[Path]:
+        """Every file of frame ``index``, its record (written last) at the end."""
+        files = [path for view in range(len(self.spec.cameras)) for path in self._files(view, index)]
+        return files + [self.layout.frame_meta(index)]
+
+    def is_complete(self, index: int) -> bool:
+        """True when the frame's record and all its files exist."""
+        return all(path.exists() for path in self.frame_files(index))
+
+    def pending(self, indices: Iterable[int]) -> list[int]:
+        """The frames of ``indices`` that still have to be written (resume)."""
+        return [index for index in indices if not self.is_complete(index)]
+
+    def write_frame(self, record: FrameRecord) -> None:
+        """Encode and write all files of one frame, then its record. Safe to call again after a crash."""
+        self._check_record(record)
+        self.layout.frame_meta(record.index).unlink(missing_ok=True)
+        for view, data in enumerate(record.views):
+            encoded = self._encodings(view, data)
+            for path, kind in self._files(view, record.index).items():
+                remove_stale_temps(path)
+                encoded[kind](path)
+        meta = self.layout.frame_meta(record.index)
+        remove_stale_temps(meta)
+        write_text_atomically(meta, json.dumps(self.frame_line(record), allow_nan=False) + "\n")
+
+    def _encodings(self, view: int, data) -> dict:
+        """Writers of each file kind for one view (lazy, so unused kinds cost nothing)."""
+        camera = self.spec.cameras[view]
+
+        @functools.cache
+        def disparity() -> np.ndarray:
+            return images.disparity_from_depth(data.depth, camera.fx, self.baseline_m)
+
+        return {
+            "rgb": lambda path: images.write_png(path, data.rgb),
+            "grey": lambda path: images.write_png(path, images.rgb_to_grey(data.rgb)),
+            "depth_exr": lambda path: images.write_exr(path, data.depth),
+            "depth_cm_png": lambda path: images.write_png(path, images.vkitti_depth_png(data.depth)),
+            "disparity_png": lambda path: images.write_png(path, images.kitti_disparity_png(disparity())),
+            "disparity_exr": lambda path: images.write_exr(path, disparity()),
+        }
+
+    def _check_record(self, record: FrameRecord) -> None:
+        if not 0 <= record.index < self.spec.frame_count:
+            raise DatasetError(f"frame index {record.index} outside 0..{self.spec.frame_count - 1}")
+        if len(record.views) != len(self.spec.cameras):
+            raise DatasetError(f"frame {record.index}: {len(record.views)} views for a "
+                               f"{len(self.spec.cameras)}-camera rig")
+        for view, (data, camera) in enumerate(zip(record.views, self.spec.cameras)):
+            size = (int(camera.height), int(camera.width))
+            rgb, depth = np.asarray(data.rgb), np.asarray(data.depth)
+            if rgb.shape != (*size, 3) or rgb.dtype != np.uint8:
+                raise DatasetError(f"frame {record.index} view {view}: rgb must be uint8 {(*size, 3)}, "
+                                   f"got {rgb.dtype} {rgb.shape}")
+            if depth.shape != size or not np.issubdtype(depth.dtype, np.floating):
+                raise DatasetError(f"frame {record.index} view {view}: depth must be float {size}, "
+                                   f"got {depth.dtype} {depth.shape}")
+
+    def frame_line(self, record: FrameRecord) -> dict:
+        """The frame's record (a line of ``frames.jsonl``): pose in ENU and geodetic, sun, seed, timing."""
+        T = np.asarray(record.T_world_cam, dtype=np.float64)
+        east, north, up = T[:3, 3]
+        lat, lon, height = self.spec.origin.to_geodetic(east, north, up)
+        return {
+            "frame": int(record.index),
+            "time_s": float(record.time_s),
+            "seed": int(record.seed),
+            "T_world_cam": T.tolist(),
+            "position_enu_m": [float(east), float(north), float(up)],
+            "geodetic": {"lat_deg": float(lat), "lon_deg": float(lon), "h_ellipsoid_m": float(height)},
+            "sun": _sun_description(record.sun),
+            "render_time_s": None if record.render_time_s is None else float(record.render_time_s),
+            **dict(record.extra),
+        }
+
+
+def _sun_description(sun) -> dict | None:
+    if sun is None:
+        return None
+    if dataclasses.is_dataclass(sun):
+        return dataclasses.asdict(sun)
+    return {key: float(getattr(sun, key)) for key in ("azimuth_deg", "elevation_deg", "intensity")}
+
+
+def shard_frames(frame_count: int, shard_index: int, shard_count: int) -> range:
+    """Frames of shard ``shard_index`` of ``shard_count`` (interleaved: i, i+n, i+2n...)."""
+    if shard_count < 1 or not 0 <= shard_index < shard_count:
+        raise ValueError(f"shard must be I/N with 0 <= I < N, got {shard_index}/{shard_count}")
+    return range(shard_index, frame_count, shard_count)
+
+
+def parse_shard(text: str) -> tuple[int, int]:
+    """``"1/4"`` -> ``(1, 4)`` with a clear error for anything else."""
+    try:
+        index, count = (int(part) for part in text.split("/"))
+        shard_frames(0, index, count)
+    except ValueError:
+        raise ValueError(f"--shard must look like I/N with 0 <= I < N (e.g. 0/4), got {text!r}") from None
+    return index, count
+
+
+def _read_frame_lines(layout: KittiLayout, frame_count: int) -> list[str]:
+    missing = [index for index in range(frame_count) if not layout.frame_meta(index).exists()]
+    if missing:
+        shown = ", ".join(str(index) for index in missing[:10])
+        raise DatasetError(f"{layout.sequence_dir}: {len(missing)} of {frame_count} frames are incomplete "
+                           f"(first: {shown}); rerun the render (it resumes) before finalizing")
+    return [layout.frame_meta(index).read_text(encoding="utf-8") for index in range(frame_count)]
+
+
+def finalize_dataset(out_dir: Path) -> int:
+    """(Re)write ``frames.jsonl``, ``poses/NN.txt``, ``times.txt`` and ``calib.txt`` from the frame records.
+
+    Deterministic: the same frames give the same bytes, whoever wrote them (any shard, any
+    run). Raises :class:`DatasetError` naming the incomplete frames if any is missing.
+    Returns the number of frames.
+    """
+    description = read_dataset_json(Path(out_dir))
+    layout = KittiLayout(Path(out_dir), description["sequence"])
+    frame_count = int(description["frame_count"])
+    lines = _read_frame_lines(layout, frame_count)
+    cameras = range(len(description["cameras"]))
+    for index in range(frame_count):
+        for path in (p for view in cameras for p in view_files(layout, description["formats"], view, index)):
+            if not path.exists():
+                raise DatasetError(f"{path}: missing although frame {index} has its record; rerun the render")
+    records = [json.loads(line) for line in lines]
+    layout.poses_txt.parent.mkdir(parents=True, exist_ok=True)
+    write_text_atomically(layout.calib_txt, calib_text(description["kitti_projections"]))
+    write_text_atomically(layout.times_txt, times_text([record["time_s"] for record in records]))
+    write_text_atomically(layout.poses_txt, poses_text([np.array(record["T_world_cam"]) for record in records]))
+    write_text_atomically(layout.frames_jsonl, "".join(lines))
+    return frame_count
+

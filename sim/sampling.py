@@ -1,0 +1,383 @@
+"""Camera poses and sunlight for datasets, each reproducible from ``(seed, frame index)`` alone.
+
+Every random draw for frame ``i`` comes from ``numpy.random.default_rng([seed, i, stream])``
+(one stream for the pose, one for the sun), so a frame's pose and sun do not depend on which
+worker or shard renders it, nor in which order. Trajectories draw their shape from
+``default_rng([seed, PATH_STREAM])`` and are then sampled at ``t = index / frame_rate``.
+
+Poses are ``T_world_cam`` (4x4, camera-to-world) of the left camera in the scene's ENU frame,
+OpenCV camera axes. Attitude convention (:func:`camera_rotation`): at heading 0 and no tilt the
+camera looks straight down (nadir) with the top of the image towards north; ``heading_deg``
+turns it clockwise seen from above (compass heading of the image top); ``tilt_x_deg`` then
+rotates about the camera x axis (positive tilts the view forward, towards the image top) and
+``tilt_y_deg`` about the camera y axis (positive tilts the view towards the image right).
+
+The scene is seen through :class:`GroundModel`: ``ground_height(x, y)`` (vectorised, ENU metres)
+and ``valid_area`` ``(xmin, xmax, ymin, ymax)`` where the scene has real content.
+"""
+
+from __future__ import annotations
+
+import csv
+import functools
+import json
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.spatial.transform import Rotation
+
+from flightplan.geodesy import LocalFrame, geodesic_inverse
+
+POSE_STREAM, SUN_STREAM, PATH_STREAM = 0, 1, 2
+#: The nadir camera at heading 0: x east, y south (image top = north), z down.
+R_WORLD_NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
+PATH_STEP_M = 0.25
+
+
+class GroundModel(Protocol):
+    """What the samplers need of a scene."""
+
+    valid_area: tuple[float, float, float, float]
+
+    def ground_height(self, x, y):
+        """ENU z (metres) of the ground below ENU (x, y); vectorised over arrays."""
+
+
+def frame_rng(seed: int, index: int, stream: int) -> np.random.Generator:
+    """The generator of one frame and one stream: depends on ``(seed, index, stream)`` only."""
+    return np.random.default_rng([seed, index, stream])
+
+
+def camera_rotation(heading_deg: float, tilt_x_deg: float = 0.0, tilt_y_deg: float = 0.0) -> np.ndarray:
+    """``R_world_cam`` (ENU <- OpenCV camera) from heading and tilts, degrees (see the module docstring)."""
+    turn = Rotation.from_euler("z", -heading_deg, degrees=True).as_matrix()
+    tilt = Rotation.from_euler("xy", [tilt_x_deg, tilt_y_deg], degrees=True).as_matrix()
+    return turn @ R_WORLD_NADIR @ tilt
+
+
+def pose_matrix(R_world_cam: np.ndarray, position_enu_m) -> np.ndarray:
+    """4x4 ``T_world_cam`` from a rotation and a camera position."""
+    T = np.eye(4)
+    T[:3, :3] = R_world_cam
+    T[:3, 3] = position_enu_m
+    return T
+
+
+@dataclass(frozen=True)
+class PoseSample:
+    """A sampled left-camera pose with what a dataset records about it."""
+
+    index: int
+    T_world_cam: np.ndarray
+    time_s: float
+    height_above_ground_m: float
+    rejected: int = 0
+    details: Mapping = field(default_factory=dict)
+
+    def record(self) -> dict:
+        """JSON-ready entry for the frame record (``FrameRecord.extra``)."""
+        return {"sampler": {"height_above_ground_m": float(self.height_above_ground_m),
+                            "rejected": int(self.rejected), **self.details}}
+
+
+def _height_above_ground(ground: GroundModel, position) -> float:
+    return float(position[2] - np.asarray(ground.ground_height(position[0], position[1])))
+
+
+def _inner_area(ground: GroundModel, margin_m: float) -> tuple[float, float, float, float]:
+    xmin, xmax, ymin, ymax = ground.valid_area
+    inner = (xmin + margin_m, xmax - margin_m, ymin + margin_m, ymax - margin_m)
+    if inner[0] >= inner[1] or inner[2] >= inner[3]:
+        raise ValueError(f"a margin of {margin_m} m leaves nothing of the valid area {ground.valid_area}")
+    return inner
+
+
+# --- random: the paper's protocol -------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RandomPoseSettings:
+    """Ranges of the paper's random protocol (heights above the ground below; tilts from nadir)."""
+
+    height_range_m: tuple[float, float] = (20.0, 100.0)
+    tilt_range_deg: tuple[float, float] = (-45.0, 45.0)
+    heading_range_deg: tuple[float, float] = (0.0, 360.0)
+    margin_m: float = 20.0
+    max_miss_fraction: float = 0.02
+    max_attempts: int = 200
+    frame_rate_hz: float = 10.0
+
+
+def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPoseSettings = RandomPoseSettings(),
+                miss_fraction: Callable[[np.ndarray], float] | None = None) -> PoseSample:
+    """Draw a pose as the paper does; redraw while ``miss_fraction(T_world_cam)`` exceeds the setting.
+
+    ``miss_fraction`` is a probe (e.g. a low-resolution ray cast) giving the fraction of a
+    view's pixels that hit nothing; the number of redraws is recorded as ``rejected``.
+    """
+    rng = frame_rng(seed, index, POSE_STREAM)
+    xmin, xmax, ymin, ymax = _inner_area(ground, settings.margin_m)
+    for attempt in range(settings.max_attempts):
+        x, y = rng.uniform(xmin, xmax), rng.uniform(ymin, ymax)
+        height = rng.uniform(*settings.height_range_m)
+        tilt_x, tilt_y = (float(tilt) for tilt in rng.uniform(*settings.tilt_range_deg, size=2))
+        heading = rng.uniform(*settings.heading_range_deg)
+        position = (x, y, float(np.asarray(ground.ground_height(x, y))) + height)
+        T = pose_matrix(camera_rotation(heading, tilt_x, tilt_y), position)
+        if miss_fraction is None or miss_fraction(T) <= settings.max_miss_fraction:
+            details = {"mode": "random", "heading_deg": heading, "tilt_x_deg": tilt_x, "tilt_y_deg": tilt_y}
+            return PoseSample(index, T, index / settings.frame_rate_hz, height, attempt, details)
+    raise RuntimeError(f"frame {index} (seed {seed}): no pose with at most {settings.max_miss_fraction:.0%} sky/miss "
+                       f"pixels in {settings.max_attempts} draws; raise the margin or the allowed miss fraction")
+
+
+# --- sun ---------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class SunSample:
+    """Sunlight for one frame.
+
+    ``azimuth_deg`` clockwise from north, ``elevation_deg`` above the horizon (the direction
+    *towards* the sun); ``intensity`` is the sun's strength in the paper's (Blender sun
+    "Strength", irradiance) units. ``sweep_angle_deg`` is the paper's angle: the sun's angle
+    from the horizon measured within a vertical plane, 90 = zenith, over 90 = past the zenith
+    (the sun then stands on the opposite azimuth).
+    """
+
+    azimuth_deg: float
+    elevation_deg: float
+    intensity: float
+    sweep_angle_deg: float
+
+
+def random_sun(seed: int, index: int, sweep_range_deg=(30.0, 150.0), intensity_range=(5.0, 10.0)) -> SunSample:
+    """The paper's sun: a sweep angle in [30, 150] deg in a random vertical plane, intensity in [5, 10].
+
+    Physically: the sun stands at least 30 deg above the horizon (elevation uniform in
+    [30, 90] deg), from any azimuth, with a brightness varying by a factor of two.
+    """
+    rng = frame_rng(seed, index, SUN_STREAM)
+    sweep = rng.uniform(*sweep_range_deg)
+    plane_azimuth = rng.uniform(0.0, 180.0)
+    intensity = rng.uniform(*intensity_range)
+    azimuth = plane_azimuth if sweep <= 90.0 else (plane_azimuth + 180.0) % 360.0
+    return SunSample(azimuth, 90.0 - abs(sweep - 90.0), intensity, sweep)
+
+
+# --- trajectories -------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class Trajectory:
+    """A flight path flown at constant speed; frame ``i`` is taken at ``t = i / frame_rate_hz``.
+
+    ``points``: a dense (M, 3) ENU polyline; ``closed``: the path loops (frames beyond one lap go
+    round again); the camera heading follows the path, or points at ``look_at_xy`` if given;
+    ``tilt_deg`` tilts it forward from nadir.
+    """
+
+    points: np.ndarray
+    closed: bool
+    speed_m_s: float
+    frame_rate_hz: float
+    tilt_deg: float
+    look_at_xy: tuple[float, float] | None = None
+    mode: str = "trajectory"
+
+    @functools.cached_property
+    def _arc(self) -> tuple[np.ndarray, np.ndarray]:
+        """The polyline (closed loops repeat their first point) and the arc length at each vertex."""
+        path = np.vstack([self.points, self.points[:1]]) if self.closed else self.points
+        return path, np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(path, axis=0), axis=1))])
+
+    @property
+    def length_m(self) -> float:
+        return float(self._arc[1][-1])
+
+    def frames_available(self) -> int | None:
+        """How many frames fit on an open path (None for a loop)."""
+        if self.closed:
+            return None
+        return int(math.floor(self.length_m / self.speed_m_s * self.frame_rate_hz + 1e-9)) + 1
+
+    def _position(self, s: np.ndarray) -> np.ndarray:
+        path, arc = self._arc
+        s = np.mod(s, arc[-1]) if self.closed else np.clip(s, 0.0, arc[-1])
+        return np.stack([np.interp(s, arc, path[:, axis]) for axis in range(3)], axis=-1)
+
+    def pose(self, ground: GroundModel, index: int) -> PoseSample:
+        """The pose at frame ``index``."""
+        available = self.frames_available()
+        if available is not None and index >= available:
+            raise ValueError(f"the {self.mode} path is {self.length_m:.0f} m long: {available} frames at "
+                             f"{self.speed_m_s} m/s and {self.frame_rate_hz} Hz, frame {index} is beyond it")
+        time_s = index / self.frame_rate_hz
+        s = self.speed_m_s * time_s
+        position = self._position(np.array(s))
+        if self.look_at_xy is not None:
+            east, north = np.subtract(self.look_at_xy, position[:2])
+        else:
+            east, north = (self._position(np.array(s + PATH_STEP_M)) - self._position(np.array(s - PATH_STEP_M)))[:2]
+        heading = math.degrees(math.atan2(east, north)) % 360.0
+        T = pose_matrix(camera_rotation(heading, self.tilt_deg), position)
+        details = {"mode": self.mode, "heading_deg": heading, "tilt_x_deg": self.tilt_deg, "tilt_y_deg": 0.0}
+        return PoseSample(index, T, time_s, _height_above_ground(ground, position), 0, details)
+
+
+def _terrain_following(ground: GroundModel, xy: np.ndarray, height_m: float) -> np.ndarray:
+    z = np.asarray(ground.ground_height(xy[:, 0], xy[:, 1]), dtype=float) + height_m
+    return np.column_stack([xy, z])
+
+
+def orbit(ground: GroundModel, center_xy, radius_m: float, height_m: float, speed_m_s: float,
+          frame_rate_hz: float, tilt_deg: float | None = None, clockwise: bool = False) -> Trajectory:
+    """A circle at constant altitude (``height_m`` above the ground at the centre), camera facing the centre.
+
+    ``tilt_deg`` None aims the optical axis at the ground below the centre.
+    """
+    steps = max(64, int(math.ceil(2 * math.pi * radius_m / PATH_STEP_M)))
+    angles = np.linspace(0.0, 2 * math.pi, steps, endpoint=False) * (-1 if clockwise else 1)
+    altitude = float(np.asarray(ground.ground_height(*center_xy))) + height_m
+    points = np.column_stack([center_xy[0] + radius_m * np.cos(angles), center_xy[1] + radius_m * np.sin(angles),
+                              np.full(steps, altitude)])
+    tilt = math.degrees(math.atan2(radius_m, height_m)) if tilt_deg is None else tilt_deg
+    return Trajectory(points, True, speed_m_s, frame_rate_hz, tilt, tuple(center_xy), "orbit")
+
+
+def lawnmower(ground: GroundModel, spacing_m: float, height_m: float, speed_m_s: float, frame_rate_hz: float,
+              margin_m: float = 20.0, tilt_deg: float = 0.0) -> Trajectory:
+    """East-west rows ``spacing_m`` apart over the valid area, joined by half-circle turns; terrain following."""
+    xmin, xmax, ymin, ymax = _inner_area(ground, margin_m)
+    radius = spacing_m / 2
+    rows = np.arange(ymin, ymax + 1e-9, spacing_m)
+    if len(rows) < 2 or xmax - xmin <= spacing_m:
+        raise ValueError(f"the valid area {ground.valid_area} with margin {margin_m} m is too small for "
+                         f"{spacing_m} m row spacing")
+    west, east = xmin + radius, xmax - radius
+    row_x = np.arange(west, east, PATH_STEP_M)
+    turn = np.linspace(-math.pi / 2, math.pi / 2, max(8, int(math.pi * radius / PATH_STEP_M)))
+    pieces = []
+    for row, y in enumerate(rows):
+        eastbound = row % 2 == 0
+        pieces.append(np.column_stack([row_x if eastbound else row_x[::-1], np.full(row_x.size, y)]))
+        if row + 1 < len(rows):
+            side = 1.0 if eastbound else -1.0
+            end_x = east if eastbound else west
+            pieces.append(np.column_stack([end_x + side * radius * np.cos(turn), y + radius + radius * np.sin(turn)]))
+    return Trajectory(_terrain_following(ground, np.vstack(pieces), height_m), False, speed_m_s, frame_rate_hz,
+                      tilt_deg, None, "lawnmower")
+
+
+def random_loop(ground: GroundModel, seed: int, height_m: float, speed_m_s: float, frame_rate_hz: float,
+                control_points: int = 8, margin_m: float = 20.0, tilt_deg: float = 20.0) -> Trajectory:
+    """A smooth random closed loop (periodic cubic spline through random points around the area's centre)."""
+    rng = np.random.default_rng([seed, PATH_STREAM])
+    xmin, xmax, ymin, ymax = _inner_area(ground, margin_m)
+    centre, half = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2]), np.array([(xmax - xmin) / 2, (ymax - ymin) / 2])
+    # One point per sector, not too close to the centre: a star-shaped loop without tight kinks.
+    angles = (np.arange(control_points) + rng.uniform(0.2, 0.8, control_points)) * 2 * math.pi / control_points
+    radii = rng.uniform(0.55, 1.0, control_points)
+    knots = np.column_stack([np.cos(angles), np.sin(angles)]) * radii[:, None]
+    spline = CubicSpline(np.arange(control_points + 1), np.vstack([knots, knots[:1]]), bc_type="periodic")
+    unit_loop = spline(np.linspace(0.0, control_points, 400 * control_points, endpoint=False))
+    unit_loop /= np.abs(unit_loop).max()  # keep the overshooting spline inside the area
+    xy = centre + unit_loop * half
+    return Trajectory(_terrain_following(ground, xy, height_m), True, speed_m_s, frame_rate_hz, tilt_deg,
+                      None, "random_loop")
+
+
+# --- replay -------------------------------------------------------------------------------------
+
+GEOTAG_COLUMNS = ("image_name", "utc_time", "east_m", "north_m", "up_m", "qw", "qx", "qy", "qz")
+FRAME_PROBE_M = 1000.0
+
+
+def _rigid_transform_between(source: LocalFrame, target: LocalFrame) -> np.ndarray:
+    """4x4 map from ``source`` ENU metres to ``target`` ENU metres (both tangent frames on WGS84)."""
+    probes = np.vstack([np.zeros(3), np.eye(3) * FRAME_PROBE_M])
+    mapped = np.column_stack(target.to_enu(*source.to_geodetic(probes[:, 0], probes[:, 1], probes[:, 2])))
+    u, _, vt = np.linalg.svd((mapped[1:] - mapped[0]).T / FRAME_PROBE_M)
+    return pose_matrix(u @ vt, mapped[0])
+
+
+def _read_geotag_rows(path: Path) -> list[tuple[int, dict]]:
+    try:
+        with path.open(newline="", encoding="utf-8") as handle:
+            reader = csv.DictReader(handle)
+            missing = [column for column in GEOTAG_COLUMNS if column not in (reader.fieldnames or [])]
+            if missing:
+                raise ValueError(f"{path}: header lacks the columns {', '.join(missing)}")
+            rows = [(reader.line_num, row) for row in reader]
+    except FileNotFoundError:
+        raise ValueError(f"{path}: geotags file not found") from None
+    if not rows:
+        raise ValueError(f"{path}: no photos (only a header)")
+    return rows
+
+
+def _parse_geotag(path: Path, line: int, row: dict) -> tuple[str, datetime, np.ndarray]:
+    """(image name, UTC time, 4x4 T_world_cam in the geotags' ENU frame) of one CSV row."""
+    values = {}
+    for column in GEOTAG_COLUMNS[2:]:
+        try:
+            values[column] = float(row[column])
+        except (TypeError, ValueError):
+            raise ValueError(f"{path} line {line}: column {column}: expected a number, got {row[column]!r}") from None
+    try:
+        time = datetime.fromisoformat(row["utc_time"])
+    except (TypeError, ValueError):
+        raise ValueError(f"{path} line {line}: utc_time {row['utc_time']!r} is not ISO 8601") from None
+    if time.tzinfo is None:
+        raise ValueError(f"{path} line {line}: utc_time {row['utc_time']!r} has no zone (expected a trailing Z)")
+    quaternion = np.array([values["qx"], values["qy"], values["qz"], values["qw"]])
+    if not abs(np.linalg.norm(quaternion) - 1.0) < 1e-3:
+        raise ValueError(f"{path} line {line}: quaternion (qw, qx, qy, qz) has norm {np.linalg.norm(quaternion):.6f}, "
+                         "expected a unit quaternion")
+    position = (values["east_m"], values["north_m"], values["up_m"])
+    return row["image_name"], time, pose_matrix(Rotation.from_quat(quaternion).as_matrix(), position)
+
+
+def _read_origin(sidecar: Path) -> LocalFrame:
+    try:
+        return LocalFrame.from_dict(json.loads(sidecar.read_text(encoding="utf-8"))["origin"])
+    except FileNotFoundError:
+        raise ValueError(f"{sidecar}: geotags sidecar not found (it holds the origin of east_m/north_m/up_m)") from None
+    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
+        raise ValueError(f"{sidecar}: no valid 'origin' (lat0_deg, lon0_deg, h0_ellipsoid_m): {error}") from None
+
+
+def replay_poses(geotags_csv: Path, scene_origin: LocalFrame, ground: GroundModel,
+                 max_outside_m: float = 100.0) -> list[PoseSample]:
+    """The camera poses of a ``geotags.csv`` in the scene's ENU frame, in time order (frame 0 first).
+
+    Positions and rotations are moved from the geotags' origin (sidecar ``geotags.json``) to
+    the scene origin. A photo more than ``max_outside_m`` outside the scene's valid area means
+    the geotags come from another place: that is an error naming the photo and the distance
+    between the two origins. ``time_s`` counts from the first photo.
+    """
+    path = Path(geotags_csv)
+    source = _read_origin(path.with_suffix(".json"))
+    to_scene = _rigid_transform_between(source, scene_origin)
+    photos = sorted((_parse_geotag(path, line, row) for line, row in _read_geotag_rows(path)), key=lambda p: p[1])
+    xmin, xmax, ymin, ymax = ground.valid_area
+    samples = []
+    for index, (name, time, T_source_cam) in enumerate(photos):
+        T = to_scene @ T_source_cam
+        east, north = T[:2, 3]
+        outside = max(xmin - east, east - xmax, ymin - north, north - ymax, 0.0)
+        if outside > max_outside_m:
+            apart_km = geodesic_inverse(source.lat0_deg, source.lon0_deg, scene_origin.lat0_deg,
+                                        scene_origin.lon0_deg).distance_m / 1000
+            raise ValueError(f"{path}: photo {name} lies {outside:.0f} m outside the scene's valid area; the geotags' "
+                             f"origin is {apart_km:.3f} km from the scene origin -- geotags from another area?")
+        details = {"mode": "replay", "image_name": name, "utc_time": time.isoformat()}
+        samples.append(PoseSample(index, T, (time - photos[0][1]).total_seconds(),
+                                  _height_above_ground(ground, T[:3, 3]), 0, details))
+    return samples
