@@ -37,9 +37,10 @@ def r_world_cam_from_gimbal(gimbal_ypr_deg: np.ndarray) -> np.ndarray:
     return _ENU_FROM_NED @ r_ned_body @ _BODY_FROM_CV
 
 
-def photo_name(index: int) -> str:
-    """DJI-style file name of the photo with 0-based ``index``: DJI_0001.JPG, ..."""
-    return f"DJI_{index + 1:04d}.JPG"
+def photo_names(taken: np.ndarray) -> list[str]:
+    """DJI-style file names, numbered over the photos actually saved (DJI_0001.JPG, ...); "" for dropped ones."""
+    numbers = np.cumsum(taken)
+    return [f"DJI_{n:04d}.JPG" if kept else "" for n, kept in zip(numbers, taken)]
 
 
 @dataclass(frozen=True)
@@ -70,7 +71,8 @@ class Photos:
 
     @property
     def names(self) -> list[str]:
-        return [photo_name(i) for i in range(len(self.t_s))]
+        """File name of each scheduled photo ("" where the camera dropped it)."""
+        return photo_names(self.taken)
 
     def T_world_cam(self) -> np.ndarray:
         """Camera-to-world poses (N,4,4) in the flight's ENU frame."""

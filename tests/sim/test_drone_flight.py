@@ -225,6 +225,9 @@ def test_dropouts_remove_records_and_dropped_photos_send_no_shutter():
         assert not ((t[:, None] >= windows[:, 0]) & (t[:, None] < windows[:, 1])).any()
     taken = result.photos.taken
     assert taken.mean() == pytest.approx(0.8, abs=0.06)
+    names = result.photos.names
+    assert [n for n in names if n] == [f"DJI_{k:04d}.JPG" for k in range(1, taken.sum() + 1)]  # no gaps
+    assert all(name == "" for name, kept in zip(names, taken) if not kept)
     assert {r.photo_index for r in result.telemetry.shutter} <= set(np.flatnonzero(taken))
 
 
