@@ -14,7 +14,7 @@ import pytest
 
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import geodesic_direct
-from sim.drone import Flight, FlightConfig, HomePoint, Imperfections, Waypoint, fly, r_world_cam_from_gimbal
+from sim.drone import Flight, HomePoint, Imperfections, Waypoint, fly, r_world_cam_from_gimbal
 from sim.drone.flight import PHASES, tilt_from_forces
 from sim.drone.imperfections import damage_bytes, first_order_lag, gauss_markov
 
