@@ -219,7 +219,8 @@ class Flight:
         offset, offset_rate, offset_accel = self.deviation.at(t)
         velocity_nominal = speed[:, None] * tangent
         position = nominal + weight[:, None] * offset
-        velocity = velocity_nominal + weight[:, None] * offset_rate + (weight_rate * velocity_nominal[:, 2])[:, None] * offset
+        taper_rate = weight_rate * velocity_nominal[:, 2]
+        velocity = velocity_nominal + weight[:, None] * offset_rate + taper_rate[:, None] * offset
         accel = accel_along[:, None] * tangent + (speed**2)[:, None] * curvature + weight[:, None] * offset_accel
         heading, gimbal_pitch = self._commanded(s)
         airspeed = velocity - self.imperfections.wind_velocity_enu() * (nominal[:, 2] > 0)[:, None]

@@ -56,7 +56,7 @@ class Waypoint:
         if self.curvesize_m < 0:
             raise ValueError(f"waypoint curvesize_m must be >= 0, got {self.curvesize_m}")
         if not 0 <= self.speed_mps <= 15:
-            raise ValueError(f"waypoint speed_mps must be within [0, 15] m/s (0 = cruising speed), got {self.speed_mps}")
+            raise ValueError(f"waypoint speed_mps must be within [0, 15] m/s (0 = cruising), got {self.speed_mps}")
         if self.gimbalmode not in (GIMBAL_DISABLED, GIMBAL_FOCUS_POI, GIMBAL_INTERPOLATE):
             raise ValueError(f"waypoint gimbalmode must be 0, 1 or 2, got {self.gimbalmode}")
 

@@ -127,11 +127,12 @@ def test_takeoff_and_landing_at_home(imperfections):
     ends = flight.state_at([0.0, flight.config.ground_time_s, flight.duration_s])
     assert np.abs(ends.position_enu_m).max() < 1e-9
     assert list(ends.phase) == [0, 0, 0]
-    climb = flight.state_at(flight.config.ground_time_s + np.linspace(1.0, 13.0, 7))  # climb takes 15 s + ramps
+    climb = flight.state_at(flight.config.ground_time_s + np.linspace(2.0, 12.0, 6))  # 30 m at 2 m/s + ramps
     assert np.all(climb.phase == PHASES.index("takeoff"))
-    assert np.abs(climb.velocity_enu_mps[:, 2][2:-2] - flight.config.climb_rate_mps).max() < 0.05
-    if imperfections == Imperfections.none():
-        assert np.abs(climb.position_enu_m[:, :2]).max() < 1e-9
+    perfect = imperfections == Imperfections.none()
+    tolerance = 1e-9 if perfect else 0.2  # gusts move the aircraft once it is off the ground
+    assert np.abs(climb.velocity_enu_mps[:, 2] - flight.config.climb_rate_mps).max() < tolerance
+    assert np.abs(climb.position_enu_m[:, :2]).max() < (1e-9 if perfect else 2.0)
 
 
 def test_same_seed_same_flight_other_seed_other_noise():
