@@ -1,0 +1,162 @@
+"""The photos of a flight: when each was taken, the true camera pose, and what the aircraft measured then.
+
+Ground truth is written beside the outputs as ``truth.json`` (everything) and ``truth.csv`` (one row per
+photo), both atomically.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from sim.drone.flight import Flight
+from sim.drone.sensors import Sensors
+
+#: ENU world <- NED (swap east/north, flip down).
+_ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
+#: Gimbal body (x forward, y right, z down) <- OpenCV camera (x right, y down, z forward).
+_BODY_FROM_CV = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+
+
+def r_world_cam_from_gimbal(gimbal_ypr_deg: np.ndarray) -> np.ndarray:
+    """``R_world_cam`` (N,3,3): ENU world <- OpenCV camera, from DJI gimbal yaw/pitch/roll (degrees).
+
+    DJI convention (INTERFACES.md): NED, intrinsic ZYX (yaw about down, then pitch, then roll); yaw from
+    north clockwise; pitch 0 = horizon, -90 = nadir. Kept isolated: capture/attitude.py is its final home.
+    """
+    ypr = np.atleast_2d(np.asarray(gimbal_ypr_deg, float))
+    r_ned_body = Rotation.from_euler("ZYX", ypr, degrees=True).as_matrix()
+    return _ENU_FROM_NED @ r_ned_body @ _BODY_FROM_CV
+
+
+def photo_names(taken: np.ndarray) -> list[str]:
+    """DJI-style file names, numbered over the photos actually saved (DJI_0001.JPG, ...); "" for dropped ones."""
+    numbers = np.cumsum(taken)
+    return [f"DJI_{n:04d}.JPG" if kept else "" for n, kept in zip(numbers, taken)]
+
+
+@dataclass(frozen=True)
+class Photos:
+    """The scheduled photos (N of them), true and measured, in time order.
+
+    ``t_s``: exposure on the telemetry clock; ``camera_time_s``: the same instant on the camera clock
+    (``t_s + clock_offset_s``). ``taken`` is False for photos the camera dropped. ``R_world_cam``: (N,3,3).
+    ``measured_*``: what the aircraft knew at the exposure (what a DJI camera writes into EXIF/XMP).
+    """
+
+    t_s: np.ndarray
+    camera_time_s: np.ndarray
+    clock_offset_s: float
+    taken: np.ndarray
+    position_enu_m: np.ndarray
+    latitude_deg: np.ndarray
+    longitude_deg: np.ndarray
+    height_ellipsoid_m: np.ndarray
+    aircraft_ypr_deg: np.ndarray
+    gimbal_ypr_deg: np.ndarray
+    R_world_cam: np.ndarray
+    measured_latitude_deg: np.ndarray
+    measured_longitude_deg: np.ndarray
+    measured_height_above_takeoff_m: np.ndarray
+    measured_aircraft_ypr_deg: np.ndarray
+    measured_gimbal_ypr_deg: np.ndarray
+
+    @property
+    def names(self) -> list[str]:
+        """File name of each scheduled photo ("" where the camera dropped it)."""
+        return photo_names(self.taken)
+
+    def T_world_cam(self) -> np.ndarray:
+        """Camera-to-world poses (N,4,4) in the flight's ENU frame."""
+        T = np.tile(np.eye(4), (len(self.t_s), 1, 1))
+        T[:, :3, :3], T[:, :3, 3] = self.R_world_cam, self.position_enu_m
+        return T
+
+
+def take_photos(flight: Flight, sensors: Sensors, rng: np.random.Generator) -> Photos:
+    """The photos of the mission's timed-photo legs; each is dropped with the configured probability."""
+    t = flight.photo_times_s()
+    imp = flight.imperfections
+    truth = flight.state_at(t)
+    measured = sensors.measure(truth)
+    lat, lon, h = flight.frame.to_geodetic(*truth.position_enu_m.T)
+    return Photos(
+        t_s=t,
+        camera_time_s=t + imp.camera_clock_offset_s,
+        clock_offset_s=imp.camera_clock_offset_s,
+        taken=rng.random(len(t)) >= imp.photo_drop_probability,
+        position_enu_m=truth.position_enu_m,
+        latitude_deg=lat, longitude_deg=lon, height_ellipsoid_m=h,
+        aircraft_ypr_deg=truth.aircraft_ypr_deg,
+        gimbal_ypr_deg=truth.gimbal_ypr_deg,
+        R_world_cam=r_world_cam_from_gimbal(truth.gimbal_ypr_deg),
+        measured_latitude_deg=measured.latitude_deg,
+        measured_longitude_deg=measured.longitude_deg,
+        measured_height_above_takeoff_m=measured.height_above_takeoff_m,
+        measured_aircraft_ypr_deg=measured.aircraft_ypr_deg,
+        measured_gimbal_ypr_deg=measured.gimbal_ypr_deg,
+    )
+
+
+TRUTH_CSV_COLUMNS = (
+    "image_name", "taken", "t_s", "camera_time_s", "east_m", "north_m", "up_m", "lat_deg", "lon_deg",
+    "h_ellipsoid_m", "aircraft_yaw_deg", "aircraft_pitch_deg", "aircraft_roll_deg", "gimbal_yaw_deg",
+    "gimbal_pitch_deg", "gimbal_roll_deg", "qw", "qx", "qy", "qz",
+)
+
+
+def _truth_rows(photos: Photos) -> list[dict]:
+    quat_xyzw = Rotation.from_matrix(photos.R_world_cam).as_quat() if len(photos.t_s) else np.zeros((0, 4))
+    rows = []
+    for i, name in enumerate(photos.names):
+        values = [photos.t_s[i], photos.camera_time_s[i], *photos.position_enu_m[i], photos.latitude_deg[i],
+                  photos.longitude_deg[i], photos.height_ellipsoid_m[i], *photos.aircraft_ypr_deg[i],
+                  *photos.gimbal_ypr_deg[i], quat_xyzw[i, 3], *quat_xyzw[i, :3]]
+        rows.append({"image_name": name, "taken": bool(photos.taken[i]),
+                     **dict(zip(TRUTH_CSV_COLUMNS[2:], (float(v) for v in values)))})
+    return rows
+
+
+def atomic_write_text(path: Path, text: str) -> None:
+    """Write ``text`` (UTF-8) to a temporary file beside ``path`` and rename it into place."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None, extra: dict | None = None) -> None:
+    """Write ``truth.json`` and ``truth.csv`` into ``out_dir``: the true pose of every photo (ENU with the
+    home point as origin, and geodetic), the true camera clock offset and the imperfection parameters."""
+    out_dir = Path(out_dir)
+    rows = _truth_rows(photos)
+    buffer = io.StringIO()
+    writer = csv.DictWriter(buffer, fieldnames=TRUTH_CSV_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows({**row, "taken": int(row["taken"])} for row in rows)
+    document = {
+        "format": "aerostereo-drone-truth/1",
+        "origin": flight.frame.to_dict(),
+        "clock_offset_s": photos.clock_offset_s,
+        "clock_note": "camera_time_s = t_s + clock_offset_s; t_s is the telemetry clock (s since motors on)",
+        "duration_s": flight.duration_s,
+        "seed": seed,
+        "imperfections": flight.imperfections.to_dict(),
+        "photos": rows,
+        **(extra or {}),
+    }
+    atomic_write_text(out_dir / "truth.csv", buffer.getvalue())
+    atomic_write_text(out_dir / "truth.json", json.dumps(document, indent=2) + "\n")
