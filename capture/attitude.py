@@ -63,7 +63,12 @@ def body_rotation_world(yaw_deg, pitch_deg, roll_deg) -> Rotation:
 
 def camera_rotation_world(gimbal_yaw_deg, gimbal_pitch_deg, gimbal_roll_deg) -> Rotation:
     """Absolute DJI gimbal angles -> ``Rotation`` R_world_cam (OpenCV camera axes to ENU world)."""
-    return body_rotation_world(gimbal_yaw_deg, gimbal_pitch_deg, gimbal_roll_deg) * _FRD_FROM_CAM
+    return camera_from_gimbal(ned_rotation(gimbal_yaw_deg, gimbal_pitch_deg, gimbal_roll_deg))
+
+
+def camera_from_gimbal(r_ned_gimbal: Rotation) -> Rotation:
+    """Gimbal attitude R_ned_gimbal (e.g. slerped) -> R_world_cam (OpenCV camera axes to ENU world)."""
+    return _ENU_FROM_NED * r_ned_gimbal * _FRD_FROM_CAM
 
 
 def camera_matrix_world(gimbal_yaw_deg, gimbal_pitch_deg, gimbal_roll_deg) -> np.ndarray:

@@ -244,7 +244,8 @@ def format_number(value: float) -> str:
     """A float for CSV: empty for NaN, otherwise up to 9 decimals without trailing zeros."""
     if not np.isfinite(value):
         return ""
-    return f"{value:.9f}".rstrip("0").rstrip(".") if value != 0 else "0"
+    text = f"{value:.9f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
 
 
 def escape_xml(text: str) -> str:
