@@ -87,14 +87,23 @@ def gimbal_angles_from_camera(r_world_cam) -> np.ndarray:
     return ned_angles(_ENU_FROM_NED.inv() * r_world_cam * _FRD_FROM_CAM.inv())
 
 
-def slerp_rotations(times_s, rotations: Rotation, query_times_s) -> Rotation:
-    """Spherical linear interpolation of a time series of rotations at ``query_times_s``.
+class AttitudeSeries:
+    """A time series of rotations (strictly increasing ``times_s``) interpolated by spherical linear
+    interpolation (scipy ``Slerp``) -- never by averaging angles. Queries must lie inside the span; the caller
+    decides what to do outside (geotagging leaves such photos untagged)."""
 
-    ``times_s`` must be strictly increasing and the queries inside ``[times_s[0], times_s[-1]]``; the caller
-    decides what to do outside (geotagging leaves such photos untagged).
-    """
-    times = np.asarray(times_s, dtype=np.float64)
-    queries = np.asarray(query_times_s, dtype=np.float64)
-    if len(times) == 1:
-        return rotations[np.zeros(queries.shape, dtype=int)] if queries.ndim else rotations[0]
-    return Slerp(times, rotations)(queries)
+    def __init__(self, times_s, rotations: Rotation):
+        self.times_s = np.asarray(times_s, dtype=np.float64)
+        self.rotations = rotations
+        self._slerp = Slerp(self.times_s, rotations) if len(self.times_s) >= 2 else None
+
+    def __call__(self, query_times_s) -> Rotation:
+        queries = np.asarray(query_times_s, dtype=np.float64)
+        if self._slerp is not None:
+            return self._slerp(queries)
+        return self.rotations[np.zeros(queries.shape, dtype=int)] if queries.ndim else self.rotations[0]
+
+
+def slerp_rotations(times_s, rotations: Rotation, query_times_s) -> Rotation:
+    """One-off slerp of rotations at ``times_s`` to ``query_times_s`` (see :class:`AttitudeSeries`)."""
+    return AttitudeSeries(times_s, rotations)(query_times_s)

@@ -19,13 +19,14 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 
-from .attitude import camera_from_gimbal, ned_angles, ned_rotation, slerp_rotations
+from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
 from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
 from .logs.photos import PhotoInfo
 from .track import ReadReport, Track, format_utc
 
 DEFAULT_MAX_GAP_S = 2.0
-MATCH_SLACK_S = 0.15
+MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF second (manual offset)
+EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
 
 
 @dataclass
@@ -90,13 +91,13 @@ class TrackInterpolator:
         return absolute - absolute[rows[0]]
 
     @staticmethod
-    def _rotations(track: Track, angles) -> tuple[np.ndarray, Rotation] | None:
+    def _rotations(track: Track, angles) -> AttitudeSeries | None:
         yaw, pitch, roll = angles
         rows = np.isfinite(yaw) & np.isfinite(pitch) & np.isfinite(roll)
         if not rows.any():
             return None
         times, keep = unique_times(track.time_s[rows])
-        return times, ned_rotation(yaw[rows][keep], pitch[rows][keep], roll[rows][keep])
+        return AttitudeSeries(times, ned_rotation(yaw[rows][keep], pitch[rows][keep], roll[rows][keep]))
 
     def bracket(self, sample_t: np.ndarray, t: float) -> str | None:
         """None if ``t`` can be interpolated from samples at ``sample_t``, else the reason it cannot."""
@@ -121,12 +122,20 @@ class TrackInterpolator:
             absolute = float(np.interp(t, self.abs_t, self.absolute))
         return enu, float(np.interp(t, self.pos_t, self.relative)), absolute
 
+    def horizontal_at(self, times: np.ndarray) -> np.ndarray:
+        """(N, 2) east/north at ``times`` by linear interpolation; NaN outside the position samples' span."""
+        inside = np.isfinite(times) & (times >= self.pos_t[0]) & (times <= self.pos_t[-1]) if len(self.pos_t) else np.zeros(len(times), bool)
+        east_north = np.stack([np.interp(times, self.pos_t, self.enu[:, k]) for k in range(2)], axis=-1) \
+            if len(self.pos_t) else np.zeros((len(times), 2))
+        east_north[~inside] = np.nan
+        return east_north
+
     def attitude(self, which: str, t: float) -> Rotation | None:
         """Slerped R_ned_body of the gimbal or aircraft at ``t``; None if unknown there."""
         series = self.gimbal if which == "gimbal" else self.aircraft
-        if series is None or self.bracket(series[0], t):
+        if series is None or self.bracket(series.times_s, t):
             return None
-        return slerp_rotations(series[0], series[1], t)
+        return series(t)
 
 
 def gimbal_angles(track: Track):
@@ -170,29 +179,24 @@ def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
     if events == 0 or len(exif) == 0:
         note = "no shutter events in the logs" if events == 0 else "no EXIF times"
         return ClockOffset(0.0, math.nan, "assumed-zero", photos=len(exif), note=note + "; give --clock-offset"), resolution
-    score = position_fit_score(timed, track.photo_times_s, interpolator)
+    misfit = position_misfit(timed, interpolator)
     return estimate_clock_offset(exif, resolution, track.photo_times_s, slack_s=MATCH_SLACK_S,
-                                 tie_score=score), resolution
+                                 tolerance_s=EVENT_TOLERANCE_S, position_misfit=misfit), resolution
 
 
-def position_fit_score(timed: list[PhotoInfo], events_s: np.ndarray, interpolator: "TrackInterpolator"):
-    """A tie-breaker for clock candidates: median horizontal distance (m) between each photo's own EXIF/XMP
-    position and the track at its matched event; None if the photos carry no positions."""
-    has_position = [{"lat_deg", "lon_deg"} <= set(p.values) for p in timed]
-    if not any(has_position):
+def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
+    """For clock estimation: a function of per-photo telemetry times giving the horizontal distance (m)
+    between each photo's own EXIF/XMP position and the track then (NaN where unknown); None without GPS."""
+    own = np.array([[p.values.get("lat_deg", np.nan), p.values.get("lon_deg", np.nan)] for p in timed])
+    if not np.isfinite(own).all(axis=1).any():
         return None
-    own = {i: interpolator.frame.enu_points(p.values["lat_deg"], p.values["lon_deg"], 0.0)[:2]
-           for i, p in enumerate(timed) if has_position[i]}
+    own_en = np.stack(interpolator.frame.to_enu(own[:, 0], own[:, 1], 0.0)[:2], axis=-1)
 
-    def score(matches: np.ndarray) -> float:
-        distances = []
-        for i, j in enumerate(matches):
-            fix = interpolator.position(float(events_s[j])) if j >= 0 and i in own else None
-            if isinstance(fix, tuple):
-                distances.append(float(np.hypot(*(fix[0][:2] - own[i]))))
-        return float(np.median(distances)) if distances else math.inf
+    def misfit(times: np.ndarray) -> np.ndarray:
+        track_en = interpolator.horizontal_at(np.asarray(times, float))
+        return np.hypot(*(track_en - own_en).T)
 
-    return score
+    return misfit
 
 
 def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset="auto",
@@ -209,7 +213,8 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     untagged = [(p.name, "no EXIF DateTimeOriginal") for p in photos if not math.isfinite(p.exif_time_s)]
     clock, resolution = resolve_clock(timed, track, clock_offset, interpolator)
     exif = np.array([p.exif_time_s for p in timed])
-    matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, MATCH_SLACK_S)
+    slack = MATCH_SLACK_S if clock.method == "manual" else min(MATCH_SLACK_S, max(EVENT_TOLERANCE_S, 3 * clock.std_s))
+    matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, slack)
     kind = track.report.kind if len(tracks) == 1 else "+".join(sorted({t.report.kind for t in tracks}))
     tags = []
     for photo, exif_s, event in zip(timed, exif, matches):
