@@ -163,7 +163,14 @@ def cue_times(rows: list[dict], start_time_s, utc_offset_h: float, report: ReadR
     dated = [row.get("date_s") for row in rows]
     if all(value is not None for value in dated):
         report.notes.append(f"SRT dates are the aircraft clock, read as UTC{utc_offset_h:+g} h")
-        return np.array(dated) - utc_offset_h * 3600.0, "utc"
+        dates = np.array(dated) - utc_offset_h * 3600.0
+        cues = [row.get("cue_s") for row in rows]
+        if np.all(dates == np.floor(dates)) and all(cue is not None for cue in cues):
+            return anchor_cues(dates, np.array(cues, dtype=float), report), "utc"
+        repeats = int((np.diff(dates) <= 0).sum())
+        if repeats:
+            report.notes.append(f"{repeats} cues repeat or precede the previous cue's date (uneven aircraft clock)")
+        return dates, "utc"
     if any(row.get("cue_s") is None for row in rows):
         raise LogFormatError(f"{report.source}: some cues have neither a date nor a timecode")
     cue = np.array([row["cue_s"] for row in rows])
@@ -173,3 +180,21 @@ def cue_times(rows: list[dict], start_time_s, utc_offset_h: float, report: ReadR
         return cue, "relative"
     report.notes.append("cue times anchored at the given start time")
     return cue + float(start_time_s), "utc"
+
+
+def anchor_cues(dates_s: np.ndarray, cues_s: np.ndarray, report: ReadReport) -> np.ndarray:
+    """Whole-second dates + exact cue timecodes -> ``anchor + cue`` with the anchor that fits the dates.
+
+    If every date is the truncated ``anchor + cue``, the anchor lies in the intersection of
+    ``[date - cue, date - cue + 1)``; its middle is used. Where the aircraft clock ticks unevenly (dates repeat
+    or skip a second against 1 s cues) no anchor fits all; the median ``date - cue`` + 0.5 s is used instead.
+    """
+    offsets = dates_s - cues_s
+    low, high = offsets.max(), offsets.min() + 1.0
+    if low < high:
+        report.notes.append(f"times = cue timecode + anchor; anchor known to +-{(high - low) / 2:.3f} s")
+        return cues_s + 0.5 * (low + high)
+    anchor = float(np.median(offsets)) + 0.5
+    report.notes.append(f"dates jitter by up to {low - high + 1.0:.0f} s against the cue timecodes; times = cue "
+                        "timecode + median anchor")
+    return cues_s + anchor
