@@ -5,12 +5,13 @@ Convention: ``offset_s = telemetry UTC - camera clock``, so a photo's shutter ti
 ``SubSecTimeOriginal`` is present).
 
 Estimation (robust to missing and extra events): every (photo, event) pair votes for an offset
-``event - exif``; the best-supported votes bound a fine grid of offsets, each scored by its *coverage*: how
-many photos have an event inside ``[exif + o, exif + o + resolution)`` (+- the event-time tolerance). The
-true offset covers every photo with an event; offsets shifted by whole photo intervals cover almost as many
-(only the sequence ends and timing irregularities tell them apart), so coverage peaks are refined by a
-one-to-one matching and, when the photos carry their own GPS, the peak whose predicted times put the track
-closest to the photos wins; without GPS the best coverage wins and near-ties are reported as ambiguous. The fine
+``event - exif``; around the best-supported votes a fine grid of offsets is scored by *window consistency*
+(:func:`window_consistency`: each EXIF second's window must hold as many events as the second has photos).
+The best plateaus are refined by alternating one-to-one matching and :func:`fine_offset`. When photos come
+about one EXIF resolution apart, offsets shifted by whole photo intervals fit almost as well (only the
+sequence ends and timing irregularities tell them apart); if the photos carry their own GPS, candidates
+whose matched events put the track far from the photos are dropped; without GPS near-ties are reported
+as ambiguous. The fine
 offset is the middle of the region most matched pairs allow (``exif <= event - offset < exif + resolution``,
 Marzullo's algorithm); its standard deviation is that width / sqrt(12).
 """
@@ -25,7 +26,9 @@ import numpy as np
 
 MAX_CANDIDATES = 40
 REFINE_ROUNDS = 3
-START_STEP_FRACTION = 0.1  # starting offsets every tenth of the EXIF resolution
+GRID_STEP_FRACTION = 0.005  # offset grid step, in EXIF resolutions
+LOCAL_STEP_FRACTION = 0.05
+LOCAL_CENTRES = 3
 MISFIT_FLOOR_M = 0.05
 MAX_VOTES_SCANNED = 200_000
 
@@ -52,56 +55,32 @@ class ClockOffset:
 
 def match_photos_to_events(exif_s: np.ndarray, resolution_s: float, events_s: np.ndarray, offset_s: float,
                            slack_s: float) -> np.ndarray:
-    """One-to-one matching: for each photo, the index of its shutter event or -1.
+    """Order-keeping one-to-one matching: for each photo, the index of its shutter event or -1.
 
-    A photo's event must lie in ``[exif + offset - slack, exif + offset + resolution + slack)`` (the EXIF time
-    truncates); of two, the one nearer the window centre; an event claimed twice goes to the nearer photo.
+    A photo's event must lie in ``[exif + offset - slack, exif + offset + resolution + slack)`` (EXIF truncates
+    to its resolution). Photos (by EXIF time, then list order) and events are both in time order, and all
+    windows have the same width, so taking for each photo the earliest free event in its window matches as
+    many photos as possible without crossing pairs.
     """
     exif_s, events_s = np.asarray(exif_s, float), np.asarray(events_s, float)
     matches = np.full(len(exif_s), -1)
-    if len(exif_s) == 0 or len(events_s) == 0:
-        return matches
-    centre = exif_s + offset_s + resolution_s / 2.0
-    first = np.searchsorted(events_s, centre - resolution_s / 2.0 - slack_s, side="left")
-    stop = np.searchsorted(events_s, centre + resolution_s / 2.0 + slack_s, side="left")
-    second = np.minimum(first + 1, len(events_s) - 1)
-    first_c = np.minimum(first, len(events_s) - 1)
-    use_second = (stop - first >= 2) & (np.abs(events_s[second] - centre) < np.abs(events_s[first_c] - centre))
-    chosen = np.where(use_second, second, first_c)
-    photos = np.flatnonzero(stop > first)
-    distance = np.abs(events_s[chosen[photos]] - centre[photos])
-    photos = photos[np.argsort(distance, kind="stable")]
-    _, keep = np.unique(chosen[photos], return_index=True)
-    matches[photos[keep]] = chosen[photos[keep]]
-    # Two photos in one EXIF second share a window holding both their events: the loser takes the other one.
-    claimed = set(matches[matches >= 0].tolist())
-    for i in np.flatnonzero((matches < 0) & (stop - first >= 2)):
-        other = second[i] if chosen[i] == first_c[i] else first_c[i]
-        if other not in claimed:
-            matches[i] = other
-            claimed.add(int(other))
-    return keep_photo_order(exif_s, matches)
-
-
-def keep_photo_order(exif_s: np.ndarray, matches: np.ndarray) -> np.ndarray:
-    """Photos with the same EXIF time take their events in photo order (the earlier photo, the earlier event)."""
-    order = np.argsort(exif_s, kind="stable")
-    sorted_exif = exif_s[order]
-    run_starts = np.flatnonzero(np.diff(sorted_exif, prepend=np.nan) != 0)
-    for start, stop in zip(run_starts, np.append(run_starts[1:], len(order))):
-        if stop - start > 1:
-            photos = order[start:stop]
-            photos = photos[matches[photos] >= 0]
-            matches[photos] = np.sort(matches[photos])
+    starts = np.searchsorted(events_s, exif_s + offset_s - slack_s, side="left")
+    ends = exif_s + offset_s + resolution_s + slack_s
+    next_free = 0
+    for i in np.argsort(exif_s, kind="stable"):
+        j = max(int(starts[i]), next_free)
+        if j < len(events_s) and events_s[j] < ends[i]:
+            matches[i] = j
+            next_free = j + 1
     return matches
 
 
-def fine_offset(differences_s: np.ndarray, resolution_s: float) -> tuple[float, float, int]:
+def fine_offset(differences_s: np.ndarray, resolution_s: float, tolerance_s: float = 0.0) -> tuple[float, float, int]:
     """Offset, std and the number of agreeing pairs from matched ``event - exif`` differences ``d``.
 
-    Each pair allows ``offset`` in ``[d - resolution, d]`` (EXIF truncation); the answer is the middle of the
-    region allowed by the most pairs (Marzullo's algorithm, robust to a few mismatched or noisy pairs), its
-    std that region's width / sqrt(12). With sub-second EXIF the spread is event noise: median and MAD.
+    Each pair allows ``offset`` in ``[d - resolution - tol, d + tol]`` (EXIF truncation, event-time error);
+    the answer is the middle of the region allowed by the most pairs (Marzullo's algorithm, robust to a few
+    mismatched or noisy pairs), its std that region's width / sqrt(12). With sub-second EXIF the spread is event noise: median and MAD.
     """
     d = np.asarray(differences_s, float)
     n = len(d)
@@ -110,7 +89,7 @@ def fine_offset(differences_s: np.ndarray, resolution_s: float) -> tuple[float, 
         spread = 1.4826 * float(np.median(np.abs(d - centre)))
         agree = int((np.abs(d - centre) <= max(3 * spread, resolution_s)).sum())
         return centre - resolution_s / 2.0, max(spread, resolution_s / math.sqrt(12)) / math.sqrt(n), agree
-    edges = np.concatenate([d - resolution_s, d])
+    edges = np.concatenate([d - resolution_s - tolerance_s, d + tolerance_s])
     steps = np.concatenate([np.ones(n, int), -np.ones(n, int)])
     order = np.lexsort((-steps, edges))  # at equal positions, open before close
     edges, depth = edges[order], np.cumsum(steps[order])
@@ -132,10 +111,15 @@ def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: flo
     if len(exif_s) == 0 or len(events_s) == 0:
         raise ValueError("need at least one photo time and one shutter event to estimate the clock offset")
     coarse = np.array(candidate_offsets(exif_s, resolution_s, events_s, slack_s))
-    starts = np.arange(coarse.min() - resolution_s, coarse.max() + resolution_s, START_STEP_FRACTION * resolution_s)
+    grid = np.unique(np.concatenate([c + np.arange(-1.0, 1.0, GRID_STEP_FRACTION) * resolution_s for c in coarse]))
+    scores = window_consistency(exif_s, resolution_s, events_s, grid)
     found: dict[float, tuple] = {}
-    for offset in starts:
-        fit = refine(exif_s, resolution_s, events_s, float(offset), tolerance_s)
+    centres = plateau_centres(grid, scores, 0.5 * resolution_s)
+    # Event-time errors blur the window score; also start from a comb across the best plateaus' seconds.
+    comb = [c + k * LOCAL_STEP_FRACTION * resolution_s for c in centres[:LOCAL_CENTRES]
+            for k in range(-int(0.5 / LOCAL_STEP_FRACTION), int(0.5 / LOCAL_STEP_FRACTION))]
+    for offset in [*centres, *comb]:
+        fit = refine(exif_s, resolution_s, events_s, offset, tolerance_s)
         if fit is not None:
             found.setdefault(round(fit[0], 3), fit)
     if not found:
@@ -152,13 +136,49 @@ def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: flo
     return choose_offset(results, len(exif_s), len(events_s))
 
 
+def window_consistency(exif_s: np.ndarray, resolution_s: float, events_s: np.ndarray,
+                       offsets_s: np.ndarray) -> np.ndarray:
+    """For each candidate offset: how many photos sit in an EXIF second whose window
+    ``[second + o, second + o + resolution)`` holds exactly as many events as the second has photos.
+
+    The true offset scores every photo (up to event noise at the window edges); wrong offsets lose the photos
+    where the shutter phase crosses the shifted window edge.
+    """
+    seconds, per_second = np.unique(exif_s, return_counts=True)
+    scores = np.empty(len(offsets_s), dtype=int)
+    for start in range(0, len(offsets_s), 1024):
+        chunk = offsets_s[start:start + 1024, None]
+        count = (np.searchsorted(events_s, seconds[None, :] + chunk + resolution_s, side="left")
+                 - np.searchsorted(events_s, seconds[None, :] + chunk, side="left"))
+        scores[start:start + 1024] = ((count == per_second) * per_second).sum(axis=1)
+    return scores
+
+
+def plateau_centres(grid: np.ndarray, scores: np.ndarray, separation: float) -> list[float]:
+    """Centres of the best-scoring plateaus on a sorted grid, at least ``separation`` apart, best first."""
+    chosen: list[float] = []
+    for index in np.argsort(-scores, kind="stable"):
+        if scores[index] < 0.5 * scores.max() or len(chosen) == MAX_CANDIDATES:
+            break
+        left = right = index
+        while left > 0 and scores[left - 1] == scores[index]:
+            left -= 1
+        while right < len(grid) - 1 and scores[right + 1] == scores[index]:
+            right += 1
+        centre = 0.5 * (grid[left] + grid[right])
+        if all(abs(centre - other) >= separation for other in chosen):
+            chosen.append(float(centre))
+    return chosen
+
+
 def refine(exif_s, resolution_s, events_s, offset, tolerance_s):
     """Alternate matching and :func:`fine_offset` from a starting offset; (offset, std, agree, matches)."""
     for _ in range(REFINE_ROUNDS):
         matches = match_photos_to_events(exif_s, resolution_s, events_s, offset, tolerance_s)
         if not (matches >= 0).any():
             return None
-        offset, std, agree = fine_offset(events_s[matches[matches >= 0]] - exif_s[matches >= 0], resolution_s)
+        offset, std, agree = fine_offset(events_s[matches[matches >= 0]] - exif_s[matches >= 0], resolution_s,
+                                         tolerance_s)
     matches = match_photos_to_events(exif_s, resolution_s, events_s, offset, tolerance_s)
     return offset, std, agree, matches
 

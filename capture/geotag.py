@@ -181,7 +181,12 @@ def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
         return ClockOffset(0.0, math.nan, "assumed-zero", photos=len(exif), note=note + "; give --clock-offset"), resolution
     misfit = position_misfit(timed, interpolator)
     return estimate_clock_offset(exif, resolution, track.photo_times_s, slack_s=MATCH_SLACK_S,
-                                 tolerance_s=EVENT_TOLERANCE_S, position_misfit=misfit), resolution
+                                 tolerance_s=event_tolerance(track), position_misfit=misfit), resolution
+
+
+def event_tolerance(track: Track) -> float:
+    """How far a shutter event may be from its true time: the source's own bound, at least EVENT_TOLERANCE_S."""
+    return max(EVENT_TOLERANCE_S, track.event_time_error_s)
 
 
 def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
@@ -213,7 +218,7 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     untagged = [(p.name, "no EXIF DateTimeOriginal") for p in photos if not math.isfinite(p.exif_time_s)]
     clock, resolution = resolve_clock(timed, track, clock_offset, interpolator)
     exif = np.array([p.exif_time_s for p in timed])
-    slack = MATCH_SLACK_S if clock.method == "manual" else min(MATCH_SLACK_S, max(EVENT_TOLERANCE_S, 3 * clock.std_s))
+    slack = MATCH_SLACK_S if clock.method == "manual" else max(event_tolerance(track), min(MATCH_SLACK_S, 3 * clock.std_s))
     matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, slack)
     kind = track.report.kind if len(tracks) == 1 else "+".join(sorted({t.report.kind for t in tracks}))
     tags = []

@@ -104,6 +104,7 @@ class Track:
     report: ReadReport
     clock: str = "utc"
     home: Home | None = None
+    event_time_error_s: float = 0.0  # how far a photo event may sit from the true shutter time
 
     @classmethod
     def from_rows(
@@ -115,6 +116,7 @@ class Track:
         photo_times_s=(),
         clock: str = "utc",
         home: Home | None = None,
+        event_time_error_s: float = 0.0,
     ) -> "Track":
         """Build a track from unsorted rows; missing columns become NaN, ``fields`` = columns with data."""
         time_s = np.asarray(time_s, dtype=np.float64)
@@ -132,7 +134,7 @@ class Track:
             full[name] = values[order]
         present = frozenset(name for name, values in full.items() if np.isfinite(values).any())
         photos = np.sort(np.asarray(photo_times_s, dtype=np.float64))
-        return cls(time_s[order], full, photos, present, report, clock, home)
+        return cls(time_s[order], full, photos, present, report, clock, home, event_time_error_s)
 
     @classmethod
     def concat(cls, tracks: list["Track"]) -> "Track":
@@ -154,6 +156,7 @@ class Track:
             photo_times_s=np.concatenate([t.photo_times_s for t in tracks]),
             clock=tracks[0].clock,
             home=next((t.home for t in tracks if t.home is not None), None),
+            event_time_error_s=max(t.event_time_error_s for t in tracks),
         )
         return merged
 

@@ -119,7 +119,9 @@ def read_flight_csv(path, kind: str | None = None) -> Track:
     photos = rising_edge_times(times, rows["flag"])
     report.rows_used = int(fix.sum())
     values = {name: rows[name][fix] for name in columns}
-    return Track.from_rows(times[fix], values, report, photo_times_s=photos, home=home)
+    row_step = float(np.median(np.diff(times))) if len(times) > 1 else 0.0
+    return Track.from_rows(times[fix], values, report, photo_times_s=photos, home=home,
+                           event_time_error_s=0.5 * row_step)
 
 
 def locate_columns(path, header, specs) -> dict[str, tuple[int, float, ColumnSpec]]:
