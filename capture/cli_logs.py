@@ -99,7 +99,8 @@ def run_geotag(args) -> int:
             write_exif_copies(result, args.photos, exif_dir)
     except (LogFormatError, ValueError, OSError) as error:
         return fail(str(error))
-    for report in [*result.sources, photo_report]:
+    sources = {report.source for report in result.sources}
+    for report in [*result.sources, *([photo_report] if photo_report.source not in sources else [])]:
         print(report.summary())
         for note in report.notes:
             print(f"  note: {note}")

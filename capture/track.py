@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 
 import numpy as np
@@ -169,16 +169,6 @@ class Track:
     def has(self, name: str) -> bool:
         """True if the source really carried this field (at least one finite value)."""
         return name in self.fields
-
-    def span_s(self) -> tuple[float, float]:
-        """First and last row time (seconds on the track's clock)."""
-        if len(self) == 0:
-            raise ValueError(f"{self.report.source}: the track has no rows")
-        return float(self.time_s[0]), float(self.time_s[-1])
-
-    def shifted(self, offset_s: float, clock: str) -> "Track":
-        """The same track with every time (rows and photo events) moved by ``offset_s`` onto ``clock``."""
-        return replace(self, time_s=self.time_s + offset_s, photo_times_s=self.photo_times_s + offset_s, clock=clock)
 
     def positions_mask(self) -> np.ndarray:
         """Rows with a usable horizontal position (finite lat/lon)."""

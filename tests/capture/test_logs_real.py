@@ -1,6 +1,5 @@
 """Every real sample parses with zero rejects; spot values checked by hand against the files."""
 
-import math
 
 import numpy as np
 import pytest
