@@ -107,3 +107,48 @@ def test_xmp_parser_never_crashes(text):
     except ValueError:
         return
     assert isinstance(values, dict)
+
+
+LITCHI_HEADER = (  # the 92-column header of a real Litchi iOS 2.1.1 export (research/litchi.md §3.1)
+    "latitude,longitude,altitude(feet),ascent(feet),speed(mph),distance(feet),max_altitude(feet),max_ascent(feet),"
+    "max_speed(mph),max_distance(feet),time(millisecond),datetime(utc),datetime(local),satellites,pressure(Pa),"
+    "temperature(F),voltage(v),home_latitude,home_longitude,velocityX(mph),velocityY(mph),velocityZ(mph),pitch(deg),"
+    "roll(deg),yaw(deg),powerlevel,isflying,istakingphoto,remainPowerPercent,remainLifePercent,currentCurrent,"
+    "currentElectricity,currentVoltage,batteryTemperature,dischargeCount,flightmode,isMotorsOn,isTakingVideo,"
+    "Rc_elevator,Rc_aileron,Rc_throttle,Rc_rudder,Rc_gyro,timestamp,Battery_Cell1,Battery_Cell2,Battery_Cell3,"
+    "Battery_Cell4,Battery_Cell5,Battery_Cell6,Dronetype,AppVersion,Planename,FlyControllerSerialNumber,"
+    "RemoteSerialNumber,BatterySerialNumber,CENTER_BATTERY.productDate,CENTER_BATTERY.serialNo,"
+    "CENTER_BATTERY.fullCapacity,CENTER_BATTERY.productDateRaw,pitchRaw,rollRaw,yawRaw,gimbalPitchRaw,gimbalRollRaw,"
+    "gimbalYawRaw,flyState,altitudeRaw,speedRaw,distanceRaw,velocityXRaw,velocityYRaw,velocityZRaw,data_reuse,"
+    "App_Tip,App_Warning,downlinkSignalQuality,uplinkSignalQuality,transmissionChannel,rcModeSwitch,rcHome,rcPause,"
+    "rcTransform,rcJoystickMode,appMode,FlyControllerSerialNumber_legacy,RemoteSerialNumber_legacy,"
+    "BatterySerialNumber_legacy,Battery2SerialNumber,frontAvoidDist,backAvoidDist,isBrakingToAvoid"
+)
+
+
+def test_litchi_imperial_export(tmp_path):
+    names = LITCHI_HEADER.split(",")
+    assert len(names) == 92
+    rows = []
+    for k, (photo, stamp) in enumerate([(0, "21:15:26.199"), (1, "21:15:26.312"), (1, "21:15:26.396"),
+                                        (0, "21:15:26.487"), (1, "21:15:26.601")]):
+        row = dict.fromkeys(names, "0")
+        row.update({"latitude": f"{54.1 + k * 1e-5:.6f}", "longitude": "18.5", "altitude(feet)": "19",
+                    "speed(mph)": "6.93", "time(millisecond)": str(k * 100), "datetime(utc)": f"2018-02-16 {stamp}",
+                    "datetime(local)": f"2018-02-16 12:{stamp[3:]}", "yaw(deg)": "-148", "pitch(deg)": "-3",
+                    "istakingphoto": str(photo), "gimbalPitchRaw": "-900", "gimbalYawRaw": "322",
+                    "home_latitude": "54.1", "home_longitude": "18.5", "AppVersion": "(null)", "flightmode": "WP"})
+        rows.append(",".join(row[n] for n in names))
+    path = tmp_path / "2018-02-16_12-15-26_v2_Mavic_Litchi.csv"
+    path.write_text(LITCHI_HEADER + "\n" + "\n".join(rows) + "\n")
+    track = read_track(path)
+    assert track.report.kind == "litchi" and track.report.rejected == [] and len(track) == 5
+    assert track["height_above_takeoff_m"][0] == pytest.approx(19 * 0.3048)
+    assert track["speed_m_s"][0] == pytest.approx(6.93 * 0.44704)
+    assert track["gimbal_pitch_deg"][0] == pytest.approx(-90.0) and track["gimbal_yaw_deg"][0] == pytest.approx(32.2)
+    assert track["aircraft_yaw_deg"][0] == pytest.approx(-148.0)
+    assert track.home.lat_deg == pytest.approx(54.1)
+    # datetime(utc) already has milliseconds: used as is; rising edges placed between the 0 row and the 1 row
+    assert track.time_s[1] - track.time_s[0] == pytest.approx(0.113, abs=1e-6)
+    start = track.time_s[0]
+    assert track.photo_times_s - start == pytest.approx([(0.0 + 0.113) / 2, (0.288 + 0.402) / 2], abs=1e-6)
