@@ -11,9 +11,9 @@ The best plateaus are refined by alternating one-to-one matching and :func:`fine
 about one EXIF resolution apart, offsets shifted by whole photo intervals fit almost as well (only the
 sequence ends and timing irregularities tell them apart); if the photos carry their own GPS, candidates
 whose matched events put the track far from the photos are dropped; without GPS near-ties are reported
-as ambiguous. The fine
-offset is the middle of the region most matched pairs allow (``exif <= event - offset < exif + resolution``,
-Marzullo's algorithm); its standard deviation is that width / sqrt(12).
+as ambiguous. The fine offset is the middle of the region most matched pairs allow
+(``exif <= event - offset < exif + resolution``, +- the event-time tolerance; Marzullo's algorithm); its
+standard deviation is that region's width / sqrt(12).
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ import numpy as np
 MAX_CANDIDATES = 40
 REFINE_ROUNDS = 3
 GRID_STEP_FRACTION = 0.005  # offset grid step, in EXIF resolutions
-LOCAL_STEP_FRACTION = 0.05
+LOCAL_STEP_FRACTION = 0.05  # extra refinement starts across the best plateaus' seconds
 LOCAL_CENTRES = 3
-MISFIT_FLOOR_M = 0.05
+MISFIT_FLOOR_M = 0.05  # photo GPS vs track misfit allowed above twice the best candidate's
 MAX_VOTES_SCANNED = 200_000
 
 
@@ -110,13 +110,15 @@ def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: flo
     exif_s, events_s = np.asarray(exif_s, float), np.sort(np.asarray(events_s, float))
     if len(exif_s) == 0 or len(events_s) == 0:
         raise ValueError("need at least one photo time and one shutter event to estimate the clock offset")
-    coarse = np.array(candidate_offsets(exif_s, resolution_s, events_s, slack_s))
-    grid = np.unique(np.concatenate([c + np.arange(-1.0, 1.0, GRID_STEP_FRACTION) * resolution_s for c in coarse]))
-    scores = window_consistency(exif_s, resolution_s, events_s, grid)
+    window = max(resolution_s, 2.0 * tolerance_s)  # sub-second EXIF: the event-time error sets the scale
+    coarse = np.array(candidate_offsets(exif_s, window, events_s, slack_s))
+    span = window + 2.0 * slack_s  # a vote window's width: the coarse offsets are known to within it
+    grid = np.unique(np.concatenate([c + np.arange(-1.0, 1.0, GRID_STEP_FRACTION) * span for c in coarse]))
+    scores = window_consistency(exif_s, window, events_s, grid - (window - resolution_s) / 2.0)
     found: dict[float, tuple] = {}
-    centres = plateau_centres(grid, scores, 0.5 * resolution_s)
+    centres = plateau_centres(grid, scores, 0.5 * window)
     # Event-time errors blur the window score; also start from a comb across the best plateaus' seconds.
-    comb = [c + k * LOCAL_STEP_FRACTION * resolution_s for c in centres[:LOCAL_CENTRES]
+    comb = [c + k * LOCAL_STEP_FRACTION * window for c in centres[:LOCAL_CENTRES]
             for k in range(-int(0.5 / LOCAL_STEP_FRACTION), int(0.5 / LOCAL_STEP_FRACTION))]
     for offset in [*centres, *comb]:
         fit = refine(exif_s, resolution_s, events_s, offset, tolerance_s)

@@ -160,3 +160,12 @@ def test_geotag_files_round_trip(tmp_path):
     first = colmap_reference_text(priors).splitlines()[0].split()
     assert first[0] == priors[0].image_name and [float(v) for v in first[1:]] == pytest.approx(priors[0].position_enu_m, abs=1e-4)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["geotags.csv", "geotags.json"]  # no temporaries left
+
+
+@pytest.mark.parametrize("offset_s, subsecond", [(CAMERA_OFFSET_S, True), (-3600.0 + CAMERA_OFFSET_S, False)])
+def test_subsecond_exif_and_an_hour_off_camera_clock(offset_s, subsecond):
+    orbit, shutter, track = flight(duration_s=200.0, seed=9)
+    result = geotag_photos(photos_for(shutter, offset_s, orbit, subsecond=subsecond), [track])
+    assert abs(result.clock.offset_s - offset_s) < (0.01 if subsecond else 0.05)
+    position_error, _ = errors(result, orbit, shutter)
+    assert position_error.max() < 0.05
