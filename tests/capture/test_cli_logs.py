@@ -103,6 +103,8 @@ def test_geotag_from_the_photos_own_metadata(shared_data, tmp_path, capsys):
       "--out", "{tmp}/x.csv"], "no photo could be geotagged"),
     (["geotag", "--photos", "{tmp}", "--log", "{data}/dji/DJI_SRT_Parser__mavic_pro.SRT", "--out", "{tmp}/x.csv"],
      "no readable JPEG"),
+    (["geotag", "--photos", "{data}/brighton_beach/images", "--log", "{data}/brighton_beach/images",
+      "--out", "{tmp}/x.csv", "--write-exif", "--exif-dir", "{data}/brighton_beach/images"], "refusing to overwrite"),
 ])
 def test_bad_input_is_one_line_exit_2_and_writes_nothing(shared_data, tmp_path, capsys, argv, message):
     argv = [a.format(data=shared_data, tmp=tmp_path) for a in argv]
