@@ -1,0 +1,136 @@
+"""``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
+
+``register(subparsers)`` adds both; each sets ``func`` to a function taking the parsed args and returning an
+exit code (0 ok, 2 bad input: one line on stderr, nothing written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
+from .geotag_io import load_geotags, write_colmap_reference, write_exif_copies, write_geotags
+from .logs import KINDS, read_track
+from .logs.photos import read_photos
+from .track import LogFormatError, parse_utc
+
+EXIT_BAD_INPUT = 2
+
+
+def register(subparsers) -> None:
+    """Add the ``geotag`` and ``track`` subcommands to an argparse subparsers object."""
+    geotag = subparsers.add_parser("geotag", help="photos + flight logs -> geotags.csv (+ .json sidecar)")
+    geotag.add_argument("--photos", required=True, help="folder of JPEG photos")
+    geotag.add_argument("--log", action="append", required=True,
+                        help="flight log (Litchi/Airdata CSV, DJI SRT, or a folder of photos); repeatable")
+    geotag.add_argument("--clock-offset", default="auto", type=parse_clock_offset,
+                        help="'auto' (default) or seconds to add to the camera clock to get telemetry UTC")
+    geotag.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP_S,
+                        help="longest telemetry gap (s) to interpolate across (default %(default)s)")
+    add_time_options(geotag)
+    geotag.add_argument("--out", required=True, help="geotags.csv to write (the .json sidecar goes beside it)")
+    geotag.add_argument("--colmap-ref", help="also write a COLMAP reference file 'NAME X Y Z' (ENU metres)")
+    geotag.add_argument("--write-exif", action="store_true",
+                        help="write geotagged copies of the photos (EXIF GPS + DJI XMP) into --exif-dir")
+    geotag.add_argument("--exif-dir", help="folder for the geotagged copies (default: <out folder>/geotagged)")
+    geotag.set_defaults(func=run_geotag)
+
+    track = subparsers.add_parser("track", help="read any flight log and export it as CSV or KML")
+    track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, or a folder of photos)")
+    track.add_argument("--kind", choices=KINDS, help="force the reader instead of detecting it")
+    add_time_options(track)
+    track.add_argument("--out", help="track CSV to write")
+    track.add_argument("--kml", help="track KML to write")
+    track.set_defaults(func=run_track)
+
+
+def add_time_options(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--start-time", type=parse_time_arg,
+                        help="UTC start (ISO 8601) of SRT logs that carry no date (e.g. a Mini's video)")
+    parser.add_argument("--srt-utc-offset", type=float, default=0.0,
+                        help="UTC offset (hours) of the aircraft clock in dated SRT files (default 0)")
+
+
+def parse_clock_offset(text: str):
+    if text == "auto":
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
+
+
+def parse_time_arg(text: str) -> float:
+    try:
+        return parse_utc(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an ISO 8601 time like 2021-09-06T02:23:48Z, got {text!r}") from None
+
+
+def fail(message: str) -> int:
+    print(f"aerostereo-ingest: error: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def read_logs(args) -> list:
+    return [read_track(path, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset) for path in args.log]
+
+
+def run_geotag(args) -> int:
+    """Geotag the photos; print a per-source summary and the clock offset."""
+    try:
+        tracks = read_logs(args)
+        photos, photo_report = read_photos(args.photos)
+        if not photos:
+            return fail(f"{args.photos}: no readable JPEG photos")
+        result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap)
+        if not result.tags:
+            reasons = "; ".join(f"{name}: {reason}" for name, reason in result.untagged[:3])
+            return fail(f"no photo could be geotagged ({reasons})")
+        exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
+        if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
+            return fail(f"{exif_dir}: refusing to overwrite the original photos; choose another --exif-dir")
+        csv_path, json_path = write_geotags(result, args.out)
+        if args.colmap_ref:
+            write_colmap_reference(load_geotags(csv_path), args.colmap_ref)
+        if args.write_exif:
+            write_exif_copies(result, args.photos, exif_dir)
+    except (LogFormatError, ValueError, OSError) as error:
+        return fail(str(error))
+    sources = {report.source for report in result.sources}
+    for report in [*result.sources, *([photo_report] if photo_report.source not in sources else [])]:
+        print(report.summary())
+        for note in report.notes:
+            print(f"  note: {note}")
+    print(result.clock.summary())
+    for note in result.notes:
+        print(f"note: {note}")
+    print(f"{len(result.tags)} photos geotagged, {len(result.untagged)} untagged -> {csv_path} (+ {json_path.name})")
+    for name, reason in result.untagged:
+        print(f"  untagged {name}: {reason}")
+    return 0
+
+
+def run_track(args) -> int:
+    """Read one log, print its report, export CSV and/or KML."""
+    if not args.out and not args.kml:
+        return fail("give --out track.csv and/or --kml track.kml")
+    try:
+        track = read_track(args.file, kind=args.kind, start_time_s=args.start_time,
+                           srt_utc_offset_h=args.srt_utc_offset)
+        if args.out:
+            track.write_csv(args.out)
+        if args.kml:
+            track.write_kml(args.kml)
+    except (LogFormatError, ValueError, OSError) as error:
+        return fail(str(error))
+    print(track.report.summary())
+    for note in track.report.notes:
+        print(f"  note: {note}")
+    for problem in track.report.rejected[:20]:
+        print(f"  rejected {problem}")
+    print(f"{len(track)} rows, {len(track.photo_times_s)} photo events, clock {track.clock}, "
+          f"fields: {', '.join(sorted(track.fields))}")
+    return 0

@@ -1,0 +1,254 @@
+"""Photos + tracks -> per-photo geotags (position in local ENU and geodetic, attitude, ``R_world_cam``).
+
+Photo times come from the track's shutter events when a photo matches one (``time_source = "event"``), else
+from the EXIF time on the telemetry clock (``exif + offset + resolution / 2``, ``"exif"``); see
+``capture/clock.py`` for the offset. Positions are interpolated linearly in the local ENU frame whose origin is
+the take-off (home) point, attitude by slerp (``capture/attitude.py``). A photo outside the span of the track's
+positions, or between two position samples further apart than ``max_gap_s``, is left untagged with the
+reason -- never extrapolated. Attitude is interpolated the same way from its own samples and left empty
+(NaN) where those are missing or too far apart.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from flightplan.geodesy import LocalFrame
+
+from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
+from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
+from .logs.photos import PhotoInfo
+from .track import ReadReport, Track, format_utc
+
+DEFAULT_MAX_GAP_S = 2.0
+MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF second (manual offset)
+EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
+
+
+@dataclass
+class Geotag:
+    """One photo's pose. Angles DJI NED degrees (NaN if unknown); ``enu_m`` camera position in the origin's ENU
+    frame; ``R_world_cam`` (3x3, ENU <- OpenCV camera) or None when the source had no gimbal attitude."""
+
+    image_name: str
+    time_s: float
+    time_source: str
+    source: str
+    lat_deg: float
+    lon_deg: float
+    height_above_takeoff_m: float
+    absolute_height_m: float
+    aircraft_ypr_deg: np.ndarray
+    gimbal_ypr_deg: np.ndarray
+    enu_m: np.ndarray
+    R_world_cam: np.ndarray | None
+
+
+@dataclass
+class GeotagResult:
+    tags: list[Geotag]
+    untagged: list[tuple[str, str]]
+    origin: LocalFrame
+    origin_height_known: bool
+    clock: ClockOffset
+    sources: list[ReadReport]
+    notes: list[str] = field(default_factory=list)
+
+
+class TrackInterpolator:
+    """Interpolates a track (UTC clock) in a local ENU frame; each quantity only from rows that carry it."""
+
+    def __init__(self, track: Track, frame: LocalFrame, max_gap_s: float):
+        self.frame = frame
+        self.max_gap_s = max_gap_s
+        self.notes: list[str] = []
+        relative = self._relative_heights(track)
+        rows = track.positions_mask() & np.isfinite(relative)
+        self.pos_t, keep = unique_times(track.time_s[rows])
+        self.enu = frame.enu_points(track["lat_deg"][rows][keep], track["lon_deg"][rows][keep],
+                                    frame.h0_m + relative[rows][keep])
+        self.relative = relative[rows][keep]
+        absolute = track["absolute_height_m"]
+        self.abs_t, abs_keep = unique_times(track.time_s[np.isfinite(absolute)])
+        self.absolute = absolute[np.isfinite(absolute)][abs_keep]
+        self.gimbal = self._rotations(track, gimbal_angles(track))
+        self.aircraft = self._rotations(track, (track["aircraft_yaw_deg"], np.nan_to_num(track["aircraft_pitch_deg"]),
+                                                np.nan_to_num(track["aircraft_roll_deg"])))
+
+    def _relative_heights(self, track: Track) -> np.ndarray:
+        if track.has("height_above_takeoff_m"):
+            return track["height_above_takeoff_m"]
+        absolute = track["absolute_height_m"]
+        rows = np.flatnonzero(np.isfinite(absolute) & track.positions_mask())
+        if len(rows) == 0:
+            self.notes.append("no height in the track: heights set to 0 (take-off level)")
+            return np.zeros(len(track))
+        self.notes.append("no height above take-off: derived from absolute height minus its first value")
+        return absolute - absolute[rows[0]]
+
+    @staticmethod
+    def _rotations(track: Track, angles) -> AttitudeSeries | None:
+        yaw, pitch, roll = angles
+        rows = np.isfinite(yaw) & np.isfinite(pitch) & np.isfinite(roll)
+        if not rows.any():
+            return None
+        times, keep = unique_times(track.time_s[rows])
+        return AttitudeSeries(times, ned_rotation(yaw[rows][keep], pitch[rows][keep], roll[rows][keep]))
+
+    def bracket(self, sample_t: np.ndarray, t: float) -> str | None:
+        """None if ``t`` can be interpolated from samples at ``sample_t``, else the reason it cannot."""
+        if len(sample_t) == 0:
+            return "no samples"
+        if t < sample_t[0] - 1e-6 or t > sample_t[-1] + 1e-6:
+            return f"outside the track's time span ({format_utc(sample_t[0])} .. {format_utc(sample_t[-1])})"
+        i = int(np.searchsorted(sample_t, t))
+        if i < len(sample_t) and abs(sample_t[i] - t) <= 1e-6 or i > 0 and abs(sample_t[i - 1] - t) <= 1e-6:
+            return None
+        gap = sample_t[i] - sample_t[i - 1]
+        return f"in a telemetry gap of {gap:.2f} s (limit {self.max_gap_s:g} s)" if gap > self.max_gap_s else None
+
+    def position(self, t: float) -> tuple[np.ndarray, float, float] | str:
+        """(ENU metres, height above take-off, absolute height or NaN) at ``t``, or the reason it is unknown."""
+        reason = self.bracket(self.pos_t, t)
+        if reason:
+            return reason
+        enu = np.array([np.interp(t, self.pos_t, self.enu[:, k]) for k in range(3)])
+        absolute = math.nan
+        if self.bracket(self.abs_t, t) is None:
+            absolute = float(np.interp(t, self.abs_t, self.absolute))
+        return enu, float(np.interp(t, self.pos_t, self.relative)), absolute
+
+    def horizontal_at(self, times: np.ndarray) -> np.ndarray:
+        """(N, 2) east/north at ``times`` by linear interpolation; NaN outside the position samples' span."""
+        inside = np.isfinite(times) & (times >= self.pos_t[0]) & (times <= self.pos_t[-1]) if len(self.pos_t) else np.zeros(len(times), bool)
+        east_north = np.stack([np.interp(times, self.pos_t, self.enu[:, k]) for k in range(2)], axis=-1) \
+            if len(self.pos_t) else np.zeros((len(times), 2))
+        east_north[~inside] = np.nan
+        return east_north
+
+    def attitude(self, which: str, t: float) -> Rotation | None:
+        """Slerped R_ned_body of the gimbal or aircraft at ``t``; None if unknown there."""
+        series = self.gimbal if which == "gimbal" else self.aircraft
+        if series is None or self.bracket(series.times_s, t):
+            return None
+        return series(t)
+
+
+def gimbal_angles(track: Track):
+    """Gimbal yaw/pitch/roll per row, with DJI fallbacks: yaw = aircraft yaw where the source has no gimbal yaw
+    (a Mini's gimbal has no yaw axis), roll = 0 where it has no gimbal roll (the gimbal levels the horizon)."""
+    yaw = track["gimbal_yaw_deg"] if track.has("gimbal_yaw_deg") else track["aircraft_yaw_deg"]
+    roll = track["gimbal_roll_deg"] if track.has("gimbal_roll_deg") else np.zeros(len(track))
+    return yaw, track["gimbal_pitch_deg"], roll
+
+
+def unique_times(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sorted unique times and the indices (first occurrence) that produce them."""
+    unique, index = np.unique(times, return_index=True)
+    return unique, index
+
+
+def take_off_frame(track: Track) -> tuple[LocalFrame, bool]:
+    """ENU frame at the take-off point; h0 = absolute height there if known (else 0, flagged False)."""
+    home = track.take_off()
+    if home is None:
+        raise ValueError(f"{track.report.source}: the track has no position to use as origin")
+    if math.isfinite(home.absolute_height_m):
+        return LocalFrame(home.lat_deg, home.lon_deg, home.absolute_height_m), True
+    both = np.isfinite(track["absolute_height_m"]) & np.isfinite(track["height_above_takeoff_m"])
+    if both.any():
+        h0 = float(np.median(track["absolute_height_m"][both] - track["height_above_takeoff_m"][both]))
+        return LocalFrame(home.lat_deg, home.lon_deg, h0), True
+    return LocalFrame(home.lat_deg, home.lon_deg, 0.0), False
+
+
+def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
+                  interpolator: "TrackInterpolator") -> tuple[ClockOffset, float]:
+    """The clock offset to use (manual, estimated, or implied) and the EXIF resolution in seconds."""
+    resolution = max((p.time_resolution_s for p in timed), default=1.0)
+    exif = np.array([p.exif_time_s for p in timed])
+    events = len(track.photo_times_s)
+    if track.clock == "camera":
+        return ClockOffset(0.0, 0.0, "same-clock", photos=len(exif), events=events), resolution
+    if clock_offset != "auto":
+        return ClockOffset(float(clock_offset), 0.0, "manual", photos=len(exif), events=events), resolution
+    if events == 0 or len(exif) == 0:
+        note = "no shutter events in the logs" if events == 0 else "no EXIF times"
+        return ClockOffset(0.0, math.nan, "assumed-zero", photos=len(exif), note=note + "; give --clock-offset"), resolution
+    misfit = position_misfit(timed, interpolator)
+    return estimate_clock_offset(exif, resolution, track.photo_times_s, slack_s=MATCH_SLACK_S,
+                                 tolerance_s=event_tolerance(track), position_misfit=misfit), resolution
+
+
+def event_tolerance(track: Track) -> float:
+    """How far a shutter event may be from its true time: the source's own bound, at least EVENT_TOLERANCE_S."""
+    return max(EVENT_TOLERANCE_S, track.event_time_error_s)
+
+
+def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
+    """For clock estimation: a function of per-photo telemetry times giving the horizontal distance (m)
+    between each photo's own EXIF/XMP position and the track then (NaN where unknown); None without GPS."""
+    own = np.array([[p.values.get("lat_deg", np.nan), p.values.get("lon_deg", np.nan)] for p in timed])
+    if not np.isfinite(own).all(axis=1).any():
+        return None
+    own_en = np.stack(interpolator.frame.to_enu(own[:, 0], own[:, 1], 0.0)[:2], axis=-1)
+
+    def misfit(times: np.ndarray) -> np.ndarray:
+        track_en = interpolator.horizontal_at(np.asarray(times, float))
+        return np.hypot(*(track_en - own_en).T)
+
+    return misfit
+
+
+def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset="auto",
+                  max_gap_s: float = DEFAULT_MAX_GAP_S) -> GeotagResult:
+    """Geotag ``photos`` from ``tracks`` (merged by time). ``clock_offset``: ``"auto"`` or seconds
+    (telemetry UTC - camera clock)."""
+    relative = [t.report.source for t in tracks if t.clock == "relative"]
+    if relative:
+        raise ValueError(f"{relative[0]}: log has no wall-clock time (SRT without a date); give its start time (start_time_s, CLI --start-time)")
+    track = Track.concat(tracks)
+    frame, height_known = take_off_frame(track)
+    interpolator = TrackInterpolator(track, frame, max_gap_s)
+    timed = [p for p in photos if math.isfinite(p.exif_time_s)]
+    untagged = [(p.name, "no EXIF DateTimeOriginal") for p in photos if not math.isfinite(p.exif_time_s)]
+    clock, resolution = resolve_clock(timed, track, clock_offset, interpolator)
+    exif = np.array([p.exif_time_s for p in timed])
+    slack = MATCH_SLACK_S if clock.method == "manual" else max(event_tolerance(track), min(MATCH_SLACK_S, 3 * clock.std_s))
+    matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, slack)
+    kind = track.report.kind if len(tracks) == 1 else "+".join(sorted({t.report.kind for t in tracks}))
+    tags = []
+    for photo, exif_s, event in zip(timed, exif, matches):
+        if event >= 0:
+            t, time_source = float(track.photo_times_s[event]), "event"
+        else:
+            t, time_source = exif_s + clock.offset_s + resolution / 2.0, "exif"
+        tag = make_tag(photo.name, t, interpolator, f"{kind}/{time_source}", time_source)
+        if isinstance(tag, str):
+            untagged.append((photo.name, tag))
+        else:
+            tags.append(tag)
+    notes = list(interpolator.notes)
+    if not height_known:
+        notes.append("take-off absolute height unknown: origin h0 = 0")
+    return GeotagResult(tags, untagged, frame, height_known, clock, [t.report for t in tracks], notes)
+
+
+def make_tag(name: str, t: float, interpolator: TrackInterpolator, source: str, time_source: str) -> Geotag | str:
+    """Interpolate one photo's pose at telemetry time ``t``; a string is the reason it cannot be tagged."""
+    position = interpolator.position(t)
+    if isinstance(position, str):
+        return position
+    enu, relative, absolute = position
+    lat, lon, _ = interpolator.frame.to_geodetic(*enu)
+    gimbal = interpolator.attitude("gimbal", t)
+    aircraft = interpolator.attitude("aircraft", t)
+    nan3 = np.full(3, np.nan)
+    gimbal_ypr = ned_angles(gimbal) if gimbal is not None else nan3
+    r_world_cam = camera_from_gimbal(gimbal).as_matrix() if gimbal is not None else None
+    return Geotag(name, t, time_source, source, float(lat), float(lon), relative, absolute,
+                  ned_angles(aircraft) if aircraft is not None else nan3, gimbal_ypr, enu, r_world_cam)

@@ -1,0 +1,174 @@
+"""Geotag files: ``geotags.csv`` + ``geotags.json`` (INTERFACES.md), pose priors for recon, EXIF/XMP write-back.
+
+``load_geotags(path)`` is what recon (pose priors) and the simulator's replay read: one ``PosePrior`` per photo
+with the ENU camera position, ``R_world_cam`` (ENU <- OpenCV camera) and the ENU origin.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import ExifTags, Image, JpegImagePlugin
+from scipy.spatial.transform import Rotation
+
+from flightplan.geodesy import LocalFrame
+
+from .atomic import atomic_path, write_text_atomic
+from .geotag import Geotag, GeotagResult
+from .logs.photos import DRONE_DJI_NS
+from .track import format_number, format_utc, parse_utc
+
+GEOTAG_COLUMNS = (
+    "image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
+    "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,time_offset_s,"
+    "east_m,north_m,up_m,qw,qx,qy,qz"
+).split(",")
+
+
+@dataclass(frozen=True)
+class PosePrior:
+    """A photo's pose prior: ENU position (m), R_world_cam (3x3, or None if no attitude), origin, UTC time."""
+
+    image_name: str
+    position_enu_m: np.ndarray
+    R_world_cam: np.ndarray | None
+    origin: LocalFrame
+    utc_time_s: float
+
+
+def sidecar_path(csv_path) -> Path:
+    """``geotags.csv`` -> ``geotags.json`` beside it."""
+    return Path(csv_path).with_suffix(".json")
+
+
+def tag_row(tag: Geotag, offset_s: float) -> list[str]:
+    """One CSV row (strings) for a geotag, in GEOTAG_COLUMNS order."""
+    quaternion = [math.nan] * 4
+    if tag.R_world_cam is not None:
+        x, y, z, w = Rotation.from_matrix(tag.R_world_cam).as_quat()
+        quaternion = [w, x, y, z] if w >= 0 else [-w, -x, -y, -z]
+    numbers = [tag.lat_deg, tag.lon_deg, tag.height_above_takeoff_m, tag.absolute_height_m,
+               *tag.aircraft_ypr_deg, *tag.gimbal_ypr_deg]
+    return ([tag.image_name, format_utc(tag.time_s)] + [format_number(v) for v in numbers]
+            + [tag.source, format_number(offset_s)] + [format_number(v) for v in (*tag.enu_m, *quaternion)])
+
+
+def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
+    """Write ``geotags.csv`` and its ``.json`` sidecar atomically; returns both paths."""
+    csv_path = Path(csv_path)
+    lines = [",".join(GEOTAG_COLUMNS)]
+    lines += [",".join(csv_cell(c) for c in tag_row(tag, result.clock.offset_s)) for tag in result.tags]
+    sidecar = {
+        "origin": result.origin.to_dict(),
+        "origin_height_known": result.origin_height_known,
+        "clock_offset_s": result.clock.offset_s,
+        "clock_offset_std_s": result.clock.std_s if math.isfinite(result.clock.std_s) else None,
+        "clock_offset_method": result.clock.method,
+        "sources": [{"file": r.source, "kind": r.kind, "rows_read": r.rows_read, "rows_used": r.rows_used,
+                     "rejected": len(r.rejected), "notes": r.notes} for r in result.sources],
+        "untagged": [{"image_name": name, "reason": reason} for name, reason in result.untagged],
+        "notes": result.notes,
+    }
+    json_path = sidecar_path(csv_path)
+    write_text_atomic(json_path, json.dumps(sidecar, indent=2) + "\n")
+    write_text_atomic(csv_path, "\n".join(lines) + "\n")
+    return csv_path, json_path
+
+
+def csv_cell(text: str) -> str:
+    """Quote a cell only if it needs it (commas, quotes)."""
+    return '"' + text.replace('"', '""') + '"' if ("," in text or '"' in text) else text
+
+
+def load_geotags(csv_path) -> list[PosePrior]:
+    """Read ``geotags.csv`` (+ sidecar origin) into pose priors; raises ValueError naming file:line."""
+    csv_path = Path(csv_path)
+    try:
+        origin = LocalFrame.from_dict(json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))["origin"])
+    except (OSError, KeyError, ValueError, TypeError) as error:
+        raise ValueError(f"{sidecar_path(csv_path)}: cannot read the origin ({error})") from None
+    with csv_path.open(encoding="utf-8", newline="") as handle:
+        reader = csv.DictReader(handle)
+        if reader.fieldnames != GEOTAG_COLUMNS:
+            raise ValueError(f"{csv_path}:1: header is not the geotags.csv header of INTERFACES.md")
+        priors = []
+        for line, row in enumerate(reader, start=2):
+            try:
+                position = np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")])
+                q = [row[k] for k in ("qw", "qx", "qy", "qz")]
+                rotation = None if "" in q else Rotation.from_quat([float(v) for v in q], scalar_first=True).as_matrix()
+                priors.append(PosePrior(row["image_name"], position, rotation, origin, parse_utc(row["utc_time"])))
+            except (ValueError, TypeError) as error:
+                raise ValueError(f"{csv_path}:{line}: {error}") from None
+    return priors
+
+
+def colmap_reference_text(priors: list[PosePrior]) -> str:
+    """COLMAP geo-registration reference (``model_aligner --ref_images_path``): ``NAME X Y Z`` in ENU metres."""
+    return "".join(f"{p.image_name} {p.position_enu_m[0]:.4f} {p.position_enu_m[1]:.4f} {p.position_enu_m[2]:.4f}\n"
+                   for p in priors)
+
+
+def write_colmap_reference(priors: list[PosePrior], path) -> None:
+    write_text_atomic(path, colmap_reference_text(priors))
+
+
+def dji_xmp_packet(tag: Geotag) -> bytes:
+    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style)."""
+    values = {"GpsLatitude": tag.lat_deg, "GpsLongitude": tag.lon_deg,
+              "AbsoluteAltitude": tag.absolute_height_m, "RelativeAltitude": tag.height_above_takeoff_m}
+    for prefix, angles in (("Gimbal", tag.gimbal_ypr_deg), ("Flight", tag.aircraft_ypr_deg)):
+        values.update({f"{prefix}YawDegree": angles[0], f"{prefix}PitchDegree": angles[1], f"{prefix}RollDegree": angles[2]})
+    attributes = "".join(f'\n   drone-dji:{k}="{v:+.8f}"' for k, v in values.items() if math.isfinite(v))
+    return ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'
+            ' <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
+            f'  <rdf:Description rdf:about="" xmlns:drone-dji="{DRONE_DJI_NS}"{attributes}/>\n'
+            ' </rdf:RDF>\n</x:xmpmeta>\n<?xpacket end="w"?>').encode("utf-8")
+
+
+def deg_to_dms(value: float) -> tuple[float, float, float]:
+    degrees = math.floor(abs(value))
+    minutes = math.floor((abs(value) - degrees) * 60.0)
+    seconds = (abs(value) - degrees - minutes / 60.0) * 3600.0
+    return float(degrees), float(minutes), round(seconds, 6)
+
+
+def write_exif_copy(tag: Geotag, source: Path, target: Path) -> None:
+    """Copy a JPEG with the geotag in its EXIF GPS IFD and a fresh DJI XMP packet (atomic).
+
+    Pillow re-encodes the JPEG with the original quantisation tables and chroma subsampling, so the copy is
+    visually identical but not byte-identical; the original XMP packet is replaced.
+    """
+    with Image.open(source) as image:
+        exif = image.getexif()
+        gps = exif.get_ifd(ExifTags.IFD.GPSInfo)
+        gps[ExifTags.GPS.GPSVersionID] = b"\x02\x03\x00\x00"
+        gps[ExifTags.GPS.GPSLatitudeRef] = "N" if tag.lat_deg >= 0 else "S"
+        gps[ExifTags.GPS.GPSLatitude] = deg_to_dms(tag.lat_deg)
+        gps[ExifTags.GPS.GPSLongitudeRef] = "E" if tag.lon_deg >= 0 else "W"
+        gps[ExifTags.GPS.GPSLongitude] = deg_to_dms(tag.lon_deg)
+        if math.isfinite(tag.absolute_height_m):
+            gps[ExifTags.GPS.GPSAltitudeRef] = b"\x00" if tag.absolute_height_m >= 0 else b"\x01"
+            gps[ExifTags.GPS.GPSAltitude] = abs(tag.absolute_height_m)
+        exif[ExifTags.IFD.GPSInfo] = gps
+        with atomic_path(target) as tmp:
+            image.save(tmp, format="JPEG", exif=exif, xmp=dji_xmp_packet(tag), qtables=image.quantization,
+                       subsampling=JpegImagePlugin.get_sampling(image), icc_profile=image.info.get("icc_profile"))
+
+
+def write_exif_copies(result: GeotagResult, photos_dir, out_dir) -> list[Path]:
+    """Geotagged copies of every tagged photo in ``out_dir`` (never modifies the originals)."""
+    out_dir = Path(out_dir)
+    if out_dir.resolve() == Path(photos_dir).resolve():
+        raise ValueError(f"{out_dir}: refusing to overwrite the original photos; choose another folder")
+    written = []
+    for tag in result.tags:
+        target = out_dir / tag.image_name
+        write_exif_copy(tag, Path(photos_dir) / tag.image_name, target)
+        written.append(target)
+    return written

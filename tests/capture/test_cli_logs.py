@@ -1,0 +1,114 @@
+"""`geotag` and `track` subcommands through a throwaway argparse parser (capture/cli.py wires them later)."""
+
+import argparse
+import csv
+import json
+from datetime import datetime, timezone
+
+import numpy as np
+import pytest
+from PIL import ExifTags, Image
+
+from capture.cli_logs import register
+from capture.geotag_io import deg_to_dms, load_geotags
+from capture.logs.photos import read_photo
+from capture.logs.writers import write_litchi_csv
+from capture.synthetic import Noise, Orbit, shutter_times, telemetry
+from flightplan.demo_location import DEMO_ORIGIN
+
+
+def run(argv):
+    parser = argparse.ArgumentParser(prog="aerostereo-ingest")
+    register(parser.add_subparsers(required=True))
+    args = parser.parse_args([str(a) for a in argv])
+    return args.func(args)
+
+
+def write_jpeg(path, camera_time_s, lat_deg, lon_deg):
+    """A tiny JPEG with the EXIF a DJI camera writes: DateTimeOriginal (whole seconds) and GPS."""
+    exif = Image.Exif()
+    stamp = datetime.fromtimestamp(np.floor(camera_time_s), tz=timezone.utc).strftime("%Y:%m:%d %H:%M:%S")
+    exif.get_ifd(ExifTags.IFD.Exif)[ExifTags.Base.DateTimeOriginal] = stamp
+    gps = exif.get_ifd(ExifTags.IFD.GPSInfo)
+    gps[ExifTags.GPS.GPSLatitudeRef], gps[ExifTags.GPS.GPSLatitude] = "N", deg_to_dms(lat_deg)
+    gps[ExifTags.GPS.GPSLongitudeRef], gps[ExifTags.GPS.GPSLongitude] = "E", deg_to_dms(lon_deg)
+    Image.new("RGB", (16, 12), (90, 120, 60)).save(path, exif=exif)
+
+
+@pytest.fixture()
+def synthetic_flight(tmp_path):
+    rng = np.random.default_rng(11)
+    orbit, noise = Orbit(DEMO_ORIGIN), Noise(interval_jitter_s=0.05)
+    shutter = shutter_times(orbit, 40.0, 1.0, noise, rng)
+    write_litchi_csv(telemetry(orbit, 40.0, 10.0, noise, rng, shutter), tmp_path / "flight.csv")
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    lat, lon, _ = orbit.frame.to_geodetic(*orbit.enu(shutter).T)
+    for i, s in enumerate(shutter):
+        write_jpeg(photos / f"IMG_{i:04d}.JPG", s - 0.37, lat[i], lon[i])
+    return orbit, shutter, tmp_path
+
+
+def test_geotag_command_end_to_end(synthetic_flight, capsys):
+    orbit, shutter, folder = synthetic_flight
+    out = folder / "out" / "geotags.csv"
+    code = run(["geotag", "--photos", folder / "photos", "--log", folder / "flight.csv", "--out", out,
+                "--colmap-ref", folder / "out" / "ref.txt", "--write-exif"])
+    printed = capsys.readouterr().out
+    assert code == 0 and "clock offset" in printed and f"{len(shutter)} photos geotagged, 0 untagged" in printed
+    assert "[litchi]: 400 of 400 rows used" in printed
+    sidecar = json.loads(out.with_suffix(".json").read_text())
+    error = abs(sidecar["clock_offset_s"] - 0.37)  # 36 photos: the shutter phase spans little of a second
+    assert error < 3 * sidecar["clock_offset_std_s"] + 0.02 and sidecar["clock_offset_std_s"] < 0.3
+    priors = load_geotags(out)
+    truth = orbit.frame.enu_points(*orbit.frame.to_geodetic(*orbit.enu(shutter).T))
+    frame = priors[0].origin
+    estimate = orbit.frame.enu_points(*frame.to_geodetic(*np.array([p.position_enu_m for p in priors]).T))
+    assert np.abs(estimate[:, :2] - truth[:, :2]).max() < 0.07  # horizontal; h0 unknown in a Litchi log
+    rows = list(csv.DictReader(out.open()))
+    assert {row["source"] for row in rows} == {"litchi/event"}
+    assert len((folder / "out" / "ref.txt").read_text().splitlines()) == len(shutter)
+    tagged = read_photo(folder / "out" / "geotagged" / "IMG_0000.JPG")
+    assert tagged.values["lat_deg"] == pytest.approx(float(rows[0]["lat_deg"]), abs=1e-8)
+    assert tagged.values["gimbal_pitch_deg"] == pytest.approx(float(rows[0]["gimbal_pitch_deg"]), abs=1e-6)
+
+
+def test_track_command_real_samples(shared_data, tmp_path, capsys):
+    assert run(["track", shared_data / "litchi" / "airdata_mini2_imperial_head.csv",
+                "--out", tmp_path / "t.csv", "--kml", tmp_path / "t.kml"]) == 0
+    assert len((tmp_path / "t.csv").read_text().splitlines()) == 51
+    assert "<LineString>" in (tmp_path / "t.kml").read_text()
+    assert run(["track", shared_data / "dji" / "DJI_SRT_Parser__mavic_mini.SRT", "--start-time",
+                "2020-01-01T10:00:00Z", "--out", tmp_path / "m.csv"]) == 0
+    assert (tmp_path / "m.csv").read_text().splitlines()[1].startswith("2020-01-01T10:00:00.000000Z,")
+    printed = capsys.readouterr().out
+    assert "117 of 117 rows used" in printed
+
+
+def test_geotag_from_the_photos_own_metadata(shared_data, tmp_path, capsys):
+    images = shared_data / "brighton_beach" / "images"
+    assert run(["geotag", "--photos", images, "--log", images, "--out", tmp_path / "g.csv"]) == 0
+    priors = load_geotags(tmp_path / "g.csv")
+    assert len(priors) == 18 and priors[0].position_enu_m[2] == pytest.approx(39.8)
+    assert "(same-clock)" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["track", "{data}/brighton_beach/LICENSE", "--out", "{tmp}/x.csv"], "unknown log format"),
+    (["track", "{tmp}/missing.csv", "--out", "{tmp}/x.csv"], "no such file"),
+    (["track", "{data}/litchi/airdata_mini2_imperial_head.csv"], "give --out"),
+    (["geotag", "--photos", "{data}/brighton_beach/images", "--log", "{data}/dji/DJI_SRT_Parser__mavic_mini.SRT",
+      "--out", "{tmp}/x.csv"], "no wall-clock time"),
+    (["geotag", "--photos", "{data}/brighton_beach/images", "--log", "{data}/dji/DJI_SRT_Parser__mavic_pro.SRT",
+      "--out", "{tmp}/x.csv"], "no photo could be geotagged"),
+    (["geotag", "--photos", "{tmp}", "--log", "{data}/dji/DJI_SRT_Parser__mavic_pro.SRT", "--out", "{tmp}/x.csv"],
+     "no readable JPEG"),
+    (["geotag", "--photos", "{data}/brighton_beach/images", "--log", "{data}/brighton_beach/images",
+      "--out", "{tmp}/x.csv", "--write-exif", "--exif-dir", "{data}/brighton_beach/images"], "refusing to overwrite"),
+])
+def test_bad_input_is_one_line_exit_2_and_writes_nothing(shared_data, tmp_path, capsys, argv, message):
+    argv = [a.format(data=shared_data, tmp=tmp_path) for a in argv]
+    assert run(argv) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("aerostereo-ingest: error: ") and message in err
+    assert list(tmp_path.iterdir()) == []
