@@ -84,6 +84,8 @@ class FakeUsbBackend(usb.backend.IBackend):
         return self.configuration
 
     def get_interface_descriptor(self, dev, intf, alt, config):
+        if alt != 0:
+            raise IndexError(f"interface {intf} has only alternate setting 0")
         return self.interfaces[intf]
 
     def get_endpoint_descriptor(self, dev, ep, intf, alt, config):

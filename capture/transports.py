@@ -80,6 +80,7 @@ class LiveSource:
         self.backoff = backoff
         self.clock = clock or Clock()
         self.reconnects = 0
+        self.connection = None
 
     def _open(self):
         raise NotImplementedError
@@ -92,24 +93,26 @@ class LiveSource:
         raise NotImplementedError
 
     def chunks(self, stop: threading.Event | None = None) -> Iterator[Chunk]:
+        """Yield chunks until ``stop`` is set; ``self.connection`` is the open device meanwhile."""
         stop = stop or threading.Event()
         try:
-            connection = self._open()
+            self.connection = self._open()
         except self.disconnect_errors as error:
             raise TransportError(f"cannot open {self.description}: {error}") from None
         try:
             while not stop.is_set():
                 try:
-                    data = self._read(connection)
+                    data = self._read(self.connection)
                 except self.disconnect_errors:
-                    self._close_quietly(connection)
-                    connection = self._reconnect(stop)
+                    self._close_quietly(self.connection)
+                    self.connection = self._reconnect(stop)
                     continue
                 if data:
                     yield Chunk(self.clock.utc(), self.clock.monotonic(), data)
         finally:
-            if connection is not None:
-                self._close_quietly(connection)
+            if self.connection is not None:
+                self._close_quietly(self.connection)
+            self.connection = None
 
     __iter__ = chunks
 
@@ -137,16 +140,22 @@ class SerialSource(LiveSource):
 
     disconnect_errors = (serial.SerialException, OSError)
 
-    def __init__(self, url: str, baudrate: int = 115200, read_timeout_s: float = 0.05, **kwargs) -> None:
+    def __init__(self, url: str, baudrate: int = 115200, read_timeout_s: float = 0.05, max_chunk_bytes: int = 65536,
+                 **kwargs) -> None:
         super().__init__(**kwargs)
         self.url, self.baudrate, self.read_timeout_s = url, baudrate, read_timeout_s
+        self.max_chunk_bytes = max_chunk_bytes
         self.description = f"serial port {url}"
 
     def _open(self):
         return serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.read_timeout_s)
 
     def _read(self, port) -> bytes:
-        return port.read(max(1, port.in_waiting))
+        """Wait up to the timeout for a byte, then take everything already waiting (socket:// reports 1)."""
+        data = port.read(max(1, port.in_waiting))
+        while data and port.in_waiting and len(data) < self.max_chunk_bytes:
+            data += port.read(port.in_waiting)
+        return data
 
     def _close(self, port) -> None:
         port.close()
