@@ -102,6 +102,7 @@ def run_record(args) -> int:
     if args.duration is not None and args.duration <= 0:
         raise CliError(f"--duration {args.duration}: expected a positive number of seconds")
     source = open_source(args.port, args.baud)
+    source.open()  # fail before creating any file
     stop = stop_after(args.duration)
     with RawCaptureWriter(args.out) as writer:
         status = record(source.chunks(stop), writer, default_registry(),

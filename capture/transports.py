@@ -92,13 +92,18 @@ class LiveSource:
     def _close(self, connection) -> None:
         raise NotImplementedError
 
-    def chunks(self, stop: threading.Event | None = None) -> Iterator[Chunk]:
-        """Yield chunks until ``stop`` is set; ``self.connection`` is the open device meanwhile."""
-        stop = stop or threading.Event()
+    def open(self) -> None:
+        """Open the device now (``chunks`` does it if needed); TransportError when it cannot be opened."""
         try:
             self.connection = self._open()
         except self.disconnect_errors as error:
             raise TransportError(f"cannot open {self.description}: {error}") from None
+
+    def chunks(self, stop: threading.Event | None = None) -> Iterator[Chunk]:
+        """Yield chunks until ``stop`` is set; ``self.connection`` is the open device meanwhile."""
+        stop = stop or threading.Event()
+        if self.connection is None:
+            self.open()
         try:
             while not stop.is_set():
                 try:
