@@ -53,7 +53,8 @@ SUBCOMMANDS = (add_record_parser, add_decode_parser, add_list_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="aerostereo-ingest", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="aerostereo-ingest", description="Record DJI DUML telemetry from a live link, "
+                                     "decode captures to CSV, list devices.")
     subparsers = parser.add_subparsers(dest="command", required=True)
     for add_parser in SUBCOMMANDS:
         add_parser(subparsers)
