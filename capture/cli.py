@@ -53,8 +53,9 @@ SUBCOMMANDS = (add_record_parser, add_decode_parser, add_list_parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="aerostereo-ingest", description="Record DJI DUML telemetry from a live link, "
-                                     "decode captures to CSV, list devices.")
+    parser = argparse.ArgumentParser(
+        prog="aerostereo-ingest",
+        description="Record DJI DUML telemetry from a live link, decode captures to CSV, list devices.")
     subparsers = parser.add_subparsers(dest="command", required=True)
     for add_parser in SUBCOMMANDS:
         add_parser(subparsers)

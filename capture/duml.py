@@ -222,7 +222,8 @@ class Deframer:
     def _process(self, buffer: bytes, final: bool) -> list[tuple[int, Packet]]:
         base = self._pending_offset
         batch = self._scan_and_consume(buffer, final)
-        return [(base + start, packet) for start, packet in zip(batch.starts.tolist(), packets_from_frames(buffer, batch))]
+        offsets = (batch.starts + base).tolist()
+        return list(zip(offsets, packets_from_frames(buffer, batch)))
 
     def _scan_and_consume(self, buffer: bytes, final: bool) -> FrameBatch:
         scan = _scan(buffer, final, self.crc16_seed)
@@ -394,7 +395,8 @@ def _skipped_reasons(acc_starts, acc_ends, decided, rej_starts, rej_ends, rej_st
     total = int(gap_lengths.sum())
     if total == 0:
         return np.zeros(0, dtype=np.int64)
-    positions = np.repeat(gap_starts - np.cumsum(np.concatenate(([0], gap_lengths[:-1]))), gap_lengths) + np.arange(total)
+    gap_first_index = np.cumsum(np.concatenate(([0], gap_lengths[:-1])))
+    positions = np.repeat(gap_starts - gap_first_index, gap_lengths) + np.arange(total)
     reasons = np.full(total, SkipReason.NO_SYNC, dtype=np.int64)
     if len(rej_starts):
         reach = np.maximum.accumulate(rej_ends)

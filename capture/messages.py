@@ -15,7 +15,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import struct
-from dataclasses import astuple, dataclass, fields
+from dataclasses import astuple, dataclass
 from typing import Any, Callable, NamedTuple
 
 from capture.duml import Packet, device_address, make_cmd_type
@@ -101,8 +101,8 @@ _OSD = struct.Struct("<2d7h2BI6BH5Bb")
 
 
 def _decode_osd(payload: bytes) -> OsdGeneral:
-    (lon, lat, height, vx, vy, vz, pitch, roll, yaw, ctrl_info, app_cmd, state, sats, gohome, motor_fail,
-     ext, battery, ultrasonic, fly_time, motor_count, alarm1, alarm2, match, product, imu_fail) = _OSD.unpack_from(payload)
+    (lon, lat, height, vx, vy, vz, pitch, roll, yaw, ctrl_info, app_cmd, state, sats, gohome, motor_fail, ext,
+     battery, ultrasonic, fly_time, motor_count, alarm1, alarm2, match, product, imu_fail) = _OSD.unpack_from(payload)
     return OsdGeneral(math.degrees(lon), math.degrees(lat), _tenths(height), _tenths(vx), _tenths(vy), _tenths(vz),
                       _tenths(pitch), _tenths(roll), _tenths(yaw), ctrl_info, app_cmd, state, sats, gohome,
                       motor_fail, ext, battery, _tenths(ultrasonic), _tenths(fly_time), motor_count, alarm1, alarm2,
@@ -356,11 +356,6 @@ def encode_message(record, seq: int, sender: int | None = None, receiver: int | 
     return Packet(spec.default_sender if sender is None else sender,
                   spec.default_receiver if receiver is None else receiver,
                   seq & 0xFFFF, cmd_type, spec.cmd_set, spec.cmd_id, spec.encode(record))
-
-
-def record_fields(record_type: type) -> list[str]:
-    """Names of a record type's fields, in layout order."""
-    return [f.name for f in fields(record_type)]
 
 
 def _default_spec_for(record) -> MessageSpec:

@@ -134,11 +134,13 @@ def bench(size_mb: int, chunk_mb: float, seed: int) -> None:
     print()
     print("| CRC16 over 1 MB | time (ms) | MB/s | result |")
     print("|---|---:|---:|---|")
-    print(f"| bytes.translate + binascii.crc_hqx | {fast_s * 1e3:.2f} | {len(sample) / fast_s / 1e6:.0f} | 0x{fast:04x} |")
+    print(f"| bytes.translate + binascii.crc_hqx | {fast_s * 1e3:.2f} | {len(sample) / fast_s / 1e6:.0f} "
+          f"| 0x{fast:04x} |")
     print(f"| Python table loop, one byte at a time (baseline) | {slow_s * 1e3:.0f} | {len(sample) / slow_s / 1e6:.1f}"
           f" | 0x{slow:04x} ({'same' if slow == fast else 'DIFFERENT'}) |")
     four_hours = UART_115200_BPS * 4 * 3600
-    print(f"\na 4-hour 115200-baud log ({four_hours / 1e6:.0f} MB) deframes in {four_hours / (len(stream) / deframe_s):.1f} s")
+    seconds = four_hours / (len(stream) / deframe_s)
+    print(f"\na 4-hour 115200-baud log ({four_hours / 1e6:.0f} MB) deframes in {seconds:.1f} s")
 
 
 def _bytewise_crc16(data: bytes, seed: int = duml.CRC16_SEED) -> int:

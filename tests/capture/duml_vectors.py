@@ -10,7 +10,8 @@ VECTORS = {
     "4_fc_response": "55 0e 04 66 03 0a 9d a5 80 03 df 00 a7 92",
     "5_gimbal_to_pc": "55 0f 04 a2 04 0a 71 92 00 04 08 01 11 2c 70",
     "6_pc_idx1_to_dm3xx": "55 0e 04 66 2a 28 de 2f 40 00 4f 01 54 c8",
-    "7_osd_general_p3x": ("55 3f 04 8f 03 09 2a 01 00 03 43 1c 88 da 9d cb bb d4 3f 9d 9a 0e f5 3b 5e ee 3f 00 00 00 00"
+    "7_osd_general_p3x": ("55 3f 04 8f 03 09 2a 01 00 03 43 1c 88 da 9d cb bb d4 3f 9d 9a 0e f5 3b 5e ee 3f 00 00 00"
+                          " 00"
                           " 01 00 00 00 c4 ff cf ff df 04 01 00 11 50 84 00 05 00 00 00 61 00 00 00 00 1e 8a 09 02 00"
                           " be 90"),
     "8_gimbal_params": "55 19 04 e4 04 03 e0 15 00 04 05 30 ff da fe 45 ff 80 00 00 00 20 01 0d 11",
@@ -20,7 +21,8 @@ VECTORS = {
 }
 
 # Vector 11 (OSD Home Point, 81 bytes) is published only in part: its header and the first 32 payload bytes.
-VECTOR_11_HEADER_AND_PAYLOAD_PREFIX = ("55 51 04 09 03 09 84 00 00 03 44 00 00 00 00 00 6a 28 41 00 00 00 00 00 6a 28 41"
+VECTOR_11_HEADER_AND_PAYLOAD_PREFIX = ("55 51 04 09 03 09 84 00 00 03 44"
+                                       " 00 00 00 00 00 6a 28 41 00 00 00 00 00 6a 28 41"
                                        " 40 b5 ed c3 46 20 3c 00 e0 08 00 15 00 00 db 00")
 
 
