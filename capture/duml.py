@@ -344,13 +344,17 @@ def _greedy_non_overlapping(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:
     overlapping = np.flatnonzero(starts[1:] < reach[:-1]) + 1
     if len(overlapping) == 0:
         return keep
-    # rare (nested frames, chance CRC matches): resolve only the overlapping clusters in Python
-    last_end = -1
-    for i in range(len(starts)):
+    # rare (nested frames, chance CRC matches): walk only the overlapping intervals in Python. Each run of
+    # overlapping intervals follows a non-overlapping "head" that is always kept.
+    last_end, previous = 0, -2
+    for i in overlapping.tolist():
+        if i - 1 != previous:
+            last_end = ends[i - 1]
         if starts[i] < last_end:
             keep[i] = False
         else:
             last_end = ends[i]
+        previous = i
     return keep
 
 

@@ -189,13 +189,19 @@ class UsbBulkSource(LiveSource):
     def _open(self) -> _UsbLink:
         match = {"idVendor": self.vendor_id} | ({} if self.product_id is None else {"idProduct": self.product_id})
         try:
-            device = usb.core.find(backend=self.backend, **match)
+            devices = list(usb.core.find(find_all=True, backend=self.backend, **match))
         except usb.core.NoBackendError as error:
             raise usb.core.USBError(f"no libusb backend ({error})") from None
-        if device is None:
+        if not devices:
             raise usb.core.USBError("no such device connected")
-        device.set_configuration()
-        return _UsbLink(device, find_duml_bulk_in(device))
+        problems = []
+        for device in devices:
+            try:
+                _ensure_configured(device)
+                return _UsbLink(device, find_duml_bulk_in(device))
+            except (usb.core.USBError, ValueError) as error:
+                problems.append(str(error))
+        raise usb.core.USBError("; ".join(problems))
 
     def _read(self, link: _UsbLink) -> bytes:
         try:
@@ -205,6 +211,14 @@ class UsbBulkSource(LiveSource):
 
     def _close(self, link: _UsbLink) -> None:
         usb.util.dispose_resources(link.device)
+
+
+def _ensure_configured(device: usb.core.Device) -> None:
+    """Select the first configuration unless one is active (a composite device usually is configured)."""
+    try:
+        device.get_active_configuration()
+    except usb.core.USBError:
+        device.set_configuration()
 
 
 def find_duml_bulk_in(device: usb.core.Device) -> usb.core.Endpoint:

@@ -136,3 +136,17 @@ def test_lying_length_resolved_once_enough_data_arrives():
     deframer = Deframer()
     yielded = deframer.feed(lying + frames[0][:30]) + deframer.feed(frames[0][30:] + frames[1] + frames[2])
     assert [offset for offset, _ in yielded] == [4, 67, 130]
+
+
+def test_nested_and_chained_overlaps_follow_the_left_to_right_scan():
+    inner = Packet(10, 6, 1, 0x40, 6, 1, b"").encode()
+    middle = Packet(3, 10, 2, 0, 3, 0x8F, b"\x00" + inner)  # a frame carrying a frame
+    outer = Packet(3, 10, 3, 0, 3, 0x8F, middle.encode()[:5])  # carries the head of another frame
+    tail = Packet(4, 3, 4, 0, 4, 5, bytes(12))
+    stream = middle.encode() + outer.encode() + middle.encode()[5:] + tail.encode()
+    deframer = Deframer()
+    found = [p for _, p in deframer.feed(stream) + deframer.flush()]
+    # middle is accepted (its inner frame is payload); outer is accepted; the rest of the split middle frame
+    # holds the inner frame intact, which is then found on its own; the tail follows
+    assert found == [middle, outer, Packet(10, 6, 1, 0x40, 6, 1, b""), tail]
+    assert deframer.stats.packet_bytes + deframer.stats.total_skipped == len(stream)

@@ -75,3 +75,19 @@ def test_random_bytes_never_raise_and_always_add_up(noise, chunk_sizes):
     deframer.feed(noise[position:])
     deframer.flush()
     assert deframer.stats.packet_bytes + deframer.stats.total_skipped == len(noise)
+
+
+@given(st.lists(st.tuples(st.integers(0, 200), st.integers(1, 30)), max_size=40))
+def test_greedy_overlap_resolution_matches_a_plain_scan(intervals):
+    import numpy as np
+
+    from capture.duml import _greedy_non_overlapping
+
+    intervals = sorted(set(intervals))
+    starts = np.array([s for s, _ in intervals], dtype=np.int64)
+    ends = np.array([s + n for s, n in intervals], dtype=np.int64)
+    expected, last_end = [], -1
+    for start, end in zip(starts.tolist(), ends.tolist()):
+        expected.append(start >= last_end)
+        last_end = end if start >= last_end else last_end
+    assert _greedy_non_overlapping(starts, ends).tolist() == expected

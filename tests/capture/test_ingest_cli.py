@@ -106,3 +106,36 @@ def test_extension_modules_are_optional_and_subcommands_listed():
     parser = cli.build_parser()
     choices = parser._subparsers._group_actions[0].choices
     assert {"record", "decode", "list"} <= set(choices)
+
+
+def test_kill_9_mid_capture_leaves_a_readable_prefix(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from capture.raw import read_capture_chunks
+
+    server = socket.create_server(("127.0.0.1", 0))
+    data = (frame("7_osd_general_p3x") + frame("8_gimbal_params")) * 400
+    out = tmp_path / "killed.duml"
+    env = dict(os.environ, PYTHONPATH=str(cli.Path(cli.__file__).resolve().parents[1]))
+    process = subprocess.Popen([sys.executable, "-m", "capture", "record", "--port",
+                                f"socket://127.0.0.1:{server.getsockname()[1]}", "--out", str(out)],
+                               env=env, stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+    connection, _ = server.accept()
+    time.sleep(0.5)
+    for start in range(0, len(data), 97):
+        connection.sendall(data[start:start + 97])
+        time.sleep(0.0002)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < len(data) // 2):
+        time.sleep(0.001)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    connection.close()
+    server.close()
+    kept = out.read_bytes()
+    assert len(kept) >= len(data) // 2 and data.startswith(kept)  # every byte received, in order
+    assert b"".join(chunk[2] for chunk in read_capture_chunks(out)) == kept
+    assert read_index(index_path(out)).offsets[0] == 0
