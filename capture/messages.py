@@ -216,6 +216,14 @@ class CameraState:
         return self.photo_state != 0
 
 
+def is_shutter_edge(previous: CameraState | None, current: CameraState) -> bool:
+    """True when ``current`` shows a new photo: photo_state rose from 0, or remaining_shots dropped."""
+    if previous is None:
+        return False
+    started = previous.photo_state == 0 and current.photo_state != 0
+    return started or current.remaining_shots < previous.remaining_shots
+
+
 _CAMERA = struct.Struct("<IB4IB")
 
 

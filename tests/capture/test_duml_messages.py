@@ -126,3 +126,14 @@ def test_a_new_layout_is_one_registry_entry():
                                   lambda r: layout.pack(*r), 11, 2))
     packet = encode_message(Battery((12, -3)), seq=1, registry=registry)
     assert registry.decode(packet) == (12, -3) and registry.counts["battery"] == 1
+
+
+def test_shutter_edges_from_photo_state_and_remaining_shots():
+    from capture.messages import is_shutter_edge
+
+    def state(photo_state, shots):
+        return CameraState(photo_state << 3, 0, 30000, 20000, shots, 0, 0)
+
+    sequence = [state(0, 100), state(1, 100), state(1, 100), state(0, 99), state(0, 99), state(0, 98), state(2, 98)]
+    edges = [is_shutter_edge(a, b) for a, b in zip([None, *sequence], sequence)]
+    assert edges == [False, True, False, True, False, True, True]
