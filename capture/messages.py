@@ -216,12 +216,18 @@ class CameraState:
         return self.photo_state != 0
 
 
-def is_shutter_edge(previous: CameraState | None, current: CameraState) -> bool:
-    """True when ``current`` shows a new photo: photo_state rose from 0, or remaining_shots dropped."""
+def is_shutter_edge(previous: CameraState | None, current: CameraState, signal: str = "photo_state") -> bool:
+    """True when ``current`` shows a new photo, by one signal (using both would count a photo twice):
+
+    ``"photo_state"``: photo_state rose from 0; ``"remaining_shots"``: remaining_shots dropped.
+    """
     if previous is None:
         return False
-    started = previous.photo_state == 0 and current.photo_state != 0
-    return started or current.remaining_shots < previous.remaining_shots
+    if signal == "photo_state":
+        return previous.photo_state == 0 and current.photo_state != 0
+    if signal == "remaining_shots":
+        return current.remaining_shots < previous.remaining_shots
+    raise ValueError(f"shutter signal {signal!r}: expected 'photo_state' or 'remaining_shots'")
 
 
 _CAMERA = struct.Struct("<IB4IB")

@@ -135,5 +135,7 @@ def test_shutter_edges_from_photo_state_and_remaining_shots():
         return CameraState(photo_state << 3, 0, 30000, 20000, shots, 0, 0)
 
     sequence = [state(0, 100), state(1, 100), state(1, 100), state(0, 99), state(0, 99), state(0, 98), state(2, 98)]
-    edges = [is_shutter_edge(a, b) for a, b in zip([None, *sequence], sequence)]
-    assert edges == [False, True, False, True, False, True, True]
+    pairs = list(zip([None, *sequence], sequence))
+    assert [is_shutter_edge(a, b) for a, b in pairs] == [False, True, False, False, False, False, True]
+    assert [is_shutter_edge(a, b, "remaining_shots") for a, b in pairs] == [False, False, False, True, False, True,
+                                                                            False]
