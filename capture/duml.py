@@ -156,6 +156,8 @@ class SkipReason(enum.IntEnum):
     TRUNCATED = 5  # header ok but the frame was cut short by another frame or by the end of the stream
 
 
+_MAX_SCAN_BYTES = 4 << 20
+
 # what a candidate frame turned out to be (SkipReason values for rejections, plus two states)
 _CANDIDATE_OK = 100
 _CANDIDATE_PENDING = 101
@@ -203,8 +205,12 @@ class Deframer:
 
     def feed(self, data: bytes) -> list[tuple[int, Packet]]:
         """Append ``data`` to the stream; return the frames completed by it, in stream order."""
-        self.stats.bytes_fed += len(data)
-        return self._process(self._pending + bytes(data), final=False)
+        packets = []
+        for start in range(0, len(data), _MAX_SCAN_BYTES):  # bounds the per-byte scratch arrays
+            piece = bytes(data[start:start + _MAX_SCAN_BYTES])
+            self.stats.bytes_fed += len(piece)
+            packets += self._process(self._pending + piece, final=False)
+        return packets
 
     def flush(self) -> list[tuple[int, Packet]]:
         """End of stream: resolve held-back bytes (frames cut short are counted as truncated)."""
@@ -284,7 +290,6 @@ def _scan(buffer: bytes, final: bool, crc16_seed: int) -> _Scan:
     acc_starts, acc_ends, acc_lengths = acc_starts[keep], acc_ends[keep], acc_lengths[keep]
     in_decided = starts < decided
     rejected = in_decided & ~ok & ~_covered_by(starts, acc_starts, acc_ends)
-    status = status.copy()
     # a failed CRC16 whose claimed span holds the start of an accepted frame was cut short by it
     next_start = _next_accepted_start(starts, acc_starts, decided)
     cut = rejected & (status == SkipReason.BAD_PACKET_CRC) & (next_start < starts + lengths)

@@ -150,3 +150,14 @@ def test_nested_and_chained_overlaps_follow_the_left_to_right_scan():
     # holds the inner frame intact, which is then found on its own; the tail follows
     assert found == [middle, outer, Packet(10, 6, 1, 0x40, 6, 1, b""), tail]
     assert deframer.stats.packet_bytes + deframer.stats.total_skipped == len(stream)
+
+
+def test_one_large_feed_is_scanned_in_pieces_without_losing_frames():
+    from capture.duml import _MAX_SCAN_BYTES
+
+    unit = _all_vectors() + b"\x01\x02\x03"
+    repeats = 2 * _MAX_SCAN_BYTES // len(unit) + 3
+    deframer = Deframer()
+    packets = deframer.feed(unit * repeats) + deframer.flush()
+    assert len(packets) == repeats * len(VECTORS)
+    assert deframer.stats.skipped_bytes["no_sync"] == 3 * repeats
