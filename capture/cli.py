@@ -12,11 +12,15 @@ import importlib
 import sys
 from pathlib import Path
 
+import usb.core
+from serial.tools import list_ports
+
+from capture.decode import decode_to_csv
 from capture.messages import default_registry
-from capture.raw import CaptureIndexError, RawCaptureWriter
+from capture.raw import CaptureIndexError, RawCaptureWriter, index_path
 from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource,
-                                hidapi_opener, replay_file)
+                                find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
 
 # Modules that add subcommands with ``register(subparsers)``; a listed module that does not exist yet is skipped.
 EXTENSION_MODULES = ("capture.cli_logs",)
@@ -82,7 +86,7 @@ def main(argv: list[str] | None = None) -> int:
 def open_source(port: str, baud: int):
     """The live source named by ``--port`` (see ``record --help``)."""
     kind, _, ids = port.partition(":")
-    if kind in ("usb", "hid") and not port.startswith(("usb://", "hid://")):
+    if kind in ("usb", "hid"):
         vendor_id, product_id = _parse_ids(port, ids, allow_empty=kind == "usb")
         if kind == "usb":
             return UsbBulkSource(vendor_id, product_id)
@@ -117,8 +121,9 @@ def run_record(args) -> int:
 def run_decode(args) -> int:
     if not args.input.is_file():
         raise CliError(f"{args.input}: no such file")
-    registry = default_registry()
-    summary = _decode(args.input, args.out, registry)
+    if not is_pcap(args.input) and not index_path(args.input).exists():
+        print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
+    summary = decode_to_csv(replay_file(args.input), args.out, default_registry())
     if summary.bytes_read and not summary.packets:
         args.out.unlink(missing_ok=True)
         raise CliError(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
@@ -131,16 +136,8 @@ def run_decode(args) -> int:
     return 0
 
 
-def _decode(input_path: Path, out_path: Path, registry):
-    from capture.decode import decode_to_csv
-
-    return decode_to_csv(replay_file(input_path), out_path, registry)
-
-
 def run_list(args, usb_backend=None, hid_module=None) -> int:
     print("serial ports:")
-    from serial.tools import list_ports
-
     for port in list_ports.comports():
         print(f"  {port.device}  {port.description}  [{port.hwid}]")
     print(f"DJI USB devices (vendor {DJI_VENDOR_ID:04x}):")
@@ -153,10 +150,6 @@ def run_list(args, usb_backend=None, hid_module=None) -> int:
 
 
 def _usb_lines(backend) -> list[str]:
-    import usb.core
-
-    from capture.transports import find_duml_bulk_in
-
     try:
         devices = list(usb.core.find(find_all=True, idVendor=DJI_VENDOR_ID, backend=backend))
     except usb.core.NoBackendError as error:

@@ -277,11 +277,15 @@ def replay_file(path: str | Path) -> Iterator[Chunk]:
     path = Path(path)
     if not path.is_file():
         raise TransportError(f"{path}: no such file")
-    with open(path, "rb") as handle:
-        magic = handle.read(4)
-    if magic in _PCAP_MAGIC:
+    if is_pcap(path):
         return read_pcap(path)
     return (Chunk(*chunk) for chunk in read_capture_chunks(path))
+
+
+def is_pcap(path: str | Path) -> bool:
+    """Whether ``path`` starts with a classic pcap magic number (either byte order, us or ns)."""
+    with open(path, "rb") as handle:
+        return handle.read(4) in _PCAP_MAGIC
 
 
 _PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6),
