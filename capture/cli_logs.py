@@ -1,6 +1,6 @@
 """``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
 
-``register(subparsers)`` adds both; each sets ``func`` to a function taking the parsed args and returning an
+``register(subparsers)`` adds both; each sets ``handler`` to a function taking the parsed args and returning an
 exit code (0 ok, 2 bad input: one line on stderr, nothing written).
 """
 
@@ -35,7 +35,7 @@ def register(subparsers) -> None:
     geotag.add_argument("--write-exif", action="store_true",
                         help="write geotagged copies of the photos (EXIF GPS + DJI XMP) into --exif-dir")
     geotag.add_argument("--exif-dir", help="folder for the geotagged copies (default: <out folder>/geotagged)")
-    geotag.set_defaults(func=run_geotag)
+    geotag.set_defaults(handler=run_geotag)
 
     track = subparsers.add_parser("track", help="read any flight log and export it as CSV or KML")
     track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, or a folder of photos)")
@@ -43,7 +43,7 @@ def register(subparsers) -> None:
     add_time_options(track)
     track.add_argument("--out", help="track CSV to write")
     track.add_argument("--kml", help="track KML to write")
-    track.set_defaults(func=run_track)
+    track.set_defaults(handler=run_track)
 
 
 def add_time_options(parser: argparse.ArgumentParser) -> None:

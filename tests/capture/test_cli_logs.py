@@ -1,6 +1,5 @@
-"""`geotag` and `track` subcommands through a throwaway argparse parser (capture/cli.py wires them later)."""
+"""`geotag` and `track` subcommands through the real aerostereo-ingest entry point."""
 
-import argparse
 import csv
 import json
 from datetime import datetime, timezone
@@ -9,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import ExifTags, Image
 
-from capture.cli_logs import register
+from capture.cli import main
 from capture.geotag_io import deg_to_dms, load_geotags
 from capture.logs.photos import read_photo
 from capture.logs.writers import write_litchi_csv
@@ -18,10 +17,7 @@ from flightplan.demo_location import DEMO_ORIGIN
 
 
 def run(argv):
-    parser = argparse.ArgumentParser(prog="aerostereo-ingest")
-    register(parser.add_subparsers(required=True))
-    args = parser.parse_args([str(a) for a in argv])
-    return args.func(args)
+    return main([str(a) for a in argv])
 
 
 def write_jpeg(path, camera_time_s, lat_deg, lon_deg):

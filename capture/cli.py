@@ -1,0 +1,165 @@
+"""``aerostereo-ingest``: record DJI telemetry, decode captures, geotag photos from logs, list devices.
+
+The parser is assembled from small ``add_<command>_parser(subparsers)`` functions listed in
+:data:`SUBCOMMANDS` (the one place where subcommands are named); ``geotag`` and ``track`` come from
+:mod:`capture.cli_logs`. Each sets ``handler(args) -> int``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from pathlib import Path
+
+import usb.core
+from serial.tools import list_ports
+
+from capture import cli_logs
+from capture.decode import decode_to_csv
+from capture.messages import default_registry
+from capture.raw import CaptureIndexError, RawCaptureWriter, index_path
+from capture.recorder import record, stop_after
+from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource,
+                                find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
+
+# Modules that add subcommands with ``register(subparsers)``; a listed module that does not exist yet is skipped.
+class CliError(Exception):
+    """Bad user input: printed as one line, exit code 2."""
+
+
+def add_record_parser(subparsers) -> None:
+    parser = subparsers.add_parser("record", help="record a live telemetry link to NAME.duml (+ .idx)")
+    parser.add_argument("--port", required=True,
+                        help="serial path or pyserial URL (loop://, socket://host:port, rfc2217://...), "
+                             "usb[:VID:PID] (hex) for the DUML bulk interface, or hid:VID:PID")
+    parser.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
+    parser.add_argument("--duration", type=float, default=None, help="seconds to record (default: until Ctrl-C)")
+    parser.add_argument("--out", required=True, type=Path, help="raw capture NAME.duml (appended if it exists)")
+    parser.set_defaults(handler=run_record)
+
+
+def add_decode_parser(subparsers) -> None:
+    parser = subparsers.add_parser("decode", help="decode a raw capture (.duml) or a pcap to telemetry CSV")
+    parser.add_argument("input", type=Path, help="INPUT.duml (with INPUT.duml.idx for times) or INPUT.pcap")
+    parser.add_argument("--out", required=True, type=Path, help="telemetry.csv, one row per decoded message")
+    parser.set_defaults(handler=run_decode)
+
+
+def add_list_parser(subparsers) -> None:
+    parser = subparsers.add_parser("list", help="show serial ports and DJI USB/HID devices")
+    parser.set_defaults(handler=run_list)
+
+
+SUBCOMMANDS = (add_record_parser, add_decode_parser, add_list_parser, cli_logs.register)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="aerostereo-ingest",
+        description="Record DJI DUML telemetry from a live link, decode captures to CSV, list devices.")
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    for add_parser in SUBCOMMANDS:
+        add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except (CliError, TransportError, CaptureIndexError, OSError) as error:
+        print(f"aerostereo-ingest {args.command}: error: {error}", file=sys.stderr)
+        return 2
+
+
+def open_source(port: str, baud: int):
+    """The live source named by ``--port`` (see ``record --help``)."""
+    kind, _, ids = port.partition(":")
+    if kind in ("usb", "hid"):
+        vendor_id, product_id = _parse_ids(port, ids, allow_empty=kind == "usb")
+        if kind == "usb":
+            return UsbBulkSource(vendor_id, product_id)
+        return HidSource(hidapi_opener(vendor_id, product_id), description=f"HID device {port[4:]}")
+    return SerialSource(port, baudrate=baud)
+
+
+def _parse_ids(port: str, ids: str, allow_empty: bool) -> tuple[int, int | None]:
+    if not ids and allow_empty:
+        return DJI_VENDOR_ID, None
+    try:
+        vendor, product = (int(part, 16) for part in ids.split(":"))
+    except ValueError:
+        raise CliError(f"--port {port!r}: expected {port.split(':')[0]}:VID:PID with hex ids, e.g. usb:2ca3:001f")
+    return vendor, product
+
+
+def run_record(args) -> int:
+    if args.duration is not None and args.duration <= 0:
+        raise CliError(f"--duration {args.duration}: expected a positive number of seconds")
+    source = open_source(args.port, args.baud)
+    source.open()  # fail before creating any file
+    stop = stop_after(args.duration)
+    with RawCaptureWriter(args.out) as writer:
+        status = record(source.chunks(stop), writer, default_registry(),
+                        on_status=lambda s: print("\r" + s.line(), end="", file=sys.stderr, flush=True))
+    print("\r" + status.line(), file=sys.stderr)
+    print(f"wrote {args.out} ({writer.offset} bytes) and {args.out}.idx; reconnects: {source.reconnects}")
+    return 0
+
+
+def run_decode(args) -> int:
+    if not args.input.is_file():
+        raise CliError(f"{args.input}: no such file")
+    if not is_pcap(args.input) and not index_path(args.input).exists():
+        print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
+    summary = decode_to_csv(replay_file(args.input), args.out, default_registry())
+    if summary.bytes_read and not summary.packets:
+        args.out.unlink(missing_ok=True)
+        raise CliError(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
+    print(f"{args.input}: {summary.bytes_read} bytes, {summary.packets} packets, {summary.rows} telemetry rows "
+          f"-> {args.out}")
+    print("messages: " + ", ".join(f"{kind} {count}" for kind, count in summary.message_counts.items()))
+    print("skipped bytes: " + ", ".join(f"{reason} {count}" for reason, count in summary.skipped_bytes.items()))
+    print("rejected frames: " + ", ".join(f"{reason} {count}" for reason, count in summary.rejected_frames.items()
+                                          if reason != "no_sync"))
+    return 0
+
+
+def run_list(args, usb_backend=None, hid_module=None) -> int:
+    print("serial ports:")
+    for port in list_ports.comports():
+        print(f"  {port.device}  {port.description}  [{port.hwid}]")
+    print(f"DJI USB devices (vendor {DJI_VENDOR_ID:04x}):")
+    for line in _usb_lines(usb_backend):
+        print("  " + line)
+    print("DJI HID devices:")
+    for line in _hid_lines(hid_module):
+        print("  " + line)
+    return 0
+
+
+def _usb_lines(backend) -> list[str]:
+    try:
+        devices = list(usb.core.find(find_all=True, idVendor=DJI_VENDOR_ID, backend=backend))
+    except usb.core.NoBackendError as error:
+        return [f"(pyusb has no libusb backend: {error})"]
+    lines = []
+    for device in devices:
+        try:
+            endpoint = f"DUML bulk IN 0x{find_duml_bulk_in(device).bEndpointAddress:02x}"
+        except (usb.core.USBError, ValueError) as error:
+            endpoint = f"no DUML bulk interface found ({error})"
+        lines.append(f"usb:{device.idVendor:04x}:{device.idProduct:04x}  bus {device.bus} address {device.address}"
+                     f"  {endpoint}")
+    return lines or ["(none)"]
+
+
+def _hid_lines(hid_module) -> list[str]:
+    try:
+        hid_module = hid_module or importlib.import_module("hid")
+        devices = hid_module.enumerate(DJI_VENDOR_ID, 0)
+    except (ImportError, OSError) as error:
+        return [f"(hidapi unavailable: {error})"]
+    return [f"hid:{d['vendor_id']:04x}:{d['product_id']:04x}  {d.get('product_string') or ''}  {d.get('path')!r}"
+            for d in devices] or ["(none)"]

@@ -1,0 +1,315 @@
+"""Byte sources: live serial, USB bulk and HID links, and replays of raw captures and pcaps.
+
+Every source is iterable through ``chunks(stop)`` and yields :class:`Chunk` ``(receive_time_utc,
+receive_time_monotonic, data)``. Live sources open their device when iteration starts (a failure there is a
+:class:`TransportError`, so a CLI can stop with a clear message), then survive disconnects: on the library's
+own disconnect errors (``serial.SerialException``, ``usb.core.USBError``, ``OSError`` from hidapi) they close,
+wait with exponential backoff and reopen, and keep going until ``stop`` is set. Hardware is reached only
+through the libraries' seams: ``serial.serial_for_url``, ``usb.core.find(backend=...)`` and a hidapi-shaped
+device factory, so tests use ``loop://``, :mod:`capture.fakeusb` and injected objects.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import struct
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator, NamedTuple
+
+import serial
+import usb.core
+import usb.util
+
+from capture.raw import read_capture_chunks
+
+DJI_VENDOR_ID = 0x2CA3
+DUML_INTERFACE_SUBCLASS = 0x43
+PCAP_LINKTYPE_DUML = 150  # DLT_USER3, as used by o-gs comm_serial2pcap
+
+
+class Chunk(NamedTuple):
+    """Bytes as one read returned them, with the host's UTC and monotonic receive times (seconds)."""
+
+    receive_time_utc: dt.datetime | None
+    receive_time_monotonic: float | None
+    data: bytes
+
+
+class TransportError(RuntimeError):
+    """A device or file that cannot be opened or read (one-line, user-facing message)."""
+
+
+class Clock:
+    """Host clocks; injectable so tests can control time."""
+
+    def utc(self) -> dt.datetime:
+        return dt.datetime.now(dt.timezone.utc)
+
+    def monotonic(self) -> float:
+        return time.monotonic()
+
+    def sleep(self, seconds: float, stop: threading.Event) -> None:
+        stop.wait(seconds)
+
+
+@dataclass(frozen=True)
+class Backoff:
+    """Reconnect delays: ``initial_s``, multiplied by ``factor`` after each failed try, at most ``maximum_s``."""
+
+    initial_s: float = 0.1
+    factor: float = 2.0
+    maximum_s: float = 5.0
+
+    def delays(self) -> Iterator[float]:
+        delay = self.initial_s
+        while True:
+            yield delay
+            delay = min(delay * self.factor, self.maximum_s)
+
+
+class LiveSource:
+    """Shared read/reconnect loop; subclasses say how to open, read and close, and what a disconnect is."""
+
+    description = "device"
+    disconnect_errors: tuple[type[BaseException], ...] = (OSError,)
+
+    def __init__(self, backoff: Backoff = Backoff(), clock: Clock | None = None) -> None:
+        self.backoff = backoff
+        self.clock = clock or Clock()
+        self.reconnects = 0
+        self.connection = None
+
+    def _open(self):
+        raise NotImplementedError
+
+    def _read(self, connection) -> bytes:
+        """Some bytes, or b"" when nothing arrived within the read timeout."""
+        raise NotImplementedError
+
+    def _close(self, connection) -> None:
+        raise NotImplementedError
+
+    def open(self) -> None:
+        """Open the device now (``chunks`` does it if needed); TransportError when it cannot be opened."""
+        try:
+            self.connection = self._open()
+        except self.disconnect_errors as error:
+            raise TransportError(f"cannot open {self.description}: {error}") from None
+
+    def chunks(self, stop: threading.Event | None = None) -> Iterator[Chunk]:
+        """Yield chunks until ``stop`` is set; ``self.connection`` is the open device meanwhile."""
+        stop = stop or threading.Event()
+        if self.connection is None:
+            self.open()
+        try:
+            while not stop.is_set():
+                try:
+                    data = self._read(self.connection)
+                except self.disconnect_errors:
+                    self._close_quietly(self.connection)
+                    self.connection = self._reconnect(stop)
+                    continue
+                if data:
+                    yield Chunk(self.clock.utc(), self.clock.monotonic(), data)
+        finally:
+            if self.connection is not None:
+                self._close_quietly(self.connection)
+            self.connection = None
+
+    __iter__ = chunks
+
+    def _reconnect(self, stop: threading.Event):
+        for delay in self.backoff.delays():
+            self.clock.sleep(delay, stop)
+            if stop.is_set():
+                return None
+            try:
+                connection = self._open()
+            except self.disconnect_errors:
+                continue
+            self.reconnects += 1
+            return connection
+
+    def _close_quietly(self, connection) -> None:
+        try:
+            self._close(connection)
+        except self.disconnect_errors:
+            pass
+
+
+class SerialSource(LiveSource):
+    """A serial port or pyserial URL (``/dev/ttyACM0``, ``COM3``, ``loop://``, ``socket://h:p``, ``rfc2217://``)."""
+
+    disconnect_errors = (serial.SerialException, OSError)
+
+    def __init__(self, url: str, baudrate: int = 115200, read_timeout_s: float = 0.05, max_chunk_bytes: int = 65536,
+                 **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.url, self.baudrate, self.read_timeout_s = url, baudrate, read_timeout_s
+        self.max_chunk_bytes = max_chunk_bytes
+        self.description = f"serial port {url}"
+
+    def _open(self):
+        return serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.read_timeout_s)
+
+    def _read(self, port) -> bytes:
+        """Wait up to the timeout for a byte, then take everything already waiting (socket:// reports 1)."""
+        data = port.read(max(1, port.in_waiting))
+        while data and port.in_waiting and len(data) < self.max_chunk_bytes:
+            data += port.read(port.in_waiting)
+        return data
+
+    def _close(self, port) -> None:
+        port.close()
+
+
+class _UsbLink(NamedTuple):
+    device: usb.core.Device
+    endpoint_in: usb.core.Endpoint
+
+
+class UsbBulkSource(LiveSource):
+    """The DUML bulk IN endpoint of a DJI USB device (vendor interface, subclass 0x43), through pyusb.
+
+    ``backend`` is passed to ``usb.core.find`` (None: pyusb's default libusb backend).
+    """
+
+    disconnect_errors = (usb.core.USBError, ValueError)
+
+    def __init__(self, vendor_id: int = DJI_VENDOR_ID, product_id: int | None = None, backend=None,
+                 read_size: int = 4096, read_timeout_ms: int = 100, **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.vendor_id, self.product_id, self.backend = vendor_id, product_id, backend
+        self.read_size, self.read_timeout_ms = read_size, read_timeout_ms
+        self.description = f"USB device {vendor_id:04x}:{'*' if product_id is None else f'{product_id:04x}'}"
+
+    def _open(self) -> _UsbLink:
+        match = {"idVendor": self.vendor_id} | ({} if self.product_id is None else {"idProduct": self.product_id})
+        try:
+            devices = list(usb.core.find(find_all=True, backend=self.backend, **match))
+        except usb.core.NoBackendError as error:
+            raise usb.core.USBError(f"no libusb backend ({error})") from None
+        if not devices:
+            raise usb.core.USBError("no such device connected")
+        problems = []
+        for device in devices:
+            try:
+                _ensure_configured(device)
+                return _UsbLink(device, find_duml_bulk_in(device))
+            except (usb.core.USBError, ValueError) as error:
+                problems.append(str(error))
+        raise usb.core.USBError("; ".join(problems))
+
+    def _read(self, link: _UsbLink) -> bytes:
+        try:
+            return bytes(link.endpoint_in.read(self.read_size, timeout=self.read_timeout_ms))
+        except usb.core.USBTimeoutError:
+            return b""
+
+    def _close(self, link: _UsbLink) -> None:
+        usb.util.dispose_resources(link.device)
+
+
+def _ensure_configured(device: usb.core.Device) -> None:
+    """Select the first configuration unless one is active (a composite device usually is configured)."""
+    try:
+        device.get_active_configuration()
+    except usb.core.USBError:
+        device.set_configuration()
+
+
+def find_duml_bulk_in(device: usb.core.Device) -> usb.core.Endpoint:
+    """The bulk IN endpoint of the active configuration's vendor interface with subclass 0x43."""
+    for interface in device.get_active_configuration():
+        if interface.bInterfaceClass == 0xFF and interface.bInterfaceSubClass == DUML_INTERFACE_SUBCLASS:
+            endpoint = usb.util.find_descriptor(interface, custom_match=_is_bulk_in)
+            if endpoint is not None:
+                return endpoint
+    raise ValueError(f"device {device.idVendor:04x}:{device.idProduct:04x} has no DUML bulk interface "
+                     f"(vendor class, subclass 0x{DUML_INTERFACE_SUBCLASS:02x}, bulk IN endpoint)")
+
+
+def _is_bulk_in(endpoint) -> bool:
+    return (usb.util.endpoint_direction(endpoint.bEndpointAddress) == usb.util.ENDPOINT_IN
+            and usb.util.endpoint_type(endpoint.bmAttributes) == usb.util.ENDPOINT_TYPE_BULK)
+
+
+class HidSource(LiveSource):
+    """A HID device with hidapi's shape: ``open_device()`` returns an object with ``read(size, timeout_ms)``
+    (a list of ints, empty on timeout), ``write`` and ``close``. Reports are passed on as they are."""
+
+    disconnect_errors = (OSError, ValueError)
+
+    def __init__(self, open_device: Callable[[], object], report_size: int = 64, read_timeout_ms: int = 100,
+                 description: str = "HID device", **kwargs) -> None:
+        super().__init__(**kwargs)
+        self.open_device, self.report_size, self.read_timeout_ms = open_device, report_size, read_timeout_ms
+        self.description = description
+
+    def _open(self):
+        return self.open_device()
+
+    def _read(self, device) -> bytes:
+        return bytes(device.read(self.report_size, self.read_timeout_ms))
+
+    def _close(self, device) -> None:
+        device.close()
+
+
+def hidapi_opener(vendor_id: int, product_id: int) -> Callable[[], object]:
+    """Factory for :class:`HidSource` that opens a real device with the ``hidapi`` package."""
+
+    def open_device():
+        import hid
+
+        device = hid.device()
+        device.open(vendor_id, product_id)
+        return device
+
+    return open_device
+
+
+def replay_file(path: str | Path) -> Iterator[Chunk]:
+    """Chunks of a raw capture (``.duml`` + ``.idx``) or a pcap with link type 150, as they were received."""
+    path = Path(path)
+    if not path.is_file():
+        raise TransportError(f"{path}: no such file")
+    if is_pcap(path):
+        return read_pcap(path)
+    return (Chunk(*chunk) for chunk in read_capture_chunks(path))
+
+
+def is_pcap(path: str | Path) -> bool:
+    """Whether ``path`` starts with a classic pcap magic number (either byte order, us or ns)."""
+    with open(path, "rb") as handle:
+        return handle.read(4) in _PCAP_MAGIC
+
+
+_PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6),
+               b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9)}
+
+
+def read_pcap(path: str | Path) -> Iterator[Chunk]:
+    """Records of a classic pcap holding DUML (link type 150); the monotonic time counts from the first."""
+    data = Path(path).read_bytes()
+    endian, tick = _PCAP_MAGIC.get(data[:4], (None, None))
+    if endian is None or len(data) < 24:
+        raise TransportError(f"{path}: not a pcap file (magic {data[:4].hex()})")
+    linktype = struct.unpack_from(endian + "I", data, 20)[0]
+    if linktype != PCAP_LINKTYPE_DUML:
+        raise TransportError(f"{path}: pcap link type {linktype}, expected {PCAP_LINKTYPE_DUML} (DUML, DLT_USER3)")
+    record = struct.Struct(endian + "4I")
+    position, first = 24, None
+    while position + record.size <= len(data):
+        seconds, fraction, captured, _ = record.unpack_from(data, position)
+        position += record.size
+        if position + captured > len(data):
+            raise TransportError(f"{path}: record at byte {position - record.size} is cut short")
+        stamp = seconds + fraction * tick
+        first = stamp if first is None else first
+        yield Chunk(dt.datetime.fromtimestamp(stamp, dt.timezone.utc), stamp - first,
+                    data[position:position + captured])
+        position += captured

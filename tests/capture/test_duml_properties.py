@@ -1,0 +1,93 @@
+"""Property tests: valid frames mixed with garbage, truncations and bit flips, fed in random chunks."""
+
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from capture.duml import Deframer, Packet
+
+packets = st.builds(Packet, st.integers(0, 255), st.integers(0, 255), st.integers(0, 0xFFFF), st.integers(0, 255),
+                    st.integers(0, 255), st.integers(0, 255), st.binary(max_size=80))
+
+# one stream segment: an intact frame, garbage, a frame cut short, or a frame with one bit flipped
+segments = st.one_of(
+    st.tuples(st.just("intact"), packets),
+    st.tuples(st.just("garbage"), st.binary(min_size=1, max_size=40)),
+    st.tuples(st.just("truncated"), packets, st.floats(0.0, 0.999)),
+    st.tuples(st.just("bitflip"), packets, st.floats(0.0, 0.999), st.integers(0, 7)),
+)
+
+
+def _build(stream_segments):
+    """Stream bytes and {offset: Packet} of the frames sent intact."""
+    stream, intact = bytearray(), {}
+    for segment in stream_segments:
+        kind = segment[0]
+        if kind == "garbage":
+            stream += segment[1]
+            continue
+        data = bytearray(segment[1].encode())
+        if kind == "intact":
+            intact[len(stream)] = segment[1]
+        elif kind == "truncated":
+            data = data[:int(segment[2] * len(data))]
+        else:
+            data[int(segment[2] * len(data))] ^= 1 << segment[3]
+        stream += data
+    return bytes(stream), intact
+
+
+def _chunks(stream: bytes, cut_fractions: list[float]):
+    cuts = sorted({int(f * len(stream)) for f in cut_fractions})
+    bounds = [0, *cuts, len(stream)]
+    return [stream[a:b] for a, b in zip(bounds, bounds[1:])]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(segments, max_size=12), st.lists(st.floats(0.0, 1.0), max_size=10))
+def test_deframer_yields_exactly_the_intact_frames(stream_segments, cut_fractions):
+    stream, intact = _build(stream_segments)
+    deframer = Deframer()
+    yielded = []
+    for chunk in _chunks(stream, cut_fractions):
+        yielded += deframer.feed(chunk)
+        stats = deframer.stats
+        assert stats.packet_bytes + stats.total_skipped + stats.pending_bytes == stats.bytes_fed
+    yielded += deframer.flush()
+    for offset, packet in yielded:  # every yielded frame is really in the stream at that offset...
+        assert stream[offset:offset + packet.frame_length] == packet.encode()
+    sent = {offset: packet for offset, packet in yielded if offset in intact}
+    assert sent == intact  # ...every intact frame is found...
+    assert len(yielded) == len(intact)  # ...and nothing else (a bit flip or a cut never passes both CRCs)
+    stats = deframer.stats
+    assert stats.pending_bytes == 0
+    assert stats.packet_bytes == sum(p.frame_length for _, p in yielded)
+    assert stats.packet_bytes + stats.total_skipped == len(stream) == stats.bytes_fed
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.binary(max_size=3000), st.lists(st.integers(1, 500), max_size=20))
+def test_random_bytes_never_raise_and_always_add_up(noise, chunk_sizes):
+    deframer = Deframer()
+    position = 0
+    for size in chunk_sizes:
+        deframer.feed(noise[position:position + size])
+        position += size
+    deframer.feed(noise[position:])
+    deframer.flush()
+    assert deframer.stats.packet_bytes + deframer.stats.total_skipped == len(noise)
+
+
+@given(st.lists(st.tuples(st.integers(0, 200), st.integers(1, 30)), max_size=40))
+def test_greedy_overlap_resolution_matches_a_plain_scan(intervals):
+    import numpy as np
+
+    from capture.duml import _greedy_non_overlapping
+
+    intervals = sorted(set(intervals))
+    starts = np.array([s for s, _ in intervals], dtype=np.int64)
+    ends = np.array([s + n for s, n in intervals], dtype=np.int64)
+    expected, last_end = [], -1
+    for start, end in zip(starts.tolist(), ends.tolist()):
+        expected.append(start >= last_end)
+        last_end = end if start >= last_end else last_end
+    assert _greedy_non_overlapping(starts, ends).tolist() == expected

@@ -1,0 +1,84 @@
+"""The real Phantom 3 UART captures (o-gs/dji-packet-dumps, recorded indoors before a GPS fix)."""
+
+import collections
+import datetime as dt
+
+import pytest
+
+from capture.decode import timed_packets
+from capture.duml import Deframer
+from capture.messages import DateTimeSet, GimbalParams, HomePoint, OsdGeneral, default_registry
+from capture.transports import TransportError, read_pcap, replay_file
+
+RUNS = {"run1": 4651, "run3": 13024}
+
+
+def _pcap(shared_data, run):
+    return shared_data / "dji" / f"dji-packet-dumps__p3x_ofdm_to_center_{run}.pcap"
+
+
+@pytest.mark.parametrize("run", sorted(RUNS))
+def test_real_pcap_decodes_without_a_single_error(shared_data, run):
+    records = list(read_pcap(_pcap(shared_data, run)))
+    deframer = Deframer()
+    timed = list(timed_packets(replay_file(_pcap(shared_data, run)), deframer))
+    assert len(timed) == len(records) == RUNS[run]  # one DUML frame per pcap record
+    assert deframer.stats.total_skipped == 0 and sum(deframer.stats.rejected_frames.values()) == 0
+    assert deframer.stats.packet_bytes == sum(len(r.data) for r in records)
+    # every packet is stamped with its own record's time
+    assert [t.receive_time_utc for t in timed] == [r.receive_time_utc for r in records]
+    assert records[0].receive_time_utc.date() == dt.date(2017, 12, 20)
+
+    registry = default_registry()
+    decoded = [registry.decode(t.packet) for t in timed]
+    osd = [r for r in decoded if isinstance(r, OsdGeneral)]
+    gimbal = [r for r in decoded if isinstance(r, GimbalParams)]
+    homes = [r for r in decoded if isinstance(r, HomePoint)]
+    assert len(osd) > 200 and len(gimbal) > 1000 and len(homes) > 10
+    # recorded indoors without GPS (see the .txt): no fix, so lat/lon are exactly 0.0 and no satellites
+    assert all(not r.has_fix and r.gps_satellites == 0 and r.product_type == 2 for r in osd)
+    assert all(-180.0 <= r.yaw_deg <= 180.0 and abs(r.pitch_deg) < 10 for r in osd)  # standing on a level floor
+    # the home point is the "not set" sentinel (800000.0 rad) on every frame
+    assert all(not h.is_set and h.go_home_height_m == 60 for h in homes)
+    assert all(-90.0 <= g.pitch_deg <= 47.0 for g in gimbal)
+
+
+def test_osd_push_rate_is_10_hz(shared_data):
+    registry = default_registry()
+    times = [t.receive_time_monotonic for t in timed_packets(replay_file(_pcap(shared_data, "run3")), Deframer())
+             if isinstance(registry.decode(t.packet), OsdGeneral) and t.packet.receiver == 9]
+    span = times[-1] - times[0]
+    assert (len(times) - 1) / span == pytest.approx(10.0, rel=0.05)
+
+
+def test_date_time_set_is_local_time_one_hour_ahead(shared_data):
+    registry = default_registry()
+    exchange = [(t, registry.decode(t.packet)) for t in timed_packets(replay_file(_pcap(shared_data, "run3")),
+                                                                       Deframer())
+                if (t.packet.cmd_set, t.packet.cmd_id) == (0x03, 0x1C)]
+    assert [t.packet.is_response for t, _ in exchange] == [False, True]
+    timed, record = exchange[0]
+    assert isinstance(record, DateTimeSet)
+    offset = record.as_datetime() - timed.receive_time_utc.replace(tzinfo=None)
+    assert abs(offset - dt.timedelta(hours=1)) < dt.timedelta(seconds=10)  # Gdansk, CET = UTC+1
+
+
+def test_all_message_kinds_are_counted(shared_data):
+    registry = default_registry()
+    kinds = collections.Counter()
+    for timed in timed_packets(replay_file(_pcap(shared_data, "run1")), Deframer()):
+        registry.decode(timed.packet)
+        kinds[timed.packet.cmd_set, timed.packet.cmd_id] += 1
+    assert sum(registry.counts.values()) == RUNS["run1"]
+    assert registry.counts["osd_general"] == kinds[0x03, 0x43]
+    assert registry.counts["undecoded"] == RUNS["run1"] - sum(kinds[k] for k in [(3, 0x43), (3, 0x44), (4, 5),
+                                                                               (2, 0x80), (3, 0x1C)])
+
+
+def test_pcap_with_wrong_link_type_is_rejected(tmp_path, shared_data):
+    data = bytearray(_pcap(shared_data, "run1").read_bytes()[:200])
+    data[20] = 1  # Ethernet
+    path = tmp_path / "ether.pcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(TransportError, match="link type 1, expected 150"):
+        list(replay_file(path))

@@ -1,0 +1,143 @@
+"""aerostereo-ingest: decode a real pcap, record a live socket link, list devices, reject bad input."""
+
+import csv
+import socket
+import threading
+import time
+
+import pytest
+from duml_vectors import frame
+
+from capture import cli
+from capture.fakeusb import FakeUsbBackend
+from capture.raw import index_path, read_index
+
+pytestmark = pytest.mark.timeout(60)
+
+
+def test_decode_real_pcap_to_csv(shared_data, tmp_path, capsys):
+    pcap = shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run1.pcap"
+    out = tmp_path / "telemetry.csv"
+    assert cli.main(["decode", str(pcap), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "4651 packets" in printed and "osd_general 227" in printed and "gimbal_params 1168" in printed
+    assert "bad_packet_crc 0" in printed
+    with open(out, newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 227 + 18 + 1168
+    osd = [r for r in rows if r["kind"] == "osd_general"]
+    assert all(r["latitude_deg"] == "0.0" and r["has_fix"] == "0" for r in osd)
+    assert rows[0]["utc_time"].startswith("2017-12-20T") and rows[0]["utc_time"].endswith("Z")
+    assert not list(tmp_path.glob(".*.tmp"))  # written through a temporary name
+
+
+def test_decode_raw_capture_with_index_uses_arrival_times(tmp_path, capsys):
+    from capture.raw import RawCaptureWriter
+    import datetime as dt
+
+    path = tmp_path / "live.duml"
+    osd = frame("7_osd_general_p3x")
+    t0 = dt.datetime(2024, 1, 2, 3, 4, 5, tzinfo=dt.timezone.utc)
+    with RawCaptureWriter(path) as writer:
+        writer.append(t0, 1.0, b"\x00garbage" + osd[:20])
+        writer.append(t0 + dt.timedelta(seconds=0.25), 1.25, osd[20:])
+    out = tmp_path / "t.csv"
+    assert cli.main(["decode", str(path), "--out", str(out)]) == 0
+    [row] = list(csv.DictReader(open(out, newline="")))
+    assert row["utc_time"] == "2024-01-02T03:04:05.250000Z"  # when the frame's last byte arrived
+    assert row["offset"] == "8" and float(row["latitude_deg"]) == pytest.approx(54.3738781)
+    assert "no_sync 8" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["decode", "MISSING.duml", "--out", "x.csv"], "MISSING.duml: no such file"),
+    (["record", "--port", "usb:zz:1", "--out", "x.duml"], "expected usb:VID:PID"),
+    (["record", "--port", "/dev/no-such-tty-aerostereo", "--duration", "1", "--out", "x.duml"], "cannot open serial"),
+])
+def test_bad_input_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys, argv, message):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err
+    assert message in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not list(tmp_path.iterdir())  # no half-made output
+
+
+def test_decode_of_a_non_duml_file_fails_cleanly(tmp_path, capsys):
+    text = tmp_path / "notes.txt"
+    text.write_text("hello, this is not telemetry\n" * 20)
+    assert cli.main(["decode", str(text), "--out", str(tmp_path / "t.csv")]) == 2
+    assert "no DUML frame found" in capsys.readouterr().err
+    assert not (tmp_path / "t.csv").exists()
+
+
+def test_record_from_a_socket_link(tmp_path, capsys):
+    server = socket.create_server(("127.0.0.1", 0))
+    data = frame("7_osd_general_p3x") + frame("8_gimbal_params")
+
+    def serve():
+        connection, _ = server.accept()
+        time.sleep(0.2)
+        for _ in range(5):
+            connection.sendall(data)
+            time.sleep(0.05)
+        time.sleep(1.5)
+        connection.close()
+
+    thread = threading.Thread(target=serve)
+    thread.start()
+    out = tmp_path / "live.duml"
+    port = f"socket://127.0.0.1:{server.getsockname()[1]}"
+    assert cli.main(["record", "--port", port, "--duration", "1.0", "--out", str(out)]) == 0
+    thread.join()
+    server.close()
+    assert out.read_bytes() == data * 5
+    assert read_index(index_path(out)).lengths.sum() == len(data) * 5
+    err = capsys.readouterr().err
+    assert "10 packets" in err and "54.373878,18.561662" in err
+
+
+def test_list_shows_the_fake_usb_device(capsys):
+    assert cli.run_list(None, usb_backend=FakeUsbBackend(product_id=0x001F)) == 0
+    out = capsys.readouterr().out
+    assert "usb:2ca3:001f" in out and "DUML bulk IN 0x85" in out and "serial ports:" in out
+
+
+def test_extension_modules_are_optional_and_subcommands_listed():
+    parser = cli.build_parser()
+    choices = parser._subparsers._group_actions[0].choices
+    assert {"record", "decode", "list"} <= set(choices)
+
+
+def test_kill_9_mid_capture_leaves_a_readable_prefix(tmp_path):
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    from capture.raw import read_capture_chunks
+
+    server = socket.create_server(("127.0.0.1", 0))
+    data = (frame("7_osd_general_p3x") + frame("8_gimbal_params")) * 400
+    out = tmp_path / "killed.duml"
+    env = dict(os.environ, PYTHONPATH=str(cli.Path(cli.__file__).resolve().parents[1]))
+    process = subprocess.Popen([sys.executable, "-m", "capture", "record", "--port",
+                                f"socket://127.0.0.1:{server.getsockname()[1]}", "--out", str(out)],
+                               env=env, stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL)
+    connection, _ = server.accept()
+    time.sleep(0.5)
+    for start in range(0, len(data), 97):
+        connection.sendall(data[start:start + 97])
+        time.sleep(0.0002)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < len(data) // 2):
+        time.sleep(0.001)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    connection.close()
+    server.close()
+    kept = out.read_bytes()
+    assert len(kept) >= len(data) // 2 and data.startswith(kept)  # every byte received, in order
+    assert b"".join(chunk[2] for chunk in read_capture_chunks(out)) == kept
+    index = read_index(index_path(out))  # the kill may fall between a data flush and its index line
+    assert index.offsets.tolist() == [sum(index.lengths[:i]) for i in range(len(index.offsets))]
+    assert index.lengths.sum() <= len(kept)
