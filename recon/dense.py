@@ -27,7 +27,7 @@ class DenseOptions:
     """Knobs of the dense stage (image size of the depth maps, pair selection, SGBM, consistency, fusion)."""
 
     max_image_size: int = 1000
-    num_neighbors: int = 2
+    num_neighbors: int = 4
     target_angle_deg: float = 10.0
     min_angle_deg: float = 3.0
     max_angle_deg: float = 25.0
@@ -133,16 +133,21 @@ def rectified_to_view_depth(rect_depth: np.ndarray, K: np.ndarray, r1: np.ndarra
 
 
 def fuse_pair_depths(depths: list[np.ndarray], tolerance: float) -> np.ndarray:
-    """Consistency across neighbours: pixels where >= 2 estimates agree within ``tolerance`` (relative)
-    get their mean; with a single estimate it is returned as is. NaN = unknown."""
-    if len(depths) == 1:
-        return depths[0]
+    """Combine per-neighbour depth estimates of one view (NaN = unknown).
+
+    Where two or more neighbours see a pixel, only estimates within ``tolerance`` (relative) of their median
+    count, and at least two must agree (mean of those); where only one neighbour sees it (the orbit's
+    neighbours on either side overlap the view's opposite halves), its SGBM estimate is kept — it already
+    passed SGBM's left-right and uniqueness checks, and fusion demands agreement of several views anyway.
+    """
     stack = np.stack(depths)
-    median = np.nanmedian(stack, axis=0)
+    seen = np.sum(np.isfinite(stack), axis=0)
+    median = np.nanmedian(np.where(seen > 0, stack, 0.0), axis=0)
     agree = np.abs(stack - median) <= tolerance * median
     count = np.sum(agree, axis=0)
     mean = np.where(agree, stack, 0.0).sum(axis=0) / np.maximum(count, 1)
-    return np.where(count >= 2, mean, np.nan).astype(np.float32)
+    keep = (count >= 2) | ((seen == 1) & (count == 1))
+    return np.where(keep, mean, np.nan).astype(np.float32)
 
 
 def normals_from_depth(depth: np.ndarray, K: np.ndarray) -> np.ndarray:

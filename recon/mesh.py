@@ -42,6 +42,14 @@ def cell_size_from_gsd(median_depth_m: float, focal_px: float, pixels_per_cell: 
     return pixels_per_cell * median_depth_m / focal_px
 
 
+def cell_size_for_density(points: np.ndarray, cell_m: float, min_mean_points: float = 4.0) -> float:
+    """Grow ``cell_m`` until the occupied cells hold on average ``min_mean_points`` points (sparse clouds)."""
+    xy = np.floor((points[:, :2] - points[:, :2].min(axis=0)) / cell_m).astype(np.int64)
+    occupied = len(np.unique(xy[:, 0] * (xy[:, 1].max() + 1) + xy[:, 1]))
+    mean_points = len(points) / occupied
+    return cell_m if mean_points >= min_mean_points else cell_m * float(np.sqrt(min_mean_points / mean_points))
+
+
 def per_cell_percentile(cells: np.ndarray, values: np.ndarray, num_cells: int, percentile: float) -> np.ndarray:
     """``percentile`` of ``values`` per flat cell index (NaN for empty cells), without Python loops."""
     order = np.lexsort((values, cells))

@@ -50,7 +50,7 @@ def texture():
     return np.clip(big + cv2.GaussianBlur(fine, (0, 0), 1.5), 0, 255).astype(np.uint8)
 
 
-@pytest.mark.parametrize("src_offset, yaw_deg", [((4.0, 0.0), 0.0), ((-4.0, 0.0), 0.0), ((0.0, 4.0), 30.0)])
+@pytest.mark.parametrize("src_offset, yaw_deg", [((4.0, 0.0), 0.0), ((-4.0, 0.0), 0.0), ((0.0, 4.0), 30.0), ((0.0, -6.0), 0.0), ((0.0, 6.0), 0.0)])
 def test_sgbm_recovers_plane_depth(texture, src_offset, yaw_deg):
     """Right, left and diagonal/vertical baselines all give the plane's depth to within 1 % (median)."""
     ref = look_down_view((0.0, 0.0, 30.0), yaw_deg, tilt_deg=5.0)
@@ -64,12 +64,17 @@ def test_sgbm_recovers_plane_depth(texture, src_offset, yaw_deg):
     assert np.percentile(relative, 90) < 0.03
 
 
-def test_consistency_keeps_agreeing_estimates_only():
-    a = np.array([[10.0, 10.0, np.nan]])
-    b = np.array([[10.1, 14.0, 10.0]])
-    fused = fuse_pair_depths([a, b], tolerance=0.02)
-    assert fused[0, 0] == pytest.approx(10.05)
-    assert np.isnan(fused[0, 1]) and np.isnan(fused[0, 2])
+def test_consistency_keeps_agreeing_or_single_estimates():
+    a = np.array([[10.0, 10.0, np.nan, np.nan]])
+    b = np.array([[10.1, 14.0, 10.0, np.nan]])
+    c = np.array([[np.nan, 14.2, np.nan, np.nan]])
+    fused = fuse_pair_depths([a, b, c], tolerance=0.02)
+    assert fused[0, 0] == pytest.approx(10.05)  # two agree
+    assert fused[0, 1] == pytest.approx(14.1)  # the two that agree win over the outlier
+    assert fused[0, 2] == pytest.approx(10.0)  # only one neighbour sees it
+    assert np.isnan(fused[0, 3])
+    disagree = fuse_pair_depths([np.array([[10.0]]), np.array([[12.0]])], tolerance=0.02)
+    assert np.isnan(disagree[0, 0])
 
 
 def test_normals_of_a_fronto_parallel_plane_face_the_camera():
