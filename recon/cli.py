@@ -38,6 +38,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
     parser.add_argument("--out", type=Path, required=True, help="scene folder to write (resumable)")
     parser.add_argument("--image-size", type=positive_int, default=1600, help="SfM max image side, px")
+    parser.add_argument("--max-features", type=positive_int, default=8192, help="SIFT features per photo")
     parser.add_argument("--dense-size", type=positive_int, default=1000, help="depth-map max image side, px")
     parser.add_argument("--mesh", choices=("2.5d", "poisson"), default="2.5d")
     parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
@@ -85,7 +86,7 @@ def run_recon(argv) -> int:
     if not args.verbose:
         pycolmap.logging.minloglevel = 2
     options = ReconOptions(
-        sfm=SfmOptions(max_image_size=args.image_size, every_kth=args.every, mapper=args.mapper, focal=args.focal,
+        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features, every_kth=args.every, mapper=args.mapper, focal=args.focal,
                        num_threads=args.workers),
         dense=DenseOptions(max_image_size=args.dense_size, num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,

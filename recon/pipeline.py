@@ -29,9 +29,9 @@ from tqdm import tqdm
 from recon import dense, mesh as meshing
 from recon.dense import DenseOptions
 from recon.io_util import atomic_path, write_text_atomic
-from recon.priors import PosePriors, focal_seed, list_photos, priors_from_exif, read_geotags
+from recon.priors import PosePriors, PriorsError, focal_seed, list_photos, priors_from_exif, read_geotags
 from recon.scene_out import write_scene
-from recon.sfm import SfmOptions, run_sfm
+from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 
 STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "scene")
 
@@ -51,6 +51,8 @@ class ReconOptions:
 def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
     """Photo names in the folder and their priors (geotags.csv, or EXIF GPS when no geotags are given)."""
     names = list_photos(photo_dir)
+    if len(names) < MIN_PHOTOS:
+        raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
     if geotags_csv is None:
         return names, priors_from_exif(photo_dir, names)
     return names, read_geotags(geotags_csv)

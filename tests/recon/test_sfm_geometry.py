@@ -1,17 +1,13 @@
 """Geo-registration and levelling (pure numpy), input checks, priors readers. Fast; no pycolmap runs."""
 
-import json
-
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from flightplan.geodesy import LocalFrame
 from recon.priors import PosePriors, PriorsError, read_geotags
 from recon.sfm import check_inputs, georegister, loop_pair, select_core
 from recon.similarity import Similarity
-
-ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
+from tests.recon.geotag_helpers import ORIGIN, geotag_row, write_geotags
 
 
 def orbit_cameras(n=30, radius=50.0, height=30.0):
@@ -97,23 +93,6 @@ def test_check_inputs_errors():
         check_inputs(["x.jpg", "y.jpg", "z.jpg"], priors)
     with pytest.raises(PriorsError, match="1 photo\\(s\\) have no geotag: d.jpg"):
         check_inputs(["a.jpg", "b.jpg", "d.jpg"], priors)
-
-
-HEADER = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
-          "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,"
-          "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz")
-
-
-def write_geotags(folder, rows, origin=ORIGIN):
-    (folder / "geotags.json").write_text(json.dumps({"origin": origin.to_dict(), "untagged": []}))
-    path = folder / "geotags.csv"
-    path.write_text("\n".join([HEADER, *rows]) + "\n")
-    return path
-
-
-def geotag_row(name, enu, quat_wxyz):
-    return (f"{name},2026-01-01T00:00:00.000000Z,40.0,44.0,30.0,,0,0,0,0,-50,0,test,0.0,"
-            f"{enu[0]},{enu[1]},{enu[2]},{quat_wxyz[0]},{quat_wxyz[1]},{quat_wxyz[2]},{quat_wxyz[3]}")
 
 
 def test_read_geotags_positions_and_rotations(tmp_path):
