@@ -204,10 +204,14 @@ def largest_model(models: dict) -> pycolmap.Reconstruction:
 def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: SfmOptions) -> pycolmap.Reconstruction:
     """Incremental mapping with position priors (or GLOMAP global mapping) -> the largest model."""
     out_dir.mkdir(parents=True, exist_ok=True)
+    refine = options.focal == "refine"
     if options.mapper == "global":
-        models = pycolmap.global_mapping(database_path, photo_dir, out_dir)
+        mapping = pycolmap.GlobalPipelineOptions()
+        mapping.mapper.bundle_adjustment.refine_focal_length = refine
+        mapping.num_threads = options.num_threads
+        mapping.random_seed = options.seed
+        models = pycolmap.global_mapping(database_path, photo_dir, out_dir, mapping)
     elif options.mapper == "incremental":
-        refine = options.focal == "refine"
         models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, _mapping_options(options, refine))
     else:
         raise ValueError(f"mapper must be 'incremental' or 'global', got {options.mapper!r}")
@@ -350,6 +354,22 @@ def check_inputs(photo_names, priors: PosePriors) -> None:
         raise PriorsError(f"{len(missing)} photo(s) have no geotag: {', '.join(missing[:10])}")
 
 
+def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
+    """Move ``rec`` into the priors' ENU frame (levelled when attitudes exist), in place.
+
+    Returns (registered names in ``names`` order, the similarity applied, tilt removed in degrees or None).
+    """
+    poses = camera_poses(rec)
+    registered = [n for n in names if n in poses]
+    if len(registered) < MIN_PHOTOS:
+        raise SfmError(f"only {len(registered)} photo(s) registered: the photos do not overlap")
+    centres = np.array([poses[n][:3, 3] for n in registered])
+    rotations = np.array([poses[n][:3, :3] for n in registered])
+    sim, tilt = georegister(centres, rotations, priors.subset(registered))
+    apply_similarity(rec, sim)
+    return registered, sim, tilt
+
+
 def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, work_dir: Path,
             options: SfmOptions = SfmOptions(), progress=None):
     """Run the SfM stage; returns (model in ENU, report). Writes ``work_dir/database.db`` and models.
@@ -388,6 +408,7 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
             match_photos(database, options)
             core_dir = work_dir / "core_model"
             core_dir.mkdir(exist_ok=True)
+            georegister_model(rec, core, priors)  # the rest's priors then pull in the same frame
             rec.write(core_dir)
             return register_remaining(database, photo_dir, core_dir, work_dir / "registered", options)
 
@@ -400,20 +421,12 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
     if abs(focal_final / seed.focal_px - 1.0) > FOCAL_CHANGE_WARN:
         warnings.append(f"focal length moved {100 * (focal_final / seed.focal_px - 1):+.1f} % from the seed "
                         f"({seed.focal_px:.0f} -> {focal_final:.0f} px): check the camera profile")
-    poses = camera_poses(rec)
-    registered = [n for n in photo_names if n in poses]
-    if len(registered) < MIN_PHOTOS:
-        raise SfmError(f"only {len(registered)} photo(s) registered: the photos do not overlap")
-    sub = priors.subset(registered)
-    centres = np.array([poses[n][:3, 3] for n in registered])
-    rotations = np.array([poses[n][:3, :3] for n in registered])
     t0 = time.perf_counter()
     step("georegister")
-    sim, tilt = georegister(centres, rotations, sub)
-    apply_similarity(rec, sim)
+    registered, sim, tilt = georegister_model(rec, photo_names, priors)
     seconds["georegister"] = round(time.perf_counter() - t0, 2)
     poses = camera_poses(rec)
-    residual = np.array([poses[n][:3, 3] for n in registered]) - sub.positions_enu
+    residual = np.array([poses[n][:3, 3] for n in registered]) - priors.subset(registered).positions_enu
     report = SfmReport(
         num_photos=len(photo_names),
         registered=registered,
