@@ -282,4 +282,4 @@ def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
     fusion.num_threads = options.num_threads
     with atomic_path(output_ply) as tmp:
         fused = pycolmap.stereo_fusion(tmp, workspace, input_type="geometric", options=fusion, output_type="ply")
-    return int(fused.num_points3D()) if hasattr(fused, "num_points3D") else -1
+    return int(fused.num_points3D())

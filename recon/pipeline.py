@@ -176,6 +176,8 @@ class Recon:
             "generator": "recon.pipeline",
             "photos": str(self.photo_dir),
             "geotags": str(self.geotags_csv) if self.geotags_csv else "exif",
+            "origin_height": ("EXIF GPS altitude (MSL, geoid not applied)" if self.priors.source == "exif"
+                              else "geotags.json origin"),
             "options": asdict(self.options),
             "sfm": {k: sfm_report[k] for k in ("registered", "unregistered", "mean_reprojection_error_px",
                                                 "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
