@@ -1,7 +1,6 @@
 """aerostereo-recon: clear errors on bad input, and (slow) the real DJI set end to end."""
 
 import json
-import os
 import shutil
 
 import numpy as np

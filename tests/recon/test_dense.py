@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from recon.dense import fuse_pair_depths, normals_from_depth, pair_depth
+from recon.dense import fuse_pair_depths, normals_from_depth, pair_depth, write_colmap_maps
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth
 
 @pytest.fixture(scope="module")
@@ -42,3 +42,26 @@ def test_normals_of_a_fronto_parallel_plane_face_the_camera():
     K = np.array([[100.0, 0, 50], [0, 100.0, 40], [0, 0, 1]])
     normals = normals_from_depth(np.full((80, 100), 7.0), K)
     assert np.allclose(normals[5:-5, 5:-5], [0, 0, -1], atol=1e-9)
+
+
+def read_colmap_mat(path):
+    """COLMAP .bin matrix: ASCII 'width&height&channels&' header, then float32 channel-planar data."""
+    raw = path.read_bytes()
+    fields = raw.split(b"&", 3)
+    width, height, channels = (int(f) for f in fields[:3])
+    data = np.frombuffer(fields[3], dtype="<f4")
+    return data.reshape(channels, height, width)
+
+
+def test_colmap_maps_are_written_channel_planar(tmp_path):
+    """Works around pycolmap 4.2.1's NormalMap.from_array (planar copy): the file must hold nx, ny, nz planes."""
+    rng = np.random.default_rng(4)
+    depth = rng.uniform(5, 9, (6, 7)).astype(np.float32)
+    depth[0, 0] = np.nan
+    normals = rng.normal(size=(6, 7, 3)).astype(np.float32)
+    normals /= np.linalg.norm(normals, axis=-1, keepdims=True)
+    write_colmap_maps(tmp_path, "view.png", depth, normals)
+    stored_depth = read_colmap_mat(tmp_path / "stereo" / "depth_maps" / "view.png.geometric.bin")
+    stored_normals = read_colmap_mat(tmp_path / "stereo" / "normal_maps" / "view.png.geometric.bin")
+    assert stored_depth[0, 0, 0] == 0.0 and np.allclose(stored_depth[0, 1:, :], depth[1:, :])
+    assert np.allclose(stored_normals, normals.transpose(2, 0, 1))

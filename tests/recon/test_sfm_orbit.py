@@ -56,13 +56,16 @@ def orbit(tmp_path_factory):
 def test_orbit_registers_closes_the_loop_and_is_levelled(orbit, tmp_path):
     photos, priors, centres, rotations = orbit
     pycolmap.logging.minloglevel = 2
-    seed = FocalSeed(FOCAL, WIDTH, HEIGHT, "test")
+    seed = FocalSeed(1.03 * FOCAL, WIDTH, HEIGHT, "test: 3 % too long")
     rec, report = run_sfm(photos, priors.names, priors, seed, tmp_path,
-                          SfmOptions(max_num_features=2048, spatial_neighbors=8, focal="fixed"))
+                          SfmOptions(max_num_features=2048, spatial_neighbors=8, focal="auto"))
     assert len(report.registered) == NUM_PHOTOS
     assert report.loop_pair == ["orbit_00.png", f"orbit_{NUM_PHOTOS - 1}.png"]
     assert report.loop_pair_inliers >= 50
     assert 0.6 < report.tilt_correction_deg < 1.4
+    # converging oblique views determine the focal length: "auto" frees it and recovers the truth
+    assert report.focal_refined and report.view_spread_deg > 20
+    assert report.focal_final_px == pytest.approx(FOCAL, rel=0.005)
     poses = camera_poses(rec)
     est_centres = np.array([poses[n][:3, 3] for n in priors.names])
     est_rotations = np.array([poses[n][:3, :3] for n in priors.names])
