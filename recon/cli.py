@@ -44,6 +44,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
     parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
     parser.add_argument("--every", type=positive_int, default=1, help="only every k-th photo enters SfM")
+    parser.add_argument("--neighbors", type=positive_int, default=12, help="spatial matching: nearest photos")
+    parser.add_argument("--sequential", type=int, default=0, help="also match each photo with the next N (0: off)")
     parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
     parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto")
     parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
@@ -86,7 +88,8 @@ def run_recon(argv) -> int:
     if not args.verbose:
         pycolmap.logging.minloglevel = 2
     options = ReconOptions(
-        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features, every_kth=args.every, mapper=args.mapper, focal=args.focal,
+        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features,
+                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every, mapper=args.mapper, focal=args.focal,
                        num_threads=args.workers),
         dense=DenseOptions(max_image_size=args.dense_size, num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,

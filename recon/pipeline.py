@@ -49,13 +49,17 @@ class ReconOptions:
 
 
 def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
-    """Photo names in the folder and their priors (geotags.csv, or EXIF GPS when no geotags are given)."""
+    """Photo names to use and their priors (geotags.csv, or EXIF GPS when no geotags are given).
+
+    Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out.
+    """
     names = list_photos(photo_dir)
     if len(names) < MIN_PHOTOS:
         raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
     if geotags_csv is None:
         return names, priors_from_exif(photo_dir, names)
-    return names, read_geotags(geotags_csv)
+    priors = read_geotags(geotags_csv)
+    return [n for n in names if n not in set(priors.untagged)], priors
 
 
 def write_model_atomic(rec: pycolmap.Reconstruction, target: Path) -> None:
@@ -90,6 +94,9 @@ class Recon:
         self.scene_dir, self.options, self.log = Path(scene_dir), options, log
         self.work = self.scene_dir / "work"
         self.names, self.priors = load_priors(self.photo_dir, self.geotags_csv)
+        if self.priors.untagged:
+            self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
+                     f"{', '.join(self.priors.untagged[:10])}")
         self.seconds: dict[str, float] = {}
 
     def run(self) -> dict:

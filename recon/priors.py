@@ -41,6 +41,7 @@ class PosePriors:
     origin: LocalFrame
     sigma_m: tuple[float, float, float] = DEFAULT_SIGMA_M
     source: str = "geotags"
+    untagged: tuple[str, ...] = ()
 
     def index(self) -> dict[str, int]:
         return {name: i for i, name in enumerate(self.names)}
@@ -49,7 +50,8 @@ class PosePriors:
         """The priors of ``names`` (in that order)."""
         idx = [self.index()[n] for n in names]
         rot = None if self.rotations_world_cam is None else self.rotations_world_cam[idx]
-        return PosePriors(tuple(names), self.positions_enu[idx], rot, self.origin, self.sigma_m, self.source)
+        return PosePriors(tuple(names), self.positions_enu[idx], rot, self.origin, self.sigma_m, self.source,
+                          self.untagged)
 
 
 def list_photos(photo_dir: Path) -> list[str]:
@@ -61,11 +63,13 @@ def list_photos(photo_dir: Path) -> list[str]:
 
 
 def read_geotags(csv_path: Path, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
-    """Read ``geotags.csv`` and its ``geotags.json`` sidecar (origin) per INTERFACES.md."""
+    """Read ``geotags.csv`` and its ``geotags.json`` sidecar (origin, photos left untagged) per INTERFACES.md."""
     csv_path = Path(csv_path)
     sidecar = csv_path.with_suffix(".json")
     try:
-        origin = LocalFrame.from_dict(json.loads(sidecar.read_text(encoding="utf-8"))["origin"])
+        meta = json.loads(sidecar.read_text(encoding="utf-8"))
+        origin = LocalFrame.from_dict(meta["origin"])
+        untagged = tuple(entry["image_name"] for entry in meta.get("untagged", []))
     except FileNotFoundError:
         raise PriorsError(f"{sidecar}: sidecar with the ENU origin not found next to {csv_path.name}") from None
     except (KeyError, ValueError, TypeError) as exc:
@@ -92,7 +96,7 @@ def read_geotags(csv_path: Path, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
     if np.any(np.abs(np.linalg.norm(quats, axis=1) - 1.0) > 1e-3):
         raise PriorsError(f"{csv_path}: quaternion qw,qx,qy,qz not unit length in some row")
     rotations = Rotation.from_quat(quats).as_matrix()
-    return PosePriors(tuple(names), np.array(positions), rotations, origin, tuple(sigma_m), "geotags")
+    return PosePriors(tuple(names), np.array(positions), rotations, origin, tuple(sigma_m), "geotags", untagged)
 
 
 def _rational_deg(dms) -> float:

@@ -11,8 +11,9 @@ HEADER = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_h
           "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz")
 
 
-def write_geotags(folder, rows, origin=ORIGIN):
-    (folder / "geotags.json").write_text(json.dumps({"origin": origin.to_dict(), "untagged": []}))
+def write_geotags(folder, rows, origin=ORIGIN, untagged=()):
+    sidecar = {"origin": origin.to_dict(), "untagged": [{"image_name": n, "reason": "test"} for n in untagged]}
+    (folder / "geotags.json").write_text(json.dumps(sidecar))
     path = folder / "geotags.csv"
     path.write_text("\n".join([HEADER, *rows]) + "\n")
     return path

@@ -42,13 +42,21 @@ def test_geotags_for_other_photos(tmp_path, capsys):
     assert code == 2 and "name none of the 3 photos" in err
 
 
-def test_photos_without_overlap(tmp_path, capsys):
-    """Featureless photos never match: the error says so instead of failing deep inside pycolmap."""
-    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+def test_photo_without_geotag_is_named(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg", "d.jpg"])
     geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
                                        enumerate(["a.jpg", "b.jpg", "c.jpg"])])
     code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, "--out", tmp_path / "scene"], capsys)
-    assert code == 2 and "do not overlap" in err
+    assert code == 2 and "1 photo(s) have no geotag: d.jpg" in err
+
+
+def test_photos_without_overlap(tmp_path, capsys):
+    """Featureless photos never match: the error says so instead of failing deep inside pycolmap."""
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg", "u.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])], untagged=["u.jpg"])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and "do not overlap" in err  # u.jpg, untagged by capture, is left out, not an error
 
 
 @pytest.mark.slow
