@@ -1,0 +1,7 @@
+"""``python -m recon`` = ``aerostereo-recon``."""
+
+import sys
+
+from recon.cli import main
+
+sys.exit(main())

@@ -1,0 +1,116 @@
+"""``aerostereo-recon``: photos + geotags -> georeferenced scene folder; ``merge``: control-point merge.
+
+    aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR [--image-size PX]
+                     [--mesh 2.5d|poisson] [--grid M] [--workers J] [--every K] [--dense-size PX]
+    aerostereo-recon merge A B --pairs pairs.txt --out C
+
+Bad input -> one line on stderr, exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import pycolmap
+import trimesh
+
+from recon.dense import DenseOptions
+from recon.io_util import atomic_path
+from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
+from recon.pipeline import ReconOptions, Recon
+from recon.priors import PriorsError
+from recon.sfm import SfmError, SfmOptions
+
+
+def positive_int(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="aerostereo-recon", description=__doc__.split("\n")[0])
+    parser.add_argument("--photos", type=Path, required=True, help="folder of photos")
+    parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
+    parser.add_argument("--out", type=Path, required=True, help="scene folder to write (resumable)")
+    parser.add_argument("--image-size", type=positive_int, default=1600, help="SfM max image side, px")
+    parser.add_argument("--max-features", type=positive_int, default=8192, help="SIFT features per photo")
+    parser.add_argument("--dense-size", type=positive_int, default=1000, help="depth-map max image side, px")
+    parser.add_argument("--mesh", choices=("2.5d", "poisson"), default="2.5d")
+    parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
+    parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
+    parser.add_argument("--every", type=positive_int, default=1, help="only every k-th photo enters SfM")
+    parser.add_argument("--neighbors", type=positive_int, default=12, help="spatial matching: nearest photos")
+    parser.add_argument("--sequential", type=int, default=0, help="also match each photo with the next N (0: off)")
+    parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
+    parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto")
+    parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
+    parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
+    return parser
+
+
+def build_merge_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="aerostereo-recon merge",
+                                     description="merge mesh B into mesh A's frame from control-point pairs")
+    parser.add_argument("a", type=Path, help="reference mesh")
+    parser.add_argument("b", type=Path, help="mesh to move onto A")
+    parser.add_argument("--pairs", type=Path, required=True, help="text file: x y z x' y' z' per line (B then A)")
+    parser.add_argument("--out", type=Path, required=True, help="merged mesh file (PLY/OBJ/GLB)")
+    return parser
+
+
+def load_mesh(path: Path) -> trimesh.Trimesh:
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: mesh file not found")
+    loaded = trimesh.load(path, force="mesh", process=False)
+    if len(loaded.faces) == 0:
+        raise ValueError(f"{path}: no triangles in this mesh")
+    return loaded
+
+
+def run_merge(argv) -> int:
+    args = build_merge_parser().parse_args(argv)
+    result = estimate_merge(read_pairs(args.pairs))
+    merged = merge_meshes(load_mesh(args.a), load_mesh(args.b), result.transform)
+    with atomic_path(args.out) as tmp:
+        merged.export(tmp)
+    print(result.summary())
+    print(f"wrote {args.out} ({len(merged.faces)} faces)")
+    return 0
+
+
+def run_recon(argv) -> int:
+    args = build_parser().parse_args(argv)
+    if not args.verbose:
+        pycolmap.logging.minloglevel = 2
+    options = ReconOptions(
+        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features,
+                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every, mapper=args.mapper, focal=args.focal,
+                       num_threads=args.workers),
+        dense=DenseOptions(max_image_size=args.dense_size, num_threads=args.workers),
+        mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
+    )
+    scene = Recon(args.photos, args.geotags, args.out, options).run()
+    print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],
+                      "ground_height_range_m": scene["ground_height_range_m"],
+                      "valid_area_m": scene["valid_area_m"]}, indent=2))
+    return 0
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        if argv[:1] == ["merge"]:
+            return run_merge(argv[1:])
+        return run_recon(argv)
+    except (PriorsError, SfmError, PairsFileError, FileNotFoundError, ValueError) as exc:
+        print(f"aerostereo-recon: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,285 @@
+"""CPU dense reconstruction: rectified OpenCV SGBM depth per view, 2-view consistency, pycolmap fusion.
+
+COLMAP's PatchMatch needs CUDA; this module replaces it. For every undistorted (pinhole) view, two neighbours
+with a useful triangulation angle are picked from the sparse model; each pair is rectified
+(``cv2.stereoRectify``), matched with ``cv2.StereoSGBM`` over a disparity range taken from the sparse points,
+and the disparity is turned back into planar depth in the reference view. Depths from the two neighbours
+that agree (relative tolerance) are kept and averaged. Depth + normal maps are written in COLMAP's format
+into the workspace made by ``pycolmap.undistort_images`` and fused with ``pycolmap.stereo_fusion``.
+
+Units: metres (model units after geo-registration); depth = z along the optical axis (OpenCV camera).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pycolmap
+
+from recon.io_util import atomic_path
+
+
+@dataclass(frozen=True)
+class DenseOptions:
+    """Knobs of the dense stage (image size of the depth maps, pair selection, SGBM, consistency, fusion)."""
+
+    max_image_size: int = 1000
+    num_neighbors: int = 4
+    target_angle_deg: float = 10.0
+    min_angle_deg: float = 3.0
+    max_angle_deg: float = 25.0
+    min_shared_points: int = 20
+    block_size: int = 5
+    consistency: float = 0.02
+    fusion_min_pixels: int = 3
+    fusion_max_normal_error_deg: float = 20.0
+    num_threads: int = -1
+
+
+@dataclass(frozen=True)
+class View:
+    """A pinhole view: intrinsics ``K`` (3x3), ``R``/``t`` world-to-camera (x_cam = R x_world + t)."""
+
+    K: np.ndarray
+    R: np.ndarray
+    t: np.ndarray
+
+    @property
+    def centre(self) -> np.ndarray:
+        return -self.R.T @ self.t
+
+
+# ---------------------------------------------------------------- geometry of one pair
+
+
+def relative_pose(ref: View, src: View) -> tuple[np.ndarray, np.ndarray]:
+    """``(R, T)`` with x_src = R x_ref + T (the convention of ``cv2.stereoRectify``)."""
+    rotation = src.R @ ref.R.T
+    return rotation, src.t - rotation @ ref.t
+
+
+def sgbm_disparity(left: np.ndarray, right: np.ndarray, min_disp: int, num_disp: int, block: int) -> np.ndarray:
+    """Semi-global matching disparity (float32 pixels, NaN where invalid) of a rectified grey pair."""
+    sgbm = cv2.StereoSGBM_create(
+        minDisparity=min_disp,
+        numDisparities=num_disp,
+        blockSize=block,
+        P1=8 * block * block,
+        P2=32 * block * block,
+        disp12MaxDiff=1,
+        uniquenessRatio=10,
+        speckleWindowSize=100,
+        speckleRange=2,
+        mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
+    )
+    disparity = sgbm.compute(left, right).astype(np.float32) / 16.0
+    disparity[disparity < min_disp] = np.nan
+    return disparity
+
+
+def pair_depth(ref_img: np.ndarray, src_img: np.ndarray, ref: View, src: View,
+               depth_range: tuple[float, float], block: int = 5) -> np.ndarray:
+    """Planar depth (H, W) float32 of the reference view from one source view; NaN where unknown.
+
+    Images are grey uint8 of the same size. ``depth_range`` (metres, min < max) bounds the disparity search.
+    Handles horizontal and vertical rectifications and either ordering of the two cameras.
+    """
+    h, w = ref_img.shape
+    rotation, translation = relative_pose(ref, src)
+    no_distortion = np.zeros(5)
+    r1, r2, p1, p2, _, _, _ = cv2.stereoRectify(ref.K, no_distortion, src.K, no_distortion, (w, h), rotation,
+                                                 translation.reshape(3, 1), flags=cv2.CALIB_ZERO_DISPARITY,
+                                                 alpha=-1)
+    map_ref = cv2.initUndistortRectifyMap(ref.K, no_distortion, r1, p1, (w, h), cv2.CV_32FC1)
+    map_src = cv2.initUndistortRectifyMap(src.K, no_distortion, r2, p2, (w, h), cv2.CV_32FC1)
+    rect_ref = cv2.remap(ref_img, *map_ref, cv2.INTER_LINEAR)
+    rect_src = cv2.remap(src_img, *map_src, cv2.INTER_LINEAR)
+    vertical = abs(p2[1, 3]) > abs(p2[0, 3])
+    offset = p2[1, 3] if vertical else p2[0, 3]  # = f_rect * baseline along the rectified axis (signed)
+    focal_baseline = abs(offset)
+
+    def to_canonical(img):
+        # rows become the epipolar lines; mirrored when the source camera sits at -x (or -y) of the
+        # reference, so the source is always the right image. The same maps undo themselves.
+        img = img.T if vertical else img
+        return img[:, ::-1] if offset > 0 else img
+
+    d_near, d_far = focal_baseline / depth_range[0], focal_baseline / depth_range[1]
+    min_disp = int(np.floor(d_far)) - 2
+    num_disp = int(np.ceil((d_near - min_disp + 2) / 16.0)) * 16
+    disparity = sgbm_disparity(np.ascontiguousarray(to_canonical(rect_ref)),
+                               np.ascontiguousarray(to_canonical(rect_src)), min_disp, num_disp, block)
+    disparity = disparity[:, ::-1] if offset > 0 else disparity
+    disparity = disparity.T if vertical else disparity
+    rect_depth = focal_baseline / disparity
+    return rectified_to_view_depth(rect_depth, ref.K, r1, p1)
+
+
+def rectified_to_view_depth(rect_depth: np.ndarray, K: np.ndarray, r1: np.ndarray, p1: np.ndarray) -> np.ndarray:
+    """Resample planar depth of the rectified reference into the original reference view (NaN = unknown)."""
+    h, w = rect_depth.shape
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    rays = np.stack([u, v, np.ones_like(u)], axis=-1) @ np.linalg.inv(K).T  # z = 1 in the view
+    rect_rays = rays @ r1.T
+    proj = rect_rays @ p1[:, :3].T
+    map_x = (proj[..., 0] / proj[..., 2]).astype(np.float32)
+    map_y = (proj[..., 1] / proj[..., 2]).astype(np.float32)
+    sampled = cv2.remap(rect_depth.astype(np.float32), map_x, map_y, cv2.INTER_NEAREST,
+                        borderMode=cv2.BORDER_CONSTANT, borderValue=np.nan)
+    return (sampled / rect_rays[..., 2]).astype(np.float32)
+
+
+def fuse_pair_depths(depths: list[np.ndarray], tolerance: float) -> np.ndarray:
+    """Combine per-neighbour depth estimates of one view (NaN = unknown).
+
+    Where two or more neighbours see a pixel, only estimates within ``tolerance`` (relative) of their median
+    count, and at least two must agree (mean of those); where only one neighbour sees it (the orbit's
+    neighbours on either side overlap the view's opposite halves), its SGBM estimate is kept — it already
+    passed SGBM's left-right and uniqueness checks, and fusion demands agreement of several views anyway.
+    """
+    stack = np.stack(depths)
+    seen = np.sum(np.isfinite(stack), axis=0)
+    median = np.nanmedian(np.where(seen > 0, stack, 0.0), axis=0)
+    agree = np.abs(stack - median) <= tolerance * median
+    count = np.sum(agree, axis=0)
+    mean = np.where(agree, stack, 0.0).sum(axis=0) / np.maximum(count, 1)
+    keep = (count >= 2) | ((seen == 1) & (count == 1))
+    return np.where(keep, mean, np.nan).astype(np.float32)
+
+
+def normals_from_depth(depth: np.ndarray, K: np.ndarray) -> np.ndarray:
+    """Unit normals (H, W, 3) in the camera frame from a depth map, facing the camera; 0 where unknown."""
+    h, w = depth.shape
+    u, v = np.meshgrid(np.arange(w, dtype=np.float64), np.arange(h, dtype=np.float64))
+    rays = np.stack([u, v, np.ones_like(u)], axis=-1) @ np.linalg.inv(K).T
+    points = rays * depth[..., None]
+    du = np.gradient(points, axis=1)
+    dv = np.gradient(points, axis=0)
+    normal = np.cross(du, dv)
+    normal /= np.linalg.norm(normal, axis=-1, keepdims=True) + 1e-300
+    facing = np.sum(normal * points, axis=-1) > 0
+    normal[facing] *= -1.0
+    return np.nan_to_num(normal).astype(np.float32)
+
+
+# ---------------------------------------------------------------- the model side
+
+
+def views_from_model(rec: pycolmap.Reconstruction) -> dict[int, View]:
+    """Pinhole views of the registered images of an undistorted model, by image id."""
+    views = {}
+    for image_id, image in rec.images.items():
+        if image.has_pose:
+            pose = image.cam_from_world().matrix()
+            views[image_id] = View(image.camera.calibration_matrix(), pose[:, :3], pose[:, 3])
+    return views
+
+
+def choose_neighbours(rec: pycolmap.Reconstruction, options: DenseOptions) -> dict[int, list[int]]:
+    """For each image, up to ``num_neighbors`` images sharing sparse points whose median triangulation angle
+    is within [min, max] degrees, closest to the target angle first."""
+    observers: dict[int, set[int]] = {}
+    for point_id, point in rec.points3D.items():
+        for element in point.track.elements:
+            observers.setdefault(element.image_id, set()).add(point_id)
+    centres = {i: img.projection_center() for i, img in rec.images.items() if img.has_pose}
+    neighbours = {}
+    for ref_id in centres:
+        scored = []
+        for src_id in centres:
+            shared = observers.get(ref_id, set()) & observers.get(src_id, set())
+            if src_id == ref_id or len(shared) < options.min_shared_points:
+                continue
+            xyz = np.array([rec.points3D[p].xyz for p in shared])
+            a, b = xyz - centres[ref_id], xyz - centres[src_id]
+            cos = np.sum(a * b, axis=1) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1))
+            angle = float(np.degrees(np.median(np.arccos(np.clip(cos, -1, 1)))))
+            if options.min_angle_deg <= angle <= options.max_angle_deg:
+                scored.append((abs(angle - options.target_angle_deg), src_id))
+        neighbours[ref_id] = [src for _, src in sorted(scored)[: options.num_neighbors]]
+    return neighbours
+
+
+def depth_range(rec: pycolmap.Reconstruction, image_id: int, view: View, margin: float = 0.2):
+    """(near, far) planar depth of the sparse points seen by an image, widened by ``margin``."""
+    image = rec.images[image_id]
+    xyz = np.array([rec.points3D[p.point3D_id].xyz for p in image.points2D if p.has_point3D()])
+    z = (xyz @ view.R.T + view.t)[:, 2]
+    z = z[z > 0]
+    near, far = np.percentile(z, 1), np.percentile(z, 99)
+    return near * (1 - margin), far * (1 + margin)
+
+
+def write_colmap_maps(workspace: Path, name: str, depth: np.ndarray, normals: np.ndarray) -> None:
+    """Write ``stereo/{depth,normal}_maps/<name>.geometric.bin`` (invalid depth = 0).
+
+    pycolmap 4.2.1's ``NormalMap.from_array`` copies its buffer as channel-planar, so the (H, W, 3) array is
+    handed over as planar data reshaped to (H, W, 3).
+    """
+    h, w = depth.shape
+    valid = np.isfinite(depth) & (depth > 0)
+    clean = np.where(valid, depth, 0.0).astype(np.float32)
+    d_min = float(clean[valid].min()) if valid.any() else 0.0
+    d_max = float(clean[valid].max()) if valid.any() else 1.0
+    planar = np.ascontiguousarray(normals.transpose(2, 0, 1)).reshape(h, w, 3)
+    for folder, data in (("depth_maps", pycolmap.DepthMap.from_array(clean, d_min, d_max)),
+                         ("normal_maps", pycolmap.NormalMap.from_array(planar))):
+        target = workspace / "stereo" / folder / f"{name}.geometric.bin"
+        target.parent.mkdir(parents=True, exist_ok=True)
+        with atomic_path(target) as tmp:
+            data.write(str(tmp))
+
+
+def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: DenseOptions) -> None:
+    """``pycolmap.undistort_images`` into ``workspace`` at the dense image size (pinhole cameras)."""
+    undistort_options = pycolmap.UndistortCameraOptions()
+    undistort_options.max_image_size = options.max_image_size
+    pycolmap.undistort_images(workspace, sparse_dir, photo_dir, undistort_options=undistort_options,
+                              num_threads=options.num_threads)
+
+
+def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda it: it) -> dict[str, float]:
+    """Depth + normal maps for every undistorted view; returns valid-pixel fraction per image name.
+
+    Images whose maps exist already are skipped (resumable).
+    """
+    rec = pycolmap.Reconstruction(workspace / "sparse")
+    views = views_from_model(rec)
+    neighbours = choose_neighbours(rec, options)
+    coverage = {}
+    grey = {}
+
+    def load(image_id):
+        if image_id not in grey:
+            grey[image_id] = cv2.imread(str(workspace / "images" / rec.images[image_id].name), cv2.IMREAD_GRAYSCALE)
+        return grey[image_id]
+
+    for ref_id in progress(sorted(views)):
+        name = rec.images[ref_id].name
+        if (workspace / "stereo" / "normal_maps" / f"{name}.geometric.bin").exists():
+            continue
+        near_far = depth_range(rec, ref_id, views[ref_id])
+        estimates = [pair_depth(load(ref_id), load(src), views[ref_id], views[src], near_far, options.block_size)
+                     for src in neighbours[ref_id]]
+        if not estimates:
+            coverage[name] = 0.0
+            continue
+        depth = fuse_pair_depths(estimates, options.consistency)
+        depth[(depth < near_far[0]) | (depth > near_far[1])] = np.nan
+        write_colmap_maps(workspace, name, depth, normals_from_depth(depth, views[ref_id].K))
+        coverage[name] = float(np.mean(np.isfinite(depth)))
+    return coverage
+
+
+def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
+    """``pycolmap.stereo_fusion`` of the geometric maps -> coloured PLY (points in model units); point count."""
+    fusion = pycolmap.StereoFusionOptions()
+    fusion.min_num_pixels = options.fusion_min_pixels
+    fusion.max_normal_error = options.fusion_max_normal_error_deg
+    fusion.num_threads = options.num_threads
+    with atomic_path(output_ply) as tmp:
+        fused = pycolmap.stereo_fusion(tmp, workspace, input_type="geometric", options=fusion, output_type="ply")
+    return int(fused.num_points3D())

@@ -1,0 +1,141 @@
+"""Surface from the fused point cloud: a 2.5-D height field (default for aerial scenes) or Poisson.
+
+Height field: points (ENU metres) are binned on a square grid (cell size from the ground sampling
+distance); each cell's height is a high percentile of its points' z (roofs win over stray low points), colour
+the mean of its points. The well-observed area is the observed cells closed by a few cells with interior
+holes filled; holes inside it are filled from the nearest observed cell, then a 3x3 median removes spikes.
+Outside it there are no faces (cropped). Poisson: ``pycolmap.poisson_meshing`` with trim = depth - 3.
+Decimation: ``pycolmap.simplify_mesh`` (QEM) bounded by a target error.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pycolmap
+import trimesh
+from scipy import ndimage
+
+from recon.io_util import atomic_path
+
+
+@dataclass(frozen=True)
+class HeightField:
+    """Heights ``z`` (rows = north, cols = east; NaN outside the valid area) on a grid whose cell (0, 0)
+    centre is at ENU ``(x0, y0)``; ``colors`` (rows, cols, 3) uint8."""
+
+    z: np.ndarray
+    colors: np.ndarray
+    x0: float
+    y0: float
+    cell_m: float
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.z)
+
+
+def cell_size_from_gsd(median_depth_m: float, focal_px: float, pixels_per_cell: float = 2.0) -> float:
+    """Grid cell (metres) = ``pixels_per_cell`` ground pixels of the depth maps (GSD = depth / focal)."""
+    return pixels_per_cell * median_depth_m / focal_px
+
+
+def cell_size_for_density(points: np.ndarray, cell_m: float, min_mean_points: float = 4.0) -> float:
+    """Grow ``cell_m`` until the occupied cells hold on average ``min_mean_points`` points (sparse clouds)."""
+    xy = np.floor((points[:, :2] - points[:, :2].min(axis=0)) / cell_m).astype(np.int64)
+    occupied = len(np.unique(xy[:, 0] * (xy[:, 1].max() + 1) + xy[:, 1]))
+    mean_points = len(points) / occupied
+    return cell_m if mean_points >= min_mean_points else cell_m * float(np.sqrt(min_mean_points / mean_points))
+
+
+def per_cell_percentile(cells: np.ndarray, values: np.ndarray, num_cells: int, percentile: float) -> np.ndarray:
+    """``percentile`` of ``values`` per flat cell index (NaN for empty cells), without Python loops."""
+    order = np.lexsort((values, cells))
+    cells_sorted, values_sorted = cells[order], values[order]
+    counts = np.bincount(cells_sorted, minlength=num_cells)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    result = np.full(num_cells, np.nan)
+    filled = counts > 0
+    pick = starts[filled] + np.floor((counts[filled] - 1) * percentile / 100.0 + 0.5).astype(int)
+    result[filled] = values_sorted[pick]
+    return result
+
+
+def height_field(points: np.ndarray, colors: np.ndarray | None, cell_m: float, percentile: float = 75.0,
+                 min_points: int = 2, closing_cells: int = 3) -> HeightField:
+    """Grid the ``(N, 3)`` ENU points into a :class:`HeightField` (see module docstring)."""
+    points = np.asarray(points, dtype=np.float64)
+    if points.ndim != 2 or points.shape[1] != 3 or len(points) < 3:
+        raise ValueError(f"need an (N >= 3, 3) point array, got shape {points.shape}")
+    x0, y0 = points[:, 0].min(), points[:, 1].min()
+    col = np.floor((points[:, 0] - x0) / cell_m).astype(int)
+    row = np.floor((points[:, 1] - y0) / cell_m).astype(int)
+    shape = (row.max() + 1, col.max() + 1)
+    cells = row * shape[1] + col
+    n_cells = shape[0] * shape[1]
+    counts = np.bincount(cells, minlength=n_cells)
+    z = per_cell_percentile(cells, points[:, 2], n_cells, percentile).reshape(shape)
+    observed = (counts >= min_points).reshape(shape)
+    z[~observed] = np.nan
+    rgb = np.zeros((n_cells, 3))
+    if colors is not None:
+        for channel in range(3):
+            rgb[:, channel] = np.bincount(cells, weights=colors[:, channel], minlength=n_cells)
+        rgb /= np.maximum(counts, 1)[:, None]
+    rgb = rgb.reshape(shape + (3,))
+    area = ndimage.binary_fill_holes(ndimage.binary_closing(observed, iterations=closing_cells,
+                                                            border_value=0) | observed)
+    nearest = ndimage.distance_transform_edt(~observed, return_distances=False, return_indices=True)
+    z_filled = z[tuple(nearest)]
+    rgb_filled = rgb[tuple(nearest)]
+    z_smooth = ndimage.median_filter(z_filled, size=3, mode="nearest")
+    z_smooth[~area] = np.nan
+    return HeightField(z_smooth, np.clip(rgb_filled, 0, 255).astype(np.uint8), x0 + cell_m / 2, y0 + cell_m / 2,
+                       cell_m)
+
+
+def height_field_mesh(field: HeightField) -> trimesh.Trimesh:
+    """Triangulate the valid cells: two triangles per grid square whose four corners are valid (ENU m)."""
+    rows, cols = field.z.shape
+    r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
+    vertices = np.column_stack([field.x0 + c.ravel() * field.cell_m, field.y0 + r.ravel() * field.cell_m,
+                                field.z.ravel()])
+    index = np.arange(rows * cols).reshape(rows, cols)
+    a, b, c2, d = index[:-1, :-1], index[:-1, 1:], index[1:, :-1], index[1:, 1:]
+    valid = field.valid
+    quad = valid[:-1, :-1] & valid[:-1, 1:] & valid[1:, :-1] & valid[1:, 1:]
+    faces = np.concatenate([np.stack([a[quad], b[quad], d[quad]], 1), np.stack([a[quad], d[quad], c2[quad]], 1)])
+    colors = np.column_stack([field.colors.reshape(-1, 3), np.full(rows * cols, 255)]).astype(np.uint8)
+    mesh = trimesh.Trimesh(np.nan_to_num(vertices), faces, vertex_colors=colors, process=False)
+    mesh.remove_unreferenced_vertices()
+    return mesh
+
+
+def poisson_mesh(fused_ply: Path, output_ply: Path, depth: int = 10) -> None:
+    """Screened Poisson surface of the fused cloud (needs normals), trimmed at ``depth - 3``."""
+    options = pycolmap.PoissonMeshingOptions()
+    options.depth = depth
+    options.trim = depth - 3
+    with atomic_path(output_ply) as tmp:
+        pycolmap.poisson_meshing(fused_ply, tmp, options)
+
+
+def decimate(input_ply: Path, output_ply: Path, max_error_m: float, min_face_ratio: float = 0.01) -> None:
+    """QEM decimation (``pycolmap.simplify_mesh``) stopping at the quadric error bound ``max_error_m``
+    (metres, applied as the squared-distance QEM bound) or at ``min_face_ratio`` of the faces."""
+    options = pycolmap.MeshSimplificationOptions()
+    options.target_face_ratio = min_face_ratio
+    options.max_error = max_error_m**2
+    with atomic_path(output_ply) as tmp:
+        pycolmap.simplify_mesh(input_ply, tmp, options)
+
+
+def read_point_cloud(ply: Path) -> tuple[np.ndarray, np.ndarray | None]:
+    """Points (N, 3) float64 and colours (N, 3) uint8 (or None) of a PLY point cloud."""
+    cloud = trimesh.load(ply, process=False)
+    points = np.asarray(cloud.vertices, dtype=np.float64)
+    colors = getattr(cloud, "colors", None)
+    colors = None if colors is None or len(colors) != len(points) else np.asarray(colors)[:, :3]
+    return points, colors

@@ -1,0 +1,193 @@
+"""The whole recon run, stage by stage, resumable: photos + priors -> scene folder.
+
+Each stage leaves a marker under ``SCENE_DIR/work``; a stage whose marker exists is not redone:
+
+| stage | marker |
+|---|---|
+| sfm | ``work/sfm_report.json`` (model in ``work/sparse``, ENU metres) |
+| undistort | ``work/dense/stereo/fusion.cfg`` |
+| depth | ``work/dense/depth_report.json`` (per-image maps are also skipped when present) |
+| fusion | ``work/fused.ply`` |
+| mesh | ``work/mesh.ply`` (decimated: ``work/mesh_decimated.ply``) |
+| scene | ``SCENE_DIR/scene.json`` |
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pycolmap
+import trimesh
+from tqdm import tqdm
+
+from recon import dense, mesh as meshing
+from recon.dense import DenseOptions
+from recon.io_util import atomic_path, write_text_atomic
+from recon.priors import PosePriors, PriorsError, focal_seed, list_photos, priors_from_exif, read_geotags
+from recon.scene_out import write_scene
+from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
+
+STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "scene")
+
+
+@dataclass(frozen=True)
+class ReconOptions:
+    """All knobs: SfM, dense, surface (``mesh`` "2.5d" or "poisson"), grid cell (None = 2 GSD), decimation."""
+
+    sfm: SfmOptions = field(default_factory=SfmOptions)
+    dense: DenseOptions = field(default_factory=DenseOptions)
+    mesh: str = "2.5d"
+    grid_m: float | None = None
+    poisson_depth: int = 10
+    decimate_error_m: float = 0.02
+
+
+def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
+    """Photo names to use and their priors (geotags.csv, or EXIF GPS when no geotags are given).
+
+    Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out.
+    """
+    names = list_photos(photo_dir)
+    if len(names) < MIN_PHOTOS:
+        raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
+    if geotags_csv is None:
+        return names, priors_from_exif(photo_dir, names)
+    priors = read_geotags(geotags_csv)
+    return [n for n in names if n not in set(priors.untagged)], priors
+
+
+def write_model_atomic(rec: pycolmap.Reconstruction, target: Path) -> None:
+    """Write a COLMAP model folder under a temporary name, then rename it into place."""
+    tmp = target.with_name(f".{target.name}.tmp")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    rec.write(tmp)
+    shutil.rmtree(target, ignore_errors=True)
+    os.replace(tmp, target)
+
+
+def median_view_depth(rec: pycolmap.Reconstruction) -> float:
+    """Median planar depth (model units) of the sparse points over all registered views."""
+    depths = []
+    for image in rec.images.values():
+        if not image.has_pose:
+            continue
+        pose = image.cam_from_world().matrix()
+        xyz = np.array([rec.points3D[p.point3D_id].xyz for p in image.points2D if p.has_point3D()])
+        if len(xyz):
+            depths.append(np.median(xyz @ pose[:, :3].T[:, 2] + pose[2, 3]))
+    return float(np.median(depths))
+
+
+class Recon:
+    """One run into ``scene_dir``; ``run()`` executes the stages not yet done and returns a summary dict."""
+
+    def __init__(self, photo_dir: Path, geotags_csv: Path | None, scene_dir: Path, options: ReconOptions,
+                 log=tqdm.write):
+        self.photo_dir, self.geotags_csv = Path(photo_dir), geotags_csv and Path(geotags_csv)
+        self.scene_dir, self.options, self.log = Path(scene_dir), options, log
+        self.work = self.scene_dir / "work"
+        self.names, self.priors = load_priors(self.photo_dir, self.geotags_csv)
+        if self.priors.untagged:
+            self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
+                     f"{', '.join(self.priors.untagged[:10])}")
+        self.seconds: dict[str, float] = {}
+
+    def run(self) -> dict:
+        self.work.mkdir(parents=True, exist_ok=True)
+        for stage in tqdm(STAGES, desc="recon", unit="stage"):
+            t0 = time.perf_counter()
+            done = getattr(self, f"stage_{stage}")()
+            self.seconds[stage] = round(time.perf_counter() - t0, 2)
+            self.log(f"[{stage}] {'already done' if done is False else 'done'} ({self.seconds[stage]} s)")
+        return json.loads((self.scene_dir / "scene.json").read_text(encoding="utf-8"))
+
+    # Each stage returns False when its marker says it was done already.
+
+    def stage_sfm(self):
+        report_path = self.work / "sfm_report.json"
+        if report_path.exists():
+            return False
+        seed = focal_seed(self.photo_dir / self.names[0])
+        rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
+                              self.options.sfm, progress=lambda s: self.log(f"[sfm] {s}"))
+        if report.unregistered:
+            self.log(f"[sfm] WARNING: {len(report.unregistered)} photo(s) not registered: "
+                     f"{', '.join(report.unregistered)}")
+        for warning in report.warnings:
+            self.log(f"[sfm] WARNING: {warning}")
+        self.log(f"[sfm] {len(report.registered)}/{report.num_photos} registered, {report.num_points3d} points, "
+                 f"reprojection {report.mean_reprojection_error_px:.2f} px, residual RMS vs priors "
+                 f"{report.residual_rms_enu_m} m (E/N/U)")
+        write_model_atomic(rec, self.work / "sparse")
+        report.write(report_path)
+
+    def stage_undistort(self):
+        workspace = self.work / "dense"
+        if (workspace / "stereo" / "fusion.cfg").exists():
+            return False
+        shutil.rmtree(workspace, ignore_errors=True)
+        dense.undistort(self.work / "sparse", self.photo_dir, workspace, self.options.dense)
+
+    def stage_depth(self):
+        marker = self.work / "dense" / "depth_report.json"
+        if marker.exists():
+            return False
+        coverage = dense.compute_depth_maps(self.work / "dense", self.options.dense,
+                                            progress=lambda it: tqdm(it, desc="depth maps", unit="view"))
+        write_text_atomic(marker, json.dumps({"valid_fraction": coverage}, indent=2))
+
+    def stage_fusion(self):
+        if (self.work / "fused.ply").exists():
+            return False
+        count = dense.fuse(self.work / "dense", self.work / "fused.ply", self.options.dense)
+        self.log(f"[fusion] {count} points")
+
+    def cell_size(self) -> float:
+        """Two ground pixels of the depth maps (median depth / focal), metres."""
+        rec = pycolmap.Reconstruction(self.work / "dense" / "sparse")
+        focal = float(np.mean([cam.mean_focal_length() for cam in rec.cameras.values()]))
+        return meshing.cell_size_from_gsd(median_view_depth(rec), focal)
+
+    def stage_mesh(self):
+        full, small = self.work / "mesh.ply", self.work / "mesh_decimated.ply"
+        if full.exists() and (small.exists() or not self.options.decimate_error_m):
+            return False
+        if self.options.mesh == "poisson":
+            meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)
+        elif self.options.mesh == "2.5d":
+            points, colors = meshing.read_point_cloud(self.work / "fused.ply")
+            cell = self.options.grid_m or meshing.cell_size_for_density(points, self.cell_size())
+            self.log(f"[mesh] height field, cell {cell:.3f} m, {len(points)} points")
+            surface = meshing.height_field_mesh(meshing.height_field(points, colors, cell))
+            with atomic_path(full) as tmp:
+                surface.export(tmp)
+        else:
+            raise ValueError(f"mesh must be '2.5d' or 'poisson', got {self.options.mesh!r}")
+        if self.options.decimate_error_m:
+            meshing.decimate(full, small, self.options.decimate_error_m)
+
+    def stage_scene(self):
+        if (self.scene_dir / "scene.json").exists():
+            return False
+        source = self.work / ("mesh_decimated.ply" if self.options.decimate_error_m else "mesh.ply")
+        surface = trimesh.load(source, process=False)
+        sfm_report = json.loads((self.work / "sfm_report.json").read_text(encoding="utf-8"))
+        provenance = {
+            "generator": "recon.pipeline",
+            "photos": str(self.photo_dir),
+            "geotags": str(self.geotags_csv) if self.geotags_csv else "exif",
+            "origin_height": ("EXIF GPS altitude (MSL, geoid not applied)" if self.priors.source == "exif"
+                              else "geotags.json origin"),
+            "options": asdict(self.options),
+            "sfm": {k: sfm_report[k] for k in ("registered", "unregistered", "mean_reprojection_error_px",
+                                                "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
+            "texture": "vertex colours (fallback; recon.texture not yet available)",
+        }
+        write_scene(self.scene_dir, surface, self.priors.origin, provenance)

@@ -1,0 +1,168 @@
+"""Pose priors for SfM: camera positions (local ENU metres) and, where known, attitudes.
+
+Two sources: ``geotags.csv`` + ``geotags.json`` (INTERFACES.md; the lead swaps :func:`read_geotags` for
+capture's loader at merge time) or the photos' own EXIF GPS (Pillow), used when no geotags exist.
+Also the camera-intrinsics seed (focal length in pixels) from a small camera profile table or EXIF.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from PIL import ExifTags, Image
+from scipy.spatial.transform import Rotation
+
+from flightplan.geodesy import LocalFrame
+
+GEOTAG_COLUMNS = ("image_name", "lat_deg", "lon_deg", "east_m", "north_m", "up_m", "qw", "qx", "qy", "qz")
+DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
+PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+
+
+class PriorsError(ValueError):
+    """Bad or inconsistent geotags / photos (the message names the file and row)."""
+
+
+@dataclass(frozen=True)
+class PosePriors:
+    """Per-photo priors in the local ENU frame at ``origin``.
+
+    ``positions_enu``: (N, 3) metres; ``rotations_world_cam``: (N, 3, 3) ENU <- OpenCV camera, or None when
+    the source has no attitude; ``sigma_m``: prior standard deviation east/north/up in metres.
+    """
+
+    names: tuple[str, ...]
+    positions_enu: np.ndarray
+    rotations_world_cam: np.ndarray | None
+    origin: LocalFrame
+    sigma_m: tuple[float, float, float] = DEFAULT_SIGMA_M
+    source: str = "geotags"
+    untagged: tuple[str, ...] = ()
+
+    def index(self) -> dict[str, int]:
+        return {name: i for i, name in enumerate(self.names)}
+
+    def subset(self, names) -> "PosePriors":
+        """The priors of ``names`` (in that order)."""
+        idx = [self.index()[n] for n in names]
+        rot = None if self.rotations_world_cam is None else self.rotations_world_cam[idx]
+        return PosePriors(tuple(names), self.positions_enu[idx], rot, self.origin, self.sigma_m, self.source,
+                          self.untagged)
+
+
+def list_photos(photo_dir: Path) -> list[str]:
+    """Sorted photo file names in ``photo_dir`` (by suffix, case-insensitive)."""
+    photo_dir = Path(photo_dir)
+    if not photo_dir.is_dir():
+        raise PriorsError(f"{photo_dir}: photo folder not found")
+    return sorted(p.name for p in photo_dir.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES)
+
+
+def read_geotags(csv_path: Path, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
+    """Read ``geotags.csv`` and its ``geotags.json`` sidecar (origin, photos left untagged) per INTERFACES.md."""
+    csv_path = Path(csv_path)
+    sidecar = csv_path.with_suffix(".json")
+    try:
+        meta = json.loads(sidecar.read_text(encoding="utf-8"))
+        origin = LocalFrame.from_dict(meta["origin"])
+        untagged = tuple(entry["image_name"] for entry in meta.get("untagged", []))
+    except FileNotFoundError:
+        raise PriorsError(f"{sidecar}: sidecar with the ENU origin not found next to {csv_path.name}") from None
+    except (KeyError, ValueError, TypeError) as exc:
+        raise PriorsError(f"{sidecar}: no valid 'origin' object ({exc})") from None
+    names, positions, quats = [], [], []
+    with csv_path.open(encoding="utf-8", newline="") as handle:
+        reader = csv.DictReader(handle)
+        missing = [c for c in GEOTAG_COLUMNS if c not in (reader.fieldnames or [])]
+        if missing:
+            raise PriorsError(f"{csv_path}:1: header lacks columns {missing}")
+        for row in reader:
+            line = reader.line_num
+            try:
+                positions.append([float(row[k]) for k in ("east_m", "north_m", "up_m")])
+                quats.append([float(row[k]) for k in ("qx", "qy", "qz", "qw")])
+            except (TypeError, ValueError):
+                raise PriorsError(f"{csv_path}:{line}: east_m/north_m/up_m/qw..qz must be numbers") from None
+            names.append(row["image_name"])
+    if not names:
+        raise PriorsError(f"{csv_path}: no photo rows")
+    if len(set(names)) != len(names):
+        raise PriorsError(f"{csv_path}: duplicate image_name rows")
+    quats = np.array(quats)
+    if np.any(np.abs(np.linalg.norm(quats, axis=1) - 1.0) > 1e-3):
+        raise PriorsError(f"{csv_path}: quaternion qw,qx,qy,qz not unit length in some row")
+    rotations = Rotation.from_quat(quats).as_matrix()
+    return PosePriors(tuple(names), np.array(positions), rotations, origin, tuple(sigma_m), "geotags", untagged)
+
+
+def _rational_deg(dms) -> float:
+    d, m, s = (float(v) for v in dms)
+    return d + m / 60.0 + s / 3600.0
+
+
+def exif_gps(photo: Path) -> tuple[float, float, float] | None:
+    """(lat_deg, lon_deg, altitude_m) from a photo's EXIF GPS IFD, or None. Altitude is GPS/MSL as stored."""
+    gps = Image.open(photo).getexif().get_ifd(ExifTags.IFD.GPSInfo)
+    if not {1, 2, 3, 4}.issubset(gps):
+        return None
+    lat = _rational_deg(gps[2]) * (-1.0 if gps[1] == "S" else 1.0)
+    lon = _rational_deg(gps[4]) * (-1.0 if gps[3] == "W" else 1.0)
+    alt = float(gps.get(6, 0.0)) * (-1.0 if gps.get(5, b"\x00") in (b"\x01", 1) else 1.0)
+    return lat, lon, alt
+
+
+def priors_from_exif(photo_dir: Path, names, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
+    """Priors from EXIF GPS, in an ENU frame at the first photo's position (no attitude).
+
+    EXIF altitude is GPS-derived MSL; using it as the origin height makes ``up`` relative to the first
+    photo, which is all SfM needs (the absolute height is as good as the GPS, i.e. metres).
+    """
+    fixes, missing = [], []
+    for name in names:
+        fix = exif_gps(Path(photo_dir) / name)
+        (missing.append(name) if fix is None else fixes.append(fix))
+    if missing:
+        raise PriorsError(f"{photo_dir}: no EXIF GPS in {len(missing)} photo(s): {', '.join(missing[:10])}")
+    fixes = np.array(fixes)
+    origin = LocalFrame(*fixes[0])
+    return PosePriors(tuple(names), origin.enu_points(*fixes.T), None, origin, tuple(sigma_m), "exif")
+
+
+@dataclass(frozen=True)
+class FocalSeed:
+    """Initial focal length in pixels for a photo size, and where it came from."""
+
+    focal_px: float
+    width: int
+    height: int
+    source: str
+
+
+# Sensor widths (mm) of cameras whose 35 mm-equivalent EXIF value refers to a different frame than the
+# photo (16:9 crops of a 4:3 sensor). FC300S: DJI Phantom 3 Advanced, 1/2.3" sensor.
+SENSOR_WIDTH_MM = {"FC300S": 6.17}
+
+
+def focal_seed(photo: Path) -> FocalSeed:
+    """Seed the focal length: sensor table + EXIF FocalLength, else 35 mm-equivalent, else 1.2 x max side.
+
+    The 35 mm-equivalent rule assumes a 4:3 native sensor of the photo's width (true for small drone
+    cameras), i.e. ``f35 / 43.27 mm x diagonal of (width, 3/4 width)``; 16:9 crops keep the full width.
+    """
+    with Image.open(photo) as image:
+        width, height = image.size
+        exif = image.getexif()
+        sub = exif.get_ifd(ExifTags.IFD.Exif)
+    model = str(exif.get(ExifTags.Base.Model, "")).strip("\x00 ")
+    focal_mm = sub.get(ExifTags.Base.FocalLength)
+    focal_35 = sub.get(ExifTags.Base.FocalLengthIn35mmFilm)
+    if model in SENSOR_WIDTH_MM and focal_mm:
+        return FocalSeed(float(focal_mm) / SENSOR_WIDTH_MM[model] * width, width, height, f"profile {model}")
+    if focal_35:
+        diagonal = np.hypot(width, 0.75 * width)
+        return FocalSeed(float(focal_35) / 43.27 * diagonal, width, height, "exif 35mm-equivalent")
+    return FocalSeed(1.2 * max(width, height), width, height, "default 1.2 x max side")

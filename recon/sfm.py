@@ -1,0 +1,451 @@
+"""Structure from motion with pycolmap on the CPU, registered into the geotags' local ENU frame.
+
+Pipeline (each step a function; :func:`run_sfm` chains them):
+database + SIFT at a chosen image size (camera seeded from the profile/EXIF) -> CARTESIAN ENU pose priors ->
+spatial matching from the priors (plus the loop-closing pair of an orbit) -> incremental (or global) mapping
+-> optional registration of the photos left out (every k-th photo enters SfM) -> geo-registration
+(similarity to the prior positions) -> levelling with the geotag attitudes -> report.
+
+Frames: COLMAP stores ``cam_from_world``; everything leaving this module is ``T_world_cam`` (camera-to-world,
+ENU metres, OpenCV camera axes), converted here only.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pycolmap
+
+from recon.io_util import write_text_atomic
+from recon.priors import FocalSeed, PosePriors, PriorsError
+from recon.similarity import Similarity, umeyama
+
+MIN_PHOTOS = 3
+LOOP_MIN_INLIERS = 15
+STRONG_GEOMETRY_DEG = 20.0  # viewing-direction spread above which the focal length is observable
+FOCAL_CHANGE_WARN = 0.05
+
+
+class SfmError(RuntimeError):
+    """SfM could not produce a usable model (message says which photos and why)."""
+
+
+@dataclass(frozen=True)
+class SfmOptions:
+    """Knobs of the SfM stage.
+
+    ``focal``: "fixed" keeps the seeded focal length, "refine" lets bundle adjustment move it, "auto" maps
+    with it fixed and refines it afterwards only when the viewing directions spread by more than
+    ``STRONG_GEOMETRY_DEG`` (converging oblique orbit); a flat nadir block cannot determine it.
+    ``every_kth``: only every k-th photo enters mapping; the rest are registered into the finished model.
+    """
+
+    max_image_size: int = 1600
+    max_num_features: int = 8192
+    spatial_neighbors: int = 12
+    sequential_overlap: int = 0
+    mapper: str = "incremental"
+    focal: str = "auto"
+    every_kth: int = 1
+    num_threads: int = -1
+    seed: int = 0
+
+
+@dataclass
+class SfmReport:
+    """What SfM achieved; residuals are SfM camera centre minus prior position (ENU metres)."""
+
+    num_photos: int
+    registered: list[str]
+    unregistered: list[str]
+    num_points3d: int
+    mean_reprojection_error_px: float
+    residual_rms_enu_m: list[float]
+    residual_max_m: float
+    focal_seed_px: float
+    focal_seed_source: str
+    focal_final_px: float
+    focal_refined: bool
+    view_spread_deg: float
+    loop_pair: list[str] | None
+    loop_pair_inliers: int | None
+    tilt_correction_deg: float | None
+    georegistration: dict
+    seconds: dict = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+    def write(self, path: Path) -> None:
+        write_text_atomic(path, json.dumps(asdict(self), indent=2))
+
+
+# ---------------------------------------------------------------- database, features, priors, matching
+
+
+def create_database(database_path: Path, photo_dir: Path, names, seed: FocalSeed, options: SfmOptions) -> None:
+    """Import ``names`` with one shared SIMPLE_RADIAL camera seeded at ``seed`` and extract CPU SIFT."""
+    reader = pycolmap.ImageReaderOptions()
+    reader.camera_model = "SIMPLE_RADIAL"
+    reader.camera_params = f"{seed.focal_px},{seed.width / 2},{seed.height / 2},0"
+    extraction = pycolmap.FeatureExtractionOptions()
+    extraction.max_image_size = options.max_image_size
+    extraction.num_threads = options.num_threads
+    extraction.sift.max_num_features = options.max_num_features
+    pycolmap.extract_features(
+        database_path,
+        photo_dir,
+        image_names=list(names),
+        camera_mode=pycolmap.CameraMode.SINGLE,
+        reader_options=reader,
+        extraction_options=extraction,
+        device=pycolmap.Device.cpu,
+    )
+
+
+def write_pose_priors(database_path: Path, priors: PosePriors) -> None:
+    """Replace the database's pose priors (EXIF WGS84 ones included) by CARTESIAN ENU priors."""
+    covariance = np.diag(np.square(priors.sigma_m))
+    index = priors.index()
+    with pycolmap.Database.open(database_path) as db:
+        db.clear_pose_priors()
+        for image in db.read_all_images():
+            if image.name not in index:
+                continue
+            prior = pycolmap.PosePrior(
+                corr_data_id=image.data_id,
+                position=priors.positions_enu[index[image.name]],
+                position_covariance=covariance,
+                coordinate_system=pycolmap.PosePriorCoordinateSystem.CARTESIAN,
+            )
+            db.write_pose_prior(prior)
+
+
+def _matching_options(options: SfmOptions) -> pycolmap.FeatureMatchingOptions:
+    matching = pycolmap.FeatureMatchingOptions()
+    matching.num_threads = options.num_threads
+    return matching
+
+
+def match_photos(database_path: Path, options: SfmOptions) -> None:
+    """Spatial matching from the priors (k nearest, no distance cap), optionally plus sequential."""
+    pairing = pycolmap.SpatialPairingOptions()
+    pairing.max_num_neighbors = options.spatial_neighbors
+    pairing.min_num_neighbors = min(options.spatial_neighbors, 5)
+    pairing.max_distance = 1e9
+    pycolmap.match_spatial(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
+    if options.sequential_overlap > 0:
+        seq = pycolmap.SequentialPairingOptions()
+        seq.overlap = options.sequential_overlap
+        pycolmap.match_sequential(database_path, _matching_options(options), seq, device=pycolmap.Device.cpu)
+
+
+def loop_pair(priors: PosePriors, names) -> tuple[str, str] | None:
+    """First and last photo when the sequence closes on itself (an orbit), else None.
+
+    Closed means the first-last distance is at most 3 median steps between consecutive photos.
+    """
+    if len(names) < 4:
+        return None
+    pos = priors.subset(names).positions_enu
+    steps = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    gap = np.linalg.norm(pos[-1] - pos[0])
+    return (names[0], names[-1]) if gap <= 3.0 * np.median(steps) else None
+
+
+def verified_inliers(database_path: Path, name_a: str, name_b: str) -> int:
+    """Number of geometrically verified matches between two photos in the database (0 if none)."""
+    with pycolmap.Database.open(database_path) as db:
+        ids = {image.name: image.image_id for image in db.read_all_images()}
+        wanted = pycolmap.image_pair_to_pair_id(ids[name_a], ids[name_b])
+        pair_ids, counts = db.read_two_view_geometry_num_inliers()
+    return int(dict(zip(pair_ids, counts)).get(wanted, 0))
+
+
+def ensure_loop_matched(database_path: Path, pair: tuple[str, str], options: SfmOptions) -> int:
+    """Match the orbit's closing pair explicitly if spatial matching left it out; return its inliers."""
+    inliers = verified_inliers(database_path, *pair)
+    if inliers >= LOOP_MIN_INLIERS:
+        return inliers
+    pairs_file = Path(database_path).with_name("loop_pairs.txt")
+    pairs_file.write_text(f"{pair[0]} {pair[1]}\n", encoding="utf-8")
+    pairing = pycolmap.ImportedPairingOptions()
+    pairing.match_list_path = str(pairs_file)
+    pycolmap.match_image_pairs(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
+    return verified_inliers(database_path, *pair)
+
+
+# ---------------------------------------------------------------- mapping
+
+
+def _mapping_options(options: SfmOptions, refine_focal: bool, fix_existing: bool = False):
+    mapping = pycolmap.IncrementalPipelineOptions()
+    mapping.use_prior_position = True
+    mapping.use_robust_loss_on_prior_position = True
+    mapping.ba_refine_focal_length = refine_focal
+    mapping.ba_refine_principal_point = False
+    mapping.ba_refine_extra_params = True
+    mapping.mapper.abs_pose_refine_focal_length = refine_focal
+    mapping.num_threads = options.num_threads
+    mapping.random_seed = options.seed
+    mapping.fix_existing_frames = fix_existing
+    return mapping
+
+
+def largest_model(models: dict) -> pycolmap.Reconstruction:
+    """The model with most registered images; :class:`SfmError` if there is none."""
+    if not models:
+        raise SfmError("mapping found no model: the photos do not overlap enough (no initial pair)")
+    return max(models.values(), key=lambda rec: rec.num_reg_images())
+
+
+def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: SfmOptions) -> pycolmap.Reconstruction:
+    """Incremental mapping with position priors (or GLOMAP global mapping) -> the largest model."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    refine = options.focal == "refine"
+    if options.mapper == "global":
+        mapping = pycolmap.GlobalPipelineOptions()
+        mapping.mapper.bundle_adjustment.refine_focal_length = refine
+        mapping.num_threads = options.num_threads
+        mapping.random_seed = options.seed
+        models = pycolmap.global_mapping(database_path, photo_dir, out_dir, mapping)
+    elif options.mapper == "incremental":
+        models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, _mapping_options(options, refine))
+    else:
+        raise ValueError(f"mapper must be 'incremental' or 'global', got {options.mapper!r}")
+    return largest_model(models)
+
+
+def register_remaining(database_path, photo_dir, model_dir: Path, out_dir: Path, options: SfmOptions):
+    """Register the database's unregistered photos into the model in ``model_dir`` (its frames kept fixed)."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    mapping = _mapping_options(options, refine_focal=False, fix_existing=True)
+    models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, mapping, input_path=model_dir)
+    return largest_model(models)
+
+
+def viewing_spread_deg(rec: pycolmap.Reconstruction) -> float:
+    """Largest angle (degrees) between a camera's optical axis and the mean optical axis."""
+    axes = np.array([img.viewing_direction() for img in rec.images.values() if img.has_pose])
+    mean = axes.mean(axis=0)
+    mean /= np.linalg.norm(mean)
+    return float(np.degrees(np.arccos(np.clip(axes @ mean, -1.0, 1.0))).max())
+
+
+def refine_focal(rec: pycolmap.Reconstruction) -> None:
+    """Bundle adjustment with the focal length (and radial distortion) free, principal point fixed."""
+    ba = pycolmap.BundleAdjustmentOptions()
+    ba.refine_focal_length = True
+    ba.refine_principal_point = False
+    ba.refine_extra_params = True
+    pycolmap.bundle_adjustment(rec, ba)
+
+
+# ---------------------------------------------------------------- geo-registration and levelling
+
+
+def camera_poses(rec: pycolmap.Reconstruction) -> dict[str, np.ndarray]:
+    """``T_world_cam`` (4x4, camera-to-world) of every registered image, by name."""
+    poses = {}
+    for image in rec.images.values():
+        if image.has_pose:
+            pose = np.eye(4)
+            pose[:3, :4] = image.cam_from_world().inverse().matrix()
+            poses[image.name] = pose
+    return poses
+
+
+def compose(outer: Similarity, inner: Similarity) -> Similarity:
+    """The similarity ``x -> outer(inner(x))``."""
+    return Similarity(
+        outer.scale * inner.scale,
+        outer.rotation @ inner.rotation,
+        outer.scale * outer.rotation @ inner.translation + outer.translation,
+    )
+
+
+def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Smallest rotation taking unit vector ``a`` onto unit vector ``b`` (Rodrigues)."""
+    a, b = a / np.linalg.norm(a), b / np.linalg.norm(b)
+    axis = np.cross(a, b)
+    sin, cos = np.linalg.norm(axis), float(a @ b)
+    if sin < 1e-15:
+        if cos > 0:
+            return np.eye(3)
+        raise ValueError("vectors are opposite: the levelling rotation is ambiguous")
+    k = axis / sin
+    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + sin * skew + (1 - cos) * skew @ skew
+
+
+def levelling_rotation(r_world_cam_sfm: np.ndarray, r_world_cam_attitude: np.ndarray) -> np.ndarray:
+    """Rotation (3x3) that makes the model's "up" agree with the attitude-derived up.
+
+    For each camera, world up expressed in the camera frame from the attitude, ``R_att^T e_z``, depends only
+    on pitch and roll (not on the compass-derived yaw); mapped through the SfM rotation it is where the model
+    thinks up is. The mean of those is rotated onto +z. Inputs are (N, 3, 3) ``R_world_cam``.
+    """
+    up_in_cam = np.einsum("nij,i->nj", r_world_cam_attitude, np.array([0.0, 0.0, 1.0]))
+    model_up = np.einsum("nij,nj->ni", r_world_cam_sfm, up_in_cam).mean(axis=0)
+    return rotation_between(model_up, np.array([0.0, 0.0, 1.0]))
+
+
+def fit_level_similarity(centres: np.ndarray, targets: np.ndarray) -> Similarity:
+    """Similarity with rotation about z only (plus scale and translation) taking centres to targets.
+
+    Used after levelling: horizontal Umeyama for yaw and scale, then the vertical offset as the mean.
+    """
+    horizontal = umeyama(centres[:, :2], targets[:, :2])
+    rotation = np.eye(3)
+    rotation[:2, :2] = horizontal.rotation
+    scaled = horizontal.scale * centres @ rotation.T
+    dz = float(np.mean(targets[:, 2] - scaled[:, 2]))
+    return Similarity(horizontal.scale, rotation, np.array([*horizontal.translation, dz]))
+
+
+def georegister(centres: np.ndarray, rotations: np.ndarray, priors: PosePriors) -> tuple[Similarity, float | None]:
+    """Similarity taking SfM camera centres/rotations into the priors' ENU frame, and the tilt removed (deg).
+
+    Without attitude: a 3-D Umeyama fit to the prior positions. With attitude: that fit, then the
+    levelling rotation about the centroid, then a yaw/scale/translation-only refit to the positions.
+    """
+    first = umeyama(centres, priors.positions_enu)
+    if priors.rotations_world_cam is None:
+        return first, None
+    centres1 = first.apply(centres)
+    rotations1 = np.einsum("ij,njk->nik", first.rotation, rotations)
+    level = levelling_rotation(rotations1, priors.rotations_world_cam)
+    centroid = centres1.mean(axis=0)
+    about_centroid = Similarity(1.0, level, centroid - level @ centroid)
+    refit = fit_level_similarity(about_centroid.apply(centres1), priors.positions_enu)
+    tilt = Similarity(1.0, level, np.zeros(3)).rotation_angle_deg()
+    return compose(refit, compose(about_centroid, first)), tilt
+
+
+def apply_similarity(rec: pycolmap.Reconstruction, sim: Similarity) -> None:
+    """Transform the model in place (points and poses)."""
+    rec.transform(pycolmap.Sim3d(sim.scale, pycolmap.Rotation3d(sim.rotation), sim.translation))
+
+
+# ---------------------------------------------------------------- the whole stage
+
+
+def select_core(names, every_kth: int) -> list[str]:
+    """Every k-th photo, always including the last one (so an orbit's loop stays closed)."""
+    core = list(names[::every_kth])
+    if core[-1] != names[-1]:
+        core.append(names[-1])
+    return core
+
+
+def check_inputs(photo_names, priors: PosePriors) -> None:
+    """Clear errors for too few photos and for geotags that belong to other photos."""
+    if len(photo_names) < MIN_PHOTOS:
+        raise PriorsError(f"need at least {MIN_PHOTOS} photos for SfM, found {len(photo_names)}")
+    missing = sorted(set(photo_names) - set(priors.names))
+    if len(missing) == len(photo_names):
+        raise PriorsError(
+            f"the geotags name none of the {len(photo_names)} photos (e.g. geotags {list(priors.names[:3])} vs "
+            f"photos {list(photo_names[:3])}): are they for another flight?"
+        )
+    if missing:
+        raise PriorsError(f"{len(missing)} photo(s) have no geotag: {', '.join(missing[:10])}")
+
+
+def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
+    """Move ``rec`` into the priors' ENU frame (levelled when attitudes exist), in place.
+
+    Returns (registered names in ``names`` order, the similarity applied, tilt removed in degrees or None).
+    """
+    poses = camera_poses(rec)
+    registered = [n for n in names if n in poses]
+    if len(registered) < MIN_PHOTOS:
+        raise SfmError(f"only {len(registered)} photo(s) registered: the photos do not overlap")
+    centres = np.array([poses[n][:3, 3] for n in registered])
+    rotations = np.array([poses[n][:3, :3] for n in registered])
+    sim, tilt = georegister(centres, rotations, priors.subset(registered))
+    apply_similarity(rec, sim)
+    return registered, sim, tilt
+
+
+def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, work_dir: Path,
+            options: SfmOptions = SfmOptions(), progress=None):
+    """Run the SfM stage; returns (model in ENU, report). Writes ``work_dir/database.db`` and models.
+
+    ``progress`` (optional) is called with a stage name before each stage.
+    """
+    step = progress or (lambda name: None)
+    photo_names = list(photo_names)
+    check_inputs(photo_names, priors)
+    work_dir.mkdir(parents=True, exist_ok=True)
+    database = work_dir / "database.db"
+    database.unlink(missing_ok=True)
+    core = select_core(photo_names, max(1, options.every_kth))
+    seconds, warnings = {}, []
+
+    def timed(name, fn, *args):
+        step(name)
+        t0 = time.perf_counter()
+        result = fn(*args)
+        seconds[name] = round(time.perf_counter() - t0, 2)
+        return result
+
+    timed("extract", create_database, database, photo_dir, core, seed, options)
+    write_pose_priors(database, priors)
+    timed("match", match_photos, database, options)
+    pair = loop_pair(priors, core)
+    loop_inliers = ensure_loop_matched(database, pair, options) if pair else None
+    if pair and loop_inliers < LOOP_MIN_INLIERS:
+        warnings.append(f"orbit loop pair {pair} has only {loop_inliers} verified matches")
+    rec = timed("map", map_photos, database, photo_dir, work_dir / "mapped", options)
+    rest = [n for n in photo_names if n not in core]
+    if rest:
+        def register_rest():
+            create_database(database, photo_dir, rest, seed, options)
+            write_pose_priors(database, priors)
+            match_photos(database, options)
+            core_dir = work_dir / "core_model"
+            core_dir.mkdir(exist_ok=True)
+            georegister_model(rec, core, priors)  # the rest's priors then pull in the same frame
+            rec.write(core_dir)
+            return register_remaining(database, photo_dir, core_dir, work_dir / "registered", options)
+
+        rec = timed("register_rest", register_rest)
+    spread = viewing_spread_deg(rec)
+    refined = options.focal == "refine" or (options.focal == "auto" and spread > STRONG_GEOMETRY_DEG)
+    if refined and options.focal == "auto":
+        timed("refine_focal", refine_focal, rec)
+    focal_final = float(next(iter(rec.cameras.values())).mean_focal_length())
+    if abs(focal_final / seed.focal_px - 1.0) > FOCAL_CHANGE_WARN:
+        warnings.append(f"focal length moved {100 * (focal_final / seed.focal_px - 1):+.1f} % from the seed "
+                        f"({seed.focal_px:.0f} -> {focal_final:.0f} px): check the camera profile")
+    t0 = time.perf_counter()
+    step("georegister")
+    registered, sim, tilt = georegister_model(rec, photo_names, priors)
+    seconds["georegister"] = round(time.perf_counter() - t0, 2)
+    poses = camera_poses(rec)
+    residual = np.array([poses[n][:3, 3] for n in registered]) - priors.subset(registered).positions_enu
+    report = SfmReport(
+        num_photos=len(photo_names),
+        registered=registered,
+        unregistered=[n for n in photo_names if n not in poses],
+        num_points3d=rec.num_points3D(),
+        mean_reprojection_error_px=float(rec.compute_mean_reprojection_error()),
+        residual_rms_enu_m=np.sqrt(np.mean(residual**2, axis=0)).round(4).tolist(),
+        residual_max_m=float(np.linalg.norm(residual, axis=1).max()),
+        focal_seed_px=seed.focal_px,
+        focal_seed_source=seed.source,
+        focal_final_px=focal_final,
+        focal_refined=refined,
+        view_spread_deg=spread,
+        loop_pair=list(pair) if pair else None,
+        loop_pair_inliers=loop_inliers,
+        tilt_correction_deg=tilt,
+        georegistration={"scale": sim.scale, "rotation_deg": sim.rotation_angle_deg(),
+                         "translation_m": sim.translation.tolist(), "priors": priors.source},
+        seconds=seconds,
+        warnings=warnings,
+    )
+    return rec, report

@@ -1,0 +1,88 @@
+"""aerostereo-recon: clear errors on bad input, and (slow) the real DJI set end to end."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+import trimesh
+from PIL import Image
+
+from recon.cli import main
+from tests.recon.geotag_helpers import geotag_row, write_geotags
+
+
+def blank_photos(folder, names):
+    folder.mkdir()
+    for name in names:
+        Image.new("RGB", (64, 48), (90, 120, 60)).save(folder / name)
+
+
+def run_cli(argv, capsys):
+    code = main([str(a) for a in argv])
+    return code, capsys.readouterr().err
+
+
+def test_too_few_photos(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg"])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and "need at least 3 photos, found 2" in err and "Traceback" not in err
+
+
+def test_photos_without_gps_and_no_geotags(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and "no EXIF GPS in 3 photo(s): a.jpg, b.jpg, c.jpg" in err
+
+
+def test_geotags_for_other_photos(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(f"DJI_{i}.JPG", (i, 0, 30), (1, 0, 0, 0)) for i in range(3)])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and "name none of the 3 photos" in err
+
+
+def test_photo_without_geotag_is_named(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg", "d.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and "1 photo(s) have no geotag: d.jpg" in err
+
+
+def test_photos_without_overlap(tmp_path, capsys):
+    """Featureless photos never match: the error says so instead of failing deep inside pycolmap."""
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg", "u.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])], untagged=["u.jpg"])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and "do not overlap" in err  # u.jpg, untagged by capture, is left out, not an error
+
+
+@pytest.mark.slow
+def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
+    """18 real DJI photos (nadir, ~40 m): all register, positions agree with EXIF GPS, focal stays at the
+    profile value, and the surface lies ~37-40 m under the cameras (DJI XMP RelativeAltitude is 40 m; the
+    self-calibrated focal would have put it at ~46 m). Rerunning resumes without redoing any stage."""
+    photos = shared_data / "brighton_beach" / "images"
+    scene = tmp_path / "scene"
+    code, err = run_cli(["--photos", photos, "--out", scene, "--image-size", 1000, "--max-features", 4096,
+                         "--dense-size", 640], capsys)
+    assert code == 0, err
+    report = json.loads((scene / "work" / "sfm_report.json").read_text())
+    assert len(report["registered"]) == 18 and report["unregistered"] == []
+    assert report["mean_reprojection_error_px"] < 1.5
+    assert max(report["residual_rms_enu_m"]) < 1.5  # consumer GPS
+    assert report["focal_refined"] is False and report["view_spread_deg"] < 10
+    assert abs(report["focal_final_px"] / report["focal_seed_px"] - 1) < 0.02
+    meta = json.loads((scene / "scene.json").read_text())
+    assert meta["format"] == "aerostereo-scene/1" and meta["frame"] == "enu"
+    assert meta["origin"]["lat0_deg"] == pytest.approx(46.8428, abs=1e-3)
+    surface = trimesh.load(scene / meta["mesh"], process=False)
+    assert len(surface.faces) > 1000
+    assert -41.0 < np.median(surface.vertices[:, 2]) < -36.0  # the ground, relative to the first photo
+    mtime = (scene / "scene.json").stat().st_mtime
+    shutil.rmtree(scene / "work" / "dense" / "images")  # a resumed run must not need it again
+    assert main(["--photos", str(photos), "--out", str(scene)]) == 0
+    assert capsys.readouterr().out.count("already done") == 6
+    assert (scene / "scene.json").stat().st_mtime == mtime

@@ -1,0 +1,81 @@
+"""SfM closed loop on a synthetic orbit over a textured plane: known poses, GPS with a height drift,
+attitudes from the 'gimbal'. Checks registration, the orbit's loop pair, levelling and pose accuracy."""
+
+import cv2
+import numpy as np
+import pycolmap
+import pytest
+from scipy.spatial.transform import Rotation
+
+from recon.dense import View
+from recon.priors import FocalSeed, read_geotags
+from recon.sfm import SfmOptions, camera_poses, run_sfm
+from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tests.recon.synthetic import FOCAL, HEIGHT, WIDTH, make_texture, render_plane
+
+NUM_PHOTOS, RADIUS_M, HEIGHT_M, PITCH_DEG = 24, 15.0, 15.0, -60.0
+GPS_BIAS = np.array([1.0, -0.5, 3.0])
+
+
+def orbit_rotation(centre: np.ndarray) -> np.ndarray:
+    """``R_world_cam`` of a camera at ``centre`` facing the orbit centre, pitched ``PITCH_DEG``."""
+    heading = -centre[:2] / np.linalg.norm(centre[:2])
+    pitch = np.radians(PITCH_DEG)
+    forward = np.array([heading[0] * np.cos(pitch), heading[1] * np.cos(pitch), np.sin(pitch)])
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    return np.column_stack([right, np.cross(forward, right), forward])
+
+
+@pytest.fixture(scope="module")
+def orbit(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("orbit")
+    photos = folder / "photos"
+    photos.mkdir()
+    rng = np.random.default_rng(11)
+    texture = make_texture()
+    K = np.array([[FOCAL, 0, WIDTH / 2], [0, FOCAL, HEIGHT / 2], [0, 0, 1.0]])
+    angles = np.linspace(0, 2 * np.pi, NUM_PHOTOS, endpoint=False)
+    centres = np.column_stack([RADIUS_M * np.cos(angles), RADIUS_M * np.sin(angles), np.full(NUM_PHOTOS, HEIGHT_M)])
+    rotations = np.array([orbit_rotation(c) for c in centres])
+    gps = centres + GPS_BIAS + rng.normal(0, [0.3, 0.3, 0.2], centres.shape)
+    gps[:, 2] += np.tan(np.radians(1.0)) * centres[:, 0]  # GPS heights drift: a 1 deg tilt
+    attitude = Rotation.from_euler("z", 3.0, degrees=True) * Rotation.from_matrix(rotations) * \
+        Rotation.from_rotvec(rng.normal(0, np.radians(0.15), (NUM_PHOTOS, 3)))
+    quats = attitude.as_quat()  # x y z w
+    rows = []
+    for i, (centre, rotation) in enumerate(zip(centres, rotations)):
+        name = f"orbit_{i:02d}.png"
+        cv2.imwrite(str(photos / name), render_plane(texture, View(K, rotation.T, -rotation.T @ centre)))
+        rows.append(geotag_row(name, gps[i], (quats[i, 3], *quats[i, :3])))
+    geotags = write_geotags(folder, rows)
+    return photos, read_geotags(geotags), centres, rotations
+
+
+@pytest.mark.slow
+def test_orbit_registers_closes_the_loop_and_is_levelled(orbit, tmp_path):
+    photos, priors, centres, rotations = orbit
+    pycolmap.logging.minloglevel = 2
+    seed = FocalSeed(1.03 * FOCAL, WIDTH, HEIGHT, "test: 3 % too long")
+    rec, report = run_sfm(photos, priors.names, priors, seed, tmp_path,
+                          SfmOptions(max_num_features=2048, spatial_neighbors=8, focal="auto"))
+    assert len(report.registered) == NUM_PHOTOS
+    assert report.loop_pair == ["orbit_00.png", f"orbit_{NUM_PHOTOS - 1}.png"]
+    assert report.loop_pair_inliers >= 50
+    assert 0.6 < report.tilt_correction_deg < 1.4
+    # converging oblique views determine the focal length: "auto" frees it and recovers the truth
+    assert report.focal_refined and report.view_spread_deg > 20
+    assert report.focal_final_px == pytest.approx(FOCAL, rel=0.005)
+    poses = camera_poses(rec)
+    est_centres = np.array([poses[n][:3, 3] for n in priors.names])
+    est_rotations = np.array([poses[n][:3, :3] for n in priors.names])
+    # tilt from the attitudes: within 0.1 deg (a GPS-only fit inherits the 1 deg height drift); yaw comes from
+    # the GPS positions: within 3 sigma of its noise bound sigma / (radius * sqrt(N / 2))
+    world_error = np.degrees(Rotation.from_matrix(np.einsum("nij,nkj->nik", est_rotations, rotations)).as_rotvec())
+    assert np.abs(world_error[:, :2]).max() < 0.1
+    yaw_sigma_deg = np.degrees(0.3 / (RADIUS_M * np.sqrt(NUM_PHOTOS / 2)))
+    assert np.abs(world_error[:, 2]).max() < 3 * yaw_sigma_deg
+    # positions: truth + the GPS bias, within the GPS noise
+    offset = est_centres - centres
+    assert np.allclose(offset.mean(axis=0), GPS_BIAS, atol=0.35)
+    assert np.abs(offset - offset.mean(axis=0)).max() < 0.25
