@@ -104,7 +104,8 @@ def load_geotags(csv_path) -> list[PosePrior]:
                 rotation = None if "" in q else Rotation.from_quat([float(v) for v in q], scalar_first=True).as_matrix()
                 priors.append(PosePrior(row["image_name"], position, rotation, origin, parse_utc(row["utc_time"])))
             except (ValueError, TypeError) as error:
-                raise ValueError(f"{csv_path}:{line}: {error}") from None
+                raise ValueError(f"{csv_path}:{line}: east_m,north_m,up_m must be numbers and qw,qx,qy,qz numbers "
+                                 f"or all empty, utc_time ISO 8601 ({error})") from None
     return priors
 
 

@@ -1,24 +1,22 @@
 """Pose priors for SfM: camera positions (local ENU metres) and, where known, attitudes.
 
-Two sources: ``geotags.csv`` + ``geotags.json`` (INTERFACES.md; the lead swaps :func:`read_geotags` for
-capture's loader at merge time) or the photos' own EXIF GPS (Pillow), used when no geotags exist.
+Two sources: ``geotags.csv`` + ``geotags.json`` (read with :func:`capture.geotag_io.load_geotags`) or the
+photos' own EXIF GPS (Pillow), used when no geotags exist.
 Also the camera-intrinsics seed (focal length in pixels) from a small camera profile table or EXIF.
 """
 
 from __future__ import annotations
 
-import csv
 import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from PIL import ExifTags, Image
-from scipy.spatial.transform import Rotation
 
+from capture.geotag_io import load_geotags, sidecar_path
 from flightplan.geodesy import LocalFrame
 
-GEOTAG_COLUMNS = ("image_name", "lat_deg", "lon_deg", "east_m", "north_m", "up_m", "qw", "qx", "qy", "qz")
 DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
 
@@ -63,40 +61,24 @@ def list_photos(photo_dir: Path) -> list[str]:
 
 
 def read_geotags(csv_path: Path, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
-    """Read ``geotags.csv`` and its ``geotags.json`` sidecar (origin, photos left untagged) per INTERFACES.md."""
+    """Read ``geotags.csv`` and its sidecar (origin, photos left untagged) with capture's loader."""
     csv_path = Path(csv_path)
-    sidecar = csv_path.with_suffix(".json")
     try:
-        meta = json.loads(sidecar.read_text(encoding="utf-8"))
-        origin = LocalFrame.from_dict(meta["origin"])
-        untagged = tuple(entry["image_name"] for entry in meta.get("untagged", []))
-    except FileNotFoundError:
-        raise PriorsError(f"{sidecar}: sidecar with the ENU origin not found next to {csv_path.name}") from None
-    except (KeyError, ValueError, TypeError) as exc:
-        raise PriorsError(f"{sidecar}: no valid 'origin' object ({exc})") from None
-    names, positions, quats = [], [], []
-    with csv_path.open(encoding="utf-8", newline="") as handle:
-        reader = csv.DictReader(handle)
-        missing = [c for c in GEOTAG_COLUMNS if c not in (reader.fieldnames or [])]
-        if missing:
-            raise PriorsError(f"{csv_path}:1: header lacks columns {missing}")
-        for row in reader:
-            line = reader.line_num
-            try:
-                positions.append([float(row[k]) for k in ("east_m", "north_m", "up_m")])
-                quats.append([float(row[k]) for k in ("qx", "qy", "qz", "qw")])
-            except (TypeError, ValueError):
-                raise PriorsError(f"{csv_path}:{line}: east_m/north_m/up_m/qw..qz must be numbers") from None
-            names.append(row["image_name"])
-    if not names:
+        tags = load_geotags(csv_path)
+        meta = json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))
+    except (OSError, ValueError) as error:
+        raise PriorsError(str(error)) from None
+    if not tags:
         raise PriorsError(f"{csv_path}: no photo rows")
+    names = [tag.image_name for tag in tags]
     if len(set(names)) != len(names):
         raise PriorsError(f"{csv_path}: duplicate image_name rows")
-    quats = np.array(quats)
-    if np.any(np.abs(np.linalg.norm(quats, axis=1) - 1.0) > 1e-3):
-        raise PriorsError(f"{csv_path}: quaternion qw,qx,qy,qz not unit length in some row")
-    rotations = Rotation.from_quat(quats).as_matrix()
-    return PosePriors(tuple(names), np.array(positions), rotations, origin, tuple(sigma_m), "geotags", untagged)
+    if any(tag.R_world_cam is None for tag in tags):
+        raise PriorsError(f"{csv_path}: some rows have no camera attitude (qw,qx,qy,qz empty)")
+    untagged = tuple(entry["image_name"] for entry in meta.get("untagged", []))
+    return PosePriors(tuple(names), np.array([tag.position_enu_m for tag in tags]),
+                      np.array([tag.R_world_cam for tag in tags]), tags[0].origin, tuple(sigma_m), "geotags",
+                      untagged)
 
 
 def _rational_deg(dms) -> float:

@@ -112,5 +112,5 @@ def test_read_geotags_errors_name_file_and_line(tmp_path):
     with pytest.raises(PriorsError, match=r"geotags.csv:3: east_m"):
         read_geotags(path)
     (tmp_path / "geotags.json").unlink()
-    with pytest.raises(PriorsError, match="sidecar"):
+    with pytest.raises(PriorsError, match="geotags.json"):
         read_geotags(path)
