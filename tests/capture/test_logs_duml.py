@@ -8,11 +8,14 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_cli_logs import write_jpeg
 
 from capture.cli import main
 from capture.geotag_io import load_geotags
 from capture.logs import detect_kind, read_track
+from capture.duml import Packet, make_cmd_type
 from capture.messages import (HOME_NOT_SET_RADIANS, CameraState, GimbalParams, HomePoint, OsdGeneral,
                               encode_message)
 from capture.raw import RawCaptureWriter, index_path
@@ -23,7 +26,7 @@ from flightplan.demo_location import DEMO_ORIGIN
 RATE_HZ = 10.0
 DURATION_S = 24.0
 PRE_FIX_S = 1.0  # OSD says lat/lon 0 and the home point is not set before this
-SHUTTER_INTERVAL_S = 1.3
+SHUTTER_INTERVAL_S = 1.27  # not a multiple of the push interval: the shutter-to-push lag varies
 CAMERA_OFFSET_S = 0.37  # telemetry UTC - camera clock
 OSD_PHASE_S, GIMBAL_PHASE_S, CAMERA_PHASE_S, HOME_PHASE_S = 0.013, 0.047, 0.071, 0.089
 SPLIT_LEAD_S = 0.004  # each OSD frame arrives in two chunks; its first half this much earlier
@@ -189,6 +192,64 @@ def test_packets_after_the_end_of_the_index_are_rejected_not_dropped(tmp_path):
     report = read_track(path).report
     assert report.reasons()["no arrival time"] == 2
     assert any("past the end of the index" in str(problem) for problem in report.rejected)
+
+
+def test_malformed_and_response_packets_are_rejected_with_their_offset(tmp_path):
+    path = tmp_path / "odd.duml"
+    good = encode_message(gimbal_at(ORBIT.start_s), 1)
+    short_osd = Packet(good.sender, good.receiver, 2, make_cmd_type(), 0x03, 0x43, bytes(20))
+    answer = good._replace(seq=3, cmd_type=make_cmd_type(is_response=True))
+    with RawCaptureWriter(path) as writer:
+        for k, packet in enumerate((good, short_osd, answer)):
+            writer.append(utc(ORBIT.start_s + k), float(k), packet.encode())
+    report = read_track(path).report
+    assert (report.rows_read, report.rows_used) == (3, 1)
+    assert [str(p).split(": ", 1)[1] for p in report.rejected] == [
+        f"malformed message: osd_general payload of 20 bytes, expected 50..55 at stream byte {good.frame_length}",
+        f"response packet: GimbalParams at stream byte {good.frame_length + 33} is an answer, not a telemetry push"]
+
+
+def test_bad_index_line_is_a_clear_error(tmp_path):
+    path = tmp_path / "flight.duml"
+    write_capture(path)
+    lines = index_path(path).read_text().splitlines(keepends=True)
+    lines[5] = "96,yesterday,0.5,12\n"
+    index_path(path).write_text("".join(lines))
+    with pytest.raises(LogFormatError, match=r"flight\.duml\.idx:6: expected 'offset,utc_unix_s,monotonic_s,length'"):
+        read_track(path)
+
+
+@pytest.fixture(scope="module")
+def short_capture(tmp_path_factory):
+    """The first 3 s of the synthetic flight: (data bytes, index text)."""
+    path = tmp_path_factory.mktemp("short") / "flight.duml"
+    write_capture(path)
+    index = index_path(path).read_text().splitlines(keepends=True)
+    kept = [line for line in index[1:] if float(line.split(",")[1]) < ORBIT.start_s + 3.0]
+    end = sum(int(line.split(",")[3]) for line in kept)
+    return path.read_bytes()[:end], index[0] + "".join(kept)
+
+
+@settings(max_examples=40, deadline=None)
+@given(flips=st.lists(st.tuples(st.floats(0.0, 1.0, exclude_max=True), st.integers(1, 255)), max_size=20),
+       cut=st.floats(0.0, 1.0))
+def test_damaged_captures_read_or_fail_clearly(short_capture, tmp_path_factory, flips, cut):
+    data, index = short_capture
+    damaged = bytearray(data[:int(len(data) * cut)])
+    for where, mask in flips:
+        if damaged:
+            damaged[int(where * len(damaged))] ^= mask
+    path = tmp_path_factory.mktemp("fuzz") / "damaged.duml"
+    path.write_bytes(bytes(damaged))
+    index_path(path).write_text(index)
+    try:
+        track = read_track(path)
+    except LogFormatError as error:
+        assert str(error).startswith(str(path))
+        return
+    report = track.report
+    assert report.rows_read == report.rows_used + len(report.rejected)
+    assert np.all(np.diff(track.time_s) >= 0) and np.all(track.time_s >= ORBIT.start_s)
 
 
 def test_raw_capture_without_index_is_a_clear_error(tmp_path, capsys):
