@@ -22,9 +22,10 @@ camera-state push interval (``Track.event_time_error_s``).
 
 Counting: ``rows_read`` = telemetry messages (the four kinds above, plus malformed ones of any registered
 kind); each is used or rejected with a reason (``no GPS fix``, ``home point not set``, ``malformed
-message``, ``response packet``, ...) and its offset in the DUML byte stream (the file offset for a raw capture; for a pcap, the offset in
-its records' data laid end to end). The report's notes give the deframer's skipped
-bytes and rejected frames by reason and the counts of messages the track does not use (undecoded, date/time).
+message``, ``response packet``, ...) and its offset in the DUML byte stream (the file offset for a raw
+capture; for a pcap, the offset in its records' data laid end to end). The report's notes give the
+deframer's skipped bytes and rejected frames by reason and the counts of messages the track does not use
+(undecoded, date/time).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ import numpy as np
 from ..attitude import wrap_deg
 from ..decode import TimedPacket, timed_packets
 from ..duml import Deframer, DeframerStats
-from ..messages import (CameraState, GimbalParams, HomePoint, MalformedMessage, OsdGeneral, UndecodedMessage,
+from ..messages import (CameraState, GimbalParams, HomePoint, MalformedMessage, MessageRegistry, OsdGeneral,
                         default_registry, is_shutter_edge)
 from ..raw import CaptureIndexError, index_path
 from ..track import Home, LogFormatError, ReadReport, Track
@@ -69,17 +70,17 @@ def read_duml_track(path, *, shutter_signal: str = "photo_state") -> Track:
     if deframer.stats.packets == 0:
         raise LogFormatError(f"{path}: no DUML frame found in {deframer.stats.bytes_fed} bytes "
                              "(not a DUML capture?)")
-    builder.report.notes.extend(stream_notes(deframer.stats, registry.counts))
+    builder.report.notes.extend(stream_notes(deframer.stats, registry))
     return builder.track(deframer.stats.packets)
 
 
-def stream_notes(stats: DeframerStats, message_counts: dict[str, int]) -> list[str]:
-    """Deframer skip counters and the messages the track does not use, as report notes."""
+def stream_notes(stats: DeframerStats, registry: MessageRegistry) -> list[str]:
+    """Deframer skip counters and the counts of messages the track does not use, as report notes."""
     skipped = {reason: n for reason, n in stats.skipped_bytes.items() if n}
     rejected = {reason: n for reason, n in stats.rejected_frames.items() if n and reason != "no_sync"}
-    unused = {kind: n for kind, n in message_counts.items()
-              if n and kind not in {"osd_general", "gimbal_params", "home_point", "camera_state"}
-              and not kind.startswith("malformed_")}
+    used = {registry.spec_for(record_type).kind for record_type in TELEMETRY}
+    unused = {kind: n for kind, n in registry.counts.items()
+              if n and kind not in used and not kind.startswith("malformed_")}  # malformed ones are rejected rows
     return [
         f"deframer: {stats.bytes_fed} bytes, {stats.packets} frames; skipped bytes: {counts_text(skipped)}; "
         f"rejected frames: {counts_text(rejected)}",
@@ -106,7 +107,7 @@ class TrackBuilder:
 
     def add(self, timed: TimedPacket, record) -> None:
         """Use or reject one decoded packet; messages that are not telemetry are only counted (registry)."""
-        if isinstance(record, UndecodedMessage) or not isinstance(record, (*TELEMETRY, MalformedMessage)):
+        if not isinstance(record, (*TELEMETRY, MalformedMessage)):
             return
         self.report.rows_read += 1
         where = f"at stream byte {timed.offset}"
