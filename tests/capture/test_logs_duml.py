@@ -15,11 +15,13 @@ from test_cli_logs import write_jpeg
 from capture.cli import main
 from capture.geotag_io import load_geotags
 from capture.logs import detect_kind, read_track
+from capture.logs.writers import write_duml_capture
 from capture.duml import Packet, make_cmd_type
 from capture.messages import (HOME_NOT_SET_RADIANS, CameraState, GimbalParams, HomePoint, OsdGeneral,
                               encode_message)
 from capture.raw import RawCaptureWriter, index_path
-from capture.synthetic import Orbit
+from capture.synthetic import NOISE_FREE, Orbit, telemetry
+from capture.synthetic import shutter_times as random_shutter_times
 from capture.track import LogFormatError
 from flightplan.demo_location import DEMO_ORIGIN
 
@@ -181,6 +183,23 @@ def test_synthetic_capture_report_counts_every_message(capture):
     assert "rejected frames: bad_header_crc 1, bad_packet_crc 1" in deframer
     assert "messages not used for the track: none" in report.notes
     assert f"{len(shutter_times())} photo events from" in " ".join(report.notes)
+
+
+def test_track_written_as_a_capture_reads_back(tmp_path):
+    rng = np.random.default_rng(5)
+    track = telemetry(ORBIT, 12.0, RATE_HZ, NOISE_FREE, rng, random_shutter_times(ORBIT, 12.0, 1.0, NOISE_FREE, rng))
+    write_duml_capture(track, tmp_path / "written.duml")
+    back = read_track(tmp_path / "written.duml")
+    assert not back.report.rejected and len(back) == 2 * len(track)  # an OSD row and a gimbal row per row
+    for name, mask, tolerance in (("lat_deg", back.positions_mask(), 1e-12), ("height_above_takeoff_m", None, 0.05),
+                                  ("aircraft_yaw_deg", None, 0.05), ("gimbal_pitch_deg", None, 0.05),
+                                  ("speed_m_s", None, 0.05 * math.sqrt(2))):
+        rows = np.isfinite(back[name]) if mask is None else mask
+        np.testing.assert_allclose(back.time_s[rows], track.time_s, rtol=0, atol=1e-6)  # index keeps microseconds
+        assert angle_error(back[name][rows], track[name]).max() <= tolerance + 1e-9  # wraps only angles this big
+    first_rows_after = track.time_s[np.searchsorted(track.time_s, track.photo_times_s)]
+    np.testing.assert_allclose(back.photo_times_s, first_rows_after, rtol=0, atol=1e-6)
+    assert back.home.absolute_height_m == pytest.approx(ORBIT.frame.h0_m, abs=1e-4)  # f32 tenths of a metre
 
 
 def test_packets_after_the_end_of_the_index_are_rejected_not_dropped(tmp_path):
