@@ -187,7 +187,7 @@ class TrackBuilder:
         if not self.homes:
             notes.append("no home point set in this capture: the take-off point is the first GPS position")
         elif len(set(self.homes)) > 1:
-            notes.append(f"home point changed {len(set(self.homes)) - 1} times; the first one is the take-off point")
+            notes.append(f"home point moved ({len(set(self.homes))} different ones); the first is the take-off point")
         return notes
 
 

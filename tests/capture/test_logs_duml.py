@@ -306,6 +306,15 @@ def test_real_pcaps_read_as_attitude_only_tracks(shared_data, run, gimbal_rows, 
     assert "skipped bytes: none" in track.report.notes[0]
 
 
+def test_geotag_with_a_pcap_without_fix_is_a_clear_error(shared_data, tmp_path, capsys):
+    (tmp_path / "photos").mkdir()
+    write_jpeg(tmp_path / "photos" / "IMG_0000.JPG", 1513801780.0, 54.37, 18.56)
+    pcap = shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run1.pcap"
+    out = tmp_path / "geotags.csv"
+    assert main(["geotag", "--photos", str(tmp_path / "photos"), "--log", str(pcap), "--out", str(out)]) == 2
+    assert "the track has no position to use as origin" in capsys.readouterr().err and not out.exists()
+
+
 def test_track_command_on_a_capture(capture, tmp_path, capsys):
     path, truth = capture
     assert main(["track", str(path), "--out", str(tmp_path / "t.csv"), "--kml", str(tmp_path / "t.kml")]) == 0
