@@ -24,7 +24,8 @@ def register(subparsers) -> None:
     geotag = subparsers.add_parser("geotag", help="photos + flight logs -> geotags.csv (+ .json sidecar)")
     geotag.add_argument("--photos", required=True, help="folder of JPEG photos")
     geotag.add_argument("--log", action="append", required=True,
-                        help="flight log (Litchi/Airdata CSV, DJI SRT, or a folder of photos); repeatable")
+                        help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) or pcap, "
+                             "or a folder of photos); repeatable")
     geotag.add_argument("--clock-offset", default="auto", type=parse_clock_offset,
                         help="'auto' (default) or seconds to add to the camera clock to get telemetry UTC")
     geotag.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP_S,
@@ -38,7 +39,8 @@ def register(subparsers) -> None:
     geotag.set_defaults(handler=run_geotag)
 
     track = subparsers.add_parser("track", help="read any flight log and export it as CSV or KML")
-    track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, or a folder of photos)")
+    track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) "
+                                      "or pcap, or a folder of photos)")
     track.add_argument("--kind", choices=KINDS, help="force the reader instead of detecting it")
     add_time_options(track)
     track.add_argument("--out", help="track CSV to write")

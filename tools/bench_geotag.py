@@ -1,6 +1,7 @@
 """Benchmark the log readers and geotagging on a synthetic orbit (capture/synthetic.py); prints tables.
 
-1. Parse time of a 1-hour, 10 Hz log in each format (written by capture/logs/writers.py), ratio to Litchi CSV.
+1. Parse time of a 1-hour, 10 Hz log in each format (written by capture/logs/writers.py), ratio to Litchi CSV
+   (a DUML capture has an OSD and a gimbal row per telemetry row, plus camera-state and home pushes).
 2. Time to geotag 1000 photos (automatic clock offset vs a manual one as the baseline).
 3. Geotag error against the known poses for 1, 5 and 10 Hz telemetry (time and error side by side).
 
@@ -22,7 +23,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from capture.geotag import geotag_photos  # noqa: E402
 from capture.logs import read_track  # noqa: E402
-from capture.logs.writers import write_airdata_csv, write_litchi_csv, write_srt  # noqa: E402
+from capture.logs.writers import write_airdata_csv, write_duml_capture, write_litchi_csv, write_srt  # noqa: E402
 from capture.synthetic import Noise, Orbit, photos_for, shutter_times, telemetry  # noqa: E402
 from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
@@ -41,23 +42,24 @@ def parse_table(rng: np.random.Generator) -> None:
     orbit = Orbit(DEMO_ORIGIN)
     shutter = shutter_times(orbit, 3600.0, 2.0, NOISE, rng)
     track = telemetry(orbit, 3600.0, 10.0, NOISE, rng, shutter)
-    writers = {
-        "Litchi CSV": (lambda p: write_litchi_csv(track, p), "log.csv", {}),
-        "Airdata CSV (imperial)": (lambda p: write_airdata_csv(track, p), "airdata.csv", {}),
+    writers = {  # name: (writer, file name, reader options, track rows per written row)
+        "Litchi CSV": (lambda p: write_litchi_csv(track, p), "log.csv", {}, 1),
+        "Airdata CSV (imperial)": (lambda p: write_airdata_csv(track, p), "airdata.csv", {}, 1),
         "DJI SRT compact (F.PRY/G.PRY)": (lambda p: write_srt(track, p, "compact"), "compact.srt",
-                                          {"start_time_s": orbit.start_s}),
-        "DJI SRT dated (Mavic 3 style)": (lambda p: write_srt(track, p, "dated"), "dated.srt", {}),
+                                          {"start_time_s": orbit.start_s}, 1),
+        "DJI SRT dated (Mavic 3 style)": (lambda p: write_srt(track, p, "dated"), "dated.srt", {}, 1),
+        "DUML raw capture (.duml + .idx)": (lambda p: write_duml_capture(track, p), "flight.duml", {}, 2),
     }
     print(f"\n1. Parse a 1-hour 10 Hz log ({len(track)} rows)\n")
     print("| format | file size | parse time | rows/s | vs Litchi |")
     print("|---|---|---|---|---|")
     baseline = None
     with tempfile.TemporaryDirectory() as folder:
-        for name, (write, filename, options) in writers.items():
+        for name, (write, filename, options, rows_per_row) in writers.items():
             path = Path(folder) / filename
             write(path)
             parsed, seconds = timed(read_track, path, **options)
-            assert len(parsed) == len(track) and not parsed.report.rejected
+            assert len(parsed) == rows_per_row * len(track) and not parsed.report.rejected
             baseline = baseline or seconds
             print(f"| {name} | {path.stat().st_size / 1e6:.1f} MB | {seconds:.2f} s | {len(parsed) / seconds:,.0f} "
                   f"| {seconds / baseline:.2f}x |")

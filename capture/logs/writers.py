@@ -1,16 +1,31 @@
-"""Write a ``Track`` as a Litchi flight-log CSV, an Airdata CSV or a DJI SRT (for tests, benchmarks and
-the virtual drone). The formats follow the real headers (``litchi.md`` §3, ``dji-telemetry.md`` §5), so the
-readers in this package read them back; photo events become a 1 on the first row at or after each event."""
+"""Write a ``Track`` as a Litchi flight-log CSV, an Airdata CSV, a DJI SRT or a raw DUML capture (for tests,
+benchmarks and the virtual drone). The formats follow the real headers and layouts (``litchi.md`` §3,
+``dji-telemetry.md`` §2 and §5), so the readers in this package read them back; photo events become a 1 (or a
+camera-state shutter edge) on the first row at or after each event."""
 
 from __future__ import annotations
 
+import dataclasses
+import math
+import os
 from datetime import datetime, timezone
 
 import numpy as np
 
-from ..atomic import write_text_atomic
+from ..atomic import atomic_path, write_text_atomic
+from ..geotag import take_off_frame
+from ..messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
+from ..raw import RawCaptureWriter, index_path
 from ..track import Track
 from .flightcsv import LENGTH_TO_M, SPEED_TO_M_S
+
+# What a P3X-like aircraft sends besides the track's values (GPS_Atti mode, 14 satellites, camera idle).
+OSD_PUSH = OsdGeneral(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, ctrl_info=6, latest_app_command=0,
+                      controller_state=0, gps_satellites=14, gohome_reason=0, motor_start_fail=0, ctrl_state_ext=0,
+                      battery_percent=80, ultrasonic_height_m=0.0, fly_time_s=0.0, motor_start_count=1,
+                      battery_alarm1=0, battery_alarm2=0, version_match=1, product_type=2, imu_init_fail_reason=0)
+CAMERA_PUSH = CameraState(status_flags=1 << 9, camera_mode=0, sd_total_mb=30000, sd_free_mb=20000,
+                          remaining_shots=999, remaining_time_s=0, file_index_mode=0)
 
 
 def photo_flags(track: Track) -> np.ndarray:
@@ -111,3 +126,50 @@ def write_airdata_csv(track: Track, path, units: str = "imperial") -> None:
 
 def write_srt(track: Track, path, style: str = "compact") -> None:
     write_text_atomic(path, srt_text(track, style))
+
+
+def duml_records(track: Track) -> list[tuple[float, object]]:
+    """``(time_s, record)`` pushes an aircraft would send for ``track``, in time order: per row an OSD General
+    (rows with a position), a Gimbal Params (rows with gimbal yaw) and a Camera State (``photo_state`` 1 on the
+    first row at or after each photo event), and the take-off point as a Home Point once a second."""
+    frame, height_known = take_off_frame(track)
+    home = HomePoint(frame.lon0_deg, frame.lat0_deg, frame.h0_m if height_known else math.nan, 1, 60, 0, 0, 0, 0, 0)
+    flags = photo_flags(track)
+    new_second = np.r_[True, np.diff(np.floor(track.time_s)) > 0]
+    records = []
+    for k, t in enumerate(track.time_s):
+        row = {name: values[k] for name, values in track.columns.items()}
+        if np.isfinite(row["lat_deg"]) and np.isfinite(row["lon_deg"]):
+            records.append((t, osd_record(row)))
+        if np.isfinite(row["gimbal_yaw_deg"]):
+            records.append((t, GimbalParams(*np.nan_to_num([row["gimbal_pitch_deg"], row["gimbal_roll_deg"],
+                                                            row["gimbal_yaw_deg"]]).tolist(), 0, 0.0, 0.0, 0, 1)))
+        records.append((t, dataclasses.replace(CAMERA_PUSH, status_flags=CAMERA_PUSH.status_flags | int(flags[k]) << 3)))
+        if new_second[k]:
+            records.append((t, home))
+    return records
+
+
+def osd_record(row: dict[str, float]) -> OsdGeneral:
+    """OSD General for one track row (missing heights/angles/speed sent as 0; velocity along the yaw)."""
+    height, yaw, pitch, roll, speed = np.nan_to_num([row[name] for name in (
+        "height_above_takeoff_m", "aircraft_yaw_deg", "aircraft_pitch_deg", "aircraft_roll_deg", "speed_m_s")]).tolist()
+    return dataclasses.replace(OSD_PUSH, latitude_deg=float(row["lat_deg"]), longitude_deg=float(row["lon_deg"]),
+                               height_above_takeoff_m=height, yaw_deg=yaw, pitch_deg=pitch, roll_deg=roll,
+                               velocity_x_mps=speed * math.cos(math.radians(yaw)),
+                               velocity_y_mps=speed * math.sin(math.radians(yaw)))
+
+
+def write_duml_capture(track: Track, path) -> None:
+    """Write :func:`duml_records` as a raw capture ``path`` + ``path.idx`` (one chunk per frame, received at its
+    row's time), both files atomically."""
+    records = duml_records(track)
+    with atomic_path(path) as data_tmp, atomic_path(index_path(path)) as index_tmp:
+        try:
+            with RawCaptureWriter(data_tmp) as writer:
+                for seq, (t, record) in enumerate(records):
+                    writer.append(datetime.fromtimestamp(t, timezone.utc), t - records[0][0],
+                                  encode_message(record, seq).encode())
+            os.replace(index_path(data_tmp), index_tmp)
+        finally:
+            index_path(data_tmp).unlink(missing_ok=True)

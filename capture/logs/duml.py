@@ -1,0 +1,205 @@
+"""DUML telemetry -> ``Track``: a raw capture ``NAME.duml`` (+ ``NAME.duml.idx``) or a pcap (link type 150).
+
+Packets are deframed and time-stamped by :func:`capture.decode.timed_packets` and decoded by
+:func:`capture.messages.default_registry`; each telemetry message becomes one row of the track:
+
+* OSD General (0x03/0x43): lat/lon, height above take-off, aircraft yaw/pitch/roll, horizontal speed
+  ``hypot(vx, vy)``. Latitude and longitude exactly 0 mean "no GPS fix yet": such rows are rejected
+  (``no GPS fix``), as are positions outside +-90/+-180 degrees;
+* Gimbal Params (0x04/0x05): gimbal yaw/pitch/roll (absolute, NED);
+* OSD Home Point (0x03/0x44): the first home point that is set is the take-off point (``Track.home``, its
+  altitude as the absolute height there); frames before that (home state bit 0 clear, lat/lon the
+  800000.0 rad "not set" value) are rejected (``home point not set``);
+* Camera State (0x02/0x80): a photo event at each shutter edge, by ONE signal
+  (:func:`capture.messages.is_shutter_edge`, ``photo_state`` by default).
+
+Time: the arrival UTC of the packet's LAST byte -- from the ``.duml.idx`` sidecar for a raw capture, from the
+record timestamps for a pcap. A raw capture without its index has no times at all (the frames carry none),
+so it is an error (a start time would not help: nothing says when each packet came); packets past the end
+of an index (a kill between a data flush and its index line) are rejected (``no arrival time``). A photo
+event is the arrival of the first camera state that shows the shutter, so it lags the shutter by up to one
+camera-state push interval (``Track.event_time_error_s``).
+
+Counting: ``rows_read`` = telemetry messages (the four kinds above, plus malformed ones of any registered
+kind); each is used or rejected with a reason (``no GPS fix``, ``home point not set``, ``malformed
+message``, ``response packet``, ...) and its offset in the DUML byte stream (the file offset for a raw
+capture; for a pcap, the offset in its records' data laid end to end). The report's notes give the
+deframer's skipped bytes and rejected frames by reason and the counts of messages the track does not use
+(undecoded, date/time).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..attitude import wrap_deg
+from ..decode import TimedPacket, timed_packets
+from ..duml import Deframer, DeframerStats
+from ..messages import (CameraState, GimbalParams, HomePoint, MalformedMessage, MessageRegistry, OsdGeneral,
+                        default_registry, is_shutter_edge)
+from ..raw import CaptureIndexError, index_path
+from ..track import Home, LogFormatError, ReadReport, Track
+from ..transports import TransportError, is_pcap, replay_file
+
+TELEMETRY = (OsdGeneral, GimbalParams, HomePoint, CameraState)
+
+
+def looks_like_duml(path: Path) -> bool:
+    """True for a pcap, a ``.duml`` file, or a file with a ``.idx`` sidecar beside it."""
+    return path.suffix.lower() == ".duml" or index_path(path).exists() or is_pcap(path)
+
+
+def read_duml_track(path, *, shutter_signal: str = "photo_state") -> Track:
+    """Read a raw DUML capture (with its ``.idx``) or a DUML pcap into a UTC ``Track`` (module docstring)."""
+    path = Path(path)
+    if not path.is_file():
+        raise LogFormatError(f"{path}: no such file")
+    if not is_pcap(path) and not index_path(path).exists():
+        raise LogFormatError(f"{path}: no {index_path(path).name} beside it; a raw capture's packet times come "
+                             "only from that index (write captures with 'aerostereo-ingest record', or read a pcap)")
+    registry, deframer = default_registry(), Deframer()
+    builder = TrackBuilder(ReadReport(str(path), "duml"), shutter_signal)
+    try:
+        for timed in timed_packets(replay_file(path), deframer):
+            builder.add(timed, registry.decode(timed.packet))
+    except (TransportError, CaptureIndexError) as error:
+        raise LogFormatError(str(error)) from None
+    if deframer.stats.packets == 0:
+        raise LogFormatError(f"{path}: no DUML frame found in {deframer.stats.bytes_fed} bytes "
+                             "(not a DUML capture?)")
+    builder.report.notes.extend(stream_notes(deframer.stats, registry))
+    return builder.track(deframer.stats.packets)
+
+
+def stream_notes(stats: DeframerStats, registry: MessageRegistry) -> list[str]:
+    """Deframer skip counters and the counts of messages the track does not use, as report notes."""
+    skipped = {reason: n for reason, n in stats.skipped_bytes.items() if n}
+    rejected = {reason: n for reason, n in stats.rejected_frames.items() if n and reason != "no_sync"}
+    used = {registry.spec_for(record_type).kind for record_type in TELEMETRY}
+    unused = {kind: n for kind, n in registry.counts.items()
+              if n and kind not in used and not kind.startswith("malformed_")}  # malformed ones are rejected rows
+    return [
+        f"deframer: {stats.bytes_fed} bytes, {stats.packets} frames; skipped bytes: {counts_text(skipped)}; "
+        f"rejected frames: {counts_text(rejected)}",
+        f"messages not used for the track: {counts_text(unused)}",
+    ]
+
+
+def counts_text(counts: dict[str, int]) -> str:
+    return ", ".join(f"{name} {n}" for name, n in counts.items()) or "none"
+
+
+class TrackBuilder:
+    """Collects rows, home points and shutter edges from decoded packets, in arrival order."""
+
+    def __init__(self, report: ReadReport, shutter_signal: str) -> None:
+        self.report = report
+        self.shutter_signal = shutter_signal
+        self.times: list[float] = []
+        self.rows: list[dict[str, float]] = []
+        self.homes: list[Home] = []
+        self.camera_times: list[float] = []
+        self.photo_times: list[float] = []
+        self.previous_camera: CameraState | None = None
+
+    def add(self, timed: TimedPacket, record) -> None:
+        """Use or reject one decoded packet; messages that are not telemetry are only counted (registry)."""
+        if not isinstance(record, (*TELEMETRY, MalformedMessage)):
+            return
+        self.report.rows_read += 1
+        where = f"at stream byte {timed.offset}"
+        if isinstance(record, MalformedMessage):
+            return self.reject(f"malformed message: {record.reason} {where}")
+        kind = type(record).__name__
+        if timed.packet.is_response:
+            return self.reject(f"response packet: {kind} {where} is an answer, not a telemetry push")
+        if timed.receive_time_utc is None:
+            return self.reject(f"no arrival time: {kind} {where} lies past the end of the index")
+        time_s = timed.receive_time_utc.timestamp()
+        if isinstance(record, OsdGeneral):
+            self.add_osd(time_s, record, where)
+        elif isinstance(record, GimbalParams):
+            self.add_row(time_s, gimbal_row(record))
+        elif isinstance(record, HomePoint):
+            self.add_home(record, where)
+        else:
+            self.add_camera_state(time_s, record)
+
+    def reject(self, reason: str) -> None:
+        self.report.reject(None, reason)
+
+    def add_row(self, time_s: float, row: dict[str, float]) -> None:
+        self.times.append(time_s)
+        self.rows.append(row)
+        self.report.rows_used += 1
+
+    def add_osd(self, time_s: float, osd: OsdGeneral, where: str) -> None:
+        if not osd.has_fix:
+            return self.reject(f"no GPS fix: OSD {where} has lat/lon exactly 0 ({osd.gps_satellites} satellites)")
+        if abs(osd.latitude_deg) > 90.0 or abs(osd.longitude_deg) > 180.0:
+            return self.reject(f"position out of range: OSD {where} lat {osd.latitude_deg}, lon {osd.longitude_deg}")
+        self.add_row(time_s, osd_row(osd))
+
+    def add_home(self, home: HomePoint, where: str) -> None:
+        if not home.is_set:
+            return self.reject(f"home point not set: home {where} (state 0x{home.home_state:04x})")
+        self.homes.append(Home(home.home_latitude_deg, home.home_longitude_deg, home.home_altitude_m))
+        self.report.rows_used += 1
+
+    def add_camera_state(self, time_s: float, state: CameraState) -> None:
+        if is_shutter_edge(self.previous_camera, state, self.shutter_signal):
+            self.photo_times.append(time_s)
+        self.previous_camera = state
+        self.camera_times.append(time_s)
+        self.report.rows_used += 1
+
+    def track(self, frames: int) -> Track:
+        """The collected rows as a ``Track``; LogFormatError if no OSD or gimbal row could be used."""
+        if not self.rows:
+            reasons = ", ".join(f"{n} {reason}" for reason, n in self.report.reasons().most_common()) or "none"
+            raise LogFormatError(f"{self.report.source}: no usable OSD or gimbal telemetry in {frames} frames "
+                                 f"(rejected: {reasons})")
+        self.report.notes.extend(self.notes())
+        names = sorted({name for row in self.rows for name in row})
+        columns = {name: np.array([row.get(name, math.nan) for row in self.rows]) for name in names}
+        return Track.from_rows(self.times, columns, self.report, photo_times_s=self.photo_times,
+                               home=self.homes[0] if self.homes else None,
+                               event_time_error_s=self.camera_interval_s())
+
+    def camera_interval_s(self) -> float:
+        """Median interval between camera-state pushes: how late a shutter edge may be seen (0 if unknown)."""
+        return float(np.median(np.diff(self.camera_times))) if len(self.camera_times) > 1 else 0.0
+
+    def notes(self) -> list[str]:
+        notes = ["times: arrival UTC of each packet's last byte"]
+        if self.camera_times:
+            notes.append(f"{len(self.photo_times)} photo events from {len(self.camera_times)} camera-state pushes "
+                         f"(shutter signal {self.shutter_signal}; events up to {self.camera_interval_s():.3f} s "
+                         "after the shutter)")
+        else:
+            notes.append("no camera-state pushes: no photo events")
+        no_fix = self.report.reasons()["no GPS fix"]
+        if no_fix and not any("lat_deg" in row for row in self.rows):
+            notes.append(f"no GPS fix in any of the {no_fix} OSD messages: the track has no positions")
+        if not self.homes:
+            notes.append("no home point set in this capture: the take-off point is the first GPS position")
+        elif len(set(self.homes)) > 1:
+            notes.append(f"home point moved ({len(set(self.homes))} different ones); the first is the take-off point")
+        return notes
+
+
+def osd_row(osd: OsdGeneral) -> dict[str, float]:
+    """Track fields of one OSD General record (degrees, metres, m/s)."""
+    return {"lat_deg": osd.latitude_deg, "lon_deg": osd.longitude_deg,
+            "height_above_takeoff_m": osd.height_above_takeoff_m,
+            "aircraft_yaw_deg": float(wrap_deg(osd.yaw_deg)), "aircraft_pitch_deg": osd.pitch_deg,
+            "aircraft_roll_deg": osd.roll_deg, "speed_m_s": math.hypot(osd.velocity_x_mps, osd.velocity_y_mps)}
+
+
+def gimbal_row(gimbal: GimbalParams) -> dict[str, float]:
+    """Track fields of one Gimbal Params record (absolute NED degrees)."""
+    return {"gimbal_yaw_deg": float(wrap_deg(gimbal.yaw_deg)), "gimbal_pitch_deg": gimbal.pitch_deg,
+            "gimbal_roll_deg": gimbal.roll_deg}
