@@ -35,10 +35,12 @@ class MissionCheckError(ValueError):
         super().__init__("mission rejected: " + "; ".join(f.message for f in findings))
 
 
-def _outside(values: np.ndarray, low: float, high: float, severity: str, what: str, only=None) -> list[Finding]:
+def _outside(
+    values: np.ndarray, low: float, high: float, severity: str, what: str, only=None, row: str = "row"
+) -> list[Finding]:
     """One finding for all rows whose value is outside ``[low, high]``, naming the first of them.
 
-    ``only`` (boolean mask) restricts the check to some rows.
+    ``only`` (boolean mask) restricts the check to some rows; ``row`` is how an element is named ("leg from row").
     """
     bad_mask = (values < low) | (values > high)
     bad = np.flatnonzero(bad_mask if only is None else bad_mask & only)
@@ -48,7 +50,7 @@ def _outside(values: np.ndarray, low: float, high: float, severity: str, what: s
     return [
         Finding(
             severity,
-            f"{what} {values[first]:g} on row {first + 1} ({bad.size} row(s)) is outside {low:g}..{high:g}",
+            f"{what} {values[first]:g} on {row} {first + 1} ({bad.size} in all) is outside {low:g}..{high:g}",
         )
     ]
 
@@ -100,12 +102,20 @@ def _photo_interval_findings(mission: litchi.Mission) -> list[Finding]:
 
 
 def check_litchi_limits(mission: litchi.Mission) -> list[Finding]:
-    """Waypoint count, leg lengths, curve rules, speed, altitudes, gimbal pitch, actions, photo intervals."""
+    """Waypoint count, leg lengths, total distance, curve rules, speed, altitudes, gimbal pitch, actions, photo intervals."""
     count = len(mission)
     if not 1 <= count <= litchi.MAX_WAYPOINTS:
         return [Finding(ERROR, f"a Litchi mission holds 1..{litchi.MAX_WAYPOINTS} waypoints, this one has {count}")]
     legs = leg_lengths_m(mission)
-    findings = _outside(legs, litchi.MIN_LEG_M, litchi.MAX_LEG_M, ERROR, "length (m) of the leg from")
+    findings = _outside(legs, litchi.MIN_LEG_M, litchi.MAX_LEG_M, ERROR, "length (m)", row="the leg from row")
+    if legs.sum() > litchi.MAX_MISSION_DISTANCE_M:
+        findings.append(
+            Finding(
+                ERROR,
+                f"the mission is {legs.sum() / 1000:.2f} km long; DJI/Litchi missions are limited to "
+                f"{litchi.MAX_MISSION_DISTANCE_M / 1000:g} km",
+            )
+        )
     findings += _curve_findings(mission, legs)
     findings += _outside(mission.column("speed_m_s"), 0.0, litchi.MAX_SPEED_M_S, ERROR, "speed (m/s)")
     if (mission.column("speed_m_s") == 0.0).any():

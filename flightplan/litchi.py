@@ -32,7 +32,8 @@ ACTION_TAKE_PHOTO = 1
 
 # Limits a mission must respect to import and fly (research/litchi.md sections 1.2 and 1.4; [FLim], [HD4N]).
 MAX_WAYPOINTS = 99
-MIN_LEG_M, MAX_LEG_M = 0.6, 1999.0
+MIN_LEG_M, MAX_LEG_M = 0.6, 1999.0  # 3-D distance between consecutive waypoints
+MAX_MISSION_DISTANCE_M = 30_000.0  # cumulative length of all legs [FLim]
 MIN_CURVE_M, MAX_CURVE_M = 0.2, 1000.0  # 0.2 m (the DJI minimum) is what Litchi writes for "no curve"
 CURVE_CLEARANCE_M = 1.0  # curve_i + curve_(i+1) + 1 m <= leg length [HD4N]
 MAX_SPEED_M_S = 15.0
