@@ -135,7 +135,7 @@ def check_litchi_limits(mission: litchi.Mission) -> list[Finding]:
 
 def check_aircraft(mission: litchi.Mission, aircraft: AircraftProfile, flight_time_s: float | None = None) -> list[Finding]:
     """Speed against the aircraft's maximum, photo cadence, gimbal range and (when given) flight time."""
-    findings = _outside(mission.column("speed_m_s"), 0.0, aircraft.max_speed_m_s, ERROR, f"speed (m/s) for the {aircraft.name}")
+    findings = _outside(mission.column("speed_m_s"), 0.0, aircraft.max_speed_m_s, ERROR, f"{aircraft.name} speed (m/s)")
     intervals = mission.column("photo_time_interval_s")
     too_fast = intervals[(intervals > 0) & (intervals < aircraft.min_timed_shot_interval_s)]
     if too_fast.size:
@@ -147,7 +147,7 @@ def check_aircraft(mission: litchi.Mission, aircraft: AircraftProfile, flight_ti
             )
         )
     low, high = aircraft.gimbal_pitch_range_deg
-    findings += _outside(mission.column("gimbal_pitch_deg"), low, high, WARNING, f"gimbal pitch (deg) for the {aircraft.name}")
+    findings += _outside(mission.column("gimbal_pitch_deg"), low, high, WARNING, f"{aircraft.name} gimbal pitch (deg)")
     if flight_time_s is not None and flight_time_s > aircraft.usable_flight_time_s:
         batteries = math.ceil(flight_time_s / aircraft.usable_flight_time_s)
         findings.append(

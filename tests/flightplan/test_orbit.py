@@ -143,8 +143,12 @@ def test_bad_requests_name_the_problem(field, value):
     arguments = {"center_lat_deg": 10.0, "center_lon_deg": 10.0} | {field: value}
     with pytest.raises(ValueError):
         OrbitRequest(**arguments)
-    with pytest.raises(ValueError, match="radius"):
-        OrbitRequest(10.0, 10.0, (Ring(-5.0, 30.0),))
+
+
+@pytest.mark.parametrize("ring", [Ring(-5.0, 30.0), Ring(0.0, 30.0), Ring(math.inf, 30.0), Ring(50.0, math.nan)])
+def test_bad_rings_are_refused(ring):
+    with pytest.raises(ValueError, match="radius|height"):
+        OrbitRequest(10.0, 10.0, (ring,))
 
 
 def test_overlap_model_limits():
