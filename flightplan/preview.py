@@ -156,7 +156,7 @@ def write_plot_png(mission: litchi.Mission, center_lat_deg: float, center_lon_de
     east, north, _ = frame.to_enu(lat, lon, np.zeros_like(lat))
     vertices = np.stack([east, north], axis=-1)
     flown = flown_path.curved_turns_path(vertices, mission.column("curve_size_m"))
-    figure = Figure(figsize=(7, 7), dpi=100)  # Agg canvas, no pyplot state
+    figure = Figure(figsize=(7, 7), dpi=100, layout="constrained")  # Agg canvas, no pyplot state
     axes = figure.subplots()
     axes.plot(flown[:, 0], flown[:, 1], "-", color="tab:orange", lw=1.5, label="modelled flown path")
     axes.plot(east, north, "o", color="tab:blue", ms=3, label="waypoints")
@@ -169,7 +169,7 @@ def write_plot_png(mission: litchi.Mission, center_lat_deg: float, center_lon_de
     axes.set_ylabel("north (m)")
     axes.set_title(title or f"orbit around {center_lat_deg:.6f}, {center_lon_deg:.6f}", fontsize=9)
     axes.grid(True, lw=0.3)
-    axes.legend(loc="upper right", fontsize=8)
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=4, fontsize=8)
     with atomic_path(path) as temporary:
         figure.savefig(temporary, format="png")
     return Path(path)
