@@ -240,4 +240,10 @@ def parse_mission_csv(text: str, source: str = "<text>") -> Mission:
 def read_mission_csv(path: str | Path) -> Mission:
     """Read a Litchi Mission Hub CSV (metric or imperial) into a :class:`Mission` with metric units."""
     path = Path(path)
-    return parse_mission_csv(path.read_text(encoding="utf-8"), source=str(path))
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = raw.count(b"\n", 0, error.start) + 1
+        raise LitchiFormatError(f"{path}:{line}: byte offset {error.start} is not UTF-8 text") from None
+    return parse_mission_csv(text, source=str(path))

@@ -91,6 +91,13 @@ def test_bad_files_name_file_and_line(tmp_path, text, where, what):
     assert f"{path.parent}/{where}" in str(caught.value) and what in str(caught.value)
 
 
+def test_binary_file_names_the_byte(tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"latitude,longitude\n1,2\n\xff\xfe\n")
+    with pytest.raises(litchi.LitchiFormatError, match=r"m.csv:3: byte offset 23 is not UTF-8"):
+        litchi.read_mission_csv(path)
+
+
 def test_mission_column_view(mission):
     altitudes = mission.column("altitude_m")
     assert altitudes.shape == (len(mission),) and set(altitudes) == {30.0}
