@@ -91,7 +91,8 @@ def _curve_findings(mission: litchi.Mission, legs: np.ndarray) -> list[Finding]:
 
 def _photo_interval_findings(mission: litchi.Mission) -> list[Finding]:
     findings = []
-    for column, what in (("photo_time_interval_s", "photo time interval (s)"), ("photo_dist_interval_m", "photo distance interval (m)")):
+    intervals = (("photo_time_interval_s", "photo time interval (s)"), ("photo_dist_interval_m", "photo distance interval (m)"))
+    for column, what in intervals:
         values = mission.column(column)
         enabled = values != litchi.DISABLED_INTERVAL
         findings += _outside(values, litchi.MIN_PHOTO_INTERVAL, litchi.MAX_PHOTO_INTERVAL, ERROR, what, only=enabled)

@@ -3,7 +3,8 @@
 KML and GeoJSON carry WGS84 degrees; their third coordinate is the height **above take-off** in metres
 (KML ``relativeToGround``, exact where the ground is level with the take-off point). Lines that cross the
 antimeridian are cut there (RFC 7946 section 3.1.9), so viewers do not draw them around the globe.
-The PNG (matplotlib's Agg canvas, no display needed) shows the plan in the local ENU plane of the POI (metres), with the modelled flown path.
+The PNG (matplotlib's Agg canvas, no display needed) shows the plan in the local ENU plane of the POI (metres),
+with the modelled flown path.
 All writers are atomic.
 """
 
@@ -134,7 +135,10 @@ def mission_to_geojson(mission: litchi.Mission) -> dict:
         poi = [
             {
                 "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": [first.poi_longitude_deg, first.poi_latitude_deg, first.poi_altitude_m]},
+                "geometry": {
+                    "type": "Point",
+                    "coordinates": [first.poi_longitude_deg, first.poi_latitude_deg, first.poi_altitude_m],
+                },
                 "properties": {"name": "POI", "height_above_takeoff_m": first.poi_altitude_m},
             }
         ]
@@ -142,14 +146,18 @@ def mission_to_geojson(mission: litchi.Mission) -> dict:
 
 
 def write_kml(mission: litchi.Mission, path: str | Path, name: str = "aerostereo mission") -> Path:
+    """Write :func:`mission_to_kml` to ``path`` atomically."""
     return write_text_atomic(path, mission_to_kml(mission, name))
 
 
 def write_geojson(mission: litchi.Mission, path: str | Path) -> Path:
+    """Write :func:`mission_to_geojson` to ``path`` atomically."""
     return write_text_atomic(path, json.dumps(mission_to_geojson(mission), indent=1) + "\n")
 
 
-def write_plot_png(mission: litchi.Mission, center_lat_deg: float, center_lon_deg: float, path: str | Path, title: str = "") -> Path:
+def write_plot_png(
+    mission: litchi.Mission, center_lat_deg: float, center_lon_deg: float, path: str | Path, title: str = ""
+) -> Path:
     """Top view in the POI's ENU plane: waypoints, the modelled flown path, the start and the POI."""
     frame = LocalFrame(center_lat_deg, center_lon_deg, 0.0)
     lat, lon = mission.column("latitude_deg"), mission.column("longitude_deg")

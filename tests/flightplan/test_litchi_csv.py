@@ -56,7 +56,8 @@ def test_actions_round_trip():
 
 def test_imperial_variant_is_converted_to_metres():
     header = RESEARCH_HEADER.replace("(m)", "(ft)").replace("speed(ft/s)", "speed(m/s)")
-    metric = litchi.mission_to_csv_text(litchi.Mission((litchi.Waypoint(47.0, 8.0, 100.0, curve_size_m=10.0, poi_altitude_m=3.0),)))
+    waypoint = litchi.Waypoint(47.0, 8.0, 100.0, curve_size_m=10.0, poi_altitude_m=3.0)
+    metric = litchi.mission_to_csv_text(litchi.Mission((waypoint,)))
     row = metric.splitlines()[1]
     waypoint = litchi.parse_mission_csv(header + "\n" + row + "\n").waypoints[0]
     assert waypoint.altitude_m == pytest.approx(30.48)
