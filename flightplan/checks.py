@@ -127,8 +127,9 @@ def check_litchi_limits(mission: litchi.Mission) -> list[Finding]:
         mission.column("gimbal_pitch_deg"), litchi.MIN_GIMBAL_PITCH_DEG, litchi.MAX_GIMBAL_PITCH_DEG, ERROR, "gimbal pitch (deg)"
     )
     findings += _outside(mission.column("heading_deg"), 0.0, 360.0, ERROR, "heading (deg)")
-    findings += _outside(mission.column("latitude_deg"), -90.0, 90.0, ERROR, "latitude (deg)")
-    findings += _outside(mission.column("longitude_deg"), -180.0, 180.0, ERROR, "longitude (deg)")
+    for prefix in ("", "poi_"):
+        findings += _outside(mission.column(f"{prefix}latitude_deg"), -90.0, 90.0, ERROR, f"{prefix}latitude (deg)")
+        findings += _outside(mission.column(f"{prefix}longitude_deg"), -180.0, 180.0, ERROR, f"{prefix}longitude (deg)")
     action_counts = np.array([len(w.actions) for w in mission.waypoints], dtype=np.float64)
     findings += _outside(action_counts, 0, litchi.MAX_ACTIONS, ERROR, "number of actions")
     return findings + _photo_interval_findings(mission)

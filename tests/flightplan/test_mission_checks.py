@@ -42,6 +42,7 @@ def test_default_plan_at_two_seconds_is_clean(good):
         (4, {"photo_time_interval_s": 0.05}, "photo time interval (s) 0.05"),
         (4, {"photo_dist_interval_m": 5.0}, "sets both a time and a distance"),
         (2, {"heading_deg": 361.0}, "heading (deg) 361"),
+        (2, {"poi_longitude_deg": 200.0}, "poi_longitude (deg) 200"),
     ],
 )
 def test_litchi_limit_errors(good, row, changes, text):

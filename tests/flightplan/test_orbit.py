@@ -78,6 +78,13 @@ def test_defaults_match_the_paper_and_the_tolerance():
     assert ring.max_heading_error_deg < 0.01
 
 
+def test_centre_longitude_beyond_180_is_wrapped():
+    plan = plan_orbit(OrbitRequest(10.0, 200.0))
+    assert {w.poi_longitude_deg for w in plan.mission.waypoints} == {-160.0}
+    assert checks.check_litchi_limits(plan.mission) == []
+    assert_orbit_geometry(plan)
+
+
 def test_explicit_waypoint_count_and_poi_height():
     plan = plan_orbit(OrbitRequest(47.0, 8.0, (Ring(80.0, 40.0),), waypoints_per_ring=12, poi_height_m=10.0))
     assert len(plan.mission) == 13
