@@ -35,6 +35,7 @@ def assert_orbit_geometry(plan, ring_index=0):
 
 HARD_CENTRES = [
     (0.0, 0.0),  # equator and prime meridian (POI must not be written as 0,0 = "no POI")
+    (90.0, 0.0),  # on the pole itself: every heading is north (0 deg)
     (89.99, 10.0),
     (-89.99, -120.0),
     (10.0, 179.9999),  # the circle crosses the antimeridian
