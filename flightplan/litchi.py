@@ -54,7 +54,7 @@ class Waypoint:
     longitude_deg: float
     altitude_m: float = 0.0
     heading_deg: float = 0.0
-    curve_size_m: float = 0.2
+    curve_size_m: float = MIN_CURVE_M
     rotation_dir: int = ROTATION_CW
     gimbal_mode: int = GIMBAL_DISABLED
     gimbal_pitch_deg: float = 0.0

@@ -10,8 +10,11 @@ from flightplan.orbit import OrbitRequest, plan_orbit
 # Copied from research/litchi.md section 1.1 (a real Mission Hub export's header).
 RESEARCH_HEADER = (
     "latitude,longitude,altitude(m),heading(deg),curvesize(m),rotationdir,gimbalmode,gimbalpitchangle,"
-    + ",".join(f"actiontype{i},actionparam{i}" for i in range(1, 16))
-    + ",altitudemode,speed(m/s),poi_latitude,poi_longitude,poi_altitude(m),poi_altitudemode,"
+    "actiontype1,actionparam1,actiontype2,actionparam2,actiontype3,actionparam3,actiontype4,actionparam4,"
+    "actiontype5,actionparam5,actiontype6,actionparam6,actiontype7,actionparam7,actiontype8,actionparam8,"
+    "actiontype9,actionparam9,actiontype10,actionparam10,actiontype11,actionparam11,actiontype12,"
+    "actionparam12,actiontype13,actionparam13,actiontype14,actionparam14,actiontype15,actionparam15,"
+    "altitudemode,speed(m/s),poi_latitude,poi_longitude,poi_altitude(m),poi_altitudemode,"
     "photo_timeinterval,photo_distinterval"
 )
 
