@@ -1,0 +1,1 @@
+"""sim: cameras, scenes, the embree ray caster, datasets and the virtual drone."""
