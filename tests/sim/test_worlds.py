@@ -70,6 +70,18 @@ def test_trimesh_loads_mesh_with_uvs_and_one_texture(small_scene):
     assert len(mesh.faces) == meta["provenance"]["triangles"]
 
 
+def test_glb_holds_the_generated_mesh_and_a_sharp_texture(small_scene):
+    """What trimesh reads back is the generated geometry (float32 positions) and the atlas up to mild JPEG loss
+    (trimesh's own exporter would re-encode at quality 75: mean error ~4.5 levels)."""
+    _, mesh = small_scene
+    _, generated, atlas = demo.generate_world("small", 0)
+    np.testing.assert_array_equal(mesh.faces, generated.faces)
+    np.testing.assert_allclose(mesh.vertices, generated.vertices, atol=1e-4)
+    np.testing.assert_allclose(mesh.visual.uv, generated.uv, atol=1e-6)
+    texture = np.asarray(mesh.visual.material.baseColorTexture.convert("RGB"), dtype=np.int16)
+    assert np.abs(texture - atlas).mean() < 2.5
+
+
 def test_small_variant_budgets(small_scene):
     meta, mesh = small_scene
     area = meta["valid_area_m"]
