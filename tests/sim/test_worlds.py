@@ -268,3 +268,28 @@ def test_oblique_views_from_the_orbit_match_with_sift(small_scene, radius_m, hei
     points_b = np.float32([keys_b[g.trainIdx].pt for g in good])
     _, inliers = cv2.findFundamentalMat(points_a, points_b, cv2.FM_RANSAC, 1.0, 0.999)
     assert int(inliers.sum()) >= 100, int(inliers.sum())  # 138-236 at 50 m, 330-360 at 100 m, seen
+
+
+def test_command_line_builds_into_a_folder_or_the_cache(tmp_path, monkeypatch, capsys, small_world):
+    from sim.worlds.__main__ import main
+
+    assert main([str(tmp_path / "cli"), "--variant", "small"]) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "cli")
+    assert _folder_bytes(tmp_path / "cli") == _folder_bytes(small_world)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(demo, "build_demo_world", lambda *args: pytest.fail("the cache must not be rebuilt"))
+    (tmp_path / "cache" / "aerostereo" / "worlds").mkdir(parents=True)
+    (tmp_path / "cache" / "aerostereo" / "worlds" / f"small-3-v{demo.GENERATOR_VERSION}").symlink_to(small_world)
+    assert main(["--variant", "small", "--seed", "3"]) == 0
+    assert capsys.readouterr().out.strip().endswith(f"small-3-v{demo.GENERATOR_VERSION}")
+
+
+@pytest.mark.parametrize("argv", [["--seed", "-2"], ["--variant", "huge"], ["--seed", "x"]])
+def test_command_line_rejects_bad_arguments_with_exit_code_2(argv, capsys):
+    from sim.worlds.__main__ import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err
