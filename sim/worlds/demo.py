@@ -25,7 +25,7 @@ from sim.worlds.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 
-GENERATOR_VERSION = 4
+GENERATOR_VERSION = 5
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
@@ -104,6 +104,7 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
             "triangles": int(len(mesh.faces)),
             "texture_px": int(layout.spec.texture_px),
             "buildings": len(layout.buildings),
+            "gable_roofs": sum(b.gable for b in layout.buildings),
             "trees": len(layout.trees),
             "roads": len(layout.roads),
         },
