@@ -1,0 +1,1 @@
+"""Stereo-dataset simulator: cameras, scenes, the embree ray caster, shading and rendering."""
