@@ -63,6 +63,16 @@ class PinholeCamera:
         """3x3 intrinsic matrix (float64)."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
+    def scaled(self, width: int) -> "PinholeCamera":
+        """The same lens and field of view at another image width (height rounded; distortion unchanged,
+        since it acts on normalised coordinates). Pixel centres keep the half-pixel convention."""
+        scale = width / self.width
+        height = max(1, round(self.height * scale))
+        return PinholeCamera(
+            self.fx * scale, self.fy * height / self.height, (self.cx + 0.5) * scale - 0.5,
+            (self.cy + 0.5) * height / self.height - 0.5, int(width), int(height), self.dist, self.model,
+        )
+
     @property
     def shape(self) -> tuple[int, int]:
         """Image shape ``(height, width)``."""
@@ -85,7 +95,7 @@ class PinholeCamera:
         pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
         if self.dist is None:
             return np.stack([(pixels[:, 0] - self.cx) / self.fx, (pixels[:, 1] - self.cy) / self.fy], axis=-1)
-        src = pixels.reshape(-1, 1, 2)
+        src = np.ascontiguousarray(pixels).reshape(-1, 1, 2)  # cv2.fisheye ignores strides of views
         dist = np.asarray(self.dist, dtype=np.float64)
         if self.model == "fisheye":
             out = cv2.fisheye.undistortPoints(src, self.K, dist, criteria=_UNDISTORT_CRITERIA)
