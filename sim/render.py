@@ -135,10 +135,10 @@ def _radiance(scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, execu
 
         def shade(block: slice) -> None:
             hit = hits.tri[block] >= 0
-            out = sky_radiance(rays.directions[block], lighting) * np.float32(lighting.exposure)
+            out = radiance[block]
+            out[~hit] = sky_radiance(rays.directions[block][~hit], lighting) * np.float32(lighting.exposure)
             albedo = surface_albedo(scene, hits.tri[block][hit], hits.u[block][hit], hits.v[block][hit])
             out[hit] = lambert(albedo, hits.normal[block][hit], sun, lit[block][hit], lighting)
-            radiance[block] = out
 
         map_blocks(shade, len(hits.t), executor)
     return radiance
