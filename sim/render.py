@@ -160,7 +160,7 @@ def _sunlit(scene: Scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, 
 
     def trace(block: slice) -> None:
         normals = hits.normal[block]
-        candidates = np.flatnonzero((hits.tri[block] >= 0) & (normals @ sun32[0] > 0))
+        candidates = np.flatnonzero((hits.tri[block] >= 0) & (np.einsum("ij,j->i", normals, sun32[0]) > 0))
         if not lighting.shadows:
             lit[block][candidates] = 1.0
             return
