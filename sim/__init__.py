@@ -1,1 +1,1 @@
-"""Stereo-dataset simulator: cameras, scenes, the embree ray caster, shading and rendering."""
+"""sim: cameras, scenes, the embree ray caster, datasets and the virtual drone."""

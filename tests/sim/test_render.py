@@ -159,7 +159,6 @@ def test_warping_the_right_view_with_true_disparity_reproduces_the_left():
             visible = left.valid & (u - disparity > 1) & (np.abs(depth_there / left.depth - 1) < 0.01)
         return np.abs(warped.astype(int) - left.rgb.astype(int))[visible].mean(), visible.mean()
 
-
     error, visible = warp_error(1.0)
     assert visible > 0.9 and error < 3.0
     assert warp_error(1.3)[0] > 2 * error  # the test can tell a wrong disparity
