@@ -31,9 +31,14 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
 SRGB8_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 
 
+#: Linear value quantised to 16 bits -> 8-bit sRGB code (0.05 code steps at the steep dark end).
+LINEAR16_TO_SRGB8 = np.round(linear_to_srgb(np.arange(65536) / 65535.0) * 255.0).astype(np.uint8)
+
+
 def to_srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB (rounded to nearest, clipped)."""
-    return np.round(linear_to_srgb(linear) * 255.0).astype(np.uint8)
+    """Linear RGB -> 8-bit sRGB (clipped; by table, within one code of exact rounding)."""
+    index = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0) * np.float32(65535.0) + np.float32(0.5)
+    return LINEAR16_TO_SRGB8[index.astype(np.int32)]
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ from sim.camera import PinholeCamera, Rig, camera_rays, look_at, project_world_p
 from sim.raycast import intersect, occluded
 from sim.render import Lighting, Sun, miss_fraction, render
 from sim.scene import Scene, Surface
-from sim.shade import linear_to_srgb, sample_bilinear
+from sim.shade import linear_to_srgb, sample_bilinear, to_srgb8
 from sim.synthetic import colored_scene, grid_mesh, height_field_scene, noise_texture
 
 CAMERA = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=(-0.2, 0.05, 0.001, -0.001, 0.0))
@@ -227,3 +227,10 @@ def test_rays_are_generated_in_image_order():
     rays = camera_rays(CAMERA, T)
     d_cam = rays.directions.astype(np.float64) @ T[:3, :3]
     assert d_cam[1, 0] > d_cam[0, 0] and d_cam[CAMERA.width, 1] > d_cam[0, 1]
+
+
+def test_film_encodes_linear_light_as_srgb_within_one_code():
+    linear = np.random.default_rng(0).random((1000, 3)) ** 3
+    exact = np.round(255 * linear_to_srgb(linear))
+    assert np.abs(to_srgb8(linear).astype(int) - exact).max() <= 1
+    np.testing.assert_array_equal(to_srgb8(np.array([-0.5, 0.0, 0.0031308 * 0.5, 1.0, 7.0])), [0, 0, 5, 255, 255])  # 12.92 * 0.0015654 * 255 = 5.2
