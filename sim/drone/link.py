@@ -146,6 +146,10 @@ class MissionClock(Clock):
         self.start_utc = start_utc or dt.datetime.now(dt.timezone.utc)
         self._anchor = time.monotonic()
 
+    def restart(self) -> None:
+        """Flight time 0 is now."""
+        self._anchor = time.monotonic()
+
     def flight_time_s(self) -> float:
         """Seconds of flight time since the start."""
         return (time.monotonic() - self._anchor) * self.speedup
