@@ -58,6 +58,7 @@ def add_fly_parser(subparsers) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now)")
     parser.add_argument("--photos", type=int, dest="photo_limit", help="render only the first N photos")
+    parser.add_argument("--logs", action="store_true", help="also write flight_log.csv (Litchi) and flight.srt")
     parser.set_defaults(handler=run_fly)
 
 
@@ -91,7 +92,7 @@ def run_fly(args) -> int:
         raise CliError(f"--photos {args.photo_limit}: expected a count >= 0")
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[args.noise](), seed=args.seed, start_utc=args.start_utc,
-                         photo_limit=args.photo_limit)
+                         photo_limit=args.photo_limit, logs=args.logs)
     scene = load_scene(scene_folder(args.scene))
     report = run_session(args.mission, scene, args.out, options)
     flight, photos = report.mission.flight, report.mission.photos

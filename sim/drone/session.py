@@ -2,7 +2,7 @@
 write the ground truth. What ``aerostereo-render fly`` runs.
 
 Output folder: ``photos/DJI_0001.JPG ...``, ``flight.duml`` + ``flight.duml.idx`` (the telemetry as received),
-``truth.json`` + ``truth.csv``. Order: the telemetry is delivered first (on a live link its clock fixes the
+``truth.json`` + ``truth.csv``, and with ``logs`` a Litchi-style ``flight_log.csv`` and ``flight.srt``. Order: the telemetry is delivered first (on a live link its clock fixes the
 flight's start time), then the photos are rendered with EXIF times on that same time line.
 
 Links: ``file`` writes the capture with simulated arrival times (send time, no latency); ``loop`` streams the
@@ -29,6 +29,7 @@ from capture.recorder import record
 from capture.transports import SerialSource
 from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
+from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import PhotoTimes, ground_height_ellipsoid_m, photo_camera, take_photos
@@ -51,6 +52,7 @@ class FlyOptions:
     seed: int = 0
     start_utc: dt.datetime | None = None
     photo_limit: int | None = None
+    logs: bool = False
     progress: bool = True
 
     def __post_init__(self) -> None:
@@ -139,6 +141,8 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
             stream_to_port(frames, options.port, clock, options.progress)
         write_raw_capture(frames, capture, clock.start_utc)
         sent = sum(len(frame.data) for frame in frames)
+    if options.logs:
+        write_flight_logs(mission, clock.start_utc, out_dir)
     camera = photo_camera(*options.photo_size)
     times = take_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
                         progress=options.progress)

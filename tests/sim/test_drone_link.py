@@ -13,6 +13,7 @@ import pytest
 from capture.attitude import gimbal_angles_from_camera
 from capture.duml import Deframer
 from capture.fakeusb import FakeUsbBackend
+from capture.logs import read_track
 from capture.logs.duml import read_duml_track
 from capture.logs.photos import read_photo
 from capture.messages import CameraState, default_registry, encode_message, is_shutter_edge
@@ -23,6 +24,7 @@ from flightplan.geodesy import LocalFrame, geodesic_direct
 from sim.cli import main
 from sim.drone import Imperfections, fly
 from sim.drone.link import MissionClock, duml_frames, stream, telemetry_messages, write_raw_capture
+from sim.drone.logs import write_flight_logs
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import photo_geotag, poses_in_scene, write_dji_jpeg
 from sim.drone.session import record_loopback, stream_to_port
@@ -229,3 +231,16 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     assert err.count("\n") == 0 and "scene.json not found" in err
     assert main(["fly", "--mission", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o")]) == 2
     assert "missing.csv: no such mission file" in capsys.readouterr().err
+
+
+def test_flight_logs_read_back_as_the_telemetry_sent(mission_csv, tmp_path):
+    mission = flown(mission_csv, Imperfections.realistic())
+    csv_path, srt_path = write_flight_logs(mission, START, tmp_path)
+    osd = mission.telemetry.osd
+    for path in (csv_path, srt_path):
+        track = read_track(path)
+        assert len(track) == len(osd)
+        np.testing.assert_allclose(track.time_s, [START.timestamp() + r.t_s for r in osd], atol=1e-3)
+        np.testing.assert_allclose(track["lat_deg"], [r.latitude_deg for r in osd], atol=1e-8)
+        np.testing.assert_allclose(track["height_above_takeoff_m"], [r.height_above_takeoff_m for r in osd], atol=1e-3)
+    assert len(read_track(csv_path).photo_times_s) == len(mission.telemetry.shutter)
