@@ -47,6 +47,23 @@ class CameraProfile:
         """Full field of view across the image height."""
         return math.degrees(2.0 * math.atan(0.5 * self.image_height_px / self.focal_length_px()))
 
+    def pinhole_intrinsics(self, image_width_px: int | None = None, image_height_px: int | None = None):
+        """``(fx, fy, cx, cy)`` in pixels for an image resized to ``image_width_px`` columns.
+
+        Square pixels, principal point at the image centre, pixel (0, 0) = centre of the top-left pixel (OpenCV),
+        so ``cx = (width - 1) / 2``. ``image_height_px`` defaults to the native aspect ratio; a different height
+        (e.g. the 16:9 mode, a crop of the 4:3 sensor) keeps the focal length.
+        """
+        width = self.image_width_px if image_width_px is None else image_width_px
+        height = round(width * self.image_height_px / self.image_width_px) if image_height_px is None else image_height_px
+        focal = self.focal_length_px(width)
+        return focal, focal, (width - 1) / 2.0, (height - 1) / 2.0
+
+    @property
+    def sensor_height_mm(self) -> float:
+        """Sensor height implied by the width and the native aspect ratio (square pixels)."""
+        return self.sensor_width_mm * self.image_height_px / self.image_width_px
+
     @property
     def focal_length_mm(self) -> float:
         """Physical focal length implied by the FOV and the sensor width."""

@@ -35,10 +35,12 @@ class MissionCheckError(ValueError):
         super().__init__("mission rejected: " + "; ".join(f.message for f in findings))
 
 
-def _outside(values: np.ndarray, low: float, high: float, severity: str, what: str, only=None) -> list[Finding]:
+def _outside(
+    values: np.ndarray, low: float, high: float, severity: str, what: str, only=None, row: str = "row"
+) -> list[Finding]:
     """One finding for all rows whose value is outside ``[low, high]``, naming the first of them.
 
-    ``only`` (boolean mask) restricts the check to some rows.
+    ``only`` (boolean mask) restricts the check to some rows; ``row`` is how an element is named ("leg from row").
     """
     bad_mask = (values < low) | (values > high)
     bad = np.flatnonzero(bad_mask if only is None else bad_mask & only)
@@ -48,7 +50,7 @@ def _outside(values: np.ndarray, low: float, high: float, severity: str, what: s
     return [
         Finding(
             severity,
-            f"{what} {values[first]:g} on row {first + 1} ({bad.size} row(s)) is outside {low:g}..{high:g}",
+            f"{what} {values[first]:g} on {row} {first + 1} ({bad.size} in all) is outside {low:g}..{high:g}",
         )
     ]
 
@@ -89,7 +91,8 @@ def _curve_findings(mission: litchi.Mission, legs: np.ndarray) -> list[Finding]:
 
 def _photo_interval_findings(mission: litchi.Mission) -> list[Finding]:
     findings = []
-    for column, what in (("photo_time_interval_s", "photo time interval (s)"), ("photo_dist_interval_m", "photo distance interval (m)")):
+    intervals = (("photo_time_interval_s", "photo time interval (s)"), ("photo_dist_interval_m", "photo distance interval (m)"))
+    for column, what in intervals:
         values = mission.column(column)
         enabled = values != litchi.DISABLED_INTERVAL
         findings += _outside(values, litchi.MIN_PHOTO_INTERVAL, litchi.MAX_PHOTO_INTERVAL, ERROR, what, only=enabled)
@@ -100,12 +103,20 @@ def _photo_interval_findings(mission: litchi.Mission) -> list[Finding]:
 
 
 def check_litchi_limits(mission: litchi.Mission) -> list[Finding]:
-    """Waypoint count, leg lengths, curve rules, speed, altitudes, gimbal pitch, actions, photo intervals."""
+    """Waypoint count, leg lengths, total distance, curve rules, speed, altitudes, gimbal pitch, actions, photo intervals."""
     count = len(mission)
     if not 1 <= count <= litchi.MAX_WAYPOINTS:
         return [Finding(ERROR, f"a Litchi mission holds 1..{litchi.MAX_WAYPOINTS} waypoints, this one has {count}")]
     legs = leg_lengths_m(mission)
-    findings = _outside(legs, litchi.MIN_LEG_M, litchi.MAX_LEG_M, ERROR, "length (m) of the leg from")
+    findings = _outside(legs, litchi.MIN_LEG_M, litchi.MAX_LEG_M, ERROR, "length (m)", row="the leg from row")
+    if legs.sum() > litchi.MAX_MISSION_DISTANCE_M:
+        findings.append(
+            Finding(
+                ERROR,
+                f"the mission is {legs.sum() / 1000:.2f} km long; DJI/Litchi missions are limited to "
+                f"{litchi.MAX_MISSION_DISTANCE_M / 1000:g} km",
+            )
+        )
     findings += _curve_findings(mission, legs)
     findings += _outside(mission.column("speed_m_s"), 0.0, litchi.MAX_SPEED_M_S, ERROR, "speed (m/s)")
     if (mission.column("speed_m_s") == 0.0).any():
@@ -116,8 +127,9 @@ def check_litchi_limits(mission: litchi.Mission) -> list[Finding]:
         mission.column("gimbal_pitch_deg"), litchi.MIN_GIMBAL_PITCH_DEG, litchi.MAX_GIMBAL_PITCH_DEG, ERROR, "gimbal pitch (deg)"
     )
     findings += _outside(mission.column("heading_deg"), 0.0, 360.0, ERROR, "heading (deg)")
-    findings += _outside(mission.column("latitude_deg"), -90.0, 90.0, ERROR, "latitude (deg)")
-    findings += _outside(mission.column("longitude_deg"), -180.0, 180.0, ERROR, "longitude (deg)")
+    for prefix in ("", "poi_"):
+        findings += _outside(mission.column(f"{prefix}latitude_deg"), -90.0, 90.0, ERROR, f"{prefix}latitude (deg)")
+        findings += _outside(mission.column(f"{prefix}longitude_deg"), -180.0, 180.0, ERROR, f"{prefix}longitude (deg)")
     action_counts = np.array([len(w.actions) for w in mission.waypoints], dtype=np.float64)
     findings += _outside(action_counts, 0, litchi.MAX_ACTIONS, ERROR, "number of actions")
     return findings + _photo_interval_findings(mission)
@@ -125,7 +137,7 @@ def check_litchi_limits(mission: litchi.Mission) -> list[Finding]:
 
 def check_aircraft(mission: litchi.Mission, aircraft: AircraftProfile, flight_time_s: float | None = None) -> list[Finding]:
     """Speed against the aircraft's maximum, photo cadence, gimbal range and (when given) flight time."""
-    findings = _outside(mission.column("speed_m_s"), 0.0, aircraft.max_speed_m_s, ERROR, f"speed (m/s) for the {aircraft.name}")
+    findings = _outside(mission.column("speed_m_s"), 0.0, aircraft.max_speed_m_s, ERROR, f"{aircraft.name} speed (m/s)")
     intervals = mission.column("photo_time_interval_s")
     too_fast = intervals[(intervals > 0) & (intervals < aircraft.min_timed_shot_interval_s)]
     if too_fast.size:
@@ -137,7 +149,7 @@ def check_aircraft(mission: litchi.Mission, aircraft: AircraftProfile, flight_ti
             )
         )
     low, high = aircraft.gimbal_pitch_range_deg
-    findings += _outside(mission.column("gimbal_pitch_deg"), low, high, WARNING, f"gimbal pitch (deg) for the {aircraft.name}")
+    findings += _outside(mission.column("gimbal_pitch_deg"), low, high, WARNING, f"{aircraft.name} gimbal pitch (deg)")
     if flight_time_s is not None and flight_time_s > aircraft.usable_flight_time_s:
         batteries = math.ceil(flight_time_s / aircraft.usable_flight_time_s)
         findings.append(

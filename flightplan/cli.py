@@ -62,29 +62,56 @@ def _ring(text: str) -> Ring:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog=PROGRAM, description=__doc__.split("\n\n")[0])
+    """The argument parser; its ``error`` raises :class:`UsageError` instead of exiting."""
+    parser = _Parser(
+        prog=PROGRAM,
+        description="Plan a circular orbit and export it as a Litchi Mission Hub CSV. "
+        "Heights are metres above take-off.",
+    )
     where = parser.add_argument_group("centre (WGS84 degrees)")
-    where.add_argument("--lat", type=_finite, help="latitude of the orbit centre / POI")
-    where.add_argument("--lon", type=_finite, help="longitude of the orbit centre / POI")
-    where.add_argument("--demo", action="store_true", help=f"centre on the built-in demo location ({DEMO_ORIGIN.lat0_deg}, {DEMO_ORIGIN.lon0_deg})")
+    where.add_argument("--lat", type=_finite, metavar="DEG", help="latitude of the orbit centre / POI")
+    where.add_argument("--lon", type=_finite, metavar="DEG", help="longitude of the orbit centre / POI")
+    where.add_argument(
+        "--demo",
+        action="store_true",
+        help=f"centre on the built-in demo location ({DEMO_ORIGIN.lat0_deg}, {DEMO_ORIGIN.lon0_deg})",
+    )
     orbit = parser.add_argument_group("orbit")
-    orbit.add_argument("--radius", type=_finite, help=f"metres (default {DEFAULT_RADIUS_M:g})")
-    orbit.add_argument("--height", type=_finite, help=f"metres above take-off (default {DEFAULT_HEIGHT_M:g})")
-    orbit.add_argument("--rings", type=_ring, nargs="+", metavar="R:H[:PITCH]", help="several rings instead of --radius/--height; PITCH fixes the gimbal (else it follows the POI)")
-    orbit.add_argument("--speed-kmh", type=_finite, default=DEFAULT_SPEED_M_S * 3.6, help="default 2.5")
-    orbit.add_argument("--interval", type=_finite, default=DEFAULT_PHOTO_INTERVAL_S, help="seconds between photos (default 1)")
-    orbit.add_argument("--waypoints", type=int, help="waypoints per ring (default: fewest within --tolerance)")
-    orbit.add_argument("--tolerance", type=_finite, default=DEFAULT_DEVIATION_TOLERANCE_M, help="max deviation of the flown path from the circle, m (default 0.25)")
+    orbit.add_argument("--radius", type=_finite, metavar="M", help=f"metres (default {DEFAULT_RADIUS_M:g})")
+    orbit.add_argument(
+        "--height", type=_finite, metavar="M", help=f"metres above take-off (default {DEFAULT_HEIGHT_M:g})"
+    )
+    orbit.add_argument(
+        "--rings",
+        type=_ring,
+        nargs="+",
+        metavar="R:H[:PITCH]",
+        help="several rings instead of --radius/--height; PITCH fixes the gimbal (else it follows the POI)",
+    )
+    orbit.add_argument("--speed-kmh", type=_finite, default=DEFAULT_SPEED_M_S * 3.6, metavar="KMH", help="default 2.5")
+    orbit.add_argument(
+        "--interval", type=_finite, default=DEFAULT_PHOTO_INTERVAL_S, metavar="S", help="seconds between photos (default 1)"
+    )
+    orbit.add_argument("--waypoints", type=int, metavar="N", help="per ring (default: the fewest within --tolerance)")
+    orbit.add_argument(
+        "--tolerance",
+        type=_finite,
+        default=DEFAULT_DEVIATION_TOLERANCE_M,
+        metavar="M",
+        help="max deviation of the flown path from the circle (default 0.25)",
+    )
     orbit.add_argument("--direction", choices=("cw", "ccw"), default="cw")
-    orbit.add_argument("--start-bearing", type=_finite, default=0.0, help="bearing of the first waypoint from the centre, deg")
-    orbit.add_argument("--poi-height", type=_finite, default=0.0, help="POI height above take-off, m (default 0)")
-    orbit.add_argument("--legal-height", type=_finite, default=LEGAL_MAX_HEIGHT_M, help="height limit above take-off, m (default 120: EU/US)")
+    orbit.add_argument("--start-bearing", type=_finite, default=0.0, metavar="DEG", help="of the first waypoint (default 0)")
+    orbit.add_argument("--poi-height", type=_finite, default=0.0, metavar="M", help="above take-off (default 0)")
+    orbit.add_argument(
+        "--legal-height", type=_finite, default=LEGAL_MAX_HEIGHT_M, metavar="M", help="above take-off (default 120: EU/US)"
+    )
     out = parser.add_argument_group("outputs")
-    out.add_argument("--out", type=Path, required=True, help="Litchi CSV to write")
-    out.add_argument("--kml", type=Path, help="KML preview (Google Earth)")
-    out.add_argument("--geojson", type=Path, help="GeoJSON preview")
-    out.add_argument("--plot", type=Path, help="PNG plot")
-    out.add_argument("--summary-json", type=Path, help="summary as JSON")
+    out.add_argument("--out", type=Path, required=True, metavar="CSV", help="Litchi CSV to write")
+    out.add_argument("--kml", type=Path, metavar="F", help="KML preview (Google Earth)")
+    out.add_argument("--geojson", type=Path, metavar="F", help="GeoJSON preview")
+    out.add_argument("--plot", type=Path, metavar="PNG", help="PNG plot")
+    out.add_argument("--summary-json", type=Path, metavar="F", help="summary as JSON")
     return parser
 
 
@@ -100,9 +127,9 @@ def request_from_args(args: argparse.Namespace) -> OrbitRequest:
         lat, lon = args.lat, args.lon
     if args.rings and (args.radius is not None or args.height is not None):
         raise UsageError("--rings replaces --radius/--height; give one or the other")
-    rings = tuple(args.rings) if args.rings else (
-        Ring(DEFAULT_RADIUS_M if args.radius is None else args.radius, DEFAULT_HEIGHT_M if args.height is None else args.height),
-    )
+    radius = DEFAULT_RADIUS_M if args.radius is None else args.radius
+    height = DEFAULT_HEIGHT_M if args.height is None else args.height
+    rings = tuple(args.rings) if args.rings else (Ring(radius, height),)
     return OrbitRequest(
         center_lat_deg=lat,
         center_lon_deg=lon,

@@ -32,7 +32,8 @@ ACTION_TAKE_PHOTO = 1
 
 # Limits a mission must respect to import and fly (research/litchi.md sections 1.2 and 1.4; [FLim], [HD4N]).
 MAX_WAYPOINTS = 99
-MIN_LEG_M, MAX_LEG_M = 0.6, 1999.0
+MIN_LEG_M, MAX_LEG_M = 0.6, 1999.0  # 3-D distance between consecutive waypoints
+MAX_MISSION_DISTANCE_M = 30_000.0  # cumulative length of all legs [FLim]
 MIN_CURVE_M, MAX_CURVE_M = 0.2, 1000.0  # 0.2 m (the DJI minimum) is what Litchi writes for "no curve"
 CURVE_CLEARANCE_M = 1.0  # curve_i + curve_(i+1) + 1 m <= leg length [HD4N]
 MAX_SPEED_M_S = 15.0
@@ -53,7 +54,7 @@ class Waypoint:
     longitude_deg: float
     altitude_m: float = 0.0
     heading_deg: float = 0.0
-    curve_size_m: float = 0.2
+    curve_size_m: float = MIN_CURVE_M
     rotation_dir: int = ROTATION_CW
     gimbal_mode: int = GIMBAL_DISABLED
     gimbal_pitch_deg: float = 0.0
@@ -239,4 +240,10 @@ def parse_mission_csv(text: str, source: str = "<text>") -> Mission:
 def read_mission_csv(path: str | Path) -> Mission:
     """Read a Litchi Mission Hub CSV (metric or imperial) into a :class:`Mission` with metric units."""
     path = Path(path)
-    return parse_mission_csv(path.read_text(encoding="utf-8"), source=str(path))
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as error:
+        line = raw.count(b"\n", 0, error.start) + 1
+        raise LitchiFormatError(f"{path}:{line}: byte offset {error.start} is not UTF-8 text") from None
+    return parse_mission_csv(text, source=str(path))

@@ -3,7 +3,8 @@
 KML and GeoJSON carry WGS84 degrees; their third coordinate is the height **above take-off** in metres
 (KML ``relativeToGround``, exact where the ground is level with the take-off point). Lines that cross the
 antimeridian are cut there (RFC 7946 section 3.1.9), so viewers do not draw them around the globe.
-The PNG (matplotlib's Agg canvas, no display needed) shows the plan in the local ENU plane of the POI (metres), with the modelled flown path.
+The PNG (matplotlib's Agg canvas, no display needed) shows the plan in the local ENU plane of the POI (metres),
+with the modelled flown path.
 All writers are atomic.
 """
 
@@ -134,7 +135,10 @@ def mission_to_geojson(mission: litchi.Mission) -> dict:
         poi = [
             {
                 "type": "Feature",
-                "geometry": {"type": "Point", "coordinates": [first.poi_longitude_deg, first.poi_latitude_deg, first.poi_altitude_m]},
+                "geometry": {
+                    "type": "Point",
+                    "coordinates": [first.poi_longitude_deg, first.poi_latitude_deg, first.poi_altitude_m],
+                },
                 "properties": {"name": "POI", "height_above_takeoff_m": first.poi_altitude_m},
             }
         ]
@@ -142,21 +146,25 @@ def mission_to_geojson(mission: litchi.Mission) -> dict:
 
 
 def write_kml(mission: litchi.Mission, path: str | Path, name: str = "aerostereo mission") -> Path:
+    """Write :func:`mission_to_kml` to ``path`` atomically."""
     return write_text_atomic(path, mission_to_kml(mission, name))
 
 
 def write_geojson(mission: litchi.Mission, path: str | Path) -> Path:
+    """Write :func:`mission_to_geojson` to ``path`` atomically."""
     return write_text_atomic(path, json.dumps(mission_to_geojson(mission), indent=1) + "\n")
 
 
-def write_plot_png(mission: litchi.Mission, center_lat_deg: float, center_lon_deg: float, path: str | Path, title: str = "") -> Path:
+def write_plot_png(
+    mission: litchi.Mission, center_lat_deg: float, center_lon_deg: float, path: str | Path, title: str = ""
+) -> Path:
     """Top view in the POI's ENU plane: waypoints, the modelled flown path, the start and the POI."""
     frame = LocalFrame(center_lat_deg, center_lon_deg, 0.0)
     lat, lon = mission.column("latitude_deg"), mission.column("longitude_deg")
     east, north, _ = frame.to_enu(lat, lon, np.zeros_like(lat))
     vertices = np.stack([east, north], axis=-1)
     flown = flown_path.curved_turns_path(vertices, mission.column("curve_size_m"))
-    figure = Figure(figsize=(7, 7), dpi=100)  # Agg canvas, no pyplot state
+    figure = Figure(figsize=(7, 7), dpi=100, layout="constrained")  # Agg canvas, no pyplot state
     axes = figure.subplots()
     axes.plot(flown[:, 0], flown[:, 1], "-", color="tab:orange", lw=1.5, label="modelled flown path")
     axes.plot(east, north, "o", color="tab:blue", ms=3, label="waypoints")
@@ -169,7 +177,7 @@ def write_plot_png(mission: litchi.Mission, center_lat_deg: float, center_lon_de
     axes.set_ylabel("north (m)")
     axes.set_title(title or f"orbit around {center_lat_deg:.6f}, {center_lon_deg:.6f}", fontsize=9)
     axes.grid(True, lw=0.3)
-    axes.legend(loc="upper right", fontsize=8)
+    axes.legend(loc="upper center", bbox_to_anchor=(0.5, -0.08), ncol=4, fontsize=8)
     with atomic_path(path) as temporary:
         figure.savefig(temporary, format="png")
     return Path(path)

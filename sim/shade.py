@@ -110,6 +110,6 @@ def lambert(
     albedo: np.ndarray, normals: np.ndarray, sun: Sun, lit: np.ndarray, lighting: Lighting
 ) -> np.ndarray:
     """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals."""
-    cosine = np.clip(normals @ sun.direction_enu.astype(np.float32), 0.0, None) * lit
+    cosine = np.clip(np.einsum("ij,j->i", normals, sun.direction_enu.astype(np.float32)), 0.0, None) * lit
     irradiance = sun.intensity * cosine + lighting.ambient
     return albedo * (irradiance * lighting.exposure)[:, None].astype(np.float32)

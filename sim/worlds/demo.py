@@ -15,21 +15,21 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-import trimesh
 from PIL import Image
 
 from flightplan.demo_location import DEMO_ORIGIN
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
 from sim.worlds.geometry import Part, world_part
+from sim.worlds.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 
-GENERATOR_VERSION = 1
+GENERATOR_VERSION = 2
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
-JPEG_QUALITY = 92
+JPEG_QUALITY = 95
 
 
 def _spec(variant: str) -> WorldSpec:
@@ -63,12 +63,7 @@ def encode_glb(mesh: Part, atlas: np.ndarray) -> bytes:
     """Binary glTF of the mesh (positions as given, no axis change) with the atlas as one embedded JPEG."""
     buffer = io.BytesIO()
     Image.fromarray(atlas).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
-    texture = Image.open(io.BytesIO(buffer.getvalue()))  # format "JPEG": trimesh embeds these bytes unchanged
-    material = trimesh.visual.material.PBRMaterial(baseColorTexture=texture, metallicFactor=0.0,
-                                                   roughnessFactor=1.0)
-    visual = trimesh.visual.TextureVisuals(uv=mesh.uv, material=material)
-    tri = trimesh.Trimesh(mesh.vertices, mesh.faces, visual=visual, process=False)
-    return trimesh.exchange.gltf.export_glb(trimesh.Scene(tri), include_normals=False)
+    return encode_textured_glb(mesh.vertices, mesh.faces, mesh.uv, buffer.getvalue(), generator="sim.worlds.demo")
 
 
 def ground_height_range(layout: Layout, mesh: Part) -> tuple[float, float]:

@@ -88,7 +88,8 @@ def paint_village_lawn(rng: np.random.Generator, image: np.ndarray, layout: Layo
     distance = np.hypot(x - np.float32(layout.village_center[0]), y - np.float32(layout.village_center[1]))
     ragged = radius + 10.0 * value_noise(rng, distance.shape, _px(30.0, spec))
     weight = np.clip((ragged - distance) / 6.0, 0.0, 1.0)[..., None]
-    lawn = np.array([86, 124, 54], np.float32) * (1 + 0.12 * value_noise(rng, distance.shape, _px(4.0, spec)))[..., None]
+    lawn_noise = 1 + 0.12 * value_noise(rng, distance.shape, _px(4.0, spec))
+    lawn = np.array([86, 124, 54], np.float32) * lawn_noise[..., None]
     image *= 1 - weight
     image += weight * lawn
 
