@@ -4,10 +4,11 @@
 Streaming design: pyserial's ``loop://`` is per instance and ``record`` opens its own port, so the link is
 TCP: the drone writes with ``serial.serial_for_url("socket://...")`` to a relay in the test, which forwards
 to the ``record`` command's own ``socket://`` port -- both ends are the real pyserial code paths, and
-``record`` runs through its CLI (parser, SerialSource, recorder, raw capture writer). The flight is paced 8x
+``record`` runs through its CLI (parser, SerialSource, recorder, raw capture writer). The flight is paced 5x
 faster than real time; ``record`` stamps arrivals with the host clock, which here is the drone's
 :class:`MissionClock` at the same speed-up (injected through ``capture.transports.Clock``, the transports'
-clock seam), so arrival times and the photos' EXIF share one time line as they do on a real flight.
+clock seam), so arrival times and the photos' EXIF share one time line as they do on a real flight. ``record``
+stops when every byte sent has arrived (its stop event, instead of a guessed ``--duration``).
 """
 
 from __future__ import annotations
@@ -18,11 +19,13 @@ import json
 import math
 import socket
 import threading
+import time
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
+import capture.cli
 import capture.transports
 from capture.cli import main as ingest
 from sim.drone import Imperfections
@@ -33,7 +36,7 @@ from sim.scene import load_scene
 from sim.worlds.demo import build_demo_world
 from tests.sim.drone_helpers import short_orbit_csv
 
-SPEEDUP = 8.0
+SPEEDUP = 5.0
 START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)
 
 
@@ -56,22 +59,27 @@ def test_virtual_flight_streamed_to_record_geotags_within_the_noise_model(tmp_pa
 
     clock = MissionClock(SPEEDUP, START)
     monkeypatch.setattr(capture.transports, "Clock", lambda: clock)
+    received_all = threading.Event()  # record stops when everything arrived, not after a guessed duration
+    monkeypatch.setattr(capture.cli, "stop_after", lambda duration_s: received_all)
     server = socket.create_server(("127.0.0.1", 0))
     port = server.getsockname()[1]
-    relay_thread = threading.Thread(target=relay, args=(server,), daemon=True)
-    relay_thread.start()
+    threading.Thread(target=relay, args=(server,), daemon=True).start()
     capture_path = tmp_path / "received.duml"
-    duration_s = mission.flight.duration_s / SPEEDUP + 2.0
-    recorder = threading.Thread(target=ingest, args=(["record", "--port", f"socket://127.0.0.1:{port}", "--duration",
-                                                      f"{duration_s:.1f}", "--out", str(capture_path)],))
+    recorder = threading.Thread(target=ingest, args=(["record", "--port", f"socket://127.0.0.1:{port}",
+                                                      "--out", str(capture_path)],))
     recorder.start()
     while not capture_path.exists():  # record creates the capture after opening its port (the relay's 1st accept)
         threading.Event().wait(0.01)
     clock.restart()
     sent = stream_to_port(frames, f"socket://127.0.0.1:{port}", clock, progress=False)
-    recorder.join(timeout=duration_s + 10)
+    for _ in range(400):  # at most 20 s for the last bytes to pass the relay
+        if capture_path.stat().st_size >= sent:
+            break
+        time.sleep(0.05)
+    received_all.set()
+    recorder.join(timeout=30)
     server.close()
-    assert capture_path.read_bytes() == b"".join(f.data for f in frames) and sent > 0
+    assert capture_path.read_bytes() == b"".join(f.data for f in frames)
 
     photos_dir = tmp_path / "photos"
     take_photos(mission, scene, photos_dir, photo_camera(160, 120), START, progress=False)
