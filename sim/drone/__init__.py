@@ -20,11 +20,11 @@ from sim.drone.imperfections import Imperfections, damage_bytes
 from sim.drone.mission import HomePoint, Waypoint
 from sim.drone.schedule import Telemetry, TelemetryRates, telemetry_schedule
 from sim.drone.sensors import Sensors
-from sim.drone.truth import Photos, r_world_cam_from_gimbal, take_photos, write_truth
+from sim.drone.truth import Photos, take_photos, write_truth
 
 __all__ = [
     "Flight", "FlightConfig", "FlightState", "FlownMission", "HomePoint", "Imperfections", "Photos", "Telemetry",
-    "TelemetryRates", "Waypoint", "fly", "r_world_cam_from_gimbal", "write_truth",
+    "TelemetryRates", "Waypoint", "fly", "write_truth",
 ]
 
 
