@@ -1,0 +1,254 @@
+"""Cameras, rigs, poses and ray generation (the renderer's "camera" stage).
+
+Conventions (one home, see DESIGN.md): camera axes are OpenCV (x right, y down, z forward); pixel
+(0, 0) is the *centre* of the top-left pixel; a pose ``T_world_cam`` is a 4x4 float64 camera-to-world
+transform in the scene's local ENU frame (metres). Lens distortion follows OpenCV: ``model="pinhole"``
+takes ``(k1, k2, p1, p2, k3)``, ``model="fisheye"`` takes the equidistant ``(k1, k2, k3, k4)``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import cv2
+import numpy as np
+
+MODELS = ("pinhole", "fisheye")
+_DIST_LENGTH = {"pinhole": 5, "fisheye": 4}
+#: Undistortion iterations/tolerance: enough for < 1e-6 px round trips at moderate distortion.
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 200, 1e-14)
+
+
+@dataclass(frozen=True)
+class PinholeCamera:
+    """Intrinsics of one camera: focal lengths and principal point in pixels, image size, optional distortion."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+    dist: tuple[float, ...] | None = None
+    model: str = "pinhole"
+
+    def __post_init__(self) -> None:
+        if self.model not in MODELS:
+            raise ValueError(f"camera model must be one of {MODELS}, got {self.model!r}")
+        if not (self.fx > 0 and self.fy > 0):
+            raise ValueError(f"focal lengths must be positive, got fx={self.fx}, fy={self.fy}")
+        if int(self.width) <= 0 or int(self.height) <= 0:
+            raise ValueError(f"image size must be positive, got {self.width}x{self.height}")
+        if self.dist is not None:
+            dist = tuple(float(c) for c in self.dist)
+            if len(dist) != _DIST_LENGTH[self.model]:
+                raise ValueError(
+                    f"{self.model} distortion needs {_DIST_LENGTH[self.model]} coefficients, got {len(dist)}"
+                )
+            object.__setattr__(self, "dist", None if not any(dist) else dist)
+
+    @classmethod
+    def from_fov(cls, width: int, height: int, hfov_deg: float, **kwargs) -> "PinholeCamera":
+        """Square-pixel camera with the given horizontal field of view and the principal point at the centre."""
+        if not 0.0 < hfov_deg < 180.0:
+            raise ValueError(f"horizontal field of view must be in (0, 180) degrees, got {hfov_deg}")
+        f = 0.5 * width / math.tan(math.radians(hfov_deg) / 2.0)
+        return cls(f, f, (width - 1) / 2.0, (height - 1) / 2.0, int(width), int(height), **kwargs)
+
+    @property
+    def K(self) -> np.ndarray:
+        """3x3 intrinsic matrix (float64)."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Image shape ``(height, width)``."""
+        return int(self.height), int(self.width)
+
+    def pixel_centres(self) -> np.ndarray:
+        """``(H*W, 2)`` float64 pixel-centre coordinates ``(u, v)`` in image (row-major) order."""
+        v, u = np.mgrid[0 : self.height, 0 : self.width]
+        return np.stack([u.ravel(), v.ravel()], axis=-1).astype(np.float64)
+
+    @cached_property
+    def centre_directions(self) -> np.ndarray:
+        """Read-only ``(H*W, 3)`` float32 unit camera-frame directions through all pixel centres (image order)."""
+        directions = self.ray_directions(self.pixel_centres()).astype(np.float32)
+        directions.flags.writeable = False
+        return directions
+
+    def pixels_to_normalized(self, pixels: np.ndarray) -> np.ndarray:
+        """Pixels ``(N, 2)`` -> undistorted normalised image coordinates ``(x/z, y/z)``, shape ``(N, 2)``."""
+        pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if self.dist is None:
+            return np.stack([(pixels[:, 0] - self.cx) / self.fx, (pixels[:, 1] - self.cy) / self.fy], axis=-1)
+        src = pixels.reshape(-1, 1, 2)
+        dist = np.asarray(self.dist, dtype=np.float64)
+        if self.model == "fisheye":
+            out = cv2.fisheye.undistortPoints(src, self.K, dist, criteria=_UNDISTORT_CRITERIA)
+        else:
+            out = cv2.undistortPoints(src, self.K, dist, criteria=_UNDISTORT_CRITERIA)
+        return out.reshape(-1, 2)
+
+    def normalized_to_pixels(self, xy: np.ndarray) -> np.ndarray:
+        """Normalised image coordinates ``(N, 2)`` -> distorted pixel coordinates ``(N, 2)``."""
+        xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
+        if self.dist is None:
+            return np.stack([self.fx * xy[:, 0] + self.cx, self.fy * xy[:, 1] + self.cy], axis=-1)
+        points = np.concatenate([xy, np.ones((len(xy), 1))], axis=1).reshape(-1, 1, 3)
+        zero = np.zeros(3)
+        dist = np.asarray(self.dist, dtype=np.float64)
+        if self.model == "fisheye":
+            out, _ = cv2.fisheye.projectPoints(points, zero, zero, self.K, dist)
+        else:
+            out, _ = cv2.projectPoints(points, zero, zero, self.K, dist)
+        return out.reshape(-1, 2)
+
+    def ray_directions(self, pixels: np.ndarray) -> np.ndarray:
+        """Unit ray directions ``(N, 3)`` in the camera frame through the given (distorted) pixels."""
+        xy = self.pixels_to_normalized(pixels)
+        rays = np.concatenate([xy, np.ones((len(xy), 1))], axis=1)
+        return rays / np.linalg.norm(rays, axis=1, keepdims=True)
+
+    def project(self, points_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Camera-frame points ``(N, 3)`` -> ``(pixels (N, 2), z (N,))``; pixels are NaN where ``z <= 0``."""
+        points_cam = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
+        z = points_cam[:, 2]
+        in_front = z > 0
+        xy = np.full((len(z), 2), np.nan)
+        xy[in_front] = points_cam[in_front, :2] / z[in_front, None]
+        pixels = np.full_like(xy, np.nan)
+        pixels[in_front] = self.normalized_to_pixels(xy[in_front])
+        return pixels, z
+
+
+@dataclass(frozen=True)
+class Rig:
+    """Cameras mounted on one rigid body; ``T_rig_cam[i]`` is camera i's 4x4 pose in the rig frame."""
+
+    cameras: tuple[PinholeCamera, ...]
+    T_rig_cam: tuple[np.ndarray, ...] = field(default=())
+
+    def __post_init__(self) -> None:
+        cameras = tuple(self.cameras)
+        poses = tuple(np.asarray(T, dtype=np.float64) for T in self.T_rig_cam) or tuple(np.eye(4) for _ in cameras)
+        if len(poses) != len(cameras) or not cameras:
+            raise ValueError(f"a rig needs one pose per camera, got {len(cameras)} cameras, {len(poses)} poses")
+        for T in poses:
+            check_pose(T)
+        object.__setattr__(self, "cameras", cameras)
+        object.__setattr__(self, "T_rig_cam", poses)
+
+    @classmethod
+    def stereo(cls, camera: PinholeCamera, baseline_m: float) -> "Rig":
+        """Two identical cameras: camera 0 at the rig origin, camera 1 ``baseline_m`` along camera x (right)."""
+        if not baseline_m > 0:
+            raise ValueError(f"stereo baseline must be positive, got {baseline_m}")
+        right = np.eye(4)
+        right[0, 3] = baseline_m
+        return cls((camera, camera), (np.eye(4), right))
+
+    def camera_poses(self, T_world_rig: np.ndarray) -> list[np.ndarray]:
+        """World poses ``T_world_cam`` of every camera for a rig pose ``T_world_rig``."""
+        T_world_rig = check_pose(T_world_rig)
+        return [T_world_rig @ T for T in self.T_rig_cam]
+
+
+def check_pose(T: np.ndarray) -> np.ndarray:
+    """Return ``T`` as float64 4x4 after checking it is a rigid transform (orthonormal rotation, last row 0 0 0 1)."""
+    T = np.asarray(T, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise ValueError(f"pose must be a finite 4x4 matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0 or not np.allclose(T[3], [0, 0, 0, 1]):
+        raise ValueError("pose must be rigid: orthonormal right-handed rotation and last row [0, 0, 0, 1]")
+    return T
+
+
+def pose_from_position(position_enu: np.ndarray, R_world_cam: np.ndarray) -> np.ndarray:
+    """``T_world_cam`` from a camera position (ENU metres) and rotation ``R_world_cam`` (ENU <- OpenCV camera)."""
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(R_world_cam, dtype=np.float64)
+    T[:3, 3] = np.asarray(position_enu, dtype=np.float64)
+    return check_pose(T)
+
+
+def look_at(eye_enu, target_enu, up_enu=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """``T_world_cam`` of a camera at ``eye`` looking at ``target`` with image-up as close to ``up`` as possible.
+
+    For a view along ``up`` (e.g. nadir), image-up is taken as north (+y ENU) instead.
+    """
+    eye = np.asarray(eye_enu, dtype=np.float64)
+    forward = np.asarray(target_enu, dtype=np.float64) - eye
+    if np.linalg.norm(forward) == 0:
+        raise ValueError("look_at: eye and target coincide")
+    z = forward / np.linalg.norm(forward)
+    up = np.asarray(up_enu, dtype=np.float64)
+    if np.linalg.norm(np.cross(z, up)) < 1e-9 * np.linalg.norm(up):
+        up = np.array([0.0, 1.0, 0.0]) if abs(z[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(z, up)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return pose_from_position(eye, np.stack([x, y, z], axis=1))
+
+
+def stratified_offsets(samples_per_pixel: int, n_pixels: int, rng: np.random.Generator) -> Iterator[np.ndarray]:
+    """Yield, per sample, sub-pixel offsets ``(n_pixels, 2)`` in [-0.5, 0.5) from the pixel centres.
+
+    One sample (spp = 1) is the pixel centre. Otherwise each pixel gets a Latin-hypercube (n-rooks)
+    pattern: sample k lies in x-stratum k and in a per-pixel random permutation of the y-strata, jittered
+    uniformly inside its cell, so every row and every column stratum of a pixel holds exactly one sample.
+    """
+    n = int(samples_per_pixel)
+    if n < 1 or n > 65535:
+        raise ValueError(f"samples_per_pixel must be in [1, 65535], got {samples_per_pixel}")
+    if n == 1:
+        yield np.zeros((n_pixels, 2))
+        return
+    strata_y = rng.permuted(np.broadcast_to(np.arange(n, dtype=np.uint16)[:, None], (n, n_pixels)), axis=0)
+    for k in range(n):
+        jitter = rng.random((n_pixels, 2))
+        yield np.stack([k + jitter[:, 0], strata_y[k] + jitter[:, 1]], axis=-1) / n - 0.5
+
+
+@dataclass(frozen=True)
+class Rays:
+    """World-frame rays of one camera in image (row-major) order.
+
+    ``origin`` is the ``(1, 3)`` float64 ENU camera centre shared by all rays, ``directions`` ``(N, 3)``
+    float32 unit vectors in ENU, ``depth_scale`` ``(N,)`` float32 the z component of each camera-frame
+    direction (planar depth = ray length * depth_scale).
+    """
+
+    origin: np.ndarray
+    directions: np.ndarray
+    depth_scale: np.ndarray
+
+
+def camera_rays(camera: PinholeCamera, T_world_cam: np.ndarray, offsets: np.ndarray | None = None) -> Rays:
+    """Rays through every pixel of ``camera`` at ``T_world_cam``: pixel centres, or centres plus
+    ``(H*W, 2)`` sub-pixel ``offsets``. Centre directions are computed once per camera object and reused."""
+    T_world_cam = check_pose(T_world_cam)
+    if offsets is None:
+        dirs_cam = camera.centre_directions
+    else:
+        dirs_cam = camera.ray_directions(camera.pixel_centres() + offsets).astype(np.float32)
+    dirs_world = dirs_cam @ T_world_cam[:3, :3].T.astype(np.float32)
+    return Rays(T_world_cam[None, :3, 3], dirs_world, dirs_cam[:, 2])
+
+
+def rig_rays(rig: Rig, T_world_rig: np.ndarray, offsets: list[np.ndarray | None] | None = None) -> list[Rays]:
+    """Rays of every camera of ``rig`` at ``T_world_rig`` (one :class:`Rays` per camera, in rig order)."""
+    poses = rig.camera_poses(T_world_rig)
+    offsets = offsets or [None] * len(poses)
+    return [camera_rays(cam, T, off) for cam, T, off in zip(rig.cameras, poses, offsets)]
+
+
+def project_world_points(camera: PinholeCamera, T_world_cam: np.ndarray, points_world: np.ndarray):
+    """World points ``(N, 3)`` -> ``(pixels (N, 2), planar depth z (N,))`` for a camera at ``T_world_cam``."""
+    T_cam_world = np.linalg.inv(check_pose(T_world_cam))
+    points = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
+    return camera.project(points @ T_cam_world[:3, :3].T + T_cam_world[:3, 3])

@@ -1,0 +1,206 @@
+"""Scenes: a triangle mesh with its texture in local ENU metres, recentred and built into embree once.
+
+A scene folder holds ``scene.json`` and the mesh it names (see INTERFACES.md). Vertices are converted
+in float64 (``ENU = stored - vertex_offset_m``, glTF y-up rotated to z-up), then *recentred* on the
+mesh's bounding-box centre and only then cast to float32 for embree: float32 has ~0.5 m spacing at
+UTM northings, a few micrometres near the origin.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from embreex import mesh_construction, rtcore, rtcore_scene
+from PIL import Image
+
+from flightplan.geodesy import LocalFrame
+
+SCENE_FORMAT = "aerostereo-scene/1"
+#: glTF "y up" (x east, y up, z south) -> ENU (east, north, up).
+_Y_UP_TO_ENU = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+class SceneError(ValueError):
+    """A scene folder, scene.json or mesh that cannot be used; the message names the file and the problem."""
+
+
+@dataclass(frozen=True)
+class Surface:
+    """How a mesh is coloured: a texture with per-vertex UVs, or per-vertex colours (both sRGB uint8)."""
+
+    texture: np.ndarray | None = None
+    uv: np.ndarray | None = None
+    vertex_colors: np.ndarray | None = None
+
+
+@dataclass
+class Scene:
+    """A ray-castable mesh in local ENU metres.
+
+    ``vertices`` are float64 ENU, ``faces`` int32 (degenerate triangles removed), ``centre_m`` the
+    float64 ENU point subtracted before the float32 cast, ``bounds`` the ``(2, 3)`` ENU box
+    ``[min, max]`` of the triangles; ``embree`` is the committed embree scene
+    in those recentred float32 coordinates. ``origin`` is the geodetic origin of the ENU frame.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    surface: Surface
+    origin: LocalFrame | None = None
+    valid_area_m: dict | None = None
+    source: str = "<memory>"
+    centre_m: np.ndarray = field(init=False)
+    bounds: np.ndarray = field(init=False)
+    embree: rtcore_scene.EmbreeScene = field(init=False, repr=False)
+    device: rtcore.EmbreeDevice | None = field(default=None, repr=False)
+
+    def __post_init__(self) -> None:
+        self.vertices = np.asarray(self.vertices, dtype=np.float64)
+        if self.vertices.ndim != 2 or self.vertices.shape[1] != 3 or not np.all(np.isfinite(self.vertices)):
+            raise SceneError(f"{self.source}: vertices must be a finite (N, 3) array")
+        faces = np.asarray(self.faces, dtype=np.int64).reshape(-1, 3)
+        if len(faces) == 0 or faces.min() < 0 or faces.max() >= len(self.vertices):
+            raise SceneError(f"{self.source}: faces must index the {len(self.vertices)} vertices")
+        lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
+        self.centre_m = (lo + hi) / 2.0
+        local32 = (self.vertices - self.centre_m).astype(np.float32)
+        self.faces = _drop_degenerate(local32, faces).astype(np.int32)
+        if len(self.faces) == 0:
+            raise SceneError(f"{self.source}: every triangle is degenerate (zero area)")
+        used = self.vertices[np.unique(self.faces)]
+        self.bounds = np.stack([used.min(axis=0), used.max(axis=0)])
+        self.surface = _checked_surface(self.surface, len(self.vertices), self.source)
+        self.device = self.device or rtcore.EmbreeDevice()
+        self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
+        mesh_construction.TriangleMesh(self.embree, local32, self.faces)
+        # embreex commits lazily and unguarded on the first run(): commit here, before threads share it.
+        self.embree.run(np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32))
+
+    @property
+    def valid_area(self) -> dict:
+        """ENU rectangle ``{xmin, xmax, ymin, ymax}`` with real content (the mesh footprint if not stated)."""
+        if self.valid_area_m is not None:
+            return dict(self.valid_area_m)
+        (xmin, ymin, _), (xmax, ymax, _) = self.bounds
+        return {"xmin": xmin, "xmax": xmax, "ymin": ymin, "ymax": ymax}
+
+    def to_local(self, points_enu: np.ndarray) -> np.ndarray:
+        """ENU points (float64) -> recentred float32 coordinates used by embree."""
+        return (np.asarray(points_enu, dtype=np.float64) - self.centre_m).astype(np.float32)
+
+    def ground_height(self, east_m, north_m) -> np.ndarray:
+        """ENU height (m) of the topmost surface under each (east, north); NaN where there is no surface."""
+        east, north = np.broadcast_arrays(np.asarray(east_m, np.float64), np.asarray(north_m, np.float64))
+        top = self.bounds[1, 2] + 1.0
+        origins = np.stack([east.ravel(), north.ravel(), np.full(east.size, top)], axis=-1)
+        t = self.embree.run(self.to_local(origins), np.array([[0, 0, -1]], np.float32), query="DISTANCE")
+        height = np.where(t < 1e30, top - t.astype(np.float64), np.nan)
+        return height.reshape(east.shape)
+
+
+def _checked_surface(surface: Surface, n_vertices: int, source: str) -> Surface:
+    """The surface with float32 UVs, after checking it colours every vertex."""
+    if surface.texture is not None:
+        uv = np.asarray(surface.uv, dtype=np.float32) if surface.uv is not None else None
+        if uv is None or uv.shape != (n_vertices, 2) or surface.texture.ndim != 3 or surface.texture.dtype != np.uint8:
+            raise SceneError(f"{source}: a texture needs (H, W, 3) uint8 pixels and one UV per vertex")
+        return Surface(texture=surface.texture, uv=uv)
+    colors = surface.vertex_colors
+    if colors is None or colors.shape != (n_vertices, 3) or colors.dtype != np.uint8:
+        raise SceneError(f"{source}: need a texture with UVs or (N, 3) uint8 vertex colours for all {n_vertices} vertices")
+    return surface
+
+
+def _drop_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Faces whose float32 triangle has non-zero area (zero-area ones are never hit and have no normal)."""
+    tri = local32[faces].astype(np.float64)
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    return faces[np.einsum("ij,ij->i", cross, cross) > 0]
+
+
+def read_scene_json(scene_dir: Path) -> dict:
+    """Parse and check ``scene_dir/scene.json``; raise :class:`SceneError` naming the file and field."""
+    path = Path(scene_dir) / "scene.json"
+    if not path.is_file():
+        raise SceneError(f"{path}: scene.json not found (a scene folder needs scene.json and its mesh)")
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise SceneError(f"{path}: not valid UTF-8 JSON ({exc})") from None
+    if not isinstance(meta, dict) or meta.get("format") != SCENE_FORMAT:
+        raise SceneError(f"{path}: expected \"format\": \"{SCENE_FORMAT}\", got {meta.get('format')!r}")
+    for key, expected in (("units", "m"), ("frame", "enu")):
+        if meta.get(key, expected) != expected:
+            raise SceneError(f"{path}: \"{key}\" must be {expected!r}, got {meta[key]!r}")
+    if meta.get("up_axis", "z") not in ("z", "y"):
+        raise SceneError(f"{path}: \"up_axis\" must be \"z\" or \"y\", got {meta['up_axis']!r}")
+    offset = meta.get("vertex_offset_m", [0.0, 0.0, 0.0])
+    if not (isinstance(offset, list) and len(offset) == 3 and all(isinstance(c, (int, float)) for c in offset)):
+        raise SceneError(f"{path}: \"vertex_offset_m\" must be a list of 3 numbers, got {offset!r}")
+    if not isinstance(meta.get("mesh"), str):
+        raise SceneError(f"{path}: \"mesh\" must name the mesh file")
+    try:
+        meta["origin_frame"] = LocalFrame.from_dict(meta["origin"])
+    except (KeyError, TypeError, ValueError) as exc:
+        raise SceneError(f"{path}: \"origin\" needs lat0_deg, lon0_deg, h0_ellipsoid_m ({exc})") from None
+    return meta
+
+
+def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
+    """Load a scene folder (``scene.json`` + mesh) into a ray-castable :class:`Scene`.
+
+    Pass one ``device`` to share an embree device (and its thread arena) across several scenes.
+    """
+    scene_dir = Path(scene_dir)
+    meta = read_scene_json(scene_dir)
+    mesh_path = scene_dir / meta["mesh"]
+    vertices, faces, surface = read_mesh(mesh_path)
+    if meta.get("up_axis", "z") == "y":
+        vertices = vertices @ _Y_UP_TO_ENU.T
+    vertices = vertices - np.asarray(meta.get("vertex_offset_m", [0, 0, 0]), dtype=np.float64)
+    return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"), str(mesh_path), device=device)
+
+
+def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface]:
+    """Read a mesh file with trimesh -> float64 vertices (as stored), faces, and its :class:`Surface`."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"{path}: mesh file not found")
+    try:
+        mesh = trimesh.load(path, force="mesh", process=False)
+    except Exception as exc:  # trimesh raises many types for unreadable files
+        raise SceneError(f"{path}: trimesh cannot read this mesh ({type(exc).__name__}: {exc})") from None
+    if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
+        raise SceneError(f"{path}: no triangles found")
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces), _surface_of(mesh, path)
+
+
+def _surface_of(mesh: trimesh.Trimesh, path: Path) -> Surface:
+    """Texture + UVs if the mesh has both, else vertex colours, else a clear error."""
+    visual = mesh.visual
+    if isinstance(visual, trimesh.visual.TextureVisuals):
+        image = _material_image(visual.material)
+        uv = visual.uv
+        if image is not None and uv is not None and len(uv) == len(mesh.vertices):
+            texture = np.ascontiguousarray(np.asarray(image.convert("RGB"), dtype=np.uint8))
+            return Surface(texture=texture, uv=np.asarray(uv, dtype=np.float64))
+    if visual.kind == "vertex":
+        colors = np.asarray(visual.vertex_colors)
+        return Surface(vertex_colors=np.ascontiguousarray(colors[:, :3], dtype=np.uint8))
+    raise SceneError(
+        f"{path}: mesh has no texture with UVs and no vertex colours "
+        "(need an image texture with per-vertex UVs, or per-vertex RGB colours)"
+    )
+
+
+def _material_image(material) -> Image.Image | None:
+    """The base-colour image of a trimesh material (Simple or PBR), if any."""
+    for name in ("image", "baseColorTexture"):
+        image = getattr(material, name, None)
+        if isinstance(image, Image.Image):
+            return image
+    return None

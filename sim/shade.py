@@ -1,0 +1,115 @@
+"""Shading: surface colour from the texture (or vertex colours), Lambert sun + sky ambient, sky for misses.
+
+All radiometry is linear RGB in [0, 1] per unit exposure; 8-bit sRGB happens only at the film
+(:func:`to_srgb8`). A photogrammetry texture already holds the real shading, so the model is
+deliberately small: ``albedo * (sun_intensity * max(0, n.s) * lit + ambient)``, no global illumination.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.scene import Scene
+
+
+def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
+    """sRGB-encoded values in [0, 1] -> linear (IEC 61966-2-1)."""
+    srgb = np.asarray(srgb, dtype=np.float64)
+    return np.where(srgb <= 0.04045, srgb / 12.92, ((srgb + 0.055) / 1.055) ** 2.4)
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Linear values (clipped to [0, 1]) -> sRGB-encoded values in [0, 1]."""
+    linear = np.clip(linear, 0.0, 1.0)
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * np.power(linear, 1 / 2.4) - 0.055)
+
+
+#: 8-bit sRGB code -> linear value.
+SRGB8_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
+
+
+def to_srgb8(linear: np.ndarray) -> np.ndarray:
+    """Linear RGB -> 8-bit sRGB (rounded to nearest, clipped)."""
+    return np.round(linear_to_srgb(linear) * 255.0).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class Sun:
+    """The sun: azimuth clockwise from north and elevation above the horizon (degrees), linear intensity."""
+
+    azimuth_deg: float
+    elevation_deg: float
+    intensity: float = 1.0
+
+    @property
+    def direction_enu(self) -> np.ndarray:
+        """Unit vector from the scene towards the sun, ENU."""
+        az, el = math.radians(self.azimuth_deg), math.radians(self.elevation_deg)
+        return np.array([math.sin(az) * math.cos(el), math.cos(az) * math.cos(el), math.sin(el)])
+
+
+@dataclass(frozen=True)
+class Lighting:
+    """Everything but the sun: sky ambient irradiance, sky colours seen by missed rays, exposure multiplier."""
+
+    ambient: float = 0.3
+    sky_zenith: tuple[float, float, float] = (0.20, 0.38, 0.80)
+    sky_horizon: tuple[float, float, float] = (0.70, 0.78, 0.90)
+    exposure: float = 1.0
+    shadows: bool = True
+
+
+def sky_radiance(directions: np.ndarray, lighting: Lighting) -> np.ndarray:
+    """Linear sky colour ``(N, 3)`` for ray directions (ENU): horizon colour blending to zenith colour."""
+    up = np.clip(directions[:, 2], 0.0, 1.0)[:, None]
+    blend = np.sqrt(up)
+    zenith, horizon = np.asarray(lighting.sky_zenith), np.asarray(lighting.sky_horizon)
+    return ((1.0 - blend) * horizon + blend * zenith).astype(np.float32)
+
+
+def surface_albedo(scene: Scene, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Linear albedo ``(N, 3)`` at hits given by triangle index and barycentrics (texture or vertex colours)."""
+    corners = scene.faces[tri]
+    w0 = (1.0 - u - v)[:, None]
+    surface = scene.surface
+    if surface.texture is not None:
+        uv = w0 * surface.uv[corners[:, 0]] + u[:, None] * surface.uv[corners[:, 1]] + v[:, None] * surface.uv[corners[:, 2]]
+        return sample_bilinear(surface.texture, uv)
+    colors = SRGB8_TO_LINEAR[surface.vertex_colors[corners]]  # (N, 3 corners, 3 channels)
+    return (w0 * colors[:, 0] + u[:, None] * colors[:, 1] + v[:, None] * colors[:, 2]).astype(np.float32)
+
+
+def sample_bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of an sRGB uint8 ``(H, W, 3)`` texture at UVs ``(N, 2)`` -> linear RGB ``(N, 3)``.
+
+    UV (0, 0) is the bottom-left corner of the image (OBJ/glTF convention after trimesh), texel centres at
+    half-integers; coordinates wrap (repeat), as OBJ and glTF default to. Filtering is done in linear light.
+    """
+    height, width = texture.shape[:2]
+    x = uv[:, 0] * width - 0.5
+    y = (1.0 - uv[:, 1]) * height - 0.5
+    x0, y0 = np.floor(x), np.floor(y)
+    fx, fy = (x - x0).astype(np.float32)[:, None], (y - y0).astype(np.float32)[:, None]
+    x0 = x0.astype(np.int64) % width
+    y0 = y0.astype(np.int64) % height
+    x1, y1 = (x0 + 1) % width, (y0 + 1) % height
+    flat = texture.reshape(-1, texture.shape[2])
+
+    def texel(yy, xx):
+        return SRGB8_TO_LINEAR[flat[yy * width + xx, :3]]
+
+    top = texel(y0, x0) * (1 - fx) + texel(y0, x1) * fx
+    bottom = texel(y1, x0) * (1 - fx) + texel(y1, x1) * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def lambert(
+    albedo: np.ndarray, normals: np.ndarray, sun: Sun, lit: np.ndarray, lighting: Lighting
+) -> np.ndarray:
+    """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals."""
+    cosine = np.clip(normals @ sun.direction_enu.astype(np.float32), 0.0, None) * lit
+    irradiance = sun.intensity * cosine + lighting.ambient
+    return albedo * (irradiance * lighting.exposure)[:, None].astype(np.float32)
