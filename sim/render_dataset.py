@@ -22,6 +22,7 @@ killed at any moment and started again with the same arguments completes to the 
 
 from __future__ import annotations
 
+import json
 import math
 import multiprocessing
 import os
@@ -119,7 +120,7 @@ class RenderOptions:
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
         else:
             description["geotags"] = Path(self.geotags).name
-        return description
+        return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
 
 
 class SceneGround:
