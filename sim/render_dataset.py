@@ -225,6 +225,7 @@ class FrameStats:
     index: int
     rejected: int
     render_s: float
+    done_s: float = math.nan  # seconds from the start of the run until the parent heard of it
 
 
 class FrameRenderer:
@@ -386,11 +387,11 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
                    desc=f"rendering {out_dir.name}")
         with bar:
             if workers == 1 or len(pending) <= 1:
-                stats = _render_here(renderer, writer, pending, bar)
+                stats = _render_here(renderer, writer, pending, _Progress(bar, start))
             else:
                 renderer.close()
                 job = Job(scene_dir, out_dir, options, spec, max(1, default_workers() // workers))
-                stats = _render_in_processes(job, pending, min(workers, len(pending)), bar)
+                stats = _render_in_processes(job, pending, min(workers, len(pending)), _Progress(bar, start))
     finally:
         renderer.close()
     remaining = len(writer.pending(range(spec.frame_count)))
@@ -401,15 +402,26 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
                          sorted(stats, key=lambda s: s.index))
 
 
-def _render_here(renderer: FrameRenderer, writer: KittiDatasetWriter, pending: Sequence[int], bar) -> list[FrameStats]:
-    stats = []
+class _Progress:
+    """Collects frame reports: advances the bar and stamps each with the time since the run started."""
+
+    def __init__(self, bar, start: float):
+        self.bar, self.start, self.stats = bar, start, []
+
+    def frame_done(self, stats: FrameStats) -> None:
+        stats.done_s = time.perf_counter() - self.start
+        self.stats.append(stats)
+        self.bar.update(1)
+
+
+def _render_here(renderer: FrameRenderer, writer: KittiDatasetWriter, pending: Sequence[int],
+                 progress: _Progress) -> list[FrameStats]:
     with AsyncFrameWriter(writer) as frames:
         for index in pending:
             record, frame_stats = renderer.record(index)
             frames.submit(record)
-            stats.append(frame_stats)
-            bar.update(1)
-    return stats
+            progress.frame_done(frame_stats)
+    return progress.stats
 
 
 def _worker(job: Job, tasks, results) -> None:
@@ -428,7 +440,7 @@ def _worker(job: Job, tasks, results) -> None:
         results.put(("error", f"{type(error).__name__}: {error}"))
 
 
-def _render_in_processes(job: Job, pending: Sequence[int], workers: int, bar) -> list[FrameStats]:
+def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progress: _Progress) -> list[FrameStats]:
     """Render ``pending`` with ``workers`` spawned processes pulling from one queue (dynamic balance)."""
     context = multiprocessing.get_context("spawn")  # never fork a process that already runs embree threads
     tasks, results = context.Queue(), context.Queue()
@@ -439,7 +451,7 @@ def _render_in_processes(job: Job, pending: Sequence[int], workers: int, bar) ->
     processes = [context.Process(target=_worker, args=(job, tasks, results), daemon=True) for _ in range(workers)]
     for process in processes:
         process.start()
-    stats, finished = [], 0
+    finished = 0
     try:
         while finished < workers:
             try:
@@ -454,13 +466,12 @@ def _render_in_processes(job: Job, pending: Sequence[int], workers: int, bar) ->
             if kind == "done":
                 finished += 1
             else:
-                stats.append(payload)
-                bar.update(1)
+                progress.frame_done(payload)
     finally:
         for process in processes:
             process.join(timeout=None if finished == workers else 0)
             if process.is_alive():
                 process.terminate()
                 process.join()
-    return stats
+    return progress.stats
 
