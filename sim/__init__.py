@@ -1,1 +1,1 @@
-"""sim: cameras, scenes, the embree ray caster, shading and rendering, datasets and the virtual drone."""
+"""sim: cameras, scenes, the embree ray caster, datasets and the virtual drone."""

@@ -21,7 +21,7 @@ from sim.raycast import Hits, default_workers, intersect, map_blocks, occluded_l
 from sim.scene import Scene
 from sim.shade import Lighting, Sun, lambert, sky_radiance, surface_albedo, to_srgb8
 
-__all__ = ["Frame", "Lighting", "Sun", "View", "render"]
+__all__ = ["Frame", "Lighting", "Sun", "View", "miss_fraction", "render"]
 
 #: Shadow-ray origins are pushed off the surface by this much plus a float32-precision term (metres).
 SHADOW_BIAS_M = 1e-3
@@ -135,10 +135,10 @@ def _radiance(scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, execu
 
         def shade(block: slice) -> None:
             hit = hits.tri[block] >= 0
-            out = sky_radiance(rays.directions[block], lighting) * np.float32(lighting.exposure)
+            out = radiance[block]
+            out[~hit] = sky_radiance(rays.directions[block][~hit], lighting) * np.float32(lighting.exposure)
             albedo = surface_albedo(scene, hits.tri[block][hit], hits.u[block][hit], hits.v[block][hit])
             out[hit] = lambert(albedo, hits.normal[block][hit], sun, lit[block][hit], lighting)
-            radiance[block] = out
 
         map_blocks(shade, len(hits.t), executor)
     return radiance
@@ -160,7 +160,7 @@ def _sunlit(scene: Scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, 
 
     def trace(block: slice) -> None:
         normals = hits.normal[block]
-        candidates = np.flatnonzero((hits.tri[block] >= 0) & (normals @ sun32[0] > 0))
+        candidates = np.flatnonzero((hits.tri[block] >= 0) & (np.einsum("ij,j->i", normals, sun32[0]) > 0))
         if not lighting.shadows:
             lit[block][candidates] = 1.0
             return
@@ -174,3 +174,13 @@ def _sunlit(scene: Scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, 
 
     map_blocks(trace, len(hits.t), executor)
     return lit
+
+
+def miss_fraction(scene: Scene, camera: PinholeCamera, T_world_cam: np.ndarray, probe_width: int = 64) -> float:
+    """Fraction of ``camera``'s view at ``T_world_cam`` that sees no surface (sky), estimated by casting the
+    pixel-centre rays of the same lens scaled down to ``probe_width`` pixels across (cheap: 64 px wide is
+    ~2.3 k rays for 16:9). For pose samplers: ``functools.partial(miss_fraction, scene, camera)``."""
+    probe = camera.scaled(probe_width)
+    rays = camera_rays(probe, T_world_cam)
+    hits = intersect(scene, rays.origin, rays.directions)
+    return float(np.count_nonzero(~hits.hit)) / len(hits.t)

@@ -81,12 +81,14 @@ class Scene:
         self.embree.run(np.zeros((1, 3), np.float32), np.array([[0, 0, 1]], np.float32))
 
     @property
-    def valid_area(self) -> dict:
-        """ENU rectangle ``{xmin, xmax, ymin, ymax}`` with real content (the mesh footprint if not stated)."""
+    def valid_area(self) -> tuple[float, float, float, float]:
+        """ENU rectangle ``(xmin, xmax, ymin, ymax)`` (metres) with real content: ``valid_area_m`` from
+        scene.json, else the mesh footprint. This and :meth:`ground_height` make a Scene a pose-sampler
+        ``GroundModel`` (sim/sampling.py)."""
         if self.valid_area_m is not None:
-            return dict(self.valid_area_m)
+            return tuple(float(self.valid_area_m[key]) for key in ("xmin", "xmax", "ymin", "ymax"))
         (xmin, ymin, _), (xmax, ymax, _) = self.bounds
-        return {"xmin": xmin, "xmax": xmax, "ymin": ymin, "ymax": ymax}
+        return float(xmin), float(xmax), float(ymin), float(ymax)
 
     def to_local(self, points_enu: np.ndarray) -> np.ndarray:
         """ENU points (float64) -> recentred float32 coordinates used by embree."""
@@ -141,6 +143,9 @@ def read_scene_json(scene_dir: Path) -> dict:
     offset = meta.get("vertex_offset_m", [0.0, 0.0, 0.0])
     if not (isinstance(offset, list) and len(offset) == 3 and all(isinstance(c, (int, float)) for c in offset)):
         raise SceneError(f"{path}: \"vertex_offset_m\" must be a list of 3 numbers, got {offset!r}")
+    area = meta.get("valid_area_m")
+    if area is not None and not _is_rectangle(area):
+        raise SceneError(f"{path}: \"valid_area_m\" must be {{xmin, xmax, ymin, ymax}} numbers with min < max, got {area!r}")
     if not isinstance(meta.get("mesh"), str):
         raise SceneError(f"{path}: \"mesh\" must name the mesh file")
     try:
@@ -148,6 +153,14 @@ def read_scene_json(scene_dir: Path) -> dict:
     except (KeyError, TypeError, ValueError) as exc:
         raise SceneError(f"{path}: \"origin\" needs lat0_deg, lon0_deg, h0_ellipsoid_m ({exc})") from None
     return meta
+
+
+def _is_rectangle(area) -> bool:
+    """True for a mapping with numeric xmin < xmax and ymin < ymax."""
+    keys = ("xmin", "xmax", "ymin", "ymax")
+    if not isinstance(area, dict) or not all(isinstance(area.get(k), (int, float)) for k in keys):
+        return False
+    return area["xmin"] < area["xmax"] and area["ymin"] < area["ymax"]
 
 
 def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:

@@ -31,9 +31,14 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
 SRGB8_TO_LINEAR = srgb_to_linear(np.arange(256) / 255.0).astype(np.float32)
 
 
+#: Linear value quantised to 16 bits -> 8-bit sRGB code (0.05 code steps at the steep dark end).
+LINEAR16_TO_SRGB8 = np.round(linear_to_srgb(np.arange(65536) / 65535.0) * 255.0).astype(np.uint8)
+
+
 def to_srgb8(linear: np.ndarray) -> np.ndarray:
-    """Linear RGB -> 8-bit sRGB (rounded to nearest, clipped)."""
-    return np.round(linear_to_srgb(linear) * 255.0).astype(np.uint8)
+    """Linear RGB -> 8-bit sRGB (clipped; by table, within one code of exact rounding)."""
+    index = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0) * np.float32(65535.0) + np.float32(0.5)
+    return LINEAR16_TO_SRGB8[index.astype(np.int32)]
 
 
 @dataclass(frozen=True)
@@ -110,6 +115,6 @@ def lambert(
     albedo: np.ndarray, normals: np.ndarray, sun: Sun, lit: np.ndarray, lighting: Lighting
 ) -> np.ndarray:
     """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals."""
-    cosine = np.clip(normals @ sun.direction_enu.astype(np.float32), 0.0, None) * lit
+    cosine = np.clip(np.einsum("ij,j->i", normals, sun.direction_enu.astype(np.float32)), 0.0, None) * lit
     irradiance = sun.intensity * cosine + lighting.ambient
     return albedo * (irradiance * lighting.exposure)[:, None].astype(np.float32)
