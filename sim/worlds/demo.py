@@ -1,0 +1,156 @@
+"""Build the built-in demo world as an ordinary scene folder, and keep one built copy per variant in a cache.
+
+The world is generated around ``flightplan.demo_location.DEMO_ORIGIN``: ENU metres, z up, the ground at z = 0
+under the origin. The folder holds ``world.glb`` (binary glTF: positions in ENU metres as stored, z up, one
+JPEG texture atlas with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see INTERFACES.md) and nothing else.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from flightplan.demo_location import DEMO_ORIGIN
+from sim.worlds.atlas import allocate_facades
+from sim.worlds.facades import paint_facades
+from sim.worlds.geometry import Part, world_part
+from sim.worlds.glb import encode_textured_glb
+from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
+from sim.worlds.orthophoto import paint_orthophoto
+
+GENERATOR_VERSION = 3
+"""Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
+MESH_NAME = "world.glb"
+SCENE_JSON = "scene.json"
+JPEG_QUALITY = 95
+
+
+def _spec(variant: str) -> WorldSpec:
+    if variant not in VARIANTS:
+        raise ValueError(f"unknown demo world variant {variant!r}; expected one of {sorted(VARIANTS)}")
+    return VARIANTS[variant]
+
+
+def _generators(seed: int, variant: str) -> tuple[np.random.Generator, ...]:
+    """Independent generators for layout, painting and mesh details, all fixed by (seed, variant)."""
+    if not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
+    entropy = [int(seed), sorted(VARIANTS).index(variant)]
+    return tuple(np.random.default_rng(s) for s in np.random.SeedSequence(entropy).spawn(3))
+
+
+def generate_world(variant: str = "default", seed: int = 0) -> tuple[Layout, Part, np.ndarray]:
+    """The layout, the textured mesh (ENU metres) and the (texture_px, texture_px, 3) uint8 RGB atlas of a world."""
+    spec = _spec(variant)
+    layout_rng, paint_rng, mesh_rng = _generators(seed, variant)
+    layout = generate_layout(spec, layout_rng)
+    facades = allocate_facades(layout.buildings, spec)
+    atlas = np.zeros((spec.texture_px, spec.texture_px, 3), np.float32)
+    atlas[: spec.ortho_rows] = paint_orthophoto(paint_rng, layout)
+    paint_facades(paint_rng, facades, layout.buildings, atlas)
+    mesh = world_part(layout, facades, mesh_rng)
+    return layout, mesh, np.clip(atlas, 0, 255).astype(np.uint8)
+
+
+def encode_glb(mesh: Part, atlas: np.ndarray) -> bytes:
+    """Binary glTF of the mesh (positions as given, no axis change) with the atlas as one embedded JPEG."""
+    buffer = io.BytesIO()
+    Image.fromarray(atlas).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
+    return encode_textured_glb(mesh.vertices, mesh.faces, mesh.uv, buffer.getvalue(), generator="sim.worlds.demo")
+
+
+def ground_height_range(layout: Layout, mesh: Part) -> tuple[float, float]:
+    """Min and max ENU z (metres) of the ground: the terrain vertices, which come first in the mesh."""
+    spec = layout.spec
+    half_x, half_y = spec.half_extent_m
+    xy = mesh.vertices[:, :2]
+    on_ground = np.isclose(mesh.vertices[:, 2], layout.terrain.height(xy[:, 0], xy[:, 1]), atol=1e-9)
+    on_ground &= (np.abs(xy[:, 0]) <= half_x + 1e-9) & (np.abs(xy[:, 1]) <= half_y + 1e-9)
+    z = mesh.vertices[on_ground, 2]
+    return float(z.min()), float(z.max())
+
+
+def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> dict:
+    """The ``scene.json`` content of a built world."""
+    half_x, half_y = layout.spec.half_extent_m
+    return {
+        "format": "aerostereo-scene/1",
+        "mesh": MESH_NAME,
+        "origin": {"lat0_deg": DEMO_ORIGIN.lat0_deg, "lon0_deg": DEMO_ORIGIN.lon0_deg,
+                   "h0_ellipsoid_m": DEMO_ORIGIN.h0_m},
+        "units": "m",
+        "up_axis": "z",
+        "frame": "enu",
+        "vertex_offset_m": [0.0, 0.0, 0.0],
+        "ground_height_range_m": [round(v, 4) for v in ground_height_range(layout, mesh)],
+        "valid_area_m": {"xmin": -half_x, "xmax": half_x, "ymin": -half_y, "ymax": half_y},
+        "provenance": {
+            "generator": "sim.worlds.demo",
+            "generator_version": GENERATOR_VERSION,
+            "variant": variant,
+            "seed": int(seed),
+            "triangles": int(len(mesh.faces)),
+            "texture_px": int(layout.spec.texture_px),
+            "buildings": len(layout.buildings),
+            "trees": len(layout.trees),
+            "roads": len(layout.roads),
+        },
+    }
+
+
+def _write_atomic(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
+    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", delete=False) as handle:
+        handle.write(data)
+    os.chmod(handle.name, 0o644)
+    os.replace(handle.name, path)
+
+
+def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed: int = 0) -> Path:
+    """Generate the demo world ``variant`` ("default" or "small") for ``seed`` into the scene folder ``out_dir``
+    (created if missing; ``world.glb`` and ``scene.json`` are replaced atomically). Same arguments, same bytes.
+    Returns the folder."""
+    _spec(variant)
+    layout, mesh, atlas = generate_world(variant, seed)
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    _write_atomic(out / MESH_NAME, encode_glb(mesh, atlas))
+    text = json.dumps(scene_description(layout, mesh, variant, seed), indent=2) + "\n"
+    _write_atomic(out / SCENE_JSON, text.encode("utf-8"))
+    return out
+
+
+def default_cache_root() -> Path:
+    """``$XDG_CACHE_HOME/aerostereo/worlds`` (``~/.cache/aerostereo/worlds`` when unset)."""
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "aerostereo" / "worlds"
+
+
+def demo_scene_dir(variant: str = "default", seed: int = 0, cache_root: str | os.PathLike | None = None) -> Path:
+    """The scene folder of the demo world, built on first use into ``<cache_root>/<variant>-<seed>-v<version>``
+    (a temporary sibling folder renamed into place, so a half-built world is never seen) and reused afterwards."""
+    _spec(variant)
+    root = Path(cache_root) if cache_root is not None else default_cache_root()
+    final = root / f"{variant}-{int(seed)}-v{GENERATOR_VERSION}"
+    if (final / SCENE_JSON).is_file():
+        return final
+    root.mkdir(parents=True, exist_ok=True)
+    staging = Path(tempfile.mkdtemp(dir=root, prefix=f".{final.name}."))
+    os.chmod(staging, 0o755)
+    try:
+        build_demo_world(staging, variant, seed)
+        try:
+            os.replace(staging, final)
+        except OSError:  # another process finished first (non-empty target): use its copy
+            if not (final / SCENE_JSON).is_file():
+                raise
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return final
