@@ -22,6 +22,7 @@ killed at any moment and started again with the same arguments completes to the 
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import multiprocessing
@@ -48,8 +49,8 @@ from sim.dataset import (
     finalize_dataset,
     shard_frames,
 )
-from sim.raycast import default_workers, intersect
-from sim.render import render
+from sim.raycast import default_workers
+from sim.render import miss_fraction, render
 from sim.sampling import (
     RENDER_STREAM,
     PoseSample,
@@ -72,8 +73,6 @@ DEMO_SCENE = "demo"
 #: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
-#: Width in pixels of the low-resolution view that checks a random pose for sky/miss pixels.
-PROBE_WIDTH_PX = 48
 #: Seconds between checks on the worker processes while waiting for their reports.
 POLL_S = 0.5
 
@@ -124,32 +123,15 @@ class RenderOptions:
 
 
 class SceneGround:
-    """The sampler's view of a scene: ``valid_area`` as ``(xmin, xmax, ymin, ymax)`` and ``ground_height``.
-
-    Where no surface lies under a point (a hole in the mesh) the ground is taken at the scene's lowest
-    point, so heights above ground stay finite.
-    """
+    """A scene as the pose samplers see it, except that where no surface lies under a point (a hole in
+    the mesh) the ground is taken at the scene's lowest point, so sampled positions stay finite."""
 
     def __init__(self, scene: Scene):
         self.scene = scene
-        area = scene.valid_area
-        self.valid_area = tuple(float(area[key]) for key in ("xmin", "xmax", "ymin", "ymax"))
+        self.valid_area = scene.valid_area
 
     def ground_height(self, x, y):
         return np.nan_to_num(self.scene.ground_height(x, y), nan=float(self.scene.bounds[0, 2]))
-
-
-def miss_probe(scene: Scene, camera: PinholeCamera):
-    """``miss_fraction(T_world_cam)``: fraction of a low-resolution copy of ``camera``'s view that hits nothing."""
-    scale = PROBE_WIDTH_PX / camera.width
-    probe = PinholeCamera(camera.fx * scale, camera.fy * scale, (camera.cx + 0.5) * scale - 0.5,
-                          (camera.cy + 0.5) * scale - 0.5, PROBE_WIDTH_PX, max(1, round(camera.height * scale)))
-
-    def miss_fraction(T_world_cam: np.ndarray) -> float:
-        directions = probe.centre_directions @ T_world_cam[:3, :3].T.astype(np.float32)
-        return float(np.mean(~intersect(scene, T_world_cam[None, :3, 3], directions).hit))
-
-    return miss_fraction
 
 
 def build_rig(options: RenderOptions) -> Rig:
@@ -172,7 +154,7 @@ class PoseSource:
         self.replayed: list[PoseSample] | None = None
         self.path = None
         if options.mode == "random":
-            self._probe = miss_probe(scene, left_camera)
+            self._probe = functools.partial(miss_fraction, scene, left_camera)
         elif options.mode == "trajectory":
             self.path = self._trajectory()
         else:
