@@ -16,7 +16,8 @@ from pathlib import Path
 from sim.contact_sheet import write_contact_sheet
 from sim.dataset import DEFAULT_FORMATS, FORMATS, DatasetError, parse_shard
 from sim.metrics import compare_folders, summary_table
-from sim.render_dataset import MODES, TRAJECTORIES, RenderInputError, RenderOptions, render_dataset
+from sim.frame_renderer import MODES, TRAJECTORIES, RenderInputError, RenderOptions
+from sim.render_dataset import render_dataset
 from sim.scene import SceneError
 
 EXIT_BAD_INPUT = 2

@@ -31,8 +31,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
 from sim.dataset import KittiDatasetWriter  # noqa: E402
-from sim.render_dataset import FrameRenderer, RenderOptions, render_dataset, resolve_scene_dir  # noqa: E402
-from sim.render_dataset import _dataset_spec  # noqa: E402
+from sim.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
+from sim.render_dataset import dataset_spec, render_dataset, resolve_scene_dir  # noqa: E402
 from sim.synthetic import height_field_scene  # noqa: E402
 
 PAPER_FRAMES = 1000
@@ -68,7 +68,7 @@ def measure_stages(scene_dir: Path, options: RenderOptions, out: Path) -> dict:
     start = time.perf_counter()
     renderer = FrameRenderer(scene_dir, options)
     load_s = time.perf_counter() - start
-    writer = KittiDatasetWriter(out, _dataset_spec(renderer, scene_dir, options, ["bench"]))
+    writer = KittiDatasetWriter(out, dataset_spec(renderer, scene_dir, options, ["bench"]))
     render_s = write_s = 0.0
     for index in range(options.frames):
         start = time.perf_counter()

@@ -26,7 +26,8 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from sim.dataset.images import read_exr, read_png
 from sim.render_cli import compare_main, render_main
-from sim.render_dataset import RenderOptions, render_dataset
+from sim.frame_renderer import RenderOptions
+from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR
 from render_scene_helpers import BOX_TOP_M, ORIGIN, box_top_corners, write_scene
 
