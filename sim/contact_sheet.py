@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib import colormaps
 from matplotlib.figure import Figure
 
-from sim.dataset import KittiLayout, read_dataset_json
+from sim.dataset import DatasetError, KittiLayout, read_dataset_json
 from sim.dataset.atomic import write_atomically
 from sim.dataset.images import read_exr, read_png
 from sim.dataset.kitti import frame_file_name
@@ -41,6 +41,8 @@ def chosen_frames(frame_count: int, rows: int) -> list[int]:
 def write_contact_sheet(dataset_dir: Path, out_png: Path, rows: int = 4) -> Path:
     """Write the contact sheet of ``dataset_dir`` to ``out_png`` (atomically). Returns ``out_png``."""
     description = read_dataset_json(Path(dataset_dir))
+    if "depth_exr" not in description["formats"]:
+        raise DatasetError(f"{dataset_dir}: a contact sheet shows depth, but the dataset has no depth_exr")
     layout = KittiLayout(Path(dataset_dir), description["sequence"])
     frames = chosen_frames(int(description["frame_count"]), rows)
     width, height = description["cameras"][0]["width"], description["cameras"][0]["height"]

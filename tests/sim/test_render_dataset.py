@@ -303,3 +303,13 @@ def test_compare_prints_the_photorealism_table(reference, tmp_path, capsys):
     mean_error = float(capsys.readouterr().out.splitlines()[-1].split()[3])
     assert 0.0 < mean_error < 30.0  # a stereo partner differs, but far less than unrelated images
     assert compare_main([str(tmp_path / "missing"), str(seq / "image_2")]) == 2
+
+
+def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
+    out = tmp_path / "three"
+    assert render_main(_argv(scene_dir, out, cameras=3, frames=2, width=40, height=24, baseline=0.3)) == 0
+    calib = {line.split(":")[0]: np.array(line.split()[1:], float).reshape(3, 4)
+             for line in (out / "sequences/00/calib.txt").read_text().splitlines()}
+    assert calib["P4"][0, 3] == pytest.approx(-calib["P4"][0, 0] * 0.6)  # third camera 2 x 0.3 m to the right
+    assert read_png(out / "sequences/00/image_4/000001.png").shape == (24, 40, 3)
+    assert read_exr(out / "sequences/00/depth_4/000001.exr").shape == (24, 40)
