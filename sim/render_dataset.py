@@ -167,7 +167,8 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     out_dir = Path(out_dir)
     scene_dir = resolve_scene_dir(scene, options)
     workers = options.workers
-    renderer = FrameRenderer(scene_dir, options, threads=max(1, default_workers() // workers))
+    threads = max(1, default_workers() // workers)  # casting threads per process
+    renderer = FrameRenderer(scene_dir, options, threads)
     try:
         spec = dataset_spec(renderer, scene_dir, options, sys.argv if command_line is None else command_line)
         writer = _open_writer(out_dir, spec)
@@ -179,8 +180,8 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
             if workers == 1 or len(pending) <= 1:
                 stats = _render_here(renderer, writer, pending, _Progress(bar, start))
             else:
-                renderer.close()
-                job = Job(scene_dir, out_dir, options, spec, max(1, default_workers() // workers))
+                renderer.close()  # the workers build their own; this one only checked the input
+                job = Job(scene_dir, out_dir, options, spec, threads)
                 stats = _render_in_processes(job, pending, min(workers, len(pending)), _Progress(bar, start))
     finally:
         renderer.close()
