@@ -75,7 +75,6 @@ class RenderOptions:
     altitude_m: float = 50.0
     speed_m_s: float = 5.0
     frame_rate_hz: float = 10.0
-    demo_variant: str = "default"
 
     def sampling_description(self) -> dict:
         """What ``dataset.json`` records about the sampling (settings that decide the bytes, no run details)."""

@@ -45,8 +45,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         prog=PROG, description="Render a stereo dataset (KITTI odometry layout + depth, disparity, poses) from a "
                                "scene folder or the built-in demo world.")
     add = parser.add_argument
-    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' (default: the built-in demo world)")
-    add("--demo-variant", default="default", help="demo world variant when no scene is given (default, small)")
+    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
+                                      "demo world (default: demo)")
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one is resumed)")
     add("--frames", type=int, default=None, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default="random", help="random poses (the paper), a trajectory, or replay geotags")
@@ -77,7 +77,7 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=args.formats, trajectory=args.trajectory, altitude_m=args.altitude,
-                         speed_m_s=args.speed, frame_rate_hz=args.rate, demo_variant=args.demo_variant)
+                         speed_m_s=args.speed, frame_rate_hz=args.rate)
 
 
 def _bad_input(message: str) -> int:
@@ -119,6 +119,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                                                "paper's photorealism error (%%), PSNR and SSIM per image and mean.")
     parser.add_argument("real_dir", type=Path, help="folder of real photos")
     parser.add_argument("rendered_dir", type=Path, help="folder of renders from the same poses")
+    parser.set_defaults(handler=run_compare)
     return parser
 
 

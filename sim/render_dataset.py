@@ -101,14 +101,16 @@ class Job:
     threads: int
 
 
-def resolve_scene_dir(scene: str | os.PathLike | None, options: RenderOptions) -> Path:
-    """The scene folder: ``None`` or ``"demo"`` is the built-in demo world (built once, then cached)."""
-    if scene is None or str(scene) == DEMO_SCENE:
+def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
+    """The scene folder: ``None``, ``"demo"`` or ``"demo:VARIANT"`` is the built-in demo world (built once, cached)."""
+    if scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":"):
+        from sim.worlds import demo_scene_dir
+
+        variant = str(scene or DEMO_SCENE).partition(":")[2] or "default"
         try:
-            from sim.worlds import demo_scene_dir
-        except ImportError as error:
-            raise RenderInputError(f"the built-in demo world is not available ({error}); pass --scene DIR") from None
-        return Path(demo_scene_dir(options.demo_variant))
+            return Path(demo_scene_dir(variant))
+        except ValueError as error:
+            raise RenderInputError(str(error)) from None
     path = Path(scene)
     if not path.is_dir():
         raise RenderInputError(f"{path}: scene folder not found")
@@ -165,7 +167,7 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     start = time.perf_counter()
     _check_options(options)
     out_dir = Path(out_dir)
-    scene_dir = resolve_scene_dir(scene, options)
+    scene_dir = resolve_scene_dir(scene)
     workers = options.workers
     threads = max(1, default_workers() // workers)  # casting threads per process
     renderer = FrameRenderer(scene_dir, options, threads)
