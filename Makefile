@@ -22,6 +22,8 @@ $(STAMP_TEST): pyproject.toml | $(BIN)/python
 demo: $(STAMP_RUN)
 	$(BIN)/aerostereo-mission --demo --out demo/mission.csv --kml demo/mission.kml \
 		--geojson demo/mission.geojson --plot demo/mission.png --summary-json demo/summary.json
+	$(BIN)/python -m sim --out demo/dataset --frames 20 --width 640 --height 360 \
+		--contact-sheet demo/contact_sheet.png
 
 test: $(STAMP_TEST)
 	$(BIN)/python -m pytest

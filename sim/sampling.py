@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 
-POSE_STREAM, SUN_STREAM, PATH_STREAM = 0, 1, 2
+POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM = 0, 1, 2, 3  # RENDER_STREAM: anti-aliasing jitter
 #: The nadir camera at heading 0: x east, y south (image top = north), z down.
 R_WORLD_NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 PATH_STEP_M = 0.25

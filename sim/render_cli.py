@@ -1,0 +1,140 @@
+"""``aerostereo-render``: scene (or the built-in demo world) -> KITTI-layout stereo dataset; ``compare``.
+
+Entry points for ``sim/cli.py``: :func:`build_parser` + :func:`run` (the dataset render, the default
+command), :func:`add_compare_parser` + :func:`run_compare` (``compare REAL_DIR RENDERED_DIR``), and
+:func:`render_main` / :func:`compare_main` (``argv -> exit code``). Bad input gives a one-line message on
+stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from sim.contact_sheet import write_contact_sheet
+from sim.dataset import DEFAULT_FORMATS, FORMATS, DatasetError, parse_shard
+from sim.metrics import compare_folders, summary_table
+from sim.frame_renderer import MODES, TRAJECTORIES, RenderInputError, RenderOptions
+from sim.render_dataset import render_dataset
+from sim.scene import SceneError
+
+EXIT_BAD_INPUT = 2
+PROG = "aerostereo-render"
+
+
+def _shard(text: str) -> tuple[int, int]:
+    try:
+        return parse_shard(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+
+
+def _formats(text: str) -> tuple[str, ...]:
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    unknown = [name for name in names if name not in FORMATS]
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown formats {unknown}; choose from {', '.join(FORMATS)}")
+    return names
+
+
+def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
+    """Options of the dataset render (added to ``parser`` if given, e.g. a subparser)."""
+    parser = parser or argparse.ArgumentParser(
+        prog=PROG, description="Render a stereo dataset (KITTI odometry layout + depth, disparity, poses) from a "
+                               "scene folder or the built-in demo world.")
+    add = parser.add_argument
+    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
+                                      "demo world (default: demo)")
+    add("--out", required=True, type=Path, help="dataset folder (created; an existing one is resumed)")
+    add("--frames", type=int, default=None, help="number of frames (default 100; replay: every photo)")
+    add("--mode", choices=MODES, default="random", help="random poses (the paper), a trajectory, or replay geotags")
+    add("--geotags", type=Path, default=None, help="geotags.csv to replay (with geotags.json beside it)")
+    add("--trajectory", choices=TRAJECTORIES, default="orbit", help="path flown in trajectory mode")
+    add("--altitude", type=float, default=50.0, help="trajectory height above the ground, metres")
+    add("--speed", type=float, default=5.0, help="trajectory speed, m/s")
+    add("--rate", type=float, default=10.0, help="trajectory frame rate, Hz")
+    add("--width", type=int, default=1280, help="image width, pixels")
+    add("--height", type=int, default=720, help="image height, pixels")
+    add("--fov", type=float, default=80.0, help="horizontal field of view, degrees")
+    add("--baseline", type=float, default=0.54, help="distance between neighbouring cameras, metres")
+    add("--cameras", type=int, default=2, help="cameras in the rig (a row along camera x)")
+    add("--spp", type=int, default=1, help="samples per pixel (anti-aliasing)")
+    add("--seed", type=int, default=0, help="seed of poses, sun and jitter")
+    add("--workers", type=int, default=1, help="render processes (each builds the scene once)")
+    add("--shard", type=_shard, default=(0, 1), help="render only frames I, I+N, I+2N... (I/N)")
+    add("--formats", type=_formats, default=DEFAULT_FORMATS,
+        help=f"comma-separated extra outputs (default {','.join(DEFAULT_FORMATS)}; known {','.join(FORMATS)})")
+    add("--contact-sheet", type=Path, default=None, help="also write a PNG of left, right and depth of a few frames")
+    add("--quiet", action="store_true", help="no progress bar")
+    return parser
+
+
+def options_from_args(args: argparse.Namespace) -> RenderOptions:
+    """:class:`RenderOptions` of parsed arguments."""
+    return RenderOptions(frames=args.frames, mode=args.mode, geotags=args.geotags, width=args.width,
+                         height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
+                         spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
+                         formats=args.formats, trajectory=args.trajectory, altitude_m=args.altitude,
+                         speed_m_s=args.speed, frame_rate_hz=args.rate)
+
+
+def _bad_input(message: str) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> int:
+    """Render the dataset described by ``args``; print a summary. Returns the exit code."""
+    try:
+        summary = render_dataset(args.scene, args.out, options_from_args(args),
+                                 command_line=sys.argv if command_line is None else command_line,
+                                 progress=not args.quiet)
+        print(summary.text())
+        if args.contact_sheet is not None:
+            if not summary.finalized:
+                return _bad_input(f"{args.contact_sheet}: a contact sheet needs the whole dataset; "
+                                  f"{summary.remaining} frames are missing")
+            write_contact_sheet(args.out, args.contact_sheet)
+            print(f"contact sheet: {args.contact_sheet}")
+    except (RenderInputError, SceneError, DatasetError) as error:
+        return _bad_input(str(error))
+    except OSError as error:
+        return _bad_input(f"{error.filename or args.out}: {error.strerror}")
+    return 0
+
+
+def render_main(argv: Sequence[str] | None = None) -> int:
+    """``aerostereo-render [options]`` -> exit code."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser().parse_args(argv)
+    return run(args, command_line=[PROG, *argv])
+
+
+def add_compare_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``compare REAL_DIR RENDERED_DIR`` to an ``add_subparsers()`` object."""
+    parser = subparsers.add_parser("compare", help="photorealism error, PSNR and SSIM of renders against photos",
+                                   description="Compare images paired by file name (without extension): the "
+                                               "paper's photorealism error (%%), PSNR and SSIM per image and mean.")
+    parser.add_argument("real_dir", type=Path, help="folder of real photos")
+    parser.add_argument("rendered_dir", type=Path, help="folder of renders from the same poses")
+    parser.set_defaults(handler=run_compare)
+    return parser
+
+
+def run_compare(args: argparse.Namespace) -> int:
+    """Print the comparison table of ``args.real_dir`` against ``args.rendered_dir``."""
+    try:
+        print(summary_table(compare_folders(args.real_dir, args.rendered_dir)))
+    except ValueError as error:
+        return _bad_input(str(error))
+    return 0
+
+
+def compare_main(argv: Sequence[str] | None = None) -> int:
+    """``aerostereo-render compare REAL_DIR RENDERED_DIR`` -> exit code (``argv`` without ``compare``)."""
+    parser = argparse.ArgumentParser(prog=PROG)
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    add_compare_parser(subparsers)
+    return run_compare(parser.parse_args(["compare", *(sys.argv[1:] if argv is None else argv)]))

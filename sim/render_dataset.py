@@ -1,0 +1,270 @@
+"""Render a stereo dataset from a scene: poses and sun per frame, embree rendering, KITTI-layout writing.
+
+The pipeline (what ``aerostereo-render`` runs):
+
+1. :func:`render_dataset` first loads the scene in the calling process and checks everything that can be
+   wrong with the input (scene folder, texture, geotags from another area, output folder) before any
+   frame is rendered; it opens the dataset folder (``dataset.json`` with the command line) and lists
+   the frames of this shard that are still missing (resume).
+2. :class:`~sim.frame_renderer.FrameRenderer` turns a frame index into a :class:`~sim.dataset.FrameRecord`;
+   a frame's bytes depend only on ``(seed, index)``, not on the number of workers, the shard or the order.
+3. It then renders the missing frames with ``workers`` processes (``1``: in this
+   process). Each worker process loads the scene and builds embree once, pulls frame indices from a
+   shared queue and writes its frames through its own :class:`~sim.dataset.AsyncFrameWriter`, so
+   encoding overlaps with rendering. A tqdm bar shows frames/s and the ETA.
+4. When every frame of the dataset exists it is finalized (``poses``, ``times.txt``, ``frames.jsonl``);
+   otherwise the summary says how many frames other shards still have to render.
+
+Every file is written atomically and a frame counts as done only when its record exists, so a run
+killed at any moment and started again with the same arguments completes to the same bytes.
+"""
+
+from __future__ import annotations
+
+import math
+import multiprocessing
+import os
+import queue
+import sys
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from tqdm import tqdm
+
+from sim.dataset import (
+    AsyncFrameWriter,
+    DatasetError,
+    DatasetSpec,
+    KittiDatasetWriter,
+    finalize_dataset,
+    shard_frames,
+)
+from sim.frame_renderer import (
+    MODES,
+    TRAJECTORIES,
+    FrameRenderer,
+    FrameStats,
+    RenderInputError,
+    RenderOptions,
+)
+from sim.raycast import default_workers
+from sim.scene import read_scene_json
+
+DEMO_SCENE = "demo"
+#: Seconds between checks on the worker processes while waiting for their reports.
+POLL_S = 0.5
+
+
+@dataclass
+class RenderSummary:
+    """Outcome of a run: frames rendered now, already present (resumed), poses the sky probe rejected."""
+
+    out_dir: Path
+    frame_count: int
+    rendered: int
+    skipped: int
+    rejected_poses: int
+    elapsed_s: float
+    finalized: bool
+    remaining: int = 0
+    frames: list[FrameStats] = field(default_factory=list)
+
+    @property
+    def frames_per_second(self) -> float:
+        """Frames rendered and written per wall-clock second (NaN for an empty run)."""
+        return self.rendered / self.elapsed_s if self.rendered and self.elapsed_s > 0 else math.nan
+
+    def text(self) -> str:
+        """Human summary printed by the CLI."""
+        lines = [f"{self.out_dir}: rendered {self.rendered} frames in {self.elapsed_s:.1f} s "
+                 f"({self.frames_per_second:.2f} frames/s), "
+                 f"{self.skipped} already complete",
+                 f"sky/miss probe rejected {self.rejected_poses} sampled poses"]
+        if self.finalized:
+            lines.append(f"finalized: {self.frame_count} frames (poses, times.txt, frames.jsonl written)")
+        else:
+            lines.append(f"not finalized: {self.remaining} of {self.frame_count} frames are still missing (other "
+                         "shards); rerun with the same arguments once they are in this folder")
+        return "\n".join(lines)
+
+
+@dataclass(frozen=True)
+class Job:
+    """What a worker process needs to render frames (picklable)."""
+
+    scene_dir: Path
+    out_dir: Path
+    options: RenderOptions
+    spec: DatasetSpec
+    threads: int
+
+
+def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
+    """The scene folder: ``None``, ``"demo"`` or ``"demo:VARIANT"`` is the built-in demo world (built once, cached)."""
+    if scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":"):
+        from sim.worlds import demo_scene_dir
+
+        variant = str(scene or DEMO_SCENE).partition(":")[2] or "default"
+        try:
+            return Path(demo_scene_dir(variant))
+        except ValueError as error:
+            raise RenderInputError(str(error)) from None
+    path = Path(scene)
+    if not path.is_dir():
+        raise RenderInputError(f"{path}: scene folder not found")
+    return path
+
+
+def _check_options(options: RenderOptions) -> None:
+    problems = []
+    if options.mode not in MODES:
+        problems.append(f"mode must be one of {MODES}, got {options.mode!r}")
+    if options.mode == "replay" and options.geotags is None:
+        problems.append("replay mode needs --geotags FILE")
+    if options.trajectory not in TRAJECTORIES:
+        problems.append(f"trajectory must be one of {TRAJECTORIES}, got {options.trajectory!r}")
+    if options.cameras < 2:
+        problems.append(f"a stereo dataset needs at least 2 cameras, got {options.cameras}")
+    if options.frames is not None and options.frames < 1:
+        problems.append(f"frames must be >= 1, got {options.frames}")
+    for name in ("width", "height", "spp", "workers"):
+        if getattr(options, name) < 1:
+            problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
+    if not options.baseline_m > 0:
+        problems.append(f"baseline must be positive, got {options.baseline_m}")
+    if not 0 < options.fov_deg < 180:
+        problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
+    if problems:
+        raise RenderInputError("; ".join(problems))
+
+
+def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOptions,
+                 command_line: Sequence[str]) -> DatasetSpec:
+    """The dataset's constant part: rig, origin, frame count, formats, scene provenance, sampling, command line."""
+    meta = read_scene_json(scene_dir)
+    scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
+    return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count, formats=tuple(options.formats),
+                                scene=scene, sampling=options.sampling_description(), command_line=list(command_line))
+
+
+def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
+    try:
+        return KittiDatasetWriter(out_dir, spec)
+    except (DatasetError, ValueError) as error:
+        raise RenderInputError(str(error)) from None
+    except OSError as error:
+        raise RenderInputError(f"{out_dir}: cannot write the dataset there ({error.strerror})") from None
+
+
+def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, options: RenderOptions,
+                   command_line: Sequence[str] | None = None, progress: bool = True) -> RenderSummary:
+    """Render (or resume) the dataset of ``options`` from ``scene`` into ``out_dir``; see the module docstring.
+
+    Raises :class:`RenderInputError` for bad input before anything is rendered.
+    """
+    start = time.perf_counter()
+    _check_options(options)
+    out_dir = Path(out_dir)
+    scene_dir = resolve_scene_dir(scene)
+    workers = options.workers
+    threads = max(1, default_workers() // workers)  # casting threads per process
+    renderer = FrameRenderer(scene_dir, options, threads)
+    try:
+        spec = dataset_spec(renderer, scene_dir, options, sys.argv if command_line is None else command_line)
+        writer = _open_writer(out_dir, spec)
+        pending = writer.pending(shard_frames(spec.frame_count, *options.shard))
+        shard_size = len(shard_frames(spec.frame_count, *options.shard))
+        bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,
+                   desc=f"rendering {out_dir.name}")
+        with bar:
+            if workers == 1 or len(pending) <= 1:
+                stats = _render_here(renderer, writer, pending, _Progress(bar, start))
+            else:
+                renderer.close()  # the workers build their own; this one only checked the input
+                job = Job(scene_dir, out_dir, options, spec, threads)
+                stats = _render_in_processes(job, pending, min(workers, len(pending)), _Progress(bar, start))
+    finally:
+        renderer.close()
+    remaining = len(writer.pending(range(spec.frame_count)))
+    if remaining == 0:
+        finalize_dataset(out_dir)
+    return RenderSummary(out_dir, spec.frame_count, len(stats), shard_size - len(pending),
+                         sum(s.rejected for s in stats), time.perf_counter() - start, remaining == 0, remaining,
+                         sorted(stats, key=lambda s: s.index))
+
+
+class _Progress:
+    """Collects frame reports: advances the bar and stamps each with the time since the run started."""
+
+    def __init__(self, bar, start: float):
+        self.bar, self.start, self.stats = bar, start, []
+
+    def frame_done(self, stats: FrameStats) -> None:
+        stats.done_s = time.perf_counter() - self.start
+        self.stats.append(stats)
+        self.bar.update(1)
+
+
+def _render_here(renderer: FrameRenderer, writer: KittiDatasetWriter, pending: Sequence[int],
+                 progress: _Progress) -> list[FrameStats]:
+    with AsyncFrameWriter(writer) as frames:
+        for index in pending:
+            record, frame_stats = renderer.record(index)
+            frames.submit(record)
+            progress.frame_done(frame_stats)
+    return progress.stats
+
+
+def _worker(job: Job, tasks, results) -> None:
+    """Worker process: build the scene once, render the frames it pulls, write them, report each one."""
+    try:
+        renderer = FrameRenderer(job.scene_dir, job.options, job.threads)
+        writer = KittiDatasetWriter(job.out_dir, job.spec)
+        with AsyncFrameWriter(writer) as frames:
+            for index in iter(tasks.get, None):
+                record, frame_stats = renderer.record(index)
+                frames.submit(record)
+                results.put(("frame", frame_stats))
+        renderer.close()
+        results.put(("done", None))
+    except BaseException as error:  # noqa: BLE001 -- reported to the parent, which raises it
+        results.put(("error", f"{type(error).__name__}: {error}"))
+
+
+def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progress: _Progress) -> list[FrameStats]:
+    """Render ``pending`` with ``workers`` spawned processes pulling from one queue (dynamic balance)."""
+    context = multiprocessing.get_context("spawn")  # never fork a process that already runs embree threads
+    tasks, results = context.Queue(), context.Queue()
+    for index in pending:
+        tasks.put(index)
+    for _ in range(workers):
+        tasks.put(None)
+    processes = [context.Process(target=_worker, args=(job, tasks, results), daemon=True) for _ in range(workers)]
+    for process in processes:
+        process.start()
+    finished = 0
+    try:
+        while finished < workers:
+            try:
+                kind, payload = results.get(timeout=POLL_S)
+            except queue.Empty:
+                dead = [p for p in processes if p.exitcode not in (None, 0)]
+                if dead:
+                    raise RuntimeError(f"a render worker died (exit code {dead[0].exitcode})") from None
+                continue
+            if kind == "error":
+                raise RuntimeError(f"a render worker failed: {payload}")
+            if kind == "done":
+                finished += 1
+            else:
+                progress.frame_done(payload)
+    finally:
+        for process in processes:
+            process.join(timeout=None if finished == workers else 0)
+            if process.is_alive():
+                process.terminate()
+                process.join()
+    return progress.stats
+

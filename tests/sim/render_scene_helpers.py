@@ -1,0 +1,70 @@
+"""A tiny textured scene folder with known geometry for the dataset-render tests.
+
+Flat ground z = 0 out to +-3 km (so tilted views see little sky) with a repeating noise texture, and
+one box of known corners standing on it (vertical walls, so its top edge is a sharp depth edge).
+Written as OBJ + MTL + PNG with ``scene.json``, exactly as INTERFACES.md describes a scene folder.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from PIL import Image
+
+from flightplan.geodesy import LocalFrame
+from sim.synthetic import noise_texture
+
+ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
+GROUND_EDGES_M = np.array([-3000.0, -1000.0, -300.0, -100.0, -50.0, 0.0, 50.0, 100.0, 300.0, 1000.0, 3000.0])
+#: The box: ENU x and y extent and its height (metres); its top face is the plane z = BOX_TOP_M.
+BOX_X_M, BOX_Y_M, BOX_TOP_M = (-12.0, 8.0), (-6.0, 10.0), 10.0
+VALID_HALF_SIZE_M = 45.0
+TEXTURE_PERIOD_M = 40.0
+
+
+def _ground() -> tuple[np.ndarray, np.ndarray]:
+    gx, gy = np.meshgrid(GROUND_EDGES_M, GROUND_EDGES_M)
+    vertices = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=-1)
+    row = len(GROUND_EDGES_M)
+    i, j = np.meshgrid(np.arange(row - 1), np.arange(row - 1))
+    v00 = (j * row + i).ravel()
+    faces = np.concatenate([np.stack([v00, v00 + 1, v00 + row + 1], -1), np.stack([v00, v00 + row + 1, v00 + row], -1)])
+    return vertices, faces
+
+
+def box_top_corners() -> np.ndarray:
+    """(4, 3) ENU corners of the box top, counter-clockwise seen from above."""
+    (x0, x1), (y0, y1) = BOX_X_M, BOX_Y_M
+    return np.array([[x0, y0, BOX_TOP_M], [x1, y0, BOX_TOP_M], [x1, y1, BOX_TOP_M], [x0, y1, BOX_TOP_M]])
+
+
+def _box() -> tuple[np.ndarray, np.ndarray]:
+    box = trimesh.creation.box(bounds=[[BOX_X_M[0], BOX_Y_M[0], 0.0], [BOX_X_M[1], BOX_Y_M[1], BOX_TOP_M]])
+    return np.asarray(box.vertices, dtype=float), np.asarray(box.faces)
+
+
+def write_scene(folder: Path, textured: bool = True, valid_half_size_m: float = VALID_HALF_SIZE_M) -> Path:
+    """Write the scene folder (``terrain.obj`` + material + ``scene.json``); ``textured=False``: no UVs/texture."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    (ground_v, ground_f), (box_v, box_f) = _ground(), _box()
+    vertices = np.vstack([ground_v, box_v])
+    faces = np.vstack([ground_f, box_f + len(ground_v)])
+    if textured:
+        uv = vertices[:, :2] / TEXTURE_PERIOD_M + 0.5 * vertices[:, 2:3] / TEXTURE_PERIOD_M
+        visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.fromarray(noise_texture(256, 3)))
+        mesh = trimesh.Trimesh(vertices, faces, visual=visual, process=False)
+    else:
+        mesh = trimesh.Trimesh(vertices, faces, process=False)
+    mesh.export(folder / "terrain.obj")
+    half = valid_half_size_m
+    scene = {"format": "aerostereo-scene/1", "mesh": "terrain.obj", "origin": ORIGIN.to_dict(), "units": "m",
+             "up_axis": "z", "frame": "enu", "vertex_offset_m": [0.0, 0.0, 0.0],
+             "ground_height_range_m": [0.0, BOX_TOP_M],
+             "valid_area_m": {"xmin": -half, "xmax": half, "ymin": -half, "ymax": half},
+             "provenance": {"generator": "tests.sim.render_scene_helpers"}}
+    (folder / "scene.json").write_text(json.dumps(scene, indent=2) + "\n", encoding="utf-8")
+    return folder

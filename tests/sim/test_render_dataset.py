@@ -1,0 +1,315 @@
+"""The dataset-render pipeline and CLI against known truth: a box of known corners on a flat textured ground.
+
+pykitti (a real KITTI client) reads what we write; the box top projected with pykitti's P2 and poses lands
+on the pixels the renderer drew it on; depth, disparity and the two views agree; the output does not depend
+on worker count, shards or a kill in the middle of a frame; bad input exits with code 2.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pykitti
+import pytest
+from scipy.spatial.transform import Rotation
+
+from flightplan.geodesy import LocalFrame
+from sim.dataset.images import read_exr, read_png
+from sim.render_cli import compare_main, render_main
+from sim.frame_renderer import RenderOptions
+from sim.render_dataset import render_dataset
+from sim.sampling import R_WORLD_NADIR
+from render_scene_helpers import BOX_TOP_M, ORIGIN, box_top_corners, write_scene
+
+REPO_ROOT = Path(__file__).resolve().parents[2]
+SMALL = dict(width=160, height=100, frames=8, seed=3)
+
+
+def _argv(scene: Path, out: Path, **options) -> list[str]:
+    argv = ["--scene", str(scene), "--out", str(out), "--quiet"]
+    for key, value in options.items():
+        argv += [f"--{key}", str(value)]
+    return argv
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory) -> Path:
+    return write_scene(tmp_path_factory.mktemp("scene"))
+
+
+@pytest.fixture(scope="module")
+def reference(scene_dir, tmp_path_factory):
+    """A small random-mode dataset rendered in this process (1 worker); (folder, summary)."""
+    out = tmp_path_factory.mktemp("reference") / "dataset"
+    summary = render_dataset(scene_dir, out, RenderOptions(**SMALL), command_line=["test"], progress=False)
+    return out, summary
+
+
+def frame_records(dataset: Path) -> list[dict]:
+    return [json.loads(line) for line in (dataset / "sequences/00/frames.jsonl").read_text().splitlines()]
+
+
+def dataset_bytes(dataset: Path) -> dict[str, bytes]:
+    """Every file of a dataset by relative path; records without the measured render time, no command line."""
+    files = {}
+    for path in sorted(p for p in dataset.rglob("*") if p.is_file()):
+        name = str(path.relative_to(dataset))
+        if path.suffix == ".json" and "frame_meta" in name or path.name == "frames.jsonl":
+            records = [json.loads(line) for line in path.read_text().splitlines()]
+            files[name] = json.dumps([{k: v for k, v in r.items() if k != "render_time_s"} for r in records]).encode()
+        elif path.name == "dataset.json":
+            files[name] = json.dumps({k: v for k, v in json.loads(path.read_text()).items() if k != "command_line"}).encode()
+        else:
+            files[name] = path.read_bytes()
+    return files
+
+
+def pixel_rays(P: np.ndarray, width: int, height: int) -> np.ndarray:
+    """(H, W, 3) camera-frame rays K^-1 [u, v, 1] (z = 1, so a ray parameter is planar depth)."""
+    u, v = np.meshgrid(np.arange(width, dtype=float), np.arange(height, dtype=float))
+    return np.stack([u, v, np.ones_like(u)], axis=-1) @ np.linalg.inv(P[:, :3]).T
+
+
+def test_pykitti_reads_the_sequence_and_the_box_top_lands_where_rendered(reference):
+    """Box-top corners projected with pykitti's P2 and poses bound exactly the pixels whose depth is the box top."""
+    out, _ = reference
+    kitti = pykitti.odometry(str(out), "00")
+    records = frame_records(out)
+    assert len(kitti.poses) == len(records) == SMALL["frames"] and len(kitti.timestamps) == SMALL["frames"]
+    assert kitti.get_cam2(0).size == (SMALL["width"], SMALL["height"]) and kitti.get_cam0(0).mode == "L"
+    assert kitti.calib.b_rgb == pytest.approx(0.54, abs=1e-9)
+    T_world_first = np.array(records[0]["T_world_cam"])
+    P2 = kitti.calib.P_rect_20
+    frames_with_box, checked = 0, 0
+    for index, T_first_cam in enumerate(kitti.poses):
+        T_world_cam = T_world_first @ T_first_cam
+        corners_cam = (np.linalg.inv(T_world_cam) @ np.c_[box_top_corners(), np.ones(4)].T)
+        if np.any(corners_cam[2] <= 0):
+            continue
+        projected = P2 @ corners_cam
+        polygon = (projected[:2] / projected[2]).T.astype(np.float32)
+        depth = read_exr(out / f"sequences/00/depth_2/{index:06d}.exr")
+        rays_world = pixel_rays(P2, SMALL["width"], SMALL["height"]) @ T_world_cam[:3, :3].T
+        with np.errstate(divide="ignore", invalid="ignore"):
+            top_depth = (BOX_TOP_M - T_world_cam[2, 3]) / rays_world[..., 2]
+        rendered_top = np.abs(depth - top_depth) < 1e-4 * top_depth
+        signed = np.array([[cv2.pointPolygonTest(polygon, (float(u), float(v)), True)
+                            for u in range(SMALL["width"])] for v in range(SMALL["height"])])
+        clear = np.abs(signed) > 0.5  # pixel centres more than half a pixel from the projected outline
+        np.testing.assert_array_equal(rendered_top[clear], signed[clear] > 0, err_msg=f"frame {index}")
+        frames_with_box += int(np.sum(signed > 0.5) >= 30)
+        checked += int(clear.sum())
+    assert frames_with_box >= 1 and checked > 0
+
+
+def test_depth_disparity_and_the_two_views_agree(reference):
+    out, _ = reference
+    calib = pykitti.odometry(str(out), "00").calib
+    fx, baseline = calib.P_rect_20[0, 0], calib.b_rgb
+    seq = out / "sequences/00"
+    agreeing = []
+    for index in range(SMALL["frames"]):
+        name = f"{index:06d}"
+        depth_left, depth_right = read_exr(seq / f"depth_2/{name}.exr"), read_exr(seq / f"depth_3/{name}.exr")
+        disparity = read_exr(seq / f"disp_2/{name}.exr")
+        finite = np.isfinite(depth_left)
+        np.testing.assert_allclose(disparity[finite], fx * baseline / depth_left[finite], rtol=1e-6)
+        assert np.all(disparity[~finite] == 0)
+        png = read_png(seq / f"disp_2/{name}.png").astype(float) / 256
+        np.testing.assert_allclose(png[finite], np.clip(disparity[finite], 1 / 256, None), atol=1 / 512 + 1e-9)
+        assert np.all(png[~finite] == 0)
+        # The left pixel (u, v) sees the point the right camera sees at (u - d, v), at the same planar depth.
+        v, u = np.mgrid[0:SMALL["height"], 0:SMALL["width"]].astype(np.float32)
+        right_at_match = cv2.remap(np.nan_to_num(depth_right, posinf=0.0), u - disparity, v, cv2.INTER_LINEAR,
+                                   borderValue=-1.0)
+        inside = finite & (right_at_match > 0)
+        relative = np.abs(right_at_match[inside] - depth_left[inside]) / depth_left[inside]
+        agreeing.append(np.mean(relative < 1e-3))
+    assert np.mean(agreeing) > 0.97  # the rest: occlusion edges of the box and the horizon
+
+
+def test_poses_times_and_sampler_records_agree(reference):
+    out, summary = reference
+    records = frame_records(out)
+    poses = np.loadtxt(out / "poses/00.txt").reshape(-1, 3, 4)
+    T_first_world = np.linalg.inv(np.array(records[0]["T_world_cam"]))
+    for record, pose in zip(records, poses):
+        np.testing.assert_allclose(pose, (T_first_world @ np.array(record["T_world_cam"]))[:3], atol=1e-9)
+        assert record["sampler"]["mode"] == "random"
+        assert 20.0 <= record["sampler"]["height_above_ground_m"] <= 100.0
+        assert all(-45.0 <= record["sampler"][key] <= 45.0 for key in ("tilt_x_deg", "tilt_y_deg"))
+        assert 30.0 <= record["sun"]["elevation_deg"] <= 90.0 and 5.0 <= record["sun"]["intensity"] <= 10.0
+    np.testing.assert_allclose(np.loadtxt(out / "sequences/00/times.txt"), [r["time_s"] for r in records])
+    # The sky probe rejects tilted views of the horizon, and the summary counts exactly the recorded redraws.
+    assert summary.rejected_poses == sum(r["sampler"]["rejected"] for r in records) > 0
+    assert summary.rendered == SMALL["frames"] and summary.finalized
+    description = json.loads((out / "dataset.json").read_text())
+    assert description["command_line"] == ["test"] and description["sampling"]["seed"] == SMALL["seed"]
+
+
+def test_a_rerun_skips_complete_frames_and_redoes_a_damaged_one(reference, scene_dir, tmp_path):
+    out = tmp_path / "dataset"
+    shutil.copytree(reference[0], out)
+    (out / "sequences/00/frame_meta/000002.json").unlink()  # as if killed before frame 2's record was written
+    (out / "sequences/00/image_3/000002.png").write_bytes(b"half a png")
+    summary = render_dataset(scene_dir, out, RenderOptions(**SMALL), command_line=["test"], progress=False)
+    assert (summary.rendered, summary.skipped) == (1, SMALL["frames"] - 1)
+    assert dataset_bytes(out) == dataset_bytes(reference[0])
+
+
+@pytest.mark.slow
+def test_same_bytes_with_two_workers_and_from_merged_shards(reference, scene_dir, tmp_path):
+    expected = dataset_bytes(reference[0])
+    two_workers = render_dataset(scene_dir, tmp_path / "two", RenderOptions(**SMALL, workers=2), progress=False)
+    assert two_workers.rendered == SMALL["frames"]
+    assert dataset_bytes(tmp_path / "two") == expected
+    for shard in (0, 1):
+        summary = render_dataset(scene_dir, tmp_path / f"shard{shard}", RenderOptions(**SMALL, shard=(shard, 2)),
+                                 progress=False)
+        assert not summary.finalized and summary.remaining == SMALL["frames"] // 2
+        shutil.copytree(tmp_path / f"shard{shard}", tmp_path / "merged", dirs_exist_ok=True)
+    merged = render_dataset(scene_dir, tmp_path / "merged", RenderOptions(**SMALL), progress=False)
+    assert merged.rendered == 0 and merged.finalized
+    assert dataset_bytes(tmp_path / "merged") == expected
+
+
+KILL_OPTIONS = dict(width=640, height=400, frames=6, seed=5)
+
+
+def _first_partial_frame(dataset: Path) -> int | None:
+    """A frame with some files on disk but no record yet (a kill now lands in the middle of writing it)."""
+    seq = dataset / "sequences/00"
+    for index in range(KILL_OPTIONS["frames"]):
+        if (seq / f"image_2/{index:06d}.png").exists() and not (seq / f"frame_meta/{index:06d}.json").exists():
+            return index
+    return None
+
+
+@pytest.mark.slow
+def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_dir, tmp_path):
+    killed = tmp_path / "killed"
+    code = f"import sys; from sim.render_cli import render_main; sys.exit(render_main({_argv(scene_dir, killed, **KILL_OPTIONS)!r}))"
+    process = subprocess.Popen([sys.executable, "-c", code], cwd=REPO_ROOT,
+                               env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
+    deadline, partial = time.monotonic() + 60, None
+    while partial is None and process.poll() is None and time.monotonic() < deadline:
+        partial = _first_partial_frame(killed) if (killed / "sequences/00/image_2").exists() else None
+        time.sleep(0.001)
+    process.send_signal(signal.SIGKILL)
+    process.wait()
+    assert partial is not None, "the run ended before a frame was caught half-written"
+    assert not (killed / f"sequences/00/frame_meta/{partial:06d}.json").exists()
+    assert render_main(_argv(scene_dir, killed, **KILL_OPTIONS)) == 0
+    uninterrupted = tmp_path / "uninterrupted"
+    assert render_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
+    assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
+    assert not [p for p in killed.rglob("*.tmp")]
+
+
+def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
+    out = tmp_path / "orbit"
+    argv = _argv(scene_dir, out, mode="trajectory", frames=5, width=48, height=32, speed=4.0, rate=2.0, altitude=30)
+    assert render_main(argv) == 0
+    records = frame_records(out)
+    positions = np.array([r["position_enu_m"] for r in records])
+    steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
+    np.testing.assert_allclose(steps, 2.0, rtol=1e-3)  # 4 m/s at 2 Hz (chords of a 27 m circle)
+    np.testing.assert_allclose(np.loadtxt(out / "sequences/00/times.txt"), np.arange(5) / 2.0)
+    np.testing.assert_allclose(positions[:, 2], BOX_TOP_M + 30.0)  # 30 m over the ground at the centre: the box top
+
+
+def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]]) -> Path:
+    header = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
+              "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,"
+              "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz").split(",")
+    qx, qy, qz, qw = Rotation.from_matrix(R_WORLD_NADIR).as_quat()
+    path = folder / "geotags.csv"
+    with path.open("w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, header)
+        writer.writeheader()
+        for k, (east, north, up) in enumerate(positions):
+            lat, lon, height = origin.to_geodetic(east, north, up)
+            writer.writerow({"image_name": f"DJI_{k:04d}.JPG", "utc_time": f"2026-05-01T10:00:{2 * k:02d}.000000Z",
+                             "lat_deg": lat, "lon_deg": lon, "height_above_takeoff_m": up, "absolute_height_m": "",
+                             "aircraft_yaw_deg": 0, "aircraft_pitch_deg": 0, "aircraft_roll_deg": 0,
+                             "gimbal_yaw_deg": 0, "gimbal_pitch_deg": -90, "gimbal_roll_deg": 0, "source": "test",
+                             "time_offset_s": 0, "east_m": east, "north_m": north, "up_m": up,
+                             "qw": qw, "qx": qx, "qy": qy, "qz": qz})
+    (folder / "geotags.json").write_text(json.dumps({"origin": origin.to_dict()}), encoding="utf-8")
+    return path
+
+
+def test_replay_renders_exactly_where_the_photos_were_taken(scene_dir, tmp_path):
+    positions = [(0.0, -5.0, 60.0), (3.0, -5.0, 61.0), (6.0, -4.0, 62.0)]
+    geotags = _write_geotags(tmp_path, ORIGIN, positions)
+    out = tmp_path / "replay"
+    assert render_main(_argv(scene_dir, out, mode="replay", geotags=geotags, width=48, height=32)) == 0
+    records = frame_records(out)
+    np.testing.assert_allclose([r["position_enu_m"] for r in records], positions, atol=1e-6)
+    np.testing.assert_allclose(np.array(records[1]["T_world_cam"])[:3, :3], R_WORLD_NADIR, atol=1e-9)
+    np.testing.assert_allclose(np.loadtxt(out / "sequences/00/times.txt"), [0.0, 2.0, 4.0])
+    depth = read_exr(out / "sequences/00/depth_2/000000.exr")
+    assert depth[0, 0] == pytest.approx(60.0, rel=1e-5)  # nadir view of flat ground 60 m below
+
+
+def test_cli_writes_a_contact_sheet(reference, scene_dir, tmp_path):
+    sheet = tmp_path / "sheet.png"
+    out = tmp_path / "dataset"
+    shutil.copytree(reference[0], out)
+    assert render_main(_argv(scene_dir, out, **SMALL) + ["--contact-sheet", str(sheet)]) == 0
+    image = read_png(sheet)
+    assert image.ndim == 3 and image.shape[1] > image.shape[0] > 100 and image.std() > 10
+
+
+def _error_of(capsys, argv: list[str]) -> str:
+    assert render_main(argv) == 2
+    message = capsys.readouterr().err.strip()
+    assert message.count("\n") == 0 and "Traceback" not in message
+    return message
+
+
+def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
+    missing = tmp_path / "no-such-scene"
+    assert str(missing) in _error_of(capsys, _argv(missing, tmp_path / "a"))
+    untextured = write_scene(tmp_path / "untextured", textured=False)
+    assert "texture" in _error_of(capsys, _argv(untextured, tmp_path / "b"))
+    far_away = _write_geotags(tmp_path, LocalFrame(47.0, 8.0, 400.0), [(0.0, 0.0, 50.0)])
+    assert "another area" in _error_of(capsys, _argv(scene_dir, tmp_path / "c", mode="replay", geotags=far_away))
+    blocker = tmp_path / "a-file"
+    blocker.write_text("not a folder")
+    assert str(blocker / "out") in _error_of(capsys, _argv(scene_dir, blocker / "out", frames=1, width=16, height=8))
+    assert "replay mode needs --geotags" in _error_of(capsys, _argv(scene_dir, tmp_path / "d", mode="replay"))
+    with pytest.raises(SystemExit) as exit_info:
+        render_main(_argv(scene_dir, tmp_path / "e", shard="2/2"))
+    assert exit_info.value.code == 2
+
+
+def test_compare_prints_the_photorealism_table(reference, tmp_path, capsys):
+    seq = reference[0] / "sequences/00"
+    assert compare_main([str(seq / "image_2"), str(seq / "image_2")]) == 0
+    table = capsys.readouterr().out
+    assert f"mean of {SMALL['frames']}" in table and "0.00" in table.splitlines()[-1]
+    assert compare_main([str(seq / "image_2"), str(seq / "image_3")]) == 0
+    mean_error = float(capsys.readouterr().out.splitlines()[-1].split()[3])
+    assert 0.0 < mean_error < 30.0  # a stereo partner differs, but far less than unrelated images
+    assert compare_main([str(tmp_path / "missing"), str(seq / "image_2")]) == 2
+
+
+def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
+    out = tmp_path / "three"
+    assert render_main(_argv(scene_dir, out, cameras=3, frames=2, width=40, height=24, baseline=0.3)) == 0
+    calib = {line.split(":")[0]: np.array(line.split()[1:], float).reshape(3, 4)
+             for line in (out / "sequences/00/calib.txt").read_text().splitlines()}
+    assert calib["P4"][0, 3] == pytest.approx(-calib["P4"][0, 0] * 0.6)  # third camera 2 x 0.3 m to the right
+    assert read_png(out / "sequences/00/image_4/000001.png").shape == (24, 40, 3)
+    assert read_exr(out / "sequences/00/depth_4/000001.exr").shape == (24, 40)
