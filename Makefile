@@ -25,6 +25,10 @@ demo: $(STAMP_RUN)
 	$(BIN)/python -m sim --out demo/dataset --frames 20 --width 640 --height 360 \
 		--contact-sheet demo/contact_sheet.png
 
+# The whole pipeline on the demo world, measured against the truth (report in closed_loop/report.md).
+closed-loop: $(STAMP_RUN)
+	$(BIN)/python tools/closed_loop.py --out closed_loop
+
 test: $(STAMP_TEST)
 	$(BIN)/python -m pytest
 

@@ -1,0 +1,392 @@
+"""The closed loop: plan -> fly (virtual drone) -> record -> geotag -> reconstruct -> render, measured against truth.
+
+Every stage runs the project's real command line in a child process (see :func:`cli`), so its wall time and
+peak memory (the child's own max RSS from ``os.wait4``) are measured per stage:
+
+1. ``aerostereo-mission`` plans the default orbit around the world's origin; ``--arc N`` keeps its first N
+   waypoints (a short arc for quick runs).
+2. ``aerostereo-render fly`` flies it with realistic noise. ``--link tcp`` (default): the drone streams DUML to
+   a local TCP relay (``socket://``) that forwards it to ``aerostereo-ingest record`` in another process --
+   pyserial's ``loop://`` is one object inside one process, so two processes need a socket. The recorder
+   stamps arrivals with the host clock, so this link runs in real time. ``--link loop`` (quick runs): the fly
+   command streams through a pyserial ``loop://`` port into the recorder's code path inside its own process,
+   on the flight clock, so it may run ``--speedup`` times faster than real time.
+3. ``aerostereo-ingest geotag`` geotags the photos from the recorded capture.
+4. ``aerostereo-recon`` reconstructs the scene from photos + geotags.
+5. ``aerostereo-render --mode replay --geotags`` renders the photos' stereo poses twice: from the
+   reconstruction (the twin) and from the true world.
+6. The evaluation (in this process) writes ``report.json``, ``report.md`` and plots into ``--out``.
+
+A stage that fails or whose inputs are missing is reported as failed/skipped with the reason, and the metrics
+that need it say "not measured" -- never a silent gap. ``--sweep KNOB=v1,v2`` reruns the loop per value and
+prints time against error.
+
+    python tools/closed_loop.py --out closed_loop                   # demo world, whole orbit (real time)
+    python tools/closed_loop.py --out cl_quick --quick              # small world, short arc, low resolution
+    python tools/closed_loop.py --out cl_sweep --quick --sweep sfm_image_size=400,800
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import os
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from flightplan import litchi  # noqa: E402
+from flightplan.geodesy import LocalFrame  # noqa: E402
+from sim.scene import read_scene_json  # noqa: E402
+from tools.closed_loop_eval import evaluate, write_report  # noqa: E402
+
+
+def cli(script: str) -> list[str]:
+    """The command line that runs ``script``. The console scripts are not all installed yet, so each runs its
+    module with this Python (swap a line for ``[script]`` once it is a console script)."""
+    python = sys.executable
+    return {
+        "aerostereo-mission": [python, "-m", "flightplan"],
+        "aerostereo-ingest": [python, "-m", "capture"],
+        "aerostereo-recon": [python, "-m", "recon"],
+        "aerostereo-render fly": [python, "-m", "sim", "fly"],
+        "aerostereo-render": [python, "-c", "import sys; from sim.render_cli import render_main; "
+                                            "sys.exit(render_main(sys.argv[1:]))"],
+    }[script]
+
+
+@dataclass
+class LoopConfig:
+    """Every knob of one closed-loop run (CLI options of the stages)."""
+
+    scene: str = "demo"                  # "demo", "demo:small" or a scene folder
+    radius_m: float = 50.0
+    height_m: float = 30.0
+    photo_interval_s: float = 1.0
+    arc_waypoints: int = 0               # 0: the whole orbit
+    photo_size: tuple[int, int] = (800, 600)
+    noise: str = "realistic"
+    link: str = "tcp"
+    speedup: float = 1.0
+    seed: int = 0
+    sfm_image_size: int = 800
+    dense_size: int = 640
+    mesh: str = "2.5d"
+    grid_m: float | None = None
+    decimate_error_m: float | None = None
+    spp: int = 1
+    render_size: tuple[int, int] | None = None   # None: the photo size
+    workers: int = 2
+    surface_samples: int = 20000
+
+    @classmethod
+    def quick(cls) -> "LoopConfig":
+        """The reduced loop of the CI test: small world, a short arc, low resolution, 10x faster flight."""
+        return cls(scene="demo:small", arc_waypoints=3, photo_size=(480, 360), link="loop", speedup=10.0,
+                   sfm_image_size=480, dense_size=320, spp=1, surface_samples=8000)
+
+
+#: Sweep knobs: name -> (config field, value parser).
+KNOBS = {
+    "gps_noise": ("noise", str),
+    "photo_interval": ("photo_interval_s", float),
+    "sfm_image_size": ("sfm_image_size", int),
+    "dense_size": ("dense_size", int),
+    "mesh": ("mesh", str),
+    "decimate_error": ("decimate_error_m", float),
+    "grid": ("grid_m", float),
+    "spp": ("spp", int),
+}
+
+
+@dataclass
+class StageResult:
+    """One stage: ``status`` ok / failed / skipped, wall time (s), the child's peak RSS (MiB), the command, and
+    why it failed or was skipped."""
+
+    name: str
+    status: str
+    wall_s: float = 0.0
+    max_rss_mib: float | None = None
+    command: list[str] = field(default_factory=list)
+    detail: str = ""
+
+
+def child_env() -> dict:
+    """Environment of the stages: this checkout first on the import path, one BLAS thread per process."""
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT), env.get("PYTHONPATH")]))
+    env.setdefault("OPENBLAS_NUM_THREADS", "1")
+    return env
+
+
+def _log_tail(log: Path, lines: int = 3) -> str:
+    text = log.read_text(encoding="utf-8", errors="replace").strip().splitlines() if log.exists() else []
+    return " | ".join(line.strip() for line in text[-lines:])
+
+
+def start(name: str, argv: list[str], log_dir: Path) -> tuple[subprocess.Popen, float, Path]:
+    """Start a stage's child process with its output in ``log_dir/NAME.log``."""
+    log = log_dir / f"{name}.log"
+    with log.open("wb") as handle:
+        process = subprocess.Popen(argv, stdout=handle, stderr=subprocess.STDOUT, env=child_env())
+    return process, time.perf_counter(), log
+
+
+def finish(name: str, started: tuple[subprocess.Popen, float, Path]) -> StageResult:
+    """Wait for a started stage; its own peak RSS comes from ``os.wait4`` (ru_maxrss, KiB on Linux)."""
+    process, t0, log = started
+    _, status, usage = os.wait4(process.pid, 0)
+    process.returncode = os.waitstatus_to_exitcode(status)
+    wall = time.perf_counter() - t0
+    ok = process.returncode == 0
+    return StageResult(name, "ok" if ok else "failed", wall, usage.ru_maxrss / 1024.0, list(map(str, process.args)),
+                       "" if ok else f"exit code {process.returncode}: {_log_tail(log)} (log: {log})")
+
+
+def run(name: str, argv: list[str], log_dir: Path) -> StageResult:
+    return finish(name, start(name, argv, log_dir))
+
+
+class Relay:
+    """A local TCP listener joining two pyserial ``socket://`` clients: the first to connect (the recorder)
+    receives every byte the second (the drone) sends, until the drone closes."""
+
+    def __init__(self) -> None:
+        self.server = socket.create_server(("127.0.0.1", 0))
+        self.url = f"socket://127.0.0.1:{self.server.getsockname()[1]}"
+        self.recorder_connected = threading.Event()
+        self.drone_closed = threading.Event()
+        self.forwarded = 0
+        self._recorder: socket.socket | None = None
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        self._recorder, _ = self.server.accept()
+        self.recorder_connected.set()
+        drone, _ = self.server.accept()
+        with drone:
+            while data := drone.recv(65536):
+                self._recorder.sendall(data)
+                self.forwarded += len(data)
+        self.drone_closed.set()
+
+    def close(self) -> None:
+        if self._recorder is not None:
+            self._recorder.close()
+        self.server.close()
+
+
+def fly_over_tcp(fly_args: list[str], capture: Path, log_dir: Path) -> list[StageResult]:
+    """``aerostereo-ingest record`` and ``aerostereo-render fly --link tcp`` in two processes through a
+    :class:`Relay`; the recorder is stopped with Ctrl-C (SIGINT) once every byte sent is on its disk."""
+    relay = Relay()
+    try:
+        recorder = start("record", cli("aerostereo-ingest") + ["record", "--port", relay.url, "--out", str(capture)],
+                         log_dir)
+        if not relay.recorder_connected.wait(60):
+            recorder[0].kill()
+            return [finish("record", recorder), StageResult("fly", "skipped", detail="the recorder never connected")]
+        drone = run("fly", fly_args + ["--link", "tcp", "--port", relay.url], log_dir)
+        relay.drone_closed.wait(30 if drone.status == "ok" else 1)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and (not capture.exists() or capture.stat().st_size < relay.forwarded):
+            time.sleep(0.05)
+        recorder[0].send_signal(signal.SIGINT)
+        recorded = finish("record", recorder)
+        size = capture.stat().st_size if capture.exists() else 0
+        recorded.detail = (f"{size} of {relay.forwarded} bytes streamed over {relay.url}" if recorded.status == "ok"
+                           else recorded.detail)
+        if recorded.status == "ok" and size != relay.forwarded:
+            recorded.status = "failed"
+        return [drone, recorded]
+    finally:
+        relay.close()
+
+
+def plan_mission(config: LoopConfig, centre: LocalFrame, out: Path, log_dir: Path) -> StageResult:
+    """Plan the orbit around ``centre``; with ``arc_waypoints`` keep the first N waypoints (a short arc)."""
+    full = out / "mission_full.csv"
+    result = run("plan", cli("aerostereo-mission") + [
+        "--lat", f"{centre.lat0_deg:.9f}", "--lon", f"{centre.lon0_deg:.9f}", "--radius", str(config.radius_m),
+        "--height", str(config.height_m), "--interval", str(config.photo_interval_s), "--out", str(full),
+        "--summary-json", str(out / "mission_summary.json")], log_dir)
+    if result.status == "ok":
+        mission = litchi.read_mission_csv(full)
+        rows = mission.waypoints
+        if config.arc_waypoints:
+            rows = rows[:config.arc_waypoints]
+            rows = rows[:-1] + (dataclasses.replace(rows[-1], curve_size_m=litchi.MIN_CURVE_M),)
+        litchi.write_mission_csv(litchi.Mission(rows), out / "mission.csv")
+        result.detail = f"{len(rows)} of {len(mission.waypoints)} waypoints"
+    return result
+
+
+def world_folder(scene: str) -> Path:
+    """The scene folder of ``--scene`` (the demo world is built once into the cache)."""
+    from sim.cli import scene_folder
+    return scene_folder(scene)
+
+
+def photo_hfov_deg(truth_json: Path) -> float:
+    """Horizontal field of view (deg) of the drone's photo camera, from ``truth.json``'s camera matrix."""
+    truth = json.loads(truth_json.read_text(encoding="utf-8"))
+    return math.degrees(2 * math.atan(truth["photo_size_px"][0] / 2 / truth["camera_K"][0][0]))
+
+
+def skipped(name: str, needs: str) -> StageResult:
+    return StageResult(name, "skipped", detail=f"not run: {needs} did not succeed")
+
+
+def run_loop(config: LoopConfig, out: Path) -> dict:
+    """Run every stage into ``out`` and evaluate; returns the report (also written as report.json/.md)."""
+    out.mkdir(parents=True, exist_ok=True)
+    log_dir = out / "logs"
+    log_dir.mkdir(exist_ok=True)
+    t0 = time.perf_counter()
+    world = world_folder(config.scene)
+    world_origin = read_scene_json(world)["origin_frame"]
+    stages = [StageResult("world", "ok", time.perf_counter() - t0, None, [], f"{world} (in-process, cached)")]
+    ok = {s.name for s in stages}
+
+    def add(*results: StageResult) -> None:
+        stages.extend(results)
+        ok.update(r.name for r in results if r.status == "ok")
+
+    mission_dir, fly_dir, record_dir = out / "mission", out / "fly", out / "record"
+    for folder in (mission_dir, record_dir, out / "geotag"):
+        folder.mkdir(exist_ok=True)
+    add(plan_mission(config, world_origin, mission_dir, log_dir))
+    fly_args = cli("aerostereo-render fly") + [
+        "--mission", str(mission_dir / "mission.csv"), "--scene", str(world), "--out", str(fly_dir),
+        "--photo-size", *map(str, config.photo_size), "--noise", config.noise, "--seed", str(config.seed)]
+    if "plan" not in ok:
+        add(skipped("fly", "plan"), skipped("record", "plan"))
+        capture = None
+    elif config.link == "tcp":
+        capture = record_dir / "received.duml"
+        add(*fly_over_tcp(fly_args, capture, log_dir))
+    else:
+        capture = fly_dir / "flight.duml"
+        flown = run("fly", fly_args + ["--link", "loop", "--speedup", str(config.speedup)], log_dir)
+        add(flown, StageResult("record", flown.status,
+                        detail="--link loop: recorded inside the fly process (pyserial loop:// into the "
+                               "recorder's code path, time and memory counted in fly), not by the "
+                               "aerostereo-ingest record command"))
+    geotags = out / "geotag" / "geotags.csv"
+    if {"fly", "record"} <= ok:
+        add(run("geotag", cli("aerostereo-ingest") + ["geotag", "--photos", str(fly_dir / "photos"), "--log",
+                                                     str(capture), "--out", str(geotags)], log_dir))
+    else:
+        add(skipped("geotag", "fly/record"))
+    recon_dir = out / "recon"
+    if "geotag" in ok:
+        options = ["--image-size", str(config.sfm_image_size), "--dense-size", str(config.dense_size),
+                   "--mesh", config.mesh, "--workers", str(config.workers)]
+        if config.grid_m is not None:
+            options += ["--grid", str(config.grid_m)]
+        if config.decimate_error_m is not None:
+            options += ["--decimate-error", str(config.decimate_error_m)]
+        add(run("recon", cli("aerostereo-recon") + ["--photos", str(fly_dir / "photos"), "--geotags", str(geotags),
+                                                   "--out", str(recon_dir), *options], log_dir))
+    else:
+        add(skipped("recon", "geotag"))
+    render_dirs = {"twin": out / "render" / "twin", "true": out / "render" / "true"}
+    for label, scene in (("twin", recon_dir), ("true", world)):
+        needs = {"geotag", "recon"} if label == "twin" else {"geotag"}
+        if needs <= ok:
+            width, height = config.render_size or config.photo_size
+            add(run(f"render_{label}", cli("aerostereo-render") + [
+                "--scene", str(scene), "--out", str(render_dirs[label]), "--mode", "replay", "--geotags",
+                str(geotags), "--width", str(width), "--height", str(height),
+                "--fov", f"{photo_hfov_deg(fly_dir / 'truth.json'):.6f}", "--spp", str(config.spp),
+                "--seed", str(config.seed), "--workers", "1", "--quiet"], log_dir))
+        else:
+            add(skipped(f"render_{label}", " and ".join(sorted(needs - ok))))
+    report = evaluate(config=dataclasses.asdict(config), stages=[dataclasses.asdict(s) for s in stages], ok=ok,
+                      world=world, out=out, geotags=geotags, recon_dir=recon_dir, render_dirs=render_dirs,
+                      truth_json=fly_dir / "truth.json", photos=fly_dir / "photos",
+                      mission_summary=mission_dir / "mission_summary.json")
+    write_report(report, out)
+    return report
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--out", required=True, type=Path, help="output folder (report.md, report.json, stages)")
+    parser.add_argument("--quick", action="store_true",
+                        help="the reduced loop: small world, 3-waypoint arc, 480x360 photos, loop link at 10x")
+    parser.add_argument("--scene", help="scene folder, or demo / demo:small (default demo)")
+    parser.add_argument("--arc", type=int, dest="arc_waypoints", help="fly only the first N waypoints (0: all)")
+    parser.add_argument("--photo-size", nargs=2, type=int, metavar=("W", "H"))
+    parser.add_argument("--link", choices=("tcp", "loop"))
+    parser.add_argument("--speedup", type=float, help="flight pace for --link loop (tcp runs in real time)")
+    parser.add_argument("--seed", type=int)
+    parser.add_argument("--sweep", metavar="KNOB=V1,V2,...",
+                        help=f"rerun the loop per value of one knob ({', '.join(KNOBS)})")
+    return parser.parse_args(argv)
+
+
+def config_from_args(args: argparse.Namespace) -> LoopConfig:
+    config = LoopConfig.quick() if args.quick else LoopConfig()
+    for name in ("scene", "arc_waypoints", "link", "speedup", "seed"):
+        if getattr(args, name) is not None:
+            setattr(config, name, getattr(args, name))
+    if args.photo_size:
+        config.photo_size = tuple(args.photo_size)
+    if config.link == "tcp" and config.speedup != 1.0:
+        raise ValueError("--link tcp runs in real time (the recorder stamps with the host clock); "
+                         "use --link loop for --speedup")
+    return config
+
+
+def parse_sweep(text: str) -> tuple[str, list]:
+    knob, _, values = text.partition("=")
+    if knob not in KNOBS or not values:
+        raise ValueError(f"--sweep {text!r}: expected KNOB=V1,V2,... with KNOB one of {', '.join(KNOBS)}")
+    field_name, parse = KNOBS[knob]
+    try:
+        return knob, [parse(value) for value in values.split(",")]
+    except ValueError:
+        raise ValueError(f"--sweep {text!r}: values of {knob} must be {parse.__name__}") from None
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    try:
+        config = config_from_args(args)
+        sweep = parse_sweep(args.sweep) if args.sweep else None
+    except ValueError as error:
+        print(f"closed_loop: error: {error}", file=sys.stderr)
+        return 2
+    if sweep is None:
+        report = run_loop(config, args.out)
+        print((args.out / "report.md").read_text(encoding="utf-8"))
+        return 0 if report["complete"] else 1
+    from tools.closed_loop_eval import sweep_table
+    knob, values = sweep
+    reports = []
+    for value in values:
+        setattr(config, KNOBS[knob][0], value)
+        reports.append((value, run_loop(config, args.out / f"{knob}={value}")))
+    table = sweep_table(knob, reports)
+    (args.out / "sweep.md").write_text(table + "\n", encoding="utf-8")
+    print(table)
+    return 0 if all(report["complete"] for _, report in reports) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

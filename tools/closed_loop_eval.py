@@ -1,0 +1,338 @@
+"""Evaluation and report of one closed-loop run (``tools/closed_loop.py``): reads the stages' files, measures
+every error against the truth with :mod:`recon.evaluate` and :mod:`sim.metrics`, writes ``report.json``,
+``report.md`` and ``closed_loop.png``.
+
+All estimates are moved into the truth's ENU frame by their geodetic origins (``geotags.json``, the
+reconstruction's ``scene.json``), exactly as the dataset renderer moves replayed poses between scenes.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+
+from flightplan.geodesy import LocalFrame
+from recon.evaluate import (depth_coverage, frame_transform, pose_errors, pose_matrix, scene_mesh_enu,
+                            surface_errors, transform_poses)
+from sim.dataset.images import read_exr, read_png
+from sim.metrics import compare_images, depth_errors, read_rgb
+from sim.scene import read_scene_json
+
+COMPLETENESS_THRESHOLD_M = 0.25
+
+
+def _read_json(path: Path) -> dict:
+    return json.loads(Path(path).read_text(encoding="utf-8"))
+
+
+def truth_poses(truth: dict) -> dict[str, np.ndarray]:
+    """``T_world_cam`` of every photo taken, by image name, in the truth's ENU frame (the true home)."""
+    poses = {}
+    for row in truth["photos"]:
+        if row["taken"] and row["image_name"]:
+            poses[row["image_name"]] = pose_matrix(np.array([row["east_m"], row["north_m"], row["up_m"]]),
+                                                   np.array([row["qw"], row["qx"], row["qy"], row["qz"]]))[0]
+    return poses
+
+
+def geotag_poses(geotags_csv: Path) -> dict[str, np.ndarray]:
+    """``T_world_cam`` of every geotagged photo, by name, in the geotags' ENU frame."""
+    with Path(geotags_csv).open(encoding="utf-8", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    return {row["image_name"]: pose_matrix(np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")]),
+                                           np.array([float(row[k]) for k in ("qw", "qx", "qy", "qz")]))[0]
+            for row in rows}
+
+
+def paired_errors(estimated: dict, truth: dict, T_truth_estimate: np.ndarray) -> dict:
+    """Pose errors of the photos present in both, after moving the estimates into the truth frame, with the
+    per-photo position errors (m) in photo order for the plot."""
+    names = sorted(set(estimated) & set(truth))
+    est = transform_poses(T_truth_estimate, np.array([estimated[n] for n in names]).reshape(-1, 4, 4))
+    tru = np.array([truth[n] for n in names]).reshape(-1, 4, 4)
+    errors = pose_errors(est, tru).to_dict()
+    errors["per_photo_m"] = {n: float(d) for n, d in zip(names, np.linalg.norm(est[:, :3, 3] - tru[:, :3, 3], axis=1))}
+    return errors
+
+
+def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
+    """Geotag position/attitude errors and the clock-offset error against the flight truth."""
+    sidecar = _read_json(Path(geotags_csv).with_suffix(".json"))
+    to_truth = frame_transform(LocalFrame.from_dict(sidecar["origin"]), LocalFrame.from_dict(truth["origin"]))
+    true = truth_poses(truth)
+    errors = paired_errors(geotag_poses(geotags_csv), true, to_truth)
+    # geotags: seconds ADDED to the camera clock to get telemetry time; truth: camera minus telemetry
+    errors["clock_offset_s"] = {"estimated": sidecar["clock_offset_s"], "true": -truth["clock_offset_s"],
+                                "error": sidecar["clock_offset_s"] + truth["clock_offset_s"]}
+    errors["photos"] = {"taken": len(true), "tagged": errors["count"], "untagged": len(sidecar.get("untagged", []))}
+    return errors
+
+
+def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
+    """Registered SfM camera poses (geo-registered into the reconstruction's frame) against the truth."""
+    import pycolmap
+
+    from recon.sfm import camera_poses
+
+    sparse = Path(recon_dir) / "work" / "sparse"
+    if not sparse.is_dir():
+        raise FileNotFoundError(f"{sparse}: no SfM model")
+    origin = read_scene_json(Path(recon_dir))["origin_frame"]
+    to_truth = frame_transform(origin, LocalFrame.from_dict(truth["origin"]))
+    true = truth_poses(truth)
+    errors = paired_errors(camera_poses(pycolmap.Reconstruction(str(sparse))), true, to_truth)
+    errors["registered"] = f"{errors['count']}/{len(true)}"
+    return errors
+
+
+def surface_metrics(recon_dir: Path, world: Path, centre_xy, radius_m: float, samples: int) -> dict:
+    """Reconstructed mesh against the true world inside the orbit's disc (truth ENU)."""
+    recon_mesh, recon_origin = scene_mesh_enu(recon_dir)
+    true_mesh, true_origin = scene_mesh_enu(world)
+    recon_mesh.apply_transform(frame_transform(recon_origin, true_origin))
+    result = surface_errors(recon_mesh, true_mesh, centre_xy, radius_m, COMPLETENESS_THRESHOLD_M, samples,
+                            np.random.default_rng(0)).to_dict()
+    result.update(area=f"disc of {radius_m:g} m around the orbit centre", reconstructed_faces=len(recon_mesh.faces))
+    return result
+
+
+def _frames(dataset: Path) -> list[dict]:
+    lines = (dataset / "sequences" / "00" / "frames.jsonl").read_text(encoding="utf-8").splitlines()
+    return [json.loads(line) for line in lines if line.strip()]
+
+
+def _mean(values) -> float:
+    values = [v for v in values if math.isfinite(v)]
+    return float(np.mean(values)) if values else float("nan")
+
+
+def _image_summary(comparisons) -> dict:
+    return {"photorealism_error_percent": _mean(c.error_percent for c in comparisons),
+            "psnr_db": _mean(c.psnr_db for c in comparisons), "ssim": _mean(c.ssim for c in comparisons),
+            "per_frame_error_percent": [c.error_percent for c in comparisons], "frames": len(comparisons)}
+
+
+def twin_vs_true_metrics(twin: Path, true: Path) -> dict:
+    """Left images and depth of the twin against the true world, frame by frame (same poses, same sun)."""
+    sequence = Path("sequences") / "00"
+    comparisons, depths, coverages = [], [], []
+    for frame in range(len(_frames(true))):
+        name = f"{frame:06d}"
+        comparisons.append(compare_images(read_png(true / sequence / "image_2" / f"{name}.png"),
+                                          read_png(twin / sequence / "image_2" / f"{name}.png"), name))
+        true_depth = read_exr(true / sequence / "depth_2" / f"{name}.exr")
+        twin_depth = read_exr(twin / sequence / "depth_2" / f"{name}.exr")
+        depths.append(depth_errors(twin_depth, true_depth))
+        coverages.append(depth_coverage(twin_depth, true_depth))
+    return {**_image_summary(comparisons),
+            "depth": {"abs_rel": _mean(d.abs_rel for d in depths), "rmse_m": _mean(d.rmse_m for d in depths),
+                      "delta_1_25": _mean(d.delta_1_25 for d in depths), "coverage": _mean(coverages),
+                      "per_frame_abs_rel": [d.abs_rel for d in depths]}}
+
+
+def twin_vs_photos_metrics(twin: Path, photos: Path) -> dict:
+    """The paper's measurement: twin renders at the geotagged poses against the drone's photos."""
+    comparisons = []
+    for frame in _frames(twin):
+        image_name = frame["sampler"]["image_name"]
+        render = read_png(twin / "sequences" / "00" / "image_2" / f"{frame['frame']:06d}.png")
+        comparisons.append(compare_images(read_rgb(photos / image_name), render, image_name))
+    return _image_summary(comparisons)
+
+
+def orbit_centre(mission_summary: Path, world: Path) -> tuple[tuple[float, float], float]:
+    """Orbit centre (world ENU, m) and radius (m) from the plan's summary."""
+    parameters = _read_json(mission_summary)["parameters"]
+    lat, lon, radius = parameters["center_lat_deg"], parameters["center_lon_deg"], parameters["rings"][0]["radius_m"]
+    east, north, _ = read_scene_json(world)["origin_frame"].to_enu(lat, lon, 0.0)
+    return (float(east), float(north)), float(radius)
+
+
+def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Path, geotags: Path,
+             recon_dir: Path, render_dirs: dict, truth_json: Path, photos: Path, mission_summary: Path) -> dict:
+    """Every metric whose stages succeeded; the others are listed under ``not_measured`` with the reason."""
+    report = {"config": config, "stages": stages, "metrics": {}, "not_measured": {}, "notes": []}
+    truth = _read_json(truth_json) if truth_json.exists() else None
+    t0 = time.perf_counter()
+
+    def measure(name: str, needs: set, compute: Callable[[], dict]) -> None:
+        missing = sorted(needs - ok)
+        if missing or (truth is None and name != "twin_vs_true"):
+            report["not_measured"][name] = f"stage(s) {', '.join(missing) or 'fly'} did not succeed"
+            return
+        try:
+            report["metrics"][name] = compute()
+        except (OSError, ValueError, KeyError) as error:
+            report["not_measured"][name] = f"{type(error).__name__}: {error}"
+
+    measure("geotag", {"geotag"}, lambda: geotag_metrics(geotags, truth))
+    measure("sfm", {"recon"}, lambda: sfm_metrics(recon_dir, truth))
+
+    def surface() -> dict:
+        centre, radius = orbit_centre(mission_summary, world)
+        return surface_metrics(recon_dir, world, centre, radius, config["surface_samples"])
+
+    measure("surface", {"recon"}, surface)
+    measure("twin_vs_true", {"render_twin", "render_true"},
+            lambda: twin_vs_true_metrics(render_dirs["twin"], render_dirs["true"]))
+    measure("twin_vs_photos", {"render_twin", "fly"}, lambda: twin_vs_photos_metrics(render_dirs["twin"], photos))
+    try:
+        import importlib.util
+        textured = importlib.util.find_spec("recon.texture") is not None
+    except ImportError:
+        textured = False
+    if not textured:
+        report["notes"].append("recon/texture.py is not on this branch: the twin is the vertex-coloured mesh")
+    report["evaluation_s"] = time.perf_counter() - t0
+    report["complete"] = all(s["status"] == "ok" for s in stages) and not report["not_measured"]
+    return report
+
+
+# ---------------------------------------------------------------- report files
+
+
+def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp" + path.suffix)
+    os.close(fd)
+    try:
+        write(Path(tmp))
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_text_atomic(path: Path, text: str) -> None:
+    _atomic_write(Path(path), lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def _f(value, digits: int = 3) -> str:
+    return "n/a" if value is None or (isinstance(value, float) and not math.isfinite(value)) else f"{value:.{digits}f}"
+
+
+def summary_rows(report: dict) -> list[tuple[str, str]]:
+    """(quantity, value) rows of the headline errors; "not measured: why" where a stage is missing."""
+    m, rows = report["metrics"], []
+
+    def section(name: str, make: Callable[[dict], list[tuple[str, str]]]) -> None:
+        if name in m:
+            rows.extend(make(m[name]))
+        else:
+            rows.append((name, f"not measured: {report['not_measured'].get(name, 'unknown')}"))
+
+    section("geotag", lambda g: [
+        ("geotag photos tagged / taken", f"{g['photos']['tagged']} / {g['photos']['taken']}"),
+        ("geotag position error median / max (m)", f"{_f(g['position_m']['median'])} / {_f(g['position_m']['max'])}"),
+        ("geotag horizontal / vertical RMS (m)", f"{_f(g['horizontal_m']['rms'])} / {_f(g['vertical_m']['rms'])}"),
+        ("geotag attitude error median / max (deg)",
+         f"{_f(g['rotation_deg']['median'])} / {_f(g['rotation_deg']['max'])}"),
+        ("clock offset estimated / true / error (s)", f"{_f(g['clock_offset_s']['estimated'])} / "
+                                                      f"{_f(g['clock_offset_s']['true'])} / "
+                                                      f"{_f(g['clock_offset_s']['error'])}")])
+    section("sfm", lambda s: [
+        ("SfM registered", s["registered"]),
+        ("SfM position error median / max (m)", f"{_f(s['position_m']['median'])} / {_f(s['position_m']['max'])}"),
+        ("SfM rotation error median / max (deg)", f"{_f(s['rotation_deg']['median'])} / {_f(s['rotation_deg']['max'])}")])
+    section("surface", lambda s: [
+        ("surface error median / p90 (m)", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
+        (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
+    section("twin_vs_true", lambda t: [
+        ("twin vs true depth abs rel / RMSE (m) / delta<1.25",
+         f"{_f(t['depth']['abs_rel'])} / {_f(t['depth']['rmse_m'])} / {_f(t['depth']['delta_1_25'])}"),
+        ("twin depth coverage of true pixels", f"{100 * t['depth']['coverage']:.1f} %"),
+        ("twin vs true photorealism error / PSNR / SSIM",
+         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}")])
+    section("twin_vs_photos", lambda t: [
+        ("twin vs photos photorealism error / PSNR / SSIM (paper: 12.49 %)",
+         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}")])
+    return rows
+
+
+def markdown(report: dict) -> str:
+    """The Markdown report: stages (time, memory), the errors table, notes, the plot."""
+    lines = ["# Closed-loop report", "", "| stage | status | wall s | peak RSS MiB | detail |", "|---|---|---|---|---|"]
+    for s in report["stages"]:
+        rss = "" if s["max_rss_mib"] is None else f"{s['max_rss_mib']:.0f}"
+        lines.append(f"| {s['name']} | {s['status']} | {s['wall_s']:.1f} | {rss} | {s['detail']} |")
+    total = sum(s["wall_s"] for s in report["stages"] if s["name"] != "record" or s["max_rss_mib"] is None)
+    lines += [f"| evaluation (in-process) | ok | {report['evaluation_s']:.1f} | | |",
+              f"| **total** | | **{total + report['evaluation_s']:.1f}** | | record overlaps fly on the tcp link |",
+              "", "| quantity | value |", "|---|---|"]
+    lines += [f"| {name} | {value} |" for name, value in summary_rows(report)]
+    lines += [""] + [f"- {note}" for note in report["notes"]]
+    lines += ["", "![closed loop](closed_loop.png)", ""]
+    return "\n".join(lines)
+
+
+def plot(report: dict, path: Path) -> None:
+    """Per-photo position errors (geotag, SfM), per-frame render errors, stage times."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    m = report["metrics"]
+    figure, axes = plt.subplots(1, 3, figsize=(15, 4))
+    for name, label in (("geotag", "geotag"), ("sfm", "SfM (geo-registered)")):
+        if name in m:
+            errors = m[name]["per_photo_m"]
+            axes[0].plot(range(len(errors)), list(errors.values()), marker=".", label=label)
+    axes[0].set(title="camera position error vs truth", xlabel="photo (name order)", ylabel="m")
+    axes[0].legend()
+    for name, label in (("twin_vs_true", "twin vs true render"), ("twin_vs_photos", "twin vs photo")):
+        if name in m:
+            axes[1].plot(m[name]["per_frame_error_percent"], marker=".", label=label)
+    axes[1].axhline(12.49, color="grey", linestyle=":", label="paper 12.49 %")
+    axes[1].set(title="photorealism error (formula 3)", xlabel="frame", ylabel="%")
+    axes[1].legend()
+    stages = [s for s in report["stages"] if s["wall_s"] > 0]
+    axes[2].barh([s["name"] for s in stages], [s["wall_s"] for s in stages])
+    axes[2].set(title="wall time per stage", xlabel="s")
+    figure.tight_layout()
+    _atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=90))
+    plt.close(figure)
+
+
+def _json_default(value):
+    if isinstance(value, (set, tuple)):
+        return list(value)
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(type(value).__name__)
+
+
+def write_report(report: dict, out: Path) -> None:
+    """``report.json``, ``closed_loop.png`` and ``report.md`` into ``out`` (each atomically)."""
+    write_text_atomic(out / "report.json", json.dumps(report, indent=2, default=_json_default) + "\n")
+    plot(report, out / "closed_loop.png")
+    write_text_atomic(out / "report.md", markdown(report))
+
+
+def sweep_table(knob: str, reports: list[tuple[object, dict]]) -> str:
+    """Speed against error of the whole pipeline, one row per value of ``knob``; times relative to the first."""
+    header = (f"| {knob} | total s | x first | peak RSS MiB | geotag pos m | SfM pos m | surface median/p90 m | "
+              f"completeness | depth abs rel | twin vs true % | twin vs photos % |")
+    lines = [header, "|" + "---|" * (header.count("|") - 1)]
+    base = None
+    for value, report in reports:
+        total = sum(s["wall_s"] for s in report["stages"]) + report["evaluation_s"]
+        base = base or total
+        rss = max((s["max_rss_mib"] or 0) for s in report["stages"])
+        m = report["metrics"]
+        get = lambda name, fn: fn(m[name]) if name in m else "n/a"  # noqa: E731
+        lines.append(" | ".join([
+            f"| {value}", f"{total:.1f}", f"{total / base:.2f}", f"{rss:.0f}",
+            get("geotag", lambda g: _f(g["position_m"]["median"])), get("sfm", lambda s: _f(s["position_m"]["median"])),
+            get("surface", lambda s: f"{_f(s['accuracy_median_m'])}/{_f(s['accuracy_p90_m'])}"),
+            get("surface", lambda s: f"{100 * s['completeness']:.1f} %"),
+            get("twin_vs_true", lambda t: _f(t["depth"]["abs_rel"])),
+            get("twin_vs_true", lambda t: _f(t["photorealism_error_percent"], 2)),
+            get("twin_vs_photos", lambda t: _f(t["photorealism_error_percent"], 2))]) + " |")
+    return "\n".join(lines)
