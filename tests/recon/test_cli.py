@@ -9,6 +9,8 @@ import trimesh
 from PIL import Image
 
 from recon.cli import main
+from recon.evaluate import scene_photorealism
+from recon.pipeline import read_rgb
 from tests.recon.geotag_helpers import geotag_row, write_geotags
 
 
@@ -81,8 +83,15 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     surface = trimesh.load(scene / meta["mesh"], process=False)
     assert len(surface.faces) > 1000
     assert -41.0 < np.median(surface.vertices[:, 2]) < -36.0  # the ground, relative to the first photo
+    # textured: renders from the recovered poses against the (undistorted) photos, formula 3; the paper's
+    # Zephyr reconstruction scored 12.49 % (README notes give our measured value)
+    assert meta["mesh"] == "terrain.glb"
+    realism = scene_photorealism(scene, read_rgb, every=3)
+    print("brighton photorealism %", [round(r.error_percent, 2) for r in realism], [round(r.covered, 2) for r in realism])
+    assert np.median([r.error_percent for r in realism]) < 12.49
+    assert min(r.covered for r in realism) > 0.8
     mtime = (scene / "scene.json").stat().st_mtime
     shutil.rmtree(scene / "work" / "dense" / "images")  # a resumed run must not need it again
     assert main(["--photos", str(photos), "--out", str(scene)]) == 0
-    assert capsys.readouterr().out.count("already done") == 6
+    assert capsys.readouterr().out.count("already done") == 7
     assert (scene / "scene.json").stat().st_mtime == mtime

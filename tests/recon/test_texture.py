@@ -6,6 +6,7 @@ import pytest
 import trimesh
 
 from flightplan.geodesy import LocalFrame
+from recon.evaluate import render_unlit
 from recon.scene_out import write_scene
 from recon.texture import Photo, TextureOptions, orthophoto, photo_samples, scene_from_mesh, solve_log_gains, \
     textured_glb, texel_grid
@@ -19,8 +20,6 @@ from sim.synthetic import grid_mesh, noise_texture
 SIZE_M, CELLS = 60.0, 60
 CAMERA = PinholeCamera.from_fov(320, 240, hfov_deg=60.0)
 SUN = Sun(azimuth_deg=135.0, elevation_deg=50.0)
-#: Renders the texture as is (radiance = albedo): how a photogrammetry texture that holds the real shading is shown.
-UNLIT = dict(sun=Sun(0.0, -90.0, 0.0), lighting=Lighting(ambient=1.0, shadows=False))
 PILLAR = (4.0, 8.0, 6.0)  # x, y, half size of a 12 m tall red box standing on the terrain
 
 
@@ -85,11 +84,11 @@ def test_textured_scene_rerendered_from_a_photo_pose_matches_the_photo(world, tm
     assert textured.surface.texture is not None
     errors, flat_errors = [], []
     for photo in photos:
-        again = render(textured, Rig((CAMERA,), (np.eye(4),)), photo.T_world_cam, **UNLIT).views[0]
+        rgb, valid = render_unlit(textured, photo)
         # over the pixels that see the terrain (the sky is drawn at another exposure in the photos)
-        errors.append(photorealism_error_percent(photo.image[again.valid], again.rgb[again.valid]))
-        flat = np.broadcast_to(np.median(photo.image[again.valid], axis=0).astype(np.uint8), again.rgb.shape)
-        flat_errors.append(photorealism_error_percent(photo.image[again.valid], flat[again.valid]))
+        errors.append(photorealism_error_percent(photo.image[valid], rgb[valid]))
+        flat = np.broadcast_to(np.median(photo.image[valid], axis=0).astype(np.uint8), rgb.shape)
+        flat_errors.append(photorealism_error_percent(photo.image[valid], flat[valid]))
     # resampling twice (photo -> texel -> pixel) and JPEG blur the fine noise a little; one flat colour is far off
     assert max(errors) < 2.5, errors
     assert min(flat_errors) > 3 * max(errors), flat_errors
