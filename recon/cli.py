@@ -2,6 +2,7 @@
 
     aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR [--image-size PX]
                      [--mesh 2.5d|poisson] [--grid M] [--workers J] [--every K] [--dense-size PX]
+                     [--texel M] [--no-texture]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
 Bad input -> one line on stderr, exit code 2.
@@ -23,6 +24,7 @@ from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import ReconOptions, Recon
 from recon.priors import PriorsError
 from recon.sfm import SfmError, SfmOptions
+from recon.texture import TextureOptions
 
 
 def positive_int(text: str) -> int:
@@ -49,6 +51,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
     parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto")
     parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
+    parser.add_argument("--texel", type=float, help="orthophoto texel, m (default: one ground pixel of the photos)")
+    parser.add_argument("--no-texture", action="store_true", help="vertex colours only (no orthophoto texture)")
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
     return parser
 
@@ -93,6 +97,7 @@ def run_recon(argv) -> int:
                        num_threads=args.workers),
         dense=DenseOptions(max_image_size=args.dense_size, num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
+        texture=not args.no_texture, texture_options=TextureOptions(texel_m=args.texel),
     )
     scene = Recon(args.photos, args.geotags, args.out, options).run()
     print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],

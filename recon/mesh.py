@@ -4,6 +4,9 @@ Height field: points (ENU metres) are binned on a square grid (cell size from th
 distance); each cell's height is a high percentile of its points' z (roofs win over stray low points), colour
 the mean of its points. The well-observed area is the observed cells closed by a few cells with interior
 holes filled; holes inside it are filled from the nearest observed cell, then a 3x3 median removes spikes.
+Before that, observed cells that no neighbour supports (fewer than 3 of their 8 neighbours observed within
+``support_m`` of their height) are dropped: in the sparse far field single stray points otherwise become
+columns metres tall once the hole filling spreads them.
 Outside it there are no faces (cropped). Poisson: ``pycolmap.poisson_meshing`` with trim = depth - 3.
 Decimation: ``pycolmap.simplify_mesh`` (QEM) bounded by a target error.
 """
@@ -63,8 +66,22 @@ def per_cell_percentile(cells: np.ndarray, values: np.ndarray, num_cells: int, p
     return result
 
 
+def supported(z: np.ndarray, support_m: float, min_neighbours: int = 3) -> np.ndarray:
+    """Cells (finite ``z``) with at least ``min_neighbours`` of their 8 neighbours finite and within ``support_m``."""
+    padded = np.pad(z, 1, constant_values=np.nan)
+    rows, cols = z.shape
+    count = np.zeros(z.shape, int)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            if dr or dc:
+                neighbour = padded[1 + dr:1 + dr + rows, 1 + dc:1 + dc + cols]
+                with np.errstate(invalid="ignore"):
+                    count += np.abs(neighbour - z) <= support_m
+    return np.isfinite(z) & (count >= min_neighbours)
+
+
 def height_field(points: np.ndarray, colors: np.ndarray | None, cell_m: float, percentile: float = 75.0,
-                 min_points: int = 2, closing_cells: int = 3) -> HeightField:
+                 min_points: int = 2, closing_cells: int = 3, support_m: float = 1.0) -> HeightField:
     """Grid the ``(N, 3)`` ENU points into a :class:`HeightField` (see module docstring)."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3 or len(points) < 3:
@@ -78,6 +95,8 @@ def height_field(points: np.ndarray, colors: np.ndarray | None, cell_m: float, p
     counts = np.bincount(cells, minlength=n_cells)
     z = per_cell_percentile(cells, points[:, 2], n_cells, percentile).reshape(shape)
     observed = (counts >= min_points).reshape(shape)
+    z[~observed] = np.nan
+    observed &= supported(z, support_m)
     z[~observed] = np.nan
     rgb = np.zeros((n_cells, 3))
     if colors is not None:

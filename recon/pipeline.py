@@ -9,7 +9,8 @@ Each stage leaves a marker under ``SCENE_DIR/work``; a stage whose marker exists
 | depth | ``work/dense/depth_report.json`` (per-image maps are also skipped when present) |
 | fusion | ``work/fused.ply`` |
 | mesh | ``work/mesh.ply`` (decimated: ``work/mesh_decimated.ply``) |
-| scene | ``SCENE_DIR/scene.json`` |
+| texture | ``work/texture_report.json`` (textured mesh ``work/terrain.glb``; skipped with ``texture=False``) |
+| scene | ``SCENE_DIR/scene.json`` (``terrain.glb``, or ``terrain.ply`` with vertex colours as the fallback) |
 """
 
 from __future__ import annotations
@@ -21,24 +22,26 @@ import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pycolmap
 import trimesh
 from tqdm import tqdm
 
-from recon import dense, mesh as meshing
+from recon import dense, mesh as meshing, texture as texturing
 from recon.dense import DenseOptions
 from recon.io_util import atomic_path, write_text_atomic
 from recon.priors import PosePriors, PriorsError, focal_seed, list_photos, priors_from_exif, read_geotags
 from recon.scene_out import write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 
-STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "scene")
+STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
 
 
 @dataclass(frozen=True)
 class ReconOptions:
-    """All knobs: SfM, dense, surface (``mesh`` "2.5d" or "poisson"), grid cell (None = 2 GSD), decimation."""
+    """All knobs: SfM, dense, surface (``mesh`` "2.5d" or "poisson"), grid cell (None = 2 GSD), decimation,
+    texture (False: vertex colours only)."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
@@ -46,6 +49,8 @@ class ReconOptions:
     grid_m: float | None = None
     poisson_depth: int = 10
     decimate_error_m: float = 0.02
+    texture: bool = True
+    texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
 
 
 def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
@@ -60,6 +65,14 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
         return names, priors_from_exif(photo_dir, names)
     priors = read_geotags(geotags_csv)
     return [n for n in names if n not in set(priors.untagged)], priors
+
+
+def read_rgb(path: Path) -> np.ndarray:
+    """An image file as (H, W, 3) uint8 RGB; a clear error naming the file if it cannot be read."""
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise PriorsError(f"{path}: cannot read this image")
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
 def write_model_atomic(rec: pycolmap.Reconstruction, target: Path) -> None:
@@ -173,11 +186,34 @@ class Recon:
         if self.options.decimate_error_m:
             meshing.decimate(full, small, self.options.decimate_error_m)
 
+    def surface_mesh(self) -> trimesh.Trimesh:
+        """The final (decimated if asked) surface mesh, ENU metres."""
+        source = self.work / ("mesh_decimated.ply" if self.options.decimate_error_m else "mesh.ply")
+        return trimesh.load(source, process=False)
+
+    def stage_texture(self):
+        marker = self.work / "texture_report.json"
+        if marker.exists() or not self.options.texture:
+            return False
+        model = pycolmap.Reconstruction(self.work / "dense" / "sparse")
+        photos = texturing.load_photos(model, self.work / "dense" / "images", read_rgb)
+        surface = self.surface_mesh()
+        ortho = texturing.orthophoto(surface, photos, self.options.texture_options,
+                                     progress=lambda it: tqdm(it, desc="texture", unit="photo"))
+        with atomic_path(self.work / "terrain.glb") as tmp:
+            tmp.write_bytes(texturing.textured_glb(surface, ortho))
+        height, width = ortho.image.shape[:2]
+        self.log(f"[texture] {width}x{height} texels of {ortho.texels.texel_m:.3f} m, coverage "
+                 f"{100 * ortho.coverage:.1f} %, exposure gains {min(ortho.gains.values()):.3f}.."
+                 f"{max(ortho.gains.values()):.3f}")
+        report = {"texel_m": ortho.texels.texel_m, "size_px": [width, height], "coverage": ortho.coverage,
+                  "gains": ortho.gains}
+        write_text_atomic(marker, json.dumps(report, indent=2))
+
     def stage_scene(self):
         if (self.scene_dir / "scene.json").exists():
             return False
-        source = self.work / ("mesh_decimated.ply" if self.options.decimate_error_m else "mesh.ply")
-        surface = trimesh.load(source, process=False)
+        surface = self.surface_mesh()
         sfm_report = json.loads((self.work / "sfm_report.json").read_text(encoding="utf-8"))
         provenance = {
             "generator": "recon.pipeline",
@@ -188,6 +224,12 @@ class Recon:
             "options": asdict(self.options),
             "sfm": {k: sfm_report[k] for k in ("registered", "unregistered", "mean_reprojection_error_px",
                                                 "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
-            "texture": "vertex colours (fallback; recon.texture not yet available)",
         }
-        write_scene(self.scene_dir, surface, self.priors.origin, provenance)
+        textured = self.work / "terrain.glb"
+        if self.options.texture and textured.exists():
+            provenance["texture"] = json.loads((self.work / "texture_report.json").read_text(encoding="utf-8"))
+            write_scene(self.scene_dir, surface, self.priors.origin, provenance, "terrain.glb",
+                        encoded=textured.read_bytes())
+        else:
+            provenance["texture"] = "vertex colours (texturing switched off)"
+            write_scene(self.scene_dir, surface, self.priors.origin, provenance)

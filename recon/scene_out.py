@@ -1,6 +1,7 @@
 """Write the scene folder of INTERFACES.md: a mesh in local ENU metres plus ``scene.json``.
 
-The texture fallback is vertex colours (PLY) until ``recon/texture.py`` exists.
+The normal case is a textured GLB from ``recon/texture.py`` (``encoded`` bytes); the fallback is the mesh with
+vertex colours exported by trimesh (PLY).
 """
 
 from __future__ import annotations
@@ -36,11 +37,15 @@ def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, pr
 
 
 def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, provenance: dict,
-                mesh_name: str = "terrain.ply") -> Path:
-    """Write ``mesh_name`` and ``scene.json`` (last, so its presence means the scene is complete)."""
+                mesh_name: str = "terrain.ply", encoded: bytes | None = None) -> Path:
+    """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh) and
+    ``scene.json`` (last, so its presence means the scene is complete)."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
-        mesh.export(tmp)
+        if encoded is None:
+            mesh.export(tmp)
+        else:
+            tmp.write_bytes(encoded)
     meta = scene_metadata(mesh, mesh_name, origin, provenance)
     write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
     return scene_dir / "scene.json"

@@ -1,5 +1,5 @@
 """Evaluation and report of one closed-loop run (``tools/closed_loop.py``): reads the stages' files, measures
-every error against the truth with :mod:`recon.evaluate` and :mod:`sim.metrics`, writes ``report.json``,
+every error against the truth with :mod:`recon.accuracy` and :mod:`sim.metrics`, writes ``report.json``,
 ``report.md`` and ``closed_loop.png``.
 
 All estimates are moved into the truth's ENU frame by their geodetic origins (``geotags.json``, the
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from recon.evaluate import (depth_coverage, frame_transform, pose_errors, pose_matrix, scene_mesh_enu,
+from recon.accuracy import (depth_coverage, frame_transform, pose_errors, pose_matrix, scene_mesh_enu,
                             surface_errors, transform_poses)
 from sim.dataset.images import read_exr, read_png
 from sim.metrics import compare_images, depth_errors, read_rgb

@@ -1,4 +1,4 @@
-"""recon.evaluate against known truth: analytic meshes and poses with known offsets and rotations."""
+"""recon.accuracy against known truth: analytic meshes and poses with known offsets and rotations."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.evaluate import (depth_coverage, distances_to_surface, frame_transform, pose_errors, pose_matrix,
+from recon.accuracy import (depth_coverage, distances_to_surface, frame_transform, pose_errors, pose_matrix,
                             surface_errors, transform_poses)
 
 

@@ -1,0 +1,58 @@
+"""Closed loop: an orbit over the small demo world rendered by sim, noisy geotags -> aerostereo-recon -> poses,
+surface and texture scored against the world they came from."""
+
+import json
+
+import numpy as np
+import pycolmap
+import pytest
+from scipy.spatial.transform import Rotation
+
+from recon.cli import main
+from recon.evaluate import scene_photorealism
+from recon.pipeline import read_rgb
+from recon.sfm import camera_poses
+from sim.scene import load_scene
+from sim.worlds import demo_scene_dir
+from tests.recon.virtual_flight import Orbit, fly, surface_errors
+
+ORBIT = Orbit()
+#: The well-observed area: every photo's lower image edge reaches the ground ~32 m from the centre (30 m up,
+#: 50 m out, 31 deg pitch, 57 deg vertical field of view), so the ring under the cameras is seen only from across
+#: the orbit, 80-100 m away at grazing angles, and the 2.5-D model leaves much of it open (README notes).
+INNER_RADIUS_M = 25.0
+
+
+@pytest.mark.slow
+def test_orbit_over_the_small_demo_world(tmp_path, capsys):
+    world = load_scene(demo_scene_dir("small"))
+    flight = fly(world, ORBIT, tmp_path)
+    scene_dir = tmp_path / "scene"
+    code = main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", scene_dir,
+                                  "--image-size", 800, "--max-features", 4096, "--dense-size", 800)])
+    assert code == 0, capsys.readouterr().err
+    report = json.loads((scene_dir / "work" / "sfm_report.json").read_text())
+    assert report["unregistered"] == []
+
+    poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
+    position_error = np.array([poses[n][:3, 3] - flight.poses[n][:3, 3] for n in flight.names])
+    angle_error = np.array([np.degrees(Rotation.from_matrix(poses[n][:3, :3].T @ flight.poses[n][:3, :3]).magnitude())
+                            for n in flight.names])
+    reconstructed = load_scene(scene_dir)
+    surface = surface_errors(reconstructed, world, INNER_RADIUS_M)
+    whole_disc = surface_errors(reconstructed, world, ORBIT.radius_m)
+    realism = scene_photorealism(scene_dir, read_rgb, every=4)
+    print(f"\nclosed loop: position error |mean| {np.abs(position_error.mean(axis=0)).round(3)} m, "
+          f"max {np.abs(position_error).max(axis=0).round(3)} m (GPS sigma {ORBIT.gps_sigma_m}); "
+          f"orientation max {angle_error.max():.3f} deg; surface median {surface.median:.3f} m, "
+          f"completeness@{surface.tolerance_m} {100 * surface.completeness:.1f} %, vertical offset "
+          f"{surface.vertical_offset:+.3f} m within {INNER_RADIUS_M} m (whole {ORBIT.radius_m} m disc: median "
+          f"{whole_disc.median:.3f} m, completeness {100 * whole_disc.completeness:.1f} %); photorealism % {[round(r.error_percent, 2) for r in realism]}")
+
+    # every camera within the GPS noise (2 sigma per axis), the model's offset far inside it (24 fixes averaged)
+    assert np.all(np.abs(position_error) < 2 * np.asarray(ORBIT.gps_sigma_m))
+    assert np.all(np.abs(position_error.mean(axis=0)) < np.asarray(ORBIT.gps_sigma_m) / 2)
+    assert angle_error.max() < 0.5
+    assert surface.median <= 0.10
+    assert surface.completeness >= 0.90
+    assert np.median([r.error_percent for r in realism]) < 14.0  # measured ~11 % (JPEG photos, 2.5-D walls)
