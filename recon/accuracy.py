@@ -16,6 +16,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from recon.similarity import umeyama
 from sim.sampling import _rigid_transform_between
 from sim.scene import _Y_UP_TO_ENU, read_mesh, read_scene_json
 
@@ -79,6 +80,20 @@ def pose_matrix(position: np.ndarray, quaternion_wxyz: np.ndarray) -> np.ndarray
 def transform_poses(T_target_source: np.ndarray, poses: np.ndarray) -> np.ndarray:
     """Poses (N,4,4) moved by a 4x4 rigid map (``T_target_source @ T``)."""
     return np.einsum("ij,njk->nik", T_target_source, np.asarray(poses, dtype=np.float64))
+
+
+def pose_alignment(estimated: np.ndarray, truth: np.ndarray, lever_m: float = 30.0) -> np.ndarray:
+    """4x4 similarity that best maps the ``estimated`` (N,4,4) camera poses onto the ``truth`` ones (Umeyama on
+    each camera centre and the points ``lever_m`` along its optical (z) and right (x) axes, so the cameras'
+    orientations fix the rotation even on a nearly straight path). Applied to a reconstruction, it removes the
+    georeferencing error and leaves the error of its shape."""
+    estimated, truth = np.asarray(estimated, dtype=np.float64), np.asarray(truth, dtype=np.float64)
+
+    def anchors(poses: np.ndarray) -> np.ndarray:
+        centres = poses[:, :3, 3]
+        return np.concatenate([centres, centres + lever_m * poses[:, :3, 2], centres + lever_m * poses[:, :3, 0]])
+
+    return umeyama(anchors(estimated), anchors(truth)).matrix()
 
 
 @dataclass(frozen=True)

@@ -335,6 +335,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--link", choices=("tcp", "loop"))
     parser.add_argument("--speedup", type=float, help="flight pace for --link loop (tcp runs in real time)")
     parser.add_argument("--seed", type=int)
+    for knob, (field_name, parse) in KNOBS.items():
+        parser.add_argument(f"--{knob.replace('_', '-')}", type=parse, dest=field_name, help=f"knob {knob}")
     parser.add_argument("--sweep", metavar="KNOB=V1,V2,...",
                         help=f"rerun the loop per value of one knob ({', '.join(KNOBS)})")
     return parser.parse_args(argv)
@@ -342,7 +344,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def config_from_args(args: argparse.Namespace) -> LoopConfig:
     config = LoopConfig.quick() if args.quick else LoopConfig()
-    for name in ("scene", "arc_waypoints", "link", "speedup", "seed"):
+    for name in ("scene", "arc_waypoints", "link", "speedup", "seed", *(f for f, _ in KNOBS.values())):
         if getattr(args, name) is not None:
             setattr(config, name, getattr(args, name))
     if args.photo_size:

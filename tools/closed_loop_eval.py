@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, frame_transform, pose_errors, pose_matrix, scene_mesh_enu,
-                            surface_errors, transform_poses)
+from recon.accuracy import (depth_coverage, frame_transform, pose_alignment, pose_errors, pose_matrix,
+                            scene_mesh_enu, surface_errors, transform_poses)
 from sim.dataset.images import read_exr, read_png
 from sim.metrics import compare_images, depth_errors, read_rgb
 from sim.scene import read_scene_json
@@ -76,8 +76,9 @@ def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
     return errors
 
 
-def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
-    """Registered SfM camera poses (geo-registered into the reconstruction's frame) against the truth."""
+def sfm_poses(recon_dir: Path, truth: dict) -> tuple[dict, np.ndarray]:
+    """The registered SfM poses (``T_world_cam`` by name, in the reconstruction's geo-registered frame) and the
+    map from that frame to the truth's."""
     import pycolmap
 
     from recon.sfm import camera_poses
@@ -86,18 +87,40 @@ def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
     if not sparse.is_dir():
         raise FileNotFoundError(f"{sparse}: no SfM model")
     origin = read_scene_json(Path(recon_dir))["origin_frame"]
-    to_truth = frame_transform(origin, LocalFrame.from_dict(truth["origin"]))
+    return (camera_poses(pycolmap.Reconstruction(str(sparse))),
+            frame_transform(origin, LocalFrame.from_dict(truth["origin"])))
+
+
+def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
+    """Registered SfM camera poses (geo-registered into the reconstruction's frame) against the truth."""
+    poses, to_truth = sfm_poses(recon_dir, truth)
     true = truth_poses(truth)
-    errors = paired_errors(camera_poses(pycolmap.Reconstruction(str(sparse))), true, to_truth)
+    errors = paired_errors(poses, true, to_truth)
     errors["registered"] = f"{errors['count']}/{len(true)}"
     return errors
 
 
-def surface_metrics(recon_dir: Path, world: Path, centre_xy, radius_m: float, samples: int) -> dict:
-    """Reconstructed mesh against the true world inside the orbit's disc (truth ENU)."""
+def shape_alignment(recon_dir: Path, truth: dict) -> np.ndarray:
+    """Map from the reconstruction's frame into the truth's that also removes the georeferencing error: the
+    similarity taking the SfM cameras onto the true ones (:func:`recon.accuracy.pose_alignment`)."""
+    poses, to_truth = sfm_poses(recon_dir, truth)
+    true = truth_poses(truth)
+    names = sorted(set(poses) & set(true))
+    estimated = transform_poses(to_truth, np.array([poses[n] for n in names]))
+    return pose_alignment(estimated, np.array([true[n] for n in names])) @ to_truth
+
+
+def surface_metrics(recon_dir: Path, world: Path, centre_xy, radius_m: float, samples: int,
+                    truth: dict | None = None) -> dict:
+    """Reconstructed mesh against the true world inside a disc (world ENU). With ``truth``, the mesh is first
+    moved by :func:`shape_alignment` (the error of its shape alone), else by its geodetic origin (absolute)."""
     recon_mesh, recon_origin = scene_mesh_enu(recon_dir)
     true_mesh, true_origin = scene_mesh_enu(world)
-    recon_mesh.apply_transform(frame_transform(recon_origin, true_origin))
+    if truth is None:
+        recon_mesh.apply_transform(frame_transform(recon_origin, true_origin))
+    else:
+        home = LocalFrame.from_dict(truth["origin"])
+        recon_mesh.apply_transform(frame_transform(home, true_origin) @ shape_alignment(recon_dir, truth))
     result = surface_errors(recon_mesh, true_mesh, centre_xy, radius_m, COMPLETENESS_THRESHOLD_M, samples,
                             np.random.default_rng(0)).to_dict()
     result.update(area=f"disc of {radius_m:g} m around the orbit centre", reconstructed_faces=len(recon_mesh.faces))
@@ -176,11 +199,18 @@ def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Pat
     measure("geotag", {"geotag"}, lambda: geotag_metrics(geotags, truth))
     measure("sfm", {"recon"}, lambda: sfm_metrics(recon_dir, truth))
 
-    def surface() -> dict:
-        centre, radius = orbit_centre(mission_summary, world)
-        return surface_metrics(recon_dir, world, centre, radius, config["surface_samples"])
+    def surface(fraction: float, aligned: bool) -> Callable[[], dict]:
+        def compute() -> dict:
+            centre, radius = orbit_centre(mission_summary, world)
+            return surface_metrics(recon_dir, world, centre, radius * fraction, config["surface_samples"],
+                                   truth if aligned else None)
+        return compute
 
-    measure("surface", {"recon"}, surface)
+    # the whole orbit disc, and its middle half-radius disc, the part a short arc sees best; "shape": after
+    # removing the georeferencing error (the similarity that puts the SfM cameras onto the true ones)
+    measure("surface", {"recon"}, surface(1.0, aligned=False))
+    measure("surface_inner", {"recon"}, surface(0.5, aligned=False))
+    measure("surface_shape", {"recon"}, surface(0.5, aligned=True))
     measure("twin_vs_true", {"render_twin", "render_true"},
             lambda: twin_vs_true_metrics(render_dirs["twin"], render_dirs["true"]))
     measure("twin_vs_photos", {"render_twin", "fly"}, lambda: twin_vs_photos_metrics(render_dirs["twin"], photos))
@@ -243,6 +273,13 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
         ("SfM rotation error median / max (deg)", f"{_f(s['rotation_deg']['median'])} / {_f(s['rotation_deg']['max'])}")])
     section("surface", lambda s: [
         ("surface error median / p90 (m)", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
+        (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
+    section("surface_shape", lambda s: [
+        (f"shape error median / p90 (m), {s['area']}, georeference error removed",
+         f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
+        (f"shape completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
+    section("surface_inner", lambda s: [
+        (f"surface error median / p90 (m), {s['area']}", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
         (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
     section("twin_vs_true", lambda t: [
         ("twin vs true depth abs rel / RMSE (m) / delta<1.25",

@@ -8,8 +8,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, distances_to_surface, frame_transform, pose_errors, pose_matrix,
-                            surface_errors, transform_poses)
+from recon.accuracy import (depth_coverage, distances_to_surface, frame_transform, pose_alignment, pose_errors,
+                            pose_matrix, surface_errors, transform_poses)
 
 
 def plane(size_m: float = 100.0, z: float = 0.0, cells: int = 4) -> trimesh.Trimesh:
@@ -99,3 +99,13 @@ def test_depth_coverage_counts_true_pixels_the_prediction_also_sees():
     assert np.isnan(depth_coverage(predicted, np.full((2, 2), np.inf)))
     with pytest.raises(ValueError, match="sizes must match"):
         depth_coverage(predicted[:1], truth)
+
+
+def test_pose_alignment_recovers_a_known_rigid_motion_from_cameras_on_a_straight_line():
+    centres = np.column_stack([np.linspace(0, 20, 10), np.zeros(10), np.full(10, 30.0)])  # collinear centres
+    truth = pose_matrix(centres, Rotation.random(10, random_state=5).as_quat(scalar_first=True))
+    known = np.eye(4)
+    known[:3, :3] = Rotation.from_euler("zyx", [3.0, 0.5, -0.4], degrees=True).as_matrix()
+    known[:3, 3] = [1.0, -0.5, 0.3]
+    estimated = transform_poses(np.linalg.inv(known), truth)
+    assert pose_alignment(estimated, truth) == pytest.approx(known, abs=1e-9)
