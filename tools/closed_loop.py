@@ -48,7 +48,7 @@ if str(ROOT) not in sys.path:
 
 from flightplan import litchi  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
-from sim.scene import read_scene_json  # noqa: E402
+from sim.scene import SceneError, read_scene_json  # noqa: E402
 from tools.closed_loop_eval import evaluate, write_report  # noqa: E402
 
 
@@ -144,15 +144,24 @@ def start(name: str, argv: list[str], log_dir: Path) -> tuple[subprocess.Popen, 
     return process, time.perf_counter(), log
 
 
-def finish(name: str, started: tuple[subprocess.Popen, float, Path]) -> StageResult:
-    """Wait for a started stage; its own peak RSS comes from ``os.wait4`` (ru_maxrss, KiB on Linux)."""
+def finish(name: str, started: tuple[subprocess.Popen, float, Path], timeout_s: float | None = None) -> StageResult:
+    """Wait for a started stage (killed after ``timeout_s``); its own peak RSS comes from ``os.wait4``
+    (ru_maxrss, KiB on Linux)."""
     process, t0, log = started
-    _, status, usage = os.wait4(process.pid, 0)
+    deadline = None if timeout_s is None else time.monotonic() + timeout_s
+    pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+    while pid == 0 and (deadline is None or time.monotonic() < deadline):
+        time.sleep(0.05)
+        pid, status, usage = os.wait4(process.pid, os.WNOHANG)
+    if pid == 0:
+        process.kill()
+        _, status, usage = os.wait4(process.pid, 0)
     process.returncode = os.waitstatus_to_exitcode(status)
     wall = time.perf_counter() - t0
     ok = process.returncode == 0
+    why = f"killed after {timeout_s} s" if pid == 0 else f"exit code {process.returncode}"
     return StageResult(name, "ok" if ok else "failed", wall, usage.ru_maxrss / 1024.0, list(map(str, process.args)),
-                       "" if ok else f"exit code {process.returncode}: {_log_tail(log)} (log: {log})")
+                       "" if ok else f"{why}: {_log_tail(log)} (log: {log})")
 
 
 def run(name: str, argv: list[str], log_dir: Path) -> StageResult:
@@ -192,20 +201,23 @@ class Relay:
 def fly_over_tcp(fly_args: list[str], capture: Path, log_dir: Path) -> list[StageResult]:
     """``aerostereo-ingest record`` and ``aerostereo-render fly --link tcp`` in two processes through a
     :class:`Relay`; the recorder is stopped with Ctrl-C (SIGINT) once every byte sent is on its disk."""
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        # a background job starts with SIGINT ignored and its children inherit that, so the recorder could not be
+        # stopped with Ctrl-C; a handler here resets to the default in the children (exec keeps only "ignored")
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     relay = Relay()
     try:
         recorder = start("record", cli("aerostereo-ingest") + ["record", "--port", relay.url, "--out", str(capture)],
                          log_dir)
         if not relay.recorder_connected.wait(60):
-            recorder[0].kill()
-            return [finish("record", recorder), StageResult("fly", "skipped", detail="the recorder never connected")]
+            return [finish("record", recorder, timeout_s=0), StageResult("fly", "skipped", detail="the recorder never connected")]
         drone = run("fly", fly_args + ["--link", "tcp", "--port", relay.url], log_dir)
         relay.drone_closed.wait(30 if drone.status == "ok" else 1)
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline and (not capture.exists() or capture.stat().st_size < relay.forwarded):
             time.sleep(0.05)
         recorder[0].send_signal(signal.SIGINT)
-        recorded = finish("record", recorder)
+        recorded = finish("record", recorder, timeout_s=30)
         size = capture.stat().st_size if capture.exists() else 0
         recorded.detail = (f"{size} of {relay.forwarded} bytes streamed over {relay.url}" if recorded.status == "ok"
                            else recorded.detail)
@@ -371,7 +383,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = config_from_args(args)
         sweep = parse_sweep(args.sweep) if args.sweep else None
-    except ValueError as error:
+        read_scene_json(world_folder(config.scene))
+    except (ValueError, SceneError) as error:
         print(f"closed_loop: error: {error}", file=sys.stderr)
         return 2
     if sweep is None:
