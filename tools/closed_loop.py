@@ -49,7 +49,7 @@ if str(ROOT) not in sys.path:
 from flightplan import litchi  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from sim.scene import SceneError, read_scene_json  # noqa: E402
-from tools.closed_loop_eval import evaluate, write_report  # noqa: E402
+from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
 
 
 def cli(script: str) -> list[str]:
@@ -315,24 +315,35 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
                                                    "--out", str(recon_dir), *options], log_dir))
     else:
         add(skipped("recon", "geotag"))
-    render_dirs = {"twin": out / "render" / "twin", "true": out / "render" / "true"}
     for label, scene in (("twin", recon_dir), ("true", world)):
         needs = {"geotag", "recon"} if label == "twin" else {"geotag"}
         if needs <= ok:
             width, height = config.render_size or config.photo_size
             add(run(f"render_{label}", cli("aerostereo-render") + [
-                "--scene", str(scene), "--out", str(render_dirs[label]), "--mode", "replay", "--geotags",
+                "--scene", str(scene), "--out", str(out / "render" / label), "--mode", "replay", "--geotags",
                 str(geotags), "--width", str(width), "--height", str(height),
                 "--fov", f"{photo_hfov_deg(fly_dir / 'truth.json'):.6f}", "--spp", str(config.spp),
                 "--seed", str(config.seed), "--workers", "1", "--quiet"], log_dir))
         else:
             add(skipped(f"render_{label}", " and ".join(sorted(needs - ok))))
-    report = evaluate(config=dataclasses.asdict(config), stages=[dataclasses.asdict(s) for s in stages], ok=ok,
-                      world=world, out=out, geotags=geotags, recon_dir=recon_dir, render_dirs=render_dirs,
-                      truth_json=fly_dir / "truth.json", photos=fly_dir / "photos",
-                      mission_summary=mission_dir / "mission_summary.json")
+    return evaluate_run(dataclasses.asdict(config), [dataclasses.asdict(s) for s in stages], world, out)
+
+
+def evaluate_run(config: dict, stages: list[dict], world: Path, out: Path) -> dict:
+    """Evaluate the stage outputs in ``out`` (layout of :func:`run_loop`) and write the report."""
+    report = evaluate(config=config, stages=stages, ok={s["name"] for s in stages if s["status"] == "ok"},
+                      world=world, out=out, geotags=out / "geotag" / "geotags.csv", recon_dir=out / "recon",
+                      render_dirs={"twin": out / "render" / "twin", "true": out / "render" / "true"},
+                      truth_json=out / "fly" / "truth.json", photos=out / "fly" / "photos",
+                      mission_summary=out / "mission" / "mission_summary.json")
     write_report(report, out)
     return report
+
+
+def reevaluate(out: Path) -> dict:
+    """Evaluate a finished run folder again (its ``report.json`` gives the stages and settings)."""
+    previous = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    return evaluate_run(previous["config"], previous["stages"], world_folder(previous["config"]["scene"]), out)
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -349,6 +360,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--seed", type=int)
     for knob, (field_name, parse) in KNOBS.items():
         parser.add_argument(f"--{knob.replace('_', '-')}", type=parse, dest=field_name, help=f"knob {knob}")
+    parser.add_argument("--reevaluate", action="store_true",
+                        help="only evaluate the finished run in --out again (after changing the evaluation)")
     parser.add_argument("--sweep", metavar="KNOB=V1,V2,...",
                         help=f"rerun the loop per value of one knob ({', '.join(KNOBS)})")
     return parser.parse_args(argv)
@@ -388,10 +401,9 @@ def main(argv: list[str] | None = None) -> int:
         print(f"closed_loop: error: {error}", file=sys.stderr)
         return 2
     if sweep is None:
-        report = run_loop(config, args.out)
+        report = reevaluate(args.out) if args.reevaluate else run_loop(config, args.out)
         print((args.out / "report.md").read_text(encoding="utf-8"))
         return 0 if report["complete"] else 1
-    from tools.closed_loop_eval import sweep_table
     knob, values = sweep
     reports = []
     for value in values:

@@ -23,7 +23,7 @@ from flightplan.geodesy import LocalFrame
 from recon.accuracy import (depth_coverage, frame_transform, pose_alignment, pose_errors, pose_matrix,
                             scene_mesh_enu, surface_errors, transform_poses)
 from sim.dataset.images import read_exr, read_png
-from sim.metrics import compare_images, depth_errors, read_rgb
+from sim.metrics import compare_images, depth_errors, photorealism_error_percent, read_rgb
 from sim.scene import read_scene_json
 
 COMPLETENESS_THRESHOLD_M = 0.25
@@ -137,8 +137,15 @@ def _mean(values) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def _image_summary(comparisons) -> dict:
+def _covered_error(reference: np.ndarray, render: np.ndarray, covered: np.ndarray) -> float:
+    """Formula 3 over the pixels where the twin has surface (its holes show sky, which is an error of
+    completeness, not of appearance); NaN when it has none."""
+    return photorealism_error_percent(reference[covered], render[covered]) if covered.any() else float("nan")
+
+
+def _image_summary(comparisons, covered_errors) -> dict:
     return {"photorealism_error_percent": _mean(c.error_percent for c in comparisons),
+            "photorealism_error_covered_percent": _mean(covered_errors),
             "psnr_db": _mean(c.psnr_db for c in comparisons), "ssim": _mean(c.ssim for c in comparisons),
             "per_frame_error_percent": [c.error_percent for c in comparisons], "frames": len(comparisons)}
 
@@ -146,16 +153,16 @@ def _image_summary(comparisons) -> dict:
 def twin_vs_true_metrics(twin: Path, true: Path) -> dict:
     """Left images and depth of the twin against the true world, frame by frame (same poses, same sun)."""
     sequence = Path("sequences") / "00"
-    comparisons, depths, coverages = [], [], []
+    comparisons, covered_errors, depths, coverages = [], [], [], []
     for frame in range(len(_frames(true))):
         name = f"{frame:06d}"
-        comparisons.append(compare_images(read_png(true / sequence / "image_2" / f"{name}.png"),
-                                          read_png(twin / sequence / "image_2" / f"{name}.png"), name))
-        true_depth = read_exr(true / sequence / "depth_2" / f"{name}.exr")
-        twin_depth = read_exr(twin / sequence / "depth_2" / f"{name}.exr")
+        true_rgb, twin_rgb = (read_png(folder / sequence / "image_2" / f"{name}.png") for folder in (true, twin))
+        true_depth, twin_depth = (read_exr(folder / sequence / "depth_2" / f"{name}.exr") for folder in (true, twin))
+        comparisons.append(compare_images(true_rgb, twin_rgb, name))
+        covered_errors.append(_covered_error(true_rgb, twin_rgb, np.isfinite(twin_depth) & np.isfinite(true_depth)))
         depths.append(depth_errors(twin_depth, true_depth))
         coverages.append(depth_coverage(twin_depth, true_depth))
-    return {**_image_summary(comparisons),
+    return {**_image_summary(comparisons, covered_errors),
             "depth": {"abs_rel": _mean(d.abs_rel for d in depths), "rmse_m": _mean(d.rmse_m for d in depths),
                       "delta_1_25": _mean(d.delta_1_25 for d in depths), "coverage": _mean(coverages),
                       "per_frame_abs_rel": [d.abs_rel for d in depths]}}
@@ -163,12 +170,15 @@ def twin_vs_true_metrics(twin: Path, true: Path) -> dict:
 
 def twin_vs_photos_metrics(twin: Path, photos: Path) -> dict:
     """The paper's measurement: twin renders at the geotagged poses against the drone's photos."""
-    comparisons = []
+    comparisons, covered_errors = [], []
     for frame in _frames(twin):
-        image_name = frame["sampler"]["image_name"]
-        render = read_png(twin / "sequences" / "00" / "image_2" / f"{frame['frame']:06d}.png")
-        comparisons.append(compare_images(read_rgb(photos / image_name), render, image_name))
-    return _image_summary(comparisons)
+        image_name, name = frame["sampler"]["image_name"], f"{frame['frame']:06d}"
+        render = read_png(twin / "sequences" / "00" / "image_2" / f"{name}.png")
+        photo = read_rgb(photos / image_name)
+        comparisons.append(compare_images(photo, render, image_name))
+        covered = np.isfinite(read_exr(twin / "sequences" / "00" / "depth_2" / f"{name}.exr"))
+        covered_errors.append(_covered_error(photo, render, covered))
+    return _image_summary(comparisons, covered_errors)
 
 
 def orbit_centre(mission_summary: Path, world: Path) -> tuple[tuple[float, float], float]:
@@ -274,22 +284,24 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
     section("surface", lambda s: [
         ("surface error median / p90 (m)", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
         (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
+    section("surface_inner", lambda s: [
+        (f"surface error median / p90 (m), {s['area']}", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
+        (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
     section("surface_shape", lambda s: [
         (f"shape error median / p90 (m), {s['area']}, georeference error removed",
          f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
         (f"shape completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
-    section("surface_inner", lambda s: [
-        (f"surface error median / p90 (m), {s['area']}", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
-        (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
     section("twin_vs_true", lambda t: [
         ("twin vs true depth abs rel / RMSE (m) / delta<1.25",
          f"{_f(t['depth']['abs_rel'])} / {_f(t['depth']['rmse_m'])} / {_f(t['depth']['delta_1_25'])}"),
         ("twin depth coverage of true pixels", f"{100 * t['depth']['coverage']:.1f} %"),
         ("twin vs true photorealism error / PSNR / SSIM",
-         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}")])
+         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
+        ("twin vs true photorealism error where the twin has surface", f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
     section("twin_vs_photos", lambda t: [
         ("twin vs photos photorealism error / PSNR / SSIM (paper: 12.49 %)",
-         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}")])
+         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
+        ("twin vs photos photorealism error where the twin has surface", f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
     return rows
 
 
