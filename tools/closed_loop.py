@@ -263,7 +263,10 @@ def skipped(name: str, needs: str) -> StageResult:
 
 
 def run_loop(config: LoopConfig, out: Path) -> dict:
-    """Run every stage into ``out`` and evaluate; returns the report (also written as report.json/.md)."""
+    """Run every stage into ``out`` (new or empty: the recorder appends to a capture and recon resumes, so a
+    second run into the same folder would mix runs) and evaluate; returns the report (report.json/.md)."""
+    if out.exists() and any(out.iterdir()):
+        raise ValueError(f"{out}: not empty; give a new --out (or --reevaluate to evaluate that run again)")
     out.mkdir(parents=True, exist_ok=True)
     log_dir = out / "logs"
     log_dir.mkdir(exist_ok=True)
@@ -397,6 +400,8 @@ def main(argv: list[str] | None = None) -> int:
         config = config_from_args(args)
         sweep = parse_sweep(args.sweep) if args.sweep else None
         read_scene_json(world_folder(config.scene))
+        if not args.reevaluate and args.out.exists() and any(args.out.iterdir()):
+            raise ValueError(f"{args.out}: not empty; give a new --out (or --reevaluate to evaluate that run again)")
     except (ValueError, SceneError) as error:
         print(f"closed_loop: error: {error}", file=sys.stderr)
         return 2
