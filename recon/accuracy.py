@@ -1,4 +1,4 @@
-"""Errors of a reconstruction against a known truth (the closed loop, the virtual drone's worlds): poses, surface, depth.
+"""Errors of a reconstruction against a known truth (closed loop, virtual drone): poses, surface, depth.
 
 Pure functions on numpy arrays and trimesh meshes; no files except :func:`scene_mesh_enu`. Units: metres and
 degrees. Poses are ``T_world_cam`` 4x4 camera-to-world in ONE ENU frame: move estimates into the truth's frame

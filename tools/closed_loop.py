@@ -210,7 +210,8 @@ def fly_over_tcp(fly_args: list[str], capture: Path, log_dir: Path) -> list[Stag
         recorder = start("record", cli("aerostereo-ingest") + ["record", "--port", relay.url, "--out", str(capture)],
                          log_dir)
         if not relay.recorder_connected.wait(60):
-            return [finish("record", recorder, timeout_s=0), StageResult("fly", "skipped", detail="the recorder never connected")]
+            never = StageResult("fly", "skipped", detail="not run: the recorder never connected to the relay")
+            return [never, finish("record", recorder, timeout_s=0)]
         drone = run("fly", fly_args + ["--link", "tcp", "--port", relay.url], log_dir)
         relay.drone_closed.wait(30 if drone.status == "ok" else 1)
         deadline = time.monotonic() + 30

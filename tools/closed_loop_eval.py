@@ -203,7 +203,7 @@ def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Pat
             return
         try:
             report["metrics"][name] = compute()
-        except (OSError, ValueError, KeyError) as error:
+        except (OSError, ValueError, KeyError, RuntimeError) as error:  # pycolmap raises RuntimeError
             report["not_measured"][name] = f"{type(error).__name__}: {error}"
 
     measure("geotag", {"geotag"}, lambda: geotag_metrics(geotags, truth))
@@ -280,7 +280,8 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
     section("sfm", lambda s: [
         ("SfM registered", s["registered"]),
         ("SfM position error median / max (m)", f"{_f(s['position_m']['median'])} / {_f(s['position_m']['max'])}"),
-        ("SfM rotation error median / max (deg)", f"{_f(s['rotation_deg']['median'])} / {_f(s['rotation_deg']['max'])}")])
+        ("SfM rotation error median / max (deg)",
+         f"{_f(s['rotation_deg']['median'])} / {_f(s['rotation_deg']['max'])}")])
     section("surface", lambda s: [
         ("surface error median / p90 (m)", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
         (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
@@ -297,11 +298,13 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
         ("twin depth coverage of true pixels", f"{100 * t['depth']['coverage']:.1f} %"),
         ("twin vs true photorealism error / PSNR / SSIM",
          f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
-        ("twin vs true photorealism error where the twin has surface", f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
+        ("twin vs true photorealism error where the twin has surface",
+         f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
     section("twin_vs_photos", lambda t: [
         ("twin vs photos photorealism error / PSNR / SSIM (paper: 12.49 %)",
          f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
-        ("twin vs photos photorealism error where the twin has surface", f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
+        ("twin vs photos photorealism error where the twin has surface",
+         f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
     return rows
 
 

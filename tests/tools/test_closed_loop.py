@@ -97,7 +97,8 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys):
     (tmp_path / "old_run.txt").write_text("x")
     assert main(["--out", str(tmp_path), "--quick"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 4 and "nowhere" in err[2] and "not empty" in err[3] and all(line.startswith("closed_loop: error:") for line in err)
+    assert len(err) == 4 and "nowhere" in err[2] and "not empty" in err[3]
+    assert all(line.startswith("closed_loop: error:") for line in err)
 
 
 def test_sweep_table_reports_time_ratios_and_not_measured_errors():
