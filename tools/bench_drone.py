@@ -68,7 +68,8 @@ def main() -> int:
             total = flight_s + render_s + write_s
             baseline = baseline or total
             gsd = 100.0 * math.hypot(DEFAULT_RADIUS_M, DEFAULT_HEIGHT_M) / photo_camera(width, height).fx
-            print(f"{f"{width}x{height}":>10} {gsd:9.2f} {flight_s:9.2f} {render_s:9.1f} {write_s:8.1f} {total:8.1f} "
+            size = f"{width}x{height}"
+            print(f"{size:>10} {gsd:9.2f} {flight_s:9.2f} {render_s:9.1f} {write_s:8.1f} {total:8.1f} "
                   f"{total / baseline:10.2f}")
     return 0
 
