@@ -46,11 +46,11 @@ class WorldSpec:
 
 
 VARIANTS: dict[str, WorldSpec] = {
-    # 384 m x 312 m, 9.4 cm texels, ~0.7 M triangles.
-    "default": WorldSpec(size_x_m=384.0, texture_px=4096, ortho_rows=3328, grid_step_m=0.6,
+    # 384 m x 312 m, 9.4 cm texels, a 1 m terrain grid (the hills are smooth), ~0.28 M triangles.
+    "default": WorldSpec(size_x_m=384.0, texture_px=4096, ortho_rows=3328, grid_step_m=1.0,
                          building_count=45, tree_count=600),
-    # 192 m x 156 m, same texel size, ~0.1 M triangles: for tests.
-    "small": WorldSpec(size_x_m=192.0, texture_px=2048, ortho_rows=1664, grid_step_m=0.8,
+    # 192 m x 156 m, same texel size and grid, ~70 k triangles: for tests.
+    "small": WorldSpec(size_x_m=192.0, texture_px=2048, ortho_rows=1664, grid_step_m=1.0,
                        building_count=12, tree_count=150),
 }
 

@@ -9,7 +9,7 @@ from sim.camera import PinholeCamera, Rig, camera_rays, look_at, project_world_p
 from sim.raycast import intersect, occluded
 from sim.render import Lighting, Sun, miss_fraction, render
 from sim.scene import Scene, Surface
-from sim.shade import linear_to_srgb, sample_bilinear
+from sim.shade import linear_to_srgb, sample_bilinear, to_srgb8
 from sim.synthetic import colored_scene, grid_mesh, height_field_scene, noise_texture
 
 CAMERA = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=(-0.2, 0.05, 0.001, -0.001, 0.0))
@@ -159,7 +159,6 @@ def test_warping_the_right_view_with_true_disparity_reproduces_the_left():
             visible = left.valid & (u - disparity > 1) & (np.abs(depth_there / left.depth - 1) < 0.01)
         return np.abs(warped.astype(int) - left.rgb.astype(int))[visible].mean(), visible.mean()
 
-
     error, visible = warp_error(1.0)
     assert visible > 0.9 and error < 3.0
     assert warp_error(1.3)[0] > 2 * error  # the test can tell a wrong disparity
@@ -204,6 +203,9 @@ def test_a_box_on_the_ground_casts_a_shadow_where_geometry_says():
     origins = np.array([[-6.0, 0.0, 0.0], [-13.0, 0.0, 0.0], [6.0, 0.0, 0.0], [-6.0, 3.0, 0.0]]) + [0, 0, 1e-3]
     blocked = occluded(scene, origins, sun.direction_enu[None])
     np.testing.assert_array_equal(blocked, [True, False, False, False])
+    # a segment: the wall at x = -2 is 4 * sqrt(2) = 5.66 m along the sun ray from x = -6
+    short, long = (occluded(scene, origins[:1], sun.direction_enu[None], limit)[0] for limit in (5.5, 5.8))
+    assert not short and long
     camera = PinholeCamera.from_fov(96, 96, 60.0)
     T = look_at([0.0, -0.001, 40.0], [0.0, 0.0, 0.0])
     view = render(scene, Rig((camera,)), T, sun).views[0]
@@ -228,3 +230,10 @@ def test_rays_are_generated_in_image_order():
     rays = camera_rays(CAMERA, T)
     d_cam = rays.directions.astype(np.float64) @ T[:3, :3]
     assert d_cam[1, 0] > d_cam[0, 0] and d_cam[CAMERA.width, 1] > d_cam[0, 1]
+
+
+def test_film_encodes_linear_light_as_srgb_within_one_code():
+    linear = np.random.default_rng(0).random((1000, 3)) ** 3
+    exact = np.round(255 * linear_to_srgb(linear))
+    assert np.abs(to_srgb8(linear).astype(int) - exact).max() <= 1
+    np.testing.assert_array_equal(to_srgb8(np.array([-0.5, 0.0, 0.0031308 * 0.5, 1.0, 7.0])), [0, 0, 5, 255, 255])  # 12.92 * 0.0015654 * 255 = 5.2
