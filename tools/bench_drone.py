@@ -26,7 +26,7 @@ from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
 from flightplan.orbit import DEFAULT_HEIGHT_M, DEFAULT_RADIUS_M, OrbitRequest, plan_orbit  # noqa: E402
 from sim.drone import Imperfections  # noqa: E402
 from sim.drone.link import duml_frames, write_raw_capture  # noqa: E402
-from sim.drone.photos import photo_camera, take_photos  # noqa: E402
+from sim.drone.photos import photo_camera, render_photos  # noqa: E402
 from sim.drone.session import fly_litchi_mission  # noqa: E402
 from sim.scene import load_scene  # noqa: E402
 from sim.worlds.demo import demo_scene_dir  # noqa: E402
@@ -61,14 +61,15 @@ def main() -> int:
         print("-" * len(header))
         baseline = None
         for width, height in SIZES:
-            times = take_photos(mission, scene, tmp / f"photos_{width}", photo_camera(width, height), START,
+            times = render_photos(mission, scene, tmp / f"photos_{width}", photo_camera(width, height), START,
                                 limit=args.photos, progress=False)
             scale = taken / times.photos
             render_s, write_s = times.render_s * scale, times.write_s * scale
             total = flight_s + render_s + write_s
             baseline = baseline or total
             gsd = 100.0 * math.hypot(DEFAULT_RADIUS_M, DEFAULT_HEIGHT_M) / photo_camera(width, height).fx
-            print(f"{f"{width}x{height}":>10} {gsd:9.2f} {flight_s:9.2f} {render_s:9.1f} {write_s:8.1f} {total:8.1f} "
+            size = f"{width}x{height}"
+            print(f"{size:>10} {gsd:9.2f} {flight_s:9.2f} {render_s:9.1f} {write_s:8.1f} {total:8.1f} "
                   f"{total / baseline:10.2f}")
     return 0
 

@@ -1,6 +1,8 @@
 """The virtual drone's flight: true trajectory, imperfect sensors, telemetry records and photo ground truth.
 
-Pure numpy; no rendering and no DUML here. One call flies a mission::
+The flight itself is pure numpy; :mod:`sim.drone.link` encodes its telemetry as DUML and delivers it (file,
+serial URL, fake USB), :mod:`sim.drone.photos` renders and writes the photos, :mod:`sim.drone.session` runs a
+whole Litchi CSV (``aerostereo-render fly``). One call flies a mission::
 
     result = fly(waypoints, home, Imperfections.realistic(), seed=7)
     result.flight.state_at(t)      # true state at any times

@@ -119,7 +119,7 @@ class PhotoTimes:
     photos: int = 0
 
 
-def take_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_utc: dt.datetime,
+def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_utc: dt.datetime,
                 sun: Sun = DEFAULT_SUN, limit: int | None = None, progress: bool = True) -> PhotoTimes:
     """Render every photo the camera took (the first ``limit`` if given) from its true pose into ``out_dir``.
 

@@ -32,7 +32,7 @@ from sim.drone import FlownMission, Imperfections, fly, write_truth
 from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
-from sim.drone.photos import PhotoTimes, ground_height_ellipsoid_m, photo_camera, take_photos
+from sim.drone.photos import PhotoTimes, ground_height_ellipsoid_m, photo_camera, render_photos
 from sim.scene import Scene
 
 LINKS = ("file", "loop", "tcp")
@@ -144,7 +144,7 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
     if options.logs:
         write_flight_logs(mission, clock.start_utc, out_dir)
     camera = photo_camera(*options.photo_size)
-    times = take_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
+    times = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
                         progress=options.progress)
     write_truth(out_dir, mission.flight, mission.photos, options.seed, extra={
         "start_utc": clock.start_utc.isoformat(), "telemetry_clock_note": "UTC = start_utc + t_s",

@@ -30,7 +30,7 @@ import capture.transports
 from capture.cli import main as ingest
 from sim.drone import Imperfections
 from sim.drone.link import MissionClock, duml_frames
-from sim.drone.photos import photo_camera, take_photos
+from sim.drone.photos import photo_camera, render_photos
 from sim.drone.session import fly_litchi_mission, stream_to_port
 from sim.scene import load_scene
 from sim.worlds.demo import build_demo_world
@@ -82,7 +82,7 @@ def test_virtual_flight_streamed_to_record_geotags_within_the_noise_model(tmp_pa
     assert capture_path.read_bytes() == b"".join(f.data for f in frames)
 
     photos_dir = tmp_path / "photos"
-    take_photos(mission, scene, photos_dir, photo_camera(160, 120), START, progress=False)
+    render_photos(mission, scene, photos_dir, photo_camera(160, 120), START, progress=False)
     geotags = tmp_path / "geotags.csv"
     assert ingest(["geotag", "--photos", str(photos_dir), "--log", str(capture_path), "--out", str(geotags)]) == 0
 

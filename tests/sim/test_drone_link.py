@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import json
 import socket
 import threading
 from dataclasses import replace
@@ -28,6 +29,7 @@ from sim.drone.logs import write_flight_logs
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import photo_geotag, poses_in_scene, write_dji_jpeg
 from sim.drone.session import record_loopback, stream_to_port
+from sim.worlds.demo import build_demo_world
 from tests.sim.drone_helpers import short_orbit_csv
 
 START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)
@@ -244,3 +246,22 @@ def test_flight_logs_read_back_as_the_telemetry_sent(mission_csv, tmp_path):
         np.testing.assert_allclose(track["lat_deg"], [r.latitude_deg for r in osd], atol=1e-8)
         np.testing.assert_allclose(track["height_above_takeoff_m"], [r.height_above_takeoff_m for r in osd], atol=1e-3)
     assert len(read_track(csv_path).photo_times_s) == len(mission.telemetry.shutter)
+
+
+def test_cli_fly_over_the_small_demo_world_writes_every_output(mission_csv, tmp_path, capsys):
+    scene_dir = build_demo_world(tmp_path / "world", variant="small", seed=0)
+    out = tmp_path / "out"
+    argv = ["fly", "--mission", str(mission_csv), "--scene", str(scene_dir), "--out", str(out), "--photo-size", "64",
+            "48", "--link", "loop", "--speedup", "400", "--photos", "3", "--logs", "--start-utc", "2024-05-01T10:00:00Z"]
+    assert main(argv) == 0
+    assert "photos: 3 of" in capsys.readouterr().out
+    assert sorted(p.name for p in (out / "photos").iterdir()) == ["DJI_0001.JPG", "DJI_0002.JPG", "DJI_0003.JPG"]
+    truth = json.loads((out / "truth.json").read_text(encoding="utf-8"))
+    assert truth["start_utc"] == "2024-05-01T10:00:00+00:00" and truth["photo_size_px"] == [64, 48]
+    first = read_photo(out / "photos" / "DJI_0001.JPG")
+    photo = truth["photos"][0]
+    assert first.exif_time_s == pytest.approx(START.timestamp() + photo["camera_time_s"], abs=1e-3)
+    track = read_duml_track(out / "flight.duml")
+    assert len(track.photo_times_s) >= sum(p["taken"] for p in truth["photos"]) - 3
+    assert {p.name for p in out.iterdir()} >= {"flight.duml", "flight.duml.idx", "flight_log.csv", "flight.srt",
+                                              "truth.csv", "truth.json", "photos"}
