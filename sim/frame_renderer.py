@@ -56,6 +56,8 @@ class RenderOptions:
 
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes.
+    ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
+    disparity can be written).
     """
 
     frames: int | None = None
@@ -75,6 +77,7 @@ class RenderOptions:
     altitude_m: float = 50.0
     speed_m_s: float = 5.0
     frame_rate_hz: float = 10.0
+    distortion: tuple[float, ...] | None = None
 
     def sampling_description(self) -> dict:
         """What ``dataset.json`` records about the sampling (settings that decide the bytes, no run details)."""
@@ -104,7 +107,7 @@ class SceneGround:
 
 def build_rig(options: RenderOptions) -> Rig:
     """``cameras`` identical pinhole cameras in a row, camera k at ``k * baseline`` along camera x."""
-    camera = PinholeCamera.from_fov(options.width, options.height, options.fov_deg)
+    camera = PinholeCamera.from_fov(options.width, options.height, options.fov_deg, dist=options.distortion)
     if options.cameras == 2:
         return Rig.stereo(camera, options.baseline_m)
     offsets = [np.eye(4) for _ in range(options.cameras)]

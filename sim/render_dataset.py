@@ -136,6 +136,9 @@ def _check_options(options: RenderOptions) -> None:
         problems.append(f"baseline must be positive, got {options.baseline_m}")
     if not 0 < options.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
+    if options.distortion is not None and any(name.startswith("disparity") for name in options.formats):
+        problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
+                        "when rendering with --distortion")
     if problems:
         raise RenderInputError("; ".join(problems))
 

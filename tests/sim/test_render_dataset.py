@@ -24,12 +24,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
 from sim.render_cli import compare_main, render_main
 from sim.frame_renderer import RenderOptions
 from sim.render_dataset import render_dataset
-from sim.sampling import R_WORLD_NADIR
-from render_scene_helpers import BOX_TOP_M, ORIGIN, box_top_corners, write_scene
+from sim.sampling import R_WORLD_NADIR, camera_rotation
+from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SMALL = dict(width=160, height=100, frames=8, seed=3)
@@ -37,9 +38,7 @@ SMALL = dict(width=160, height=100, frames=8, seed=3)
 
 def _argv(scene: Path, out: Path, **options) -> list[str]:
     argv = ["--scene", str(scene), "--out", str(out), "--quiet"]
-    for key, value in options.items():
-        argv += [f"--{key}", str(value)]
-    return argv
+    return argv + [f"--{key}={value}" for key, value in options.items()]
 
 
 @pytest.fixture(scope="module")
@@ -229,11 +228,12 @@ def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
     np.testing.assert_allclose(positions[:, 2], BOX_TOP_M + 30.0)  # 30 m over the ground at the centre: the box top
 
 
-def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]]) -> Path:
+def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]],
+                   R_world_cam: np.ndarray = R_WORLD_NADIR) -> Path:
     header = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
               "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,"
               "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz").split(",")
-    qx, qy, qz, qw = Rotation.from_matrix(R_WORLD_NADIR).as_quat()
+    qx, qy, qz, qw = Rotation.from_matrix(R_world_cam).as_quat()
     path = folder / "geotags.csv"
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, header)
@@ -326,3 +326,30 @@ def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
     assert calib["P4"][0, 3] == pytest.approx(-calib["P4"][0, 0] * 0.6)  # third camera 2 x 0.3 m to the right
     assert read_png(out / "sequences/00/image_4/000001.png").shape == (24, 40, 3)
     assert read_exr(out / "sequences/00/depth_4/000001.exr").shape == (24, 40)
+
+
+def test_lens_distortion_renders_through_the_distorted_lens(scene_dir, tmp_path, capsys):
+    """Back-projected through the stated (k1, k2, p1, p2, k3), every ground pixel's depth lands on the ground."""
+    R_world_cam = camera_rotation(0.0, tilt_x_deg=30.0)  # looking north, 30 deg from nadir
+    geotags = _write_geotags(tmp_path, ORIGIN, [(30.0, -30.0, 60.0)], R_world_cam)
+    out = tmp_path / "distorted"
+    distortion = "-0.25,0.05,0.001,-0.002,0"
+    argv = _argv(scene_dir, out, mode="replay", geotags=geotags, width=64, height=48, distortion=distortion)
+    assert "disparity needs rectified" in _error_of(capsys, argv)
+    assert render_main(argv + ["--formats", "depth_exr"]) == 0
+    camera = json.loads((out / "dataset.json").read_text())["cameras"][0]
+    assert camera["dist"] == [float(k) for k in distortion.split(",")]  # dataset.json states the lens
+    lens = PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], 64, 48, dist=tuple(camera["dist"]))
+    depth = read_exr(out / "sequences/00/depth_2/000000.exr").ravel()
+
+    def hit_points(camera_model) -> np.ndarray:
+        rays = camera_model.ray_directions(camera_model.pixel_centres())
+        return (rays / rays[:, 2:3] * depth[:, None]) @ R_world_cam.T + [30.0, -30.0, 60.0]
+
+    points = hit_points(lens)
+    (x0, x1), (y0, y1) = BOX_X_M, BOX_Y_M
+    ground = ~((points[:, 0] > x0 - 1) & (points[:, 0] < x1 + 1) & (points[:, 1] > y0 - 1) & (points[:, 1] < y1 + 1))
+    assert ground.mean() > 0.7
+    np.testing.assert_allclose(points[ground, 2], 0.0, atol=2e-3)
+    pinhole = PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], 64, 48)
+    assert np.abs(hit_points(pinhole)[ground, 2]).max() > 1.0  # the distortion is really in the images
