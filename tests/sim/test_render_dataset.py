@@ -63,7 +63,7 @@ def dataset_bytes(dataset: Path) -> dict[str, bytes]:
     files = {}
     for path in sorted(p for p in dataset.rglob("*") if p.is_file()):
         name = str(path.relative_to(dataset))
-        if path.suffix == ".json" and "frame_meta" in name or path.name == "frames.jsonl":
+        if (path.suffix == ".json" and "frame_meta" in name) or path.name == "frames.jsonl":
             records = [json.loads(line) for line in path.read_text().splitlines()]
             files[name] = json.dumps([{k: v for k, v in r.items() if k != "render_time_s"} for r in records]).encode()
         elif path.name == "dataset.json":
@@ -226,6 +226,17 @@ def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
     np.testing.assert_allclose(steps, 2.0, rtol=1e-3)  # 4 m/s at 2 Hz (chords of a 27 m circle)
     np.testing.assert_allclose(np.loadtxt(out / "sequences/00/times.txt"), np.arange(5) / 2.0)
     np.testing.assert_allclose(positions[:, 2], BOX_TOP_M + 30.0)  # 30 m over the ground at the centre: the box top
+
+
+@pytest.mark.parametrize("path", ["lawnmower", "loop"])
+def test_terrain_following_trajectories_keep_speed_and_height(scene_dir, tmp_path, path):
+    out = tmp_path / path
+    assert render_main(_argv(scene_dir, out, mode="trajectory", trajectory=path, frames=4, width=32, height=24,
+                             speed=6.0, rate=3.0, altitude=40)) == 0
+    records = frame_records(out)
+    steps = np.linalg.norm(np.diff([r["position_enu_m"] for r in records], axis=0)[:, :2], axis=1)
+    np.testing.assert_allclose(steps, 2.0, rtol=0.02)  # 6 m/s at 3 Hz, along the (possibly curved) path
+    np.testing.assert_allclose([r["sampler"]["height_above_ground_m"] for r in records], 40.0, atol=1e-6)
 
 
 def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]],
