@@ -260,13 +260,6 @@ def rows_times_matrix(rows: np.ndarray, matrix: np.ndarray, chunk: int = 32768) 
     return out
 
 
-def rig_rays(rig: Rig, T_world_rig: np.ndarray, offsets: list[np.ndarray | None] | None = None) -> list[Rays]:
-    """Rays of every camera of ``rig`` at ``T_world_rig`` (one :class:`Rays` per camera, in rig order)."""
-    poses = rig.camera_poses(T_world_rig)
-    offsets = offsets or [None] * len(poses)
-    return [camera_rays(cam, T, off) for cam, T, off in zip(rig.cameras, poses, offsets)]
-
-
 def project_world_points(camera: PinholeCamera, T_world_cam: np.ndarray, points_world: np.ndarray):
     """World points ``(N, 3)`` -> ``(pixels (N, 2), planar depth z (N,))`` for a camera at ``T_world_cam``."""
     T_cam_world = np.linalg.inv(check_pose(T_world_cam))

@@ -8,6 +8,7 @@ UTM northings, a few micrometres near the origin.
 
 from __future__ import annotations
 
+import functools
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -22,6 +23,13 @@ from flightplan.geodesy import LocalFrame
 SCENE_FORMAT = "aerostereo-scene/1"
 #: glTF "y up" (x east, y up, z south) -> ENU (east, north, up).
 _Y_UP_TO_ENU = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+
+
+@functools.cache
+def shared_device() -> rtcore.EmbreeDevice:
+    """The one embree device (and TBB thread arena) all scenes of this process use unless given another;
+    an embreex scene built without a device would create its own."""
+    return rtcore.EmbreeDevice()
 
 
 class SceneError(ValueError):
@@ -74,7 +82,7 @@ class Scene:
         used = self.vertices[np.unique(self.faces)]
         self.bounds = np.stack([used.min(axis=0), used.max(axis=0)])
         self.surface = _checked_surface(self.surface, len(self.vertices), self.source)
-        self.device = self.device or rtcore.EmbreeDevice()
+        self.device = self.device or shared_device()
         self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
         mesh_construction.TriangleMesh(self.embree, local32, self.faces)
         # embreex commits lazily and unguarded on the first run(): commit here, before threads share it.
@@ -166,7 +174,7 @@ def _is_rectangle(area) -> bool:
 def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     """Load a scene folder (``scene.json`` + mesh) into a ray-castable :class:`Scene`.
 
-    Pass one ``device`` to share an embree device (and its thread arena) across several scenes.
+    Scenes share :func:`shared_device` unless another ``device`` is given.
     """
     scene_dir = Path(scene_dir)
     meta = read_scene_json(scene_dir)

@@ -94,21 +94,28 @@ def sample_bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
     half-integers; coordinates wrap (repeat), as OBJ and glTF default to. Filtering is done in linear light.
     """
     height, width = texture.shape[:2]
-    x = uv[:, 0] * width - 0.5
-    y = (1.0 - uv[:, 1]) * height - 0.5
+    x = uv[:, 0] * np.float32(width) - np.float32(0.5)
+    y = (np.float32(1.0) - uv[:, 1]) * np.float32(height) - np.float32(0.5)
     x0, y0 = np.floor(x), np.floor(y)
     fx, fy = (x - x0).astype(np.float32)[:, None], (y - y0).astype(np.float32)[:, None]
     x0 = x0.astype(np.int64) % width
     y0 = y0.astype(np.int64) % height
-    x1, y1 = (x0 + 1) % width, (y0 + 1) % height
-    flat = texture.reshape(-1, texture.shape[2])
+    x1, y1 = x0 + 1, y0 + 1
+    x1[x1 == width] = 0
+    y1[y1 == height] = 0
+    y0 *= width
+    y1 *= width
+    flat = texture.reshape(-1, texture.shape[2])[:, :3]
 
-    def texel(yy, xx):
-        return SRGB8_TO_LINEAR[flat[yy * width + xx, :3]]
+    def texel(index):
+        return SRGB8_TO_LINEAR[flat[index]]
 
-    top = texel(y0, x0) * (1 - fx) + texel(y0, x1) * fx
-    bottom = texel(y1, x0) * (1 - fx) + texel(y1, x1) * fx
-    return top * (1 - fy) + bottom * fy
+    top = texel(y0 + x0)
+    top += (texel(y0 + x1) - top) * fx
+    bottom = texel(y1 + x0)
+    bottom += (texel(y1 + x1) - bottom) * fx
+    top += (bottom - top) * fy
+    return top
 
 
 def lambert(

@@ -25,7 +25,7 @@ from sim.worlds.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 
-GENERATOR_VERSION = 3
+GENERATOR_VERSION = 5
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
@@ -77,6 +77,11 @@ def ground_height_range(layout: Layout, mesh: Part) -> tuple[float, float]:
     return float(z.min()), float(z.max())
 
 
+def _rounded_outwards(low_high: tuple[float, float], step: float = 1e-4) -> list[float]:
+    """``[low, high]`` rounded to ``step`` so that the rounded range still contains the exact one."""
+    return [round(float(np.floor(low_high[0] / step) * step), 9), round(float(np.ceil(low_high[1] / step) * step), 9)]
+
+
 def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> dict:
     """The ``scene.json`` content of a built world."""
     half_x, half_y = layout.spec.half_extent_m
@@ -89,7 +94,7 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
         "up_axis": "z",
         "frame": "enu",
         "vertex_offset_m": [0.0, 0.0, 0.0],
-        "ground_height_range_m": [round(v, 4) for v in ground_height_range(layout, mesh)],
+        "ground_height_range_m": _rounded_outwards(ground_height_range(layout, mesh)),
         "valid_area_m": {"xmin": -half_x, "xmax": half_x, "ymin": -half_y, "ymax": half_y},
         "provenance": {
             "generator": "sim.worlds.demo",
@@ -99,6 +104,7 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
             "triangles": int(len(mesh.faces)),
             "texture_px": int(layout.spec.texture_px),
             "buildings": len(layout.buildings),
+            "gable_roofs": sum(b.gable for b in layout.buildings),
             "trees": len(layout.trees),
             "roads": len(layout.roads),
         },

@@ -80,7 +80,8 @@ def test_look_at_points_z_at_target_with_image_up_towards_up():
     np.testing.assert_allclose(T[:3, 2], [math.sqrt(0.5), 0.0, -math.sqrt(0.5)], atol=1e-12)
     assert T[2, 1] < 0  # camera y (image down) points down in the world
     nadir = look_at([5.0, 5.0, 100.0], [5.0, 5.0, 0.0])
-    np.testing.assert_allclose(nadir[:3, 2], [0, 0, -1], atol=1e-12)
+    # nadir: image top towards north (x east, y south), the pose samplers' heading-0 convention
+    np.testing.assert_allclose(nadir[:3, :3], [[1, 0, 0], [0, -1, 0], [0, 0, -1]], atol=1e-12)
     np.testing.assert_allclose(nadir[:3, :3].T @ nadir[:3, :3], np.eye(3), atol=1e-12)
     assert np.linalg.det(nadir[:3, :3]) == pytest.approx(1.0)
 

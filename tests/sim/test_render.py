@@ -203,6 +203,9 @@ def test_a_box_on_the_ground_casts_a_shadow_where_geometry_says():
     origins = np.array([[-6.0, 0.0, 0.0], [-13.0, 0.0, 0.0], [6.0, 0.0, 0.0], [-6.0, 3.0, 0.0]]) + [0, 0, 1e-3]
     blocked = occluded(scene, origins, sun.direction_enu[None])
     np.testing.assert_array_equal(blocked, [True, False, False, False])
+    # a segment: the wall at x = -2 is 4 * sqrt(2) = 5.66 m along the sun ray from x = -6
+    short, long = (occluded(scene, origins[:1], sun.direction_enu[None], limit)[0] for limit in (5.5, 5.8))
+    assert not short and long
     camera = PinholeCamera.from_fov(96, 96, 60.0)
     T = look_at([0.0, -0.001, 40.0], [0.0, 0.0, 0.0])
     view = render(scene, Rig((camera,)), T, sun).views[0]

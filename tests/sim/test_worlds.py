@@ -108,27 +108,27 @@ def test_uvs_map_ground_points_onto_the_orthophoto_north_up(small_scene):
     assert on_terrain.mean() > 0.95
 
 
-def _face_areas_by_tilt(mesh):
-    normals, areas = mesh.face_normals, mesh.area_faces
-    vertical = np.abs(normals[:, 2]) < 1e-6
-    sloped = (normals[:, 2] > 0.3) & (normals[:, 2] < 0.95)
-    return areas[vertical], areas[sloped]
-
-
 def test_true_3d_buildings_with_vertical_walls_and_gable_roofs(small_scene):
+    """Buildings are solids, not painted roofs: tall vertical walls, and gable triangles under sloped roofs."""
     meta, mesh = small_scene
-    wall_areas, _ = _face_areas_by_tilt(mesh)
+    normals = mesh.face_normals
     buildings = meta["provenance"]["buildings"]
     assert buildings >= 8
     # Every building has four walls of at least ~3 m x 6 m, each two (or three, with a gable) triangles.
-    assert wall_areas.sum() > buildings * 4 * 3.0 * 6.0
-    vertical_faces = mesh.faces[np.abs(mesh.face_normals[:, 2]) < 1e-6]
-    heights = np.ptp(mesh.vertices[vertical_faces][..., 2], axis=1)
+    vertical = np.abs(normals[:, 2]) < 1e-6
+    assert mesh.area_faces[vertical].sum() > buildings * 4 * 3.0 * 6.0
+    heights = np.ptp(mesh.vertices[mesh.faces[vertical]][..., 2], axis=1)
     assert np.count_nonzero(heights > 3.0) >= buildings * 4
-    # Gable roofs: pairs of slopes between 18 and 72 degrees meeting at a ridge above the eaves.
-    normals = mesh.face_normals
+    # Gable ends: vertical triangles whose top vertex stands above neither bottom vertex (a wall quad's triangles
+    # always have their top above a bottom corner), under sloped roof faces. Two per gable-roofed building.
+    triangles = mesh.vertices[mesh.faces[vertical]]
+    order = np.argsort(triangles[..., 2], axis=1)
+    sorted_xyz = np.take_along_axis(triangles, order[..., None], axis=1)
+    top_offsets = np.linalg.norm(sorted_xyz[:, :2, :2] - sorted_xyz[:, 2:, :2], axis=-1)
+    gable_ends = np.count_nonzero(top_offsets.min(axis=1) > 1.0)
+    assert gable_ends == 2 * meta["provenance"]["gable_roofs"] >= 4
     roof_slopes = (normals[:, 2] > 0.3) & (normals[:, 2] < 0.95) & (mesh.triangles_center[:, 2] > 3.0)
-    assert np.count_nonzero(roof_slopes) >= 8
+    assert np.count_nonzero(roof_slopes) >= 2 * gable_ends
 
 
 def test_ground_height_range_matches_the_mesh_seen_from_below(small_scene):
@@ -268,3 +268,28 @@ def test_oblique_views_from_the_orbit_match_with_sift(small_scene, radius_m, hei
     points_b = np.float32([keys_b[g.trainIdx].pt for g in good])
     _, inliers = cv2.findFundamentalMat(points_a, points_b, cv2.FM_RANSAC, 1.0, 0.999)
     assert int(inliers.sum()) >= 100, int(inliers.sum())  # 138-236 at 50 m, 330-360 at 100 m, seen
+
+
+def test_command_line_builds_into_a_folder_or_the_cache(tmp_path, monkeypatch, capsys, small_world):
+    from sim.worlds.__main__ import main
+
+    assert main([str(tmp_path / "cli"), "--variant", "small"]) == 0
+    assert capsys.readouterr().out.strip() == str(tmp_path / "cli")
+    assert _folder_bytes(tmp_path / "cli") == _folder_bytes(small_world)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(demo, "build_demo_world", lambda *args: pytest.fail("the cache must not be rebuilt"))
+    (tmp_path / "cache" / "aerostereo" / "worlds").mkdir(parents=True)
+    (tmp_path / "cache" / "aerostereo" / "worlds" / f"small-3-v{demo.GENERATOR_VERSION}").symlink_to(small_world)
+    assert main(["--variant", "small", "--seed", "3"]) == 0
+    assert capsys.readouterr().out.strip().endswith(f"small-3-v{demo.GENERATOR_VERSION}")
+
+
+@pytest.mark.parametrize("argv", [["--seed", "-2"], ["--variant", "huge"], ["--seed", "x"]])
+def test_command_line_rejects_bad_arguments_with_exit_code_2(argv, capsys):
+    from sim.worlds.__main__ import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(argv)
+    assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err

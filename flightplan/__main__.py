@@ -1,0 +1,7 @@
+"""``python -m flightplan`` runs ``aerostereo-mission``."""
+
+import sys
+
+from flightplan.cli import main
+
+sys.exit(main())

@@ -1,0 +1,119 @@
+"""Aircraft and camera profiles used to check and predict a mission (and later by the virtual drone and recon).
+
+Numbers come from ``research/litchi.md`` section 4. Every profile lists the fields that could not be confirmed
+in a primary source in ``unverified``; treat those as best estimates until measured on the real aircraft.
+Angles are degrees, lengths metres (sensor sizes millimetres), times seconds, speeds metres per second.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class CameraProfile:
+    """A pinhole camera described by its native image size and diagonal field of view.
+
+    The diagonal FOV is the one number DJI publishes; the horizontal/vertical FOVs and the focal length in
+    pixels follow from it for a centred, distortion-free pinhole with square pixels.
+    """
+
+    name: str
+    image_width_px: int
+    image_height_px: int
+    diagonal_fov_deg: float
+    sensor_width_mm: float
+    unverified: tuple[str, ...] = ()
+
+    def focal_length_px(self, image_width_px: int | None = None) -> float:
+        """Focal length in pixels for an image of ``image_width_px`` columns (default: the native width).
+
+        Resizing keeps the field of view, so the focal length scales with the width.
+        """
+        native = 0.5 * math.hypot(self.image_width_px, self.image_height_px) / math.tan(
+            math.radians(self.diagonal_fov_deg) / 2.0
+        )
+        width = self.image_width_px if image_width_px is None else image_width_px
+        return native * width / self.image_width_px
+
+    @property
+    def horizontal_fov_deg(self) -> float:
+        """Full field of view across the image width."""
+        return math.degrees(2.0 * math.atan(0.5 * self.image_width_px / self.focal_length_px()))
+
+    @property
+    def vertical_fov_deg(self) -> float:
+        """Full field of view across the image height."""
+        return math.degrees(2.0 * math.atan(0.5 * self.image_height_px / self.focal_length_px()))
+
+    def pinhole_intrinsics(self, image_width_px: int | None = None, image_height_px: int | None = None):
+        """``(fx, fy, cx, cy)`` in pixels for an image resized to ``image_width_px`` columns.
+
+        Square pixels, principal point at the image centre, pixel (0, 0) = centre of the top-left pixel (OpenCV),
+        so ``cx = (width - 1) / 2``. ``image_height_px`` defaults to the native aspect ratio; a different height
+        (e.g. the 16:9 mode, a crop of the 4:3 sensor) keeps the focal length.
+        """
+        width = self.image_width_px if image_width_px is None else image_width_px
+        height = round(width * self.image_height_px / self.image_width_px) if image_height_px is None else image_height_px
+        focal = self.focal_length_px(width)
+        return focal, focal, (width - 1) / 2.0, (height - 1) / 2.0
+
+    @property
+    def sensor_height_mm(self) -> float:
+        """Sensor height implied by the width and the native aspect ratio (square pixels)."""
+        return self.sensor_width_mm * self.image_height_px / self.image_width_px
+
+    @property
+    def focal_length_mm(self) -> float:
+        """Physical focal length implied by the FOV and the sensor width."""
+        return self.focal_length_px() * self.sensor_width_mm / self.image_width_px
+
+
+@dataclass(frozen=True)
+class AircraftProfile:
+    """What a mission must respect for one aircraft: speed, camera cadence, gimbal range and endurance."""
+
+    name: str
+    camera: CameraProfile
+    max_speed_m_s: float
+    min_timed_shot_interval_s: float
+    rated_flight_time_s: float
+    usable_battery_fraction: float
+    gimbal_pitch_range_deg: tuple[float, float]
+    unverified: tuple[str, ...] = ()
+
+    @property
+    def usable_flight_time_s(self) -> float:
+        """Mission time one battery allows after keeping a reserve for take-off, transit, wind and landing."""
+        return self.rated_flight_time_s * self.usable_battery_fraction
+
+
+#: The DJI Mini SE's 12 MP 1/2.3" camera in 4:3 mode. 4000x3000 is confirmed by an owner's write-up; the
+#: 83 deg diagonal FOV and the 6.17 mm sensor width (1/2.3") are from memory of DJI's spec sheet (UNVERIFIED).
+MINI_SE_CAMERA = CameraProfile(
+    name="DJI Mini SE FC7103 (4:3)",
+    image_width_px=4000,
+    image_height_px=3000,
+    diagonal_fov_deg=83.0,
+    sensor_width_mm=6.17,
+    unverified=("diagonal_fov_deg", "sensor_width_mm"),
+)
+
+#: DJI Mini SE (2021). Max speed 13 m/s (S mode), the 2 s minimum interval of DJI's timed shots, the -90..0 deg
+#: controllable gimbal tilt: UNVERIFIED (research/litchi.md section 4). 30 min rated flight time: Wikipedia
+#: and an owner's write-up (rated at 17 km/h without wind). The 80 % usable fraction is our own reserve policy.
+DJI_MINI_SE = AircraftProfile(
+    name="DJI Mini SE",
+    camera=MINI_SE_CAMERA,
+    max_speed_m_s=13.0,
+    min_timed_shot_interval_s=2.0,
+    rated_flight_time_s=30 * 60.0,
+    usable_battery_fraction=0.8,
+    gimbal_pitch_range_deg=(-90.0, 0.0),
+    unverified=("max_speed_m_s", "min_timed_shot_interval_s", "gimbal_pitch_range_deg"),
+)
+
+#: Maximum height above take-off allowed without special permission: EU open category 120 m (Regulation
+#: 2019/947); US Part 107 allows 400 ft = 121.92 m, so 120 m satisfies both.
+LEGAL_MAX_HEIGHT_M = 120.0

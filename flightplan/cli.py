@@ -1,0 +1,201 @@
+"""``aerostereo-mission``: plan a circular orbit and export it as a Litchi Mission Hub CSV.
+
+Heights are metres above the take-off point; the centre is WGS84 degrees. Prints a summary (waypoints, path
+length, flight time, photos, GSD, overlap, deviation from the circle, warnings). Bad input or a plan that fails
+the checks: one line on stderr, exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from pathlib import Path
+
+from flightplan import checks, preview
+from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
+from flightplan.atomic import write_text_atomic
+from flightplan.demo_location import DEMO_ORIGIN
+from flightplan.litchi import write_mission_csv
+from flightplan.orbit import (
+    DEFAULT_DEVIATION_TOLERANCE_M,
+    DEFAULT_HEIGHT_M,
+    DEFAULT_PHOTO_INTERVAL_S,
+    DEFAULT_RADIUS_M,
+    DEFAULT_SPEED_M_S,
+    OrbitPlan,
+    OrbitRequest,
+    Ring,
+    plan_orbit,
+)
+
+PROGRAM = "aerostereo-mission"
+
+
+class UsageError(Exception):
+    """Bad command-line input; reported as one line on stderr with exit code 2."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # argparse would print the usage block and exit; we want one line
+        raise UsageError(message)
+
+
+def _finite(text: str) -> float:
+    value = float(text)
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def _ring(text: str) -> Ring:
+    """``RADIUS:HEIGHT`` or ``RADIUS:HEIGHT:PITCH`` (metres, metres above take-off, degrees)."""
+    parts = text.split(":")
+    if len(parts) not in (2, 3):
+        raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH], got {text!r}")
+    try:
+        numbers = [_finite(p) for p in parts]
+    except (ValueError, argparse.ArgumentTypeError):
+        raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH] with finite numbers, got {text!r}") from None
+    return Ring(numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else None)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser; its ``error`` raises :class:`UsageError` instead of exiting."""
+    parser = _Parser(
+        prog=PROGRAM,
+        description="Plan a circular orbit and export it as a Litchi Mission Hub CSV. "
+        "Heights are metres above take-off.",
+    )
+    where = parser.add_argument_group("centre (WGS84 degrees)")
+    where.add_argument("--lat", type=_finite, metavar="DEG", help="latitude of the orbit centre / POI")
+    where.add_argument("--lon", type=_finite, metavar="DEG", help="longitude of the orbit centre / POI")
+    where.add_argument(
+        "--demo",
+        action="store_true",
+        help=f"centre on the built-in demo location ({DEMO_ORIGIN.lat0_deg}, {DEMO_ORIGIN.lon0_deg})",
+    )
+    orbit = parser.add_argument_group("orbit")
+    orbit.add_argument("--radius", type=_finite, metavar="M", help=f"metres (default {DEFAULT_RADIUS_M:g})")
+    orbit.add_argument(
+        "--height", type=_finite, metavar="M", help=f"metres above take-off (default {DEFAULT_HEIGHT_M:g})"
+    )
+    orbit.add_argument(
+        "--rings",
+        type=_ring,
+        nargs="+",
+        metavar="R:H[:PITCH]",
+        help="several rings instead of --radius/--height; PITCH fixes the gimbal (else it follows the POI)",
+    )
+    orbit.add_argument("--speed-kmh", type=_finite, default=DEFAULT_SPEED_M_S * 3.6, metavar="KMH", help="default 2.5")
+    orbit.add_argument(
+        "--interval", type=_finite, default=DEFAULT_PHOTO_INTERVAL_S, metavar="S", help="seconds between photos (default 1)"
+    )
+    orbit.add_argument("--waypoints", type=int, metavar="N", help="per ring (default: the fewest within --tolerance)")
+    orbit.add_argument(
+        "--tolerance",
+        type=_finite,
+        default=DEFAULT_DEVIATION_TOLERANCE_M,
+        metavar="M",
+        help="max deviation of the flown path from the circle (default 0.25)",
+    )
+    orbit.add_argument("--direction", choices=("cw", "ccw"), default="cw")
+    orbit.add_argument("--start-bearing", type=_finite, default=0.0, metavar="DEG", help="of the first waypoint (default 0)")
+    orbit.add_argument("--poi-height", type=_finite, default=0.0, metavar="M", help="above take-off (default 0)")
+    orbit.add_argument(
+        "--legal-height", type=_finite, default=LEGAL_MAX_HEIGHT_M, metavar="M", help="above take-off (default 120: EU/US)"
+    )
+    out = parser.add_argument_group("outputs")
+    out.add_argument("--out", type=Path, required=True, metavar="CSV", help="Litchi CSV to write")
+    out.add_argument("--kml", type=Path, metavar="F", help="KML preview (Google Earth)")
+    out.add_argument("--geojson", type=Path, metavar="F", help="GeoJSON preview")
+    out.add_argument("--plot", type=Path, metavar="PNG", help="PNG plot")
+    out.add_argument("--summary-json", type=Path, metavar="F", help="summary as JSON")
+    return parser
+
+
+def request_from_args(args: argparse.Namespace) -> OrbitRequest:
+    """Turn parsed arguments into an :class:`OrbitRequest` (``UsageError``/``ValueError`` on bad input)."""
+    if args.demo:
+        if args.lat is not None or args.lon is not None:
+            raise UsageError("--demo sets the centre; leave out --lat/--lon")
+        lat, lon = DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg
+    elif args.lat is None or args.lon is None:
+        raise UsageError("--lat and --lon are required (or --demo)")
+    else:
+        lat, lon = args.lat, args.lon
+    if args.rings and (args.radius is not None or args.height is not None):
+        raise UsageError("--rings replaces --radius/--height; give one or the other")
+    radius = DEFAULT_RADIUS_M if args.radius is None else args.radius
+    height = DEFAULT_HEIGHT_M if args.height is None else args.height
+    rings = tuple(args.rings) if args.rings else (Ring(radius, height),)
+    return OrbitRequest(
+        center_lat_deg=lat,
+        center_lon_deg=lon,
+        rings=rings,
+        speed_m_s=args.speed_kmh / 3.6,
+        photo_interval_s=args.interval,
+        direction=args.direction,
+        start_bearing_deg=args.start_bearing,
+        poi_height_m=args.poi_height,
+        waypoints_per_ring=args.waypoints,
+        deviation_tolerance_m=args.tolerance,
+    )
+
+
+def summary_text(plan: OrbitPlan, warnings: list[str]) -> str:
+    """The human-readable summary printed by the CLI."""
+    request = plan.request
+    lines = [
+        f"orbit centre {request.center_lat_deg:.7f}, {request.center_lon_deg:.7f}  "
+        f"direction {request.direction}  start bearing {request.start_bearing_deg:g} deg",
+        f"waypoints        {len(plan.mission)} rows ({' + '.join(str(r.waypoints) for r in plan.rings)} per ring, loop closed)",
+        f"path length      {plan.path_length_m:.1f} m",
+        f"flight time      {plan.flight_time_s:.0f} s ({plan.flight_time_s / 60:.1f} min) at {request.speed_m_s:.3f} m/s",
+        f"photos           {plan.photo_count} (one every {request.photo_interval_s:g} s)",
+        f"max deviation    {plan.max_deviation_m:.3f} m from the circle (flown path inside it)",
+    ]
+    for ring in plan.rings:
+        lines.append(
+            f"ring r={ring.radius_m:g} m h={ring.height_m:g} m: leg {ring.leg_m:.2f} m, curve {ring.curve_size_m:.2f} m, "
+            f"gimbal {ring.gimbal_pitch_deg:.1f} deg, GSD {ring.gsd_at_center_cm_px:.2f} cm/px at the centre, "
+            f"overlap {100 * ring.overlap_consecutive:.1f} %, heading error <= {ring.max_heading_error_deg:.3f} deg"
+        )
+    lines += [f"note: {note}" for note in plan.notes]
+    lines += [f"warning: {warning}" for warning in warnings]
+    return "\n".join(lines)
+
+
+def _write_outputs(args: argparse.Namespace, plan: OrbitPlan, warnings: list[str]) -> list[Path]:
+    request = plan.request
+    written = [write_mission_csv(plan.mission, args.out)]
+    if args.kml:
+        written.append(preview.write_kml(plan.mission, args.kml, name=args.out.stem))
+    if args.geojson:
+        written.append(preview.write_geojson(plan.mission, args.geojson))
+    if args.plot:
+        written.append(preview.write_plot_png(plan.mission, request.center_lat_deg, request.center_lon_deg, args.plot))
+    if args.summary_json:
+        summary = plan.summary_dict() | {"aircraft": DJI_MINI_SE.name, "warnings": warnings, "csv": str(args.out)}
+        written.append(write_text_atomic(args.summary_json, json.dumps(summary, indent=2) + "\n"))
+    return written
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the exit code (0 ok, 2 bad input, failed checks or unwritable output)."""
+    try:
+        args = build_parser().parse_args(argv)
+        plan = plan_orbit(request_from_args(args), DJI_MINI_SE)
+        findings = checks.check_mission(plan.mission, DJI_MINI_SE, plan.flight_time_s, args.legal_height)
+        warnings = checks.raise_on_errors(findings)
+        written = _write_outputs(args, plan, warnings)
+    except (UsageError, ValueError) as error:
+        print(f"{PROGRAM}: error: {error}", file=sys.stderr)
+        return 2
+    except OSError as error:
+        print(f"{PROGRAM}: error: cannot write {error.filename or ''}: {error.strerror or error}", file=sys.stderr)
+        return 2
+    print(summary_text(plan, warnings))
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0

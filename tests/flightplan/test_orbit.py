@@ -1,0 +1,184 @@
+"""The orbit planner against GeographicLib: radius, height, headings, closure, hard places and predictions."""
+
+import math
+
+import numpy as np
+import pytest
+from geographiclib.geodesic import Geodesic
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from flightplan import checks, litchi
+from flightplan.aircraft import MINI_SE_CAMERA
+from flightplan.orbit import OrbitRequest, Ring, consecutive_overlap, plan_orbit
+
+WGS84 = Geodesic.WGS84
+
+
+def assert_orbit_geometry(plan, ring_index=0):
+    """Every waypoint of the ring at the radius (1 mm) and height, heading at the centre (0.01 deg), loop closed."""
+    request, ring = plan.request, plan.request.rings[ring_index]
+    start = sum(r.waypoints + 1 for r in plan.rings[:ring_index])
+    rows = plan.mission.waypoints[start : start + plan.rings[ring_index].waypoints + 1]
+    assert rows[-1] == rows[0], "the loop must close on its first waypoint"
+    for w in rows:
+        back = WGS84.Inverse(w.latitude_deg, w.longitude_deg, request.center_lat_deg, request.center_lon_deg)
+        assert back["s12"] == pytest.approx(ring.radius_m, abs=1e-3)
+        assert w.altitude_m == ring.height_m
+        heading_error = (w.heading_deg - back["azi1"] + 180.0) % 360.0 - 180.0
+        assert abs(heading_error) < 0.01
+        assert 0.0 <= w.heading_deg < 360.0
+        assert w.speed_m_s == request.speed_m_s > 0.0
+        assert w.photo_time_interval_s == request.photo_interval_s
+    return rows
+
+
+HARD_CENTRES = [
+    (0.0, 0.0),  # equator and prime meridian (POI must not be written as 0,0 = "no POI")
+    (90.0, 0.0),  # on the pole itself: every heading is north (0 deg)
+    (89.99, 10.0),
+    (-89.99, -120.0),
+    (10.0, 179.9999),  # the circle crosses the antimeridian
+    (-33.9, -179.9999),
+    (40.1792, 44.4991),
+]
+
+
+@pytest.mark.parametrize("centre", HARD_CENTRES)
+@pytest.mark.parametrize("direction", ["cw", "ccw"])
+def test_waypoints_on_the_circle_facing_the_centre(centre, direction):
+    plan = plan_orbit(OrbitRequest(*centre, direction=direction, start_bearing_deg=30.0))
+    rows = assert_orbit_geometry(plan)
+    bearings = [WGS84.Inverse(*centre, w.latitude_deg, w.longitude_deg)["azi1"] % 360.0 for w in rows]
+    assert bearings[0] == pytest.approx(30.0, abs=1e-6)
+    steps = (np.diff(bearings) + 180.0) % 360.0 - 180.0
+    expected_step = 360.0 / plan.rings[0].waypoints * (1 if direction == "cw" else -1)
+    np.testing.assert_allclose(steps, expected_step, atol=1e-6)
+    assert all(w.rotation_dir == (litchi.ROTATION_CW if direction == "cw" else litchi.ROTATION_CCW) for w in rows)
+    assert all(w.has_poi and w.gimbal_mode == litchi.GIMBAL_FOCUS_POI for w in rows)
+    assert abs(rows[0].poi_latitude_deg - centre[0]) <= 1e-8 and rows[0].poi_longitude_deg == centre[1]
+    assert [f for f in checks.check_litchi_limits(plan.mission)] == []
+
+
+def test_defaults_match_the_paper_and_the_tolerance():
+    plan = plan_orbit(OrbitRequest(40.1792, 44.4991))
+    ring = plan.rings[0]
+    assert (ring.radius_m, ring.height_m) == (50.0, 30.0)
+    assert plan.request.speed_m_s == pytest.approx(0.694, abs=5e-4)
+    n = ring.waypoints
+    sagitta = lambda count: 50.0 * (1.0 - math.cos(math.pi / count))  # noqa: E731
+    assert sagitta(n) <= 0.25 < sagitta(n - 1), "the fewest waypoints within 0.25 m"
+    assert plan.max_deviation_m == pytest.approx(sagitta(n), abs=1e-3)
+    assert ring.gimbal_pitch_deg == pytest.approx(-math.degrees(math.atan2(30.0, 50.0)), abs=1e-9)  # -31.0
+    assert all(w.gimbal_pitch_deg == ring.gimbal_pitch_deg for w in plan.mission.waypoints)
+    # The flown path lies between the inscribed circle and the waypoint polygon.
+    assert 2 * math.pi * 50.0 * math.cos(math.pi / n) - 1e-3 <= plan.path_length_m <= 2 * n * 50.0 * math.sin(math.pi / n)
+    assert plan.flight_time_s == pytest.approx(plan.path_length_m / plan.request.speed_m_s)
+    assert plan.photo_count == math.floor(plan.flight_time_s / 1.0) + 1
+    assert ring.gsd_at_center_cm_px == pytest.approx(100 * math.hypot(50, 30) / MINI_SE_CAMERA.focal_length_px())
+    assert ring.max_heading_error_deg < 0.01
+
+
+def test_centre_longitude_beyond_180_is_wrapped():
+    plan = plan_orbit(OrbitRequest(10.0, 200.0))
+    assert {w.poi_longitude_deg for w in plan.mission.waypoints} == {-160.0}
+    assert checks.check_litchi_limits(plan.mission) == []
+    assert_orbit_geometry(plan)
+
+
+def test_explicit_waypoint_count_and_poi_height():
+    plan = plan_orbit(OrbitRequest(47.0, 8.0, (Ring(80.0, 40.0),), waypoints_per_ring=12, poi_height_m=10.0))
+    assert len(plan.mission) == 13
+    assert plan.rings[0].gimbal_pitch_deg == pytest.approx(-math.degrees(math.atan2(30.0, 80.0)))
+    assert plan.max_deviation_m == pytest.approx(80.0 * (1 - math.cos(math.pi / 12)), abs=1e-3)
+    assert all(w.poi_altitude_m == 10.0 for w in plan.mission.waypoints)
+    assert_orbit_geometry(plan)
+
+
+def test_several_rings():
+    rings = (Ring(40.0, 20.0), Ring(60.0, 45.0, -60.0))
+    plan = plan_orbit(OrbitRequest(-12.0, 130.0, rings))
+    assert len(plan.mission) == sum(r.waypoints + 1 for r in plan.rings) <= litchi.MAX_WAYPOINTS
+    for i in range(2):
+        assert_orbit_geometry(plan, i)
+    fixed = plan.mission.waypoints[-1]
+    assert fixed.gimbal_mode == litchi.GIMBAL_INTERPOLATE and fixed.gimbal_pitch_deg == -60.0
+    transition = math.hypot(20.0, 25.0)
+    assert plan.path_length_m == pytest.approx(sum(r.path_length_m for r in plan.rings) + transition)
+    assert checks.check_litchi_limits(plan.mission) == []
+
+
+def test_radius_one_metre_keeps_legs_above_the_minimum():
+    plan = plan_orbit(OrbitRequest(45.0, 7.0, (Ring(1.0, 10.0),)))
+    legs = checks.leg_lengths_m(plan.mission)
+    assert legs.min() >= litchi.MIN_LEG_M
+    assert plan.rings[0].waypoints == 3  # a 4th would make legs too short for the curve rule (1.41 m < 1.42 m)
+    assert plan.max_deviation_m == pytest.approx(0.5, abs=1e-3)  # 1 - cos(60 deg)
+    assert "out of reach" in plan.notes[0]
+    assert checks.check_litchi_limits(plan.mission) == []
+    assert_orbit_geometry(plan)
+
+
+def test_radius_below_the_leg_rules_is_refused():
+    with pytest.raises(ValueError, match="no feasible waypoint count for radius 0.6 m"):
+        plan_orbit(OrbitRequest(45.0, 7.0, (Ring(0.6, 10.0),)))
+
+
+def test_radius_five_km_hits_waypoint_and_distance_limits():
+    plan = plan_orbit(OrbitRequest(45.0, 7.0, (Ring(5000.0, 100.0),)))
+    assert len(plan.mission) == litchi.MAX_WAYPOINTS
+    assert checks.leg_lengths_m(plan.mission).max() <= litchi.MAX_LEG_M
+    assert plan.max_deviation_m == pytest.approx(5000.0 * (1 - math.cos(math.pi / 98)), abs=1e-2)
+    assert_orbit_geometry(plan)
+    errors = [f.message for f in checks.check_litchi_limits(plan.mission)]
+    assert len(errors) == 1 and "km long" in errors[0]  # 31.4 km > 30 km
+
+
+@pytest.mark.parametrize("height, severity, text", [(0.0, checks.WARNING, "less than 5 m"), (500.0, checks.ERROR, "legal 120 m")])
+def test_heights_zero_and_five_hundred(height, severity, text):
+    plan = plan_orbit(OrbitRequest(52.0, 5.0, (Ring(50.0, height),)))
+    assert_orbit_geometry(plan)
+    assert plan.rings[0].gimbal_pitch_deg == pytest.approx(-math.degrees(math.atan2(height, 50.0)))
+    assert checks.check_litchi_limits(plan.mission) == []  # 500 m is Litchi's own maximum
+    assert any(f.severity == severity and text in f.message for f in checks.check_law(plan.mission))
+
+
+@pytest.mark.parametrize(
+    "field, value",
+    [("center_lat_deg", 91.0), ("center_lat_deg", math.nan), ("speed_m_s", 0.0), ("photo_interval_s", -1.0), ("direction", "up")],
+)
+def test_bad_requests_name_the_problem(field, value):
+    arguments = {"center_lat_deg": 10.0, "center_lon_deg": 10.0} | {field: value}
+    with pytest.raises(ValueError):
+        OrbitRequest(**arguments)
+
+
+@pytest.mark.parametrize("ring", [Ring(-5.0, 30.0), Ring(0.0, 30.0), Ring(math.inf, 30.0), Ring(50.0, math.nan)])
+def test_bad_rings_are_refused(ring):
+    with pytest.raises(ValueError, match="radius|height"):
+        OrbitRequest(10.0, 10.0, (ring,))
+
+
+def test_overlap_model_limits():
+    hfov = math.radians(MINI_SE_CAMERA.horizontal_fov_deg)
+    assert consecutive_overlap(MINI_SE_CAMERA, 50.0, 30.0, 0.0) == 1.0
+    # Height 0: only the background term; moving the slant range times the FOV shifts a whole image.
+    assert consecutive_overlap(MINI_SE_CAMERA, 50.0, 0.0, 50.0 * hfov * 0.5) == pytest.approx(0.5)
+    assert consecutive_overlap(MINI_SE_CAMERA, 50.0, 0.0, 50.0 * hfov * 2) == 0.0
+    assert consecutive_overlap(MINI_SE_CAMERA, 50.0, 30.0, 2.0) < consecutive_overlap(MINI_SE_CAMERA, 50.0, 30.0, 1.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    lat=st.floats(-89.999, 89.999),
+    lon=st.floats(-180.0, 179.999999),
+    radius=st.floats(2.0, 1500.0),
+    direction=st.sampled_from(["cw", "ccw"]),
+    start=st.floats(0.0, 360.0),
+)
+def test_property_random_orbits(lat, lon, radius, direction, start):
+    plan = plan_orbit(OrbitRequest(lat, lon, (Ring(radius, 40.0),), direction=direction, start_bearing_deg=start))
+    assert_orbit_geometry(plan)
+    assert checks.check_litchi_limits(plan.mission) == []
+    if not plan.notes:
+        assert plan.max_deviation_m <= plan.request.deviation_tolerance_m + 1e-3
