@@ -163,7 +163,10 @@ class PoseSource:
             return self.replayed[index]
         if self.path is not None:
             return self.path.pose(self.ground, index)
-        return random_pose(self.ground, self.options.seed, index, miss_fraction=self._probe)
+        try:
+            return random_pose(self.ground, self.options.seed, index, miss_fraction=self._probe)
+        except RuntimeError as error:  # the scene shows too much sky from every pose drawn
+            raise RenderInputError(f"{self.ground.scene.source}: {error}") from None
 
 
 def frame_sun(sample: SunSample) -> Sun:

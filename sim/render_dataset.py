@@ -233,7 +233,7 @@ def _worker(job: Job, tasks, results) -> None:
         renderer.close()
         results.put(("done", None))
     except BaseException as error:  # noqa: BLE001 -- reported to the parent, which raises it
-        results.put(("error", f"{type(error).__name__}: {error}"))
+        results.put(("error", (isinstance(error, RenderInputError), f"{type(error).__name__}: {error}")))
 
 
 def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progress: _Progress) -> list[FrameStats]:
@@ -258,7 +258,8 @@ def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progres
                     raise RuntimeError(f"a render worker died (exit code {dead[0].exitcode})") from None
                 continue
             if kind == "error":
-                raise RuntimeError(f"a render worker failed: {payload}")
+                bad_input, message = payload
+                raise (RenderInputError if bad_input else RuntimeError)(f"a render worker failed: {message}")
             if kind == "done":
                 finished += 1
             else:
