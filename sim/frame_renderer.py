@@ -56,6 +56,7 @@ class RenderOptions:
 
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes.
+    ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`).
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
     disparity can be written).
     """
@@ -78,13 +79,19 @@ class RenderOptions:
     speed_m_s: float = 5.0
     frame_rate_hz: float = 10.0
     distortion: tuple[float, ...] | None = None
+    margin_m: float = 20.0
+    max_sky_fraction: float = 0.02
+
+    def random_settings(self) -> RandomPoseSettings:
+        """The paper's ranges with this run's margin and sky limit."""
+        return RandomPoseSettings(margin_m=self.margin_m, max_miss_fraction=self.max_sky_fraction)
 
     def sampling_description(self) -> dict:
         """What ``dataset.json`` records about the sampling (settings that decide the bytes, no run details)."""
         description = {"mode": self.mode, "seed": self.seed, "samples_per_pixel": self.spp,
                        "sun_strength_to_intensity": SUN_STRENGTH_TO_INTENSITY}
         if self.mode == "random":
-            description["random"] = asdict(RandomPoseSettings())
+            description["random"] = asdict(self.random_settings())
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
@@ -164,8 +171,8 @@ class PoseSource:
         if self.path is not None:
             return self.path.pose(self.ground, index)
         try:
-            return random_pose(self.ground, self.options.seed, index, miss_fraction=self._probe)
-        except RuntimeError as error:  # the scene shows too much sky from every pose drawn
+            return random_pose(self.ground, self.options.seed, index, self.options.random_settings(), self._probe)
+        except (RuntimeError, ValueError) as error:  # too much sky from every pose drawn, or margin too wide
             raise RenderInputError(f"{self.ground.scene.source}: {error}") from None
 
 

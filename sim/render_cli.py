@@ -61,6 +61,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--frames", type=int, default=None, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default="random", help="random poses (the paper), a trajectory, or replay geotags")
     add("--geotags", type=Path, default=None, help="geotags.csv to replay (with geotags.json beside it)")
+    add("--margin", type=float, default=20.0, help="random mode: keep cameras this far inside the valid area, metres")
+    add("--max-sky", type=float, default=0.02, help="random mode: redraw a pose whose view has more sky/miss than this")
     add("--trajectory", choices=TRAJECTORIES, default="orbit", help="path flown in trajectory mode")
     add("--altitude", type=float, default=50.0, help="trajectory height above the ground, metres")
     add("--speed", type=float, default=5.0, help="trajectory speed, m/s")
@@ -89,7 +91,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=args.formats, trajectory=args.trajectory, altitude_m=args.altitude,
-                         speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion)
+                         speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
+                         margin_m=args.margin, max_sky_fraction=args.max_sky)
 
 
 def _bad_input(message: str) -> int:

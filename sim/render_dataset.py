@@ -134,6 +134,8 @@ def _check_options(options: RenderOptions) -> None:
             problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
     if not options.baseline_m > 0:
         problems.append(f"baseline must be positive, got {options.baseline_m}")
+    if not 0 <= options.max_sky_fraction <= 1:
+        problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
     if not 0 < options.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
     if options.distortion is not None and any(name.startswith("disparity") for name in options.formats):
