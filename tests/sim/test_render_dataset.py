@@ -26,10 +26,11 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
-from sim.render_cli import compare_main, render_main
 from sim.frame_renderer import RenderOptions
+from sim.render_cli import compare_main, render_main
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR, camera_rotation
+
 from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
