@@ -68,7 +68,8 @@ def dataset_bytes(dataset: Path) -> dict[str, bytes]:
             records = [json.loads(line) for line in path.read_text().splitlines()]
             files[name] = json.dumps([{k: v for k, v in r.items() if k != "render_time_s"} for r in records]).encode()
         elif path.name == "dataset.json":
-            files[name] = json.dumps({k: v for k, v in json.loads(path.read_text()).items() if k != "command_line"}).encode()
+            description = json.loads(path.read_text())
+            files[name] = json.dumps({k: v for k, v in description.items() if k != "command_line"}).encode()
         else:
             files[name] = path.read_bytes()
     return files
@@ -198,7 +199,8 @@ def _first_partial_frame(dataset: Path) -> int | None:
 @pytest.mark.slow
 def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_dir, tmp_path):
     killed = tmp_path / "killed"
-    code = f"import sys; from sim.render_cli import render_main; sys.exit(render_main({_argv(scene_dir, killed, **KILL_OPTIONS)!r}))"
+    argv = _argv(scene_dir, killed, **KILL_OPTIONS)
+    code = f"import sys; from sim.render_cli import render_main; sys.exit(render_main({argv!r}))"
     process = subprocess.Popen([sys.executable, "-c", code], cwd=REPO_ROOT,
                                env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
     deadline, partial = time.monotonic() + 60, None
@@ -210,7 +212,7 @@ def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_d
     assert partial is not None, "the run ended before a frame was caught half-written"
     # One writer thread writes frames in order, so the frame after the half-written one is certainly unfinished.
     assert not (killed / f"sequences/00/frame_meta/{partial + 1:06d}.json").exists()
-    assert render_main(_argv(scene_dir, killed, **KILL_OPTIONS)) == 0
+    assert render_main(argv) == 0
     uninterrupted = tmp_path / "uninterrupted"
     assert render_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
     assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
