@@ -151,7 +151,8 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
     meta = read_scene_json(scene_dir)
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
-                                formats=tuple(options.formats), scene=scene, sampling=options.sampling_description(), command_line=list(command_line))
+                                formats=tuple(options.formats), scene=scene,
+                                sampling=options.sampling_description(), command_line=list(command_line))
 
 
 def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
