@@ -139,6 +139,20 @@ def deg_to_dms(value: float) -> tuple[float, float, float]:
     return float(degrees), float(minutes), round(seconds, 6)
 
 
+def set_exif_gps(exif: Image.Exif, tag: Geotag) -> None:
+    """Put the geotag's latitude, longitude and (if known) absolute height into ``exif``'s GPS IFD."""
+    gps = exif.get_ifd(ExifTags.IFD.GPSInfo)
+    gps[ExifTags.GPS.GPSVersionID] = b"\x02\x03\x00\x00"
+    gps[ExifTags.GPS.GPSLatitudeRef] = "N" if tag.lat_deg >= 0 else "S"
+    gps[ExifTags.GPS.GPSLatitude] = deg_to_dms(tag.lat_deg)
+    gps[ExifTags.GPS.GPSLongitudeRef] = "E" if tag.lon_deg >= 0 else "W"
+    gps[ExifTags.GPS.GPSLongitude] = deg_to_dms(tag.lon_deg)
+    if math.isfinite(tag.absolute_height_m):
+        gps[ExifTags.GPS.GPSAltitudeRef] = b"\x00" if tag.absolute_height_m >= 0 else b"\x01"
+        gps[ExifTags.GPS.GPSAltitude] = abs(tag.absolute_height_m)
+    exif[ExifTags.IFD.GPSInfo] = gps
+
+
 def write_exif_copy(tag: Geotag, source: Path, target: Path) -> None:
     """Copy a JPEG with the geotag in its EXIF GPS IFD and a fresh DJI XMP packet (atomic).
 
@@ -147,16 +161,7 @@ def write_exif_copy(tag: Geotag, source: Path, target: Path) -> None:
     """
     with Image.open(source) as image:
         exif = image.getexif()
-        gps = exif.get_ifd(ExifTags.IFD.GPSInfo)
-        gps[ExifTags.GPS.GPSVersionID] = b"\x02\x03\x00\x00"
-        gps[ExifTags.GPS.GPSLatitudeRef] = "N" if tag.lat_deg >= 0 else "S"
-        gps[ExifTags.GPS.GPSLatitude] = deg_to_dms(tag.lat_deg)
-        gps[ExifTags.GPS.GPSLongitudeRef] = "E" if tag.lon_deg >= 0 else "W"
-        gps[ExifTags.GPS.GPSLongitude] = deg_to_dms(tag.lon_deg)
-        if math.isfinite(tag.absolute_height_m):
-            gps[ExifTags.GPS.GPSAltitudeRef] = b"\x00" if tag.absolute_height_m >= 0 else b"\x01"
-            gps[ExifTags.GPS.GPSAltitude] = abs(tag.absolute_height_m)
-        exif[ExifTags.IFD.GPSInfo] = gps
+        set_exif_gps(exif, tag)
         with atomic_path(target) as tmp:
             image.save(tmp, format="JPEG", exif=exif, xmp=dji_xmp_packet(tag), qtables=image.quantization,
                        subsampling=JpegImagePlugin.get_sampling(image), icc_profile=image.info.get("icc_profile"))

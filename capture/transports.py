@@ -156,10 +156,16 @@ class SerialSource(LiveSource):
         return serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.read_timeout_s)
 
     def _read(self, port) -> bytes:
-        """Wait up to the timeout for a byte, then take everything already waiting (socket:// reports 1)."""
+        """Wait up to the timeout for a byte, then take everything already waiting (socket:// reports 1).
+
+        A disconnect after some bytes arrived returns those bytes; the next read reports the disconnect.
+        """
         data = port.read(max(1, port.in_waiting))
-        while data and port.in_waiting and len(data) < self.max_chunk_bytes:
-            data += port.read(port.in_waiting)
+        try:
+            while data and port.in_waiting and len(data) < self.max_chunk_bytes:
+                data += port.read(port.in_waiting)
+        except self.disconnect_errors:
+            pass
         return data
 
     def _close(self, port) -> None:

@@ -1,6 +1,8 @@
 """The virtual drone's flight: true trajectory, imperfect sensors, telemetry records and photo ground truth.
 
-Pure numpy; no rendering and no DUML here. One call flies a mission::
+The flight itself is pure numpy; :mod:`sim.drone.link` encodes its telemetry as DUML and delivers it (file,
+serial URL, fake USB), :mod:`sim.drone.photos` renders and writes the photos, :mod:`sim.drone.session` runs a
+whole Litchi CSV (``aerostereo-render fly``). One call flies a mission::
 
     result = fly(waypoints, home, Imperfections.realistic(), seed=7)
     result.flight.state_at(t)      # true state at any times
@@ -20,11 +22,11 @@ from sim.drone.imperfections import Imperfections, damage_bytes
 from sim.drone.mission import HomePoint, Waypoint
 from sim.drone.schedule import Telemetry, TelemetryRates, telemetry_schedule
 from sim.drone.sensors import Sensors
-from sim.drone.truth import Photos, r_world_cam_from_gimbal, take_photos, write_truth
+from sim.drone.truth import Photos, take_photos, write_truth
 
 __all__ = [
     "Flight", "FlightConfig", "FlightState", "FlownMission", "HomePoint", "Imperfections", "Photos", "Telemetry",
-    "TelemetryRates", "Waypoint", "fly", "r_world_cam_from_gimbal", "write_truth",
+    "TelemetryRates", "Waypoint", "fly", "write_truth",
 ]
 
 

@@ -78,3 +78,31 @@ class HomePoint:
         validate_latlon(self.latitude_deg, self.longitude_deg)
         if not math.isfinite(self.height_ellipsoid_m):
             raise ValueError(f"home height must be finite, got {self.height_ellipsoid_m}")
+
+
+def waypoints_from_litchi(mission) -> list[Waypoint]:
+    """The rows of a :class:`flightplan.litchi.Mission` (as read from a Litchi CSV) as virtual-drone waypoints.
+
+    Raises ValueError naming the waypoint (1-based) for what the virtual drone does not fly: heights above
+    ground (altitude mode 1) instead of above take-off.
+    """
+    waypoints = []
+    for number, row in enumerate(mission.waypoints, start=1):
+        if row.altitude_mode != 0 or (row.has_poi and row.poi_altitude_mode != 0):
+            raise ValueError(f"waypoint {number}: only heights above take-off (altitudemode 0) are flown")
+        try:
+            waypoints.append(Waypoint(
+                latitude_deg=row.latitude_deg, longitude_deg=row.longitude_deg, altitude_m=row.altitude_m,
+                heading_deg=row.heading_deg, curvesize_m=row.curve_size_m, gimbalmode=row.gimbal_mode,
+                gimbalpitchangle_deg=row.gimbal_pitch_deg, speed_mps=row.speed_m_s,
+                poi_latitude_deg=row.poi_latitude_deg, poi_longitude_deg=row.poi_longitude_deg,
+                poi_altitude_m=row.poi_altitude_m, photo_timeinterval_s=row.photo_time_interval_s))
+        except ValueError as error:
+            raise ValueError(f"waypoint {number}: {error}") from None
+    return waypoints
+
+
+def home_below_first_waypoint(waypoints: list[Waypoint], ground_height_ellipsoid_m: float) -> HomePoint:
+    """The take-off point under the first waypoint, on the ground at ``ground_height_ellipsoid_m``."""
+    first = waypoints[0]
+    return HomePoint(first.latitude_deg, first.longitude_deg, ground_height_ellipsoid_m)

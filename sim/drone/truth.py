@@ -17,24 +17,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from capture.attitude import camera_matrix_world
 from sim.drone.flight import Flight
 from sim.drone.sensors import Sensors
-
-#: ENU world <- NED (swap east/north, flip down).
-_ENU_FROM_NED = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])
-#: Gimbal body (x forward, y right, z down) <- OpenCV camera (x right, y down, z forward).
-_BODY_FROM_CV = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
-
-
-def r_world_cam_from_gimbal(gimbal_ypr_deg: np.ndarray) -> np.ndarray:
-    """``R_world_cam`` (N,3,3): ENU world <- OpenCV camera, from DJI gimbal yaw/pitch/roll (degrees).
-
-    DJI convention (INTERFACES.md): NED, intrinsic ZYX (yaw about down, then pitch, then roll); yaw from
-    north clockwise; pitch 0 = horizon, -90 = nadir. Kept isolated: capture/attitude.py is its final home.
-    """
-    ypr = np.atleast_2d(np.asarray(gimbal_ypr_deg, float))
-    r_ned_body = Rotation.from_euler("ZYX", ypr, degrees=True).as_matrix()
-    return _ENU_FROM_NED @ r_ned_body @ _BODY_FROM_CV
 
 
 def photo_names(taken: np.ndarray) -> list[str]:
@@ -97,7 +82,7 @@ def take_photos(flight: Flight, sensors: Sensors, rng: np.random.Generator) -> P
         latitude_deg=lat, longitude_deg=lon, height_ellipsoid_m=h,
         aircraft_ypr_deg=truth.aircraft_ypr_deg,
         gimbal_ypr_deg=truth.gimbal_ypr_deg,
-        R_world_cam=r_world_cam_from_gimbal(truth.gimbal_ypr_deg),
+        R_world_cam=camera_matrix_world(*truth.gimbal_ypr_deg.T),
         measured_latitude_deg=measured.latitude_deg,
         measured_longitude_deg=measured.longitude_deg,
         measured_height_above_takeoff_m=measured.height_above_takeoff_m,

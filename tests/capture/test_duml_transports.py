@@ -95,6 +95,24 @@ def test_socket_disconnect_then_reconnect_loses_nothing(tmp_path):
     assert len(packets) == len(VECTORS) and stats.total_skipped == 0
 
 
+def test_socket_bytes_arriving_with_the_disconnect_are_kept(tmp_path):
+    server = socket.create_server(("127.0.0.1", 0))
+
+    def serve():
+        connection, _ = server.accept()
+        time.sleep(0.2)  # pyserial's socket:// open discards input already waiting
+        connection.sendall(STREAM)
+        connection.close()  # the last bytes and the end of the connection arrive together
+
+    thread = threading.Thread(target=serve)
+    thread.start()
+    source = SerialSource(f"socket://127.0.0.1:{server.getsockname()[1]}", read_timeout_s=0.01, backoff=FAST)
+    path, _ = _record_to(tmp_path, source.chunks(), len(STREAM))
+    thread.join()
+    server.close()
+    assert path.read_bytes() == STREAM
+
+
 def test_usb_bulk_with_fake_backend_survives_a_disconnect(tmp_path):
     pieces = [STREAM[:40], STREAM[40:41], STREAM[41:150]]
     rest = STREAM[150:]

@@ -14,7 +14,8 @@ import pytest
 
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import geodesic_direct
-from sim.drone import Flight, HomePoint, Imperfections, Waypoint, fly, r_world_cam_from_gimbal
+from capture.attitude import camera_matrix_world
+from sim.drone import Flight, HomePoint, Imperfections, Waypoint, fly
 from sim.drone.flight import PHASES, tilt_from_forces
 from sim.drone.imperfections import damage_bytes, first_order_lag, gauss_markov
 
@@ -104,7 +105,7 @@ def test_heading_and_camera_point_at_the_poi(perfect):
     assert np.abs(heading_error).max() < 0.2
     # Litchi computes the Focus POI pitch at the waypoints (radius r), then interpolates.
     assert state.gimbal_ypr_deg[:, 1] == pytest.approx(-np.degrees(np.arctan2(HEIGHT_M, RADIUS_M)), abs=0.01)
-    optical_axis = r_world_cam_from_gimbal(state.gimbal_ypr_deg)[:, :, 2]
+    optical_axis = camera_matrix_world(*state.gimbal_ypr_deg.T)[:, :, 2]
     cosine = np.sum(optical_axis * to_poi, axis=1) / np.linalg.norm(to_poi, axis=1)
     # the path runs at r cos(pi/N) < r, so the POI sits slightly below the image centre
     outer, inner = enu_radii(perfect.flight)
@@ -233,7 +234,7 @@ def test_dropouts_remove_records_and_dropped_photos_send_no_shutter():
 
 
 def test_camera_rotation_follows_the_dji_convention():
-    north_level, nadir, east_level = r_world_cam_from_gimbal([[0, 0, 0], [0, -90, 0], [90, 0, 0]])
+    north_level, nadir, east_level = camera_matrix_world([0, 0, 90], [0, -90, 0], [0, 0, 0])
     np.testing.assert_allclose(north_level, [[1, 0, 0], [0, 0, 1], [0, -1, 0]], atol=1e-12)  # columns x,y,z
     np.testing.assert_allclose(nadir[:, 2], [0, 0, -1], atol=1e-12)
     np.testing.assert_allclose(nadir[:, 1], [0, -1, 0], atol=1e-12)  # image down = south when facing north

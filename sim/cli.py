@@ -1,0 +1,103 @@
+"""``aerostereo-render``: render stereo datasets from a scene, compare renders with photos, fly the virtual drone.
+
+The parser is assembled from small ``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS`
+(the one place where subcommands are named); each sets ``handler(args) -> int``. Bad input ends with a
+one-line message on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import sys
+from pathlib import Path
+
+from flightplan.litchi import LitchiFormatError
+from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
+from sim.scene import SceneError, load_scene
+from sim.worlds.demo import demo_scene_dir
+
+
+class CliError(Exception):
+    """Bad user input: printed as one line, exit code 2."""
+
+
+def scene_folder(value: str) -> Path:
+    """``--scene``: a scene folder, or ``demo`` / ``demo:VARIANT`` for the built-in demo world (built once, cached)."""
+    if value == "demo" or value.startswith("demo:"):
+        return demo_scene_dir(value.partition(":")[2] or "default")
+    return Path(value)
+
+
+def utc_time(text: str) -> dt.datetime:
+    """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``); naive times are UTC."""
+    try:
+        stamp = dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an ISO 8601 time like 2024-05-01T10:00:00Z") from None
+    return stamp if stamp.tzinfo else stamp.replace(tzinfo=dt.timezone.utc)
+
+
+def add_fly_parser(subparsers) -> None:
+    parser = subparsers.add_parser(
+        "fly", help="fly a Litchi mission over a scene: DJI photos, DUML telemetry, ground truth",
+        description="Fly a Litchi mission CSV with the virtual drone: writes OUT/photos/DJI_*.JPG (EXIF + DJI XMP), "
+                    "OUT/flight.duml (+ .idx, the telemetry as received) and OUT/truth.json + truth.csv.")
+    parser.add_argument("--mission", required=True, type=Path, help="Litchi Mission Hub CSV")
+    parser.add_argument("--scene", default="demo", help="scene folder, or 'demo' / 'demo:small' (default: demo)")
+    parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument("--photo-size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"),
+                        help="render size in pixels (default 800 600; the Mini SE field of view is kept)")
+    parser.add_argument("--link", choices=LINKS, default="file",
+                        help="file: capture with simulated arrival times; loop: through a pyserial loop:// port into "
+                             "the live recorder; tcp: stream to --port socket://HOST:PORT (default file)")
+    parser.add_argument("--port", help="for --link tcp: socket://HOST:PORT to stream to")
+    parser.add_argument("--speedup", type=float, default=1.0,
+                        help="pace live links this many times faster than real time (default 1)")
+    parser.add_argument("--noise", choices=sorted(NOISE), default="realistic", help="imperfections (default realistic)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now)")
+    parser.add_argument("--photos", type=int, dest="photo_limit", help="render only the first N photos")
+    parser.add_argument("--logs", action="store_true", help="also write flight_log.csv (Litchi) and flight.srt")
+    parser.set_defaults(handler=run_fly)
+
+
+#: Subcommands; the dataset renderer (default command) and ``compare`` add theirs here.
+SUBCOMMANDS = (add_fly_parser,)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="aerostereo-render",
+        description="Render stereo datasets from scenes, and fly the virtual drone over them.")
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    for add_parser in SUBCOMMANDS:
+        add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return args.handler(args)
+    except (CliError, LitchiFormatError, SceneError, ValueError, OSError) as error:
+        print(f"aerostereo-render {args.command}: error: {error}", file=sys.stderr)
+        return 2
+
+
+def run_fly(args) -> int:
+    if not args.mission.is_file():
+        raise CliError(f"{args.mission}: no such mission file")
+    if args.photo_limit is not None and args.photo_limit < 0:
+        raise CliError(f"--photos {args.photo_limit}: expected a count >= 0")
+    options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
+                         imperfections=NOISE[args.noise](), seed=args.seed, start_utc=args.start_utc,
+                         photo_limit=args.photo_limit, logs=args.logs)
+    scene = load_scene(scene_folder(args.scene))
+    report = run_session(args.mission, scene, args.out, options)
+    flight, photos = report.mission.flight, report.mission.photos
+    print(f"flew {args.mission} over {scene.source}: {flight.duration_s:.1f} s from {report.start_utc.isoformat()}")
+    print(f"telemetry: {report.frames} DUML frames, {report.bytes_sent} bytes -> {args.out / 'flight.duml'} (+ .idx)")
+    print(f"photos: {report.photo_times.photos} of {int(photos.taken.sum())} taken ({len(photos.t_s)} scheduled) "
+          f"-> {args.out / 'photos'}; truth -> {args.out / 'truth.json'}, {args.out / 'truth.csv'}")
+    return 0

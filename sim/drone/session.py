@@ -1,0 +1,153 @@
+"""One virtual-drone session: read a Litchi mission, fly it over a scene, deliver the telemetry, take the photos,
+write the ground truth. What ``aerostereo-render fly`` runs.
+
+Output folder: ``photos/DJI_0001.JPG ...``, ``flight.duml`` + ``flight.duml.idx`` (the telemetry as received),
+``truth.json`` + ``truth.csv``, and with ``logs`` a Litchi-style ``flight_log.csv`` and ``flight.srt``. Order: the telemetry is delivered first (on a live link its clock fixes the
+flight's start time), then the photos are rendered with EXIF times on that same time line.
+
+Links: ``file`` writes the capture with simulated arrival times (send time, no latency); ``loop`` streams the
+frames through one pyserial ``loop://`` port, paced by the flight clock, and records what comes out of it with
+:class:`capture.transports.SerialSource` and :func:`capture.recorder.record` (the ``aerostereo-ingest record``
+code path); ``tcp`` streams to ``socket://host:port`` (someone must listen there, e.g. a relay to
+``aerostereo-ingest record``) and also writes ``flight.duml`` as the file link does.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import threading
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import serial
+from tqdm import tqdm
+
+from capture.atomic import atomic_path
+from capture.messages import default_registry
+from capture.raw import RawCaptureWriter, index_path
+from capture.recorder import record
+from capture.transports import SerialSource
+from flightplan.litchi import read_mission_csv
+from sim.drone import FlownMission, Imperfections, fly, write_truth
+from sim.drone.logs import write_flight_logs
+from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
+from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
+from sim.drone.photos import PhotoTimes, ground_height_ellipsoid_m, photo_camera, render_photos
+from sim.scene import Scene
+
+LINKS = ("file", "loop", "tcp")
+NOISE = {"realistic": Imperfections.realistic, "none": Imperfections.none}
+CAPTURE_NAME = "flight.duml"
+
+
+@dataclass(frozen=True)
+class FlyOptions:
+    """How to fly: render size (px), link, port URL for ``tcp``, pacing speed-up, imperfections, seed, start."""
+
+    photo_size: tuple[int, int] = (800, 600)
+    link: str = "file"
+    port: str | None = None
+    speedup: float = 1.0
+    imperfections: Imperfections = field(default_factory=Imperfections.realistic)
+    seed: int = 0
+    start_utc: dt.datetime | None = None
+    photo_limit: int | None = None
+    logs: bool = False
+    progress: bool = True
+
+    def __post_init__(self) -> None:
+        if self.link not in LINKS:
+            raise ValueError(f"link {self.link!r}: expected one of {', '.join(LINKS)}")
+        if self.link == "tcp" and not (self.port or "").startswith("socket://"):
+            raise ValueError(f"link tcp needs a port socket://HOST:PORT, got {self.port!r}")
+        if min(self.photo_size) <= 0:
+            raise ValueError(f"photo size must be positive, got {self.photo_size}")
+
+
+@dataclass
+class FlyReport:
+    """What a session produced."""
+
+    mission: FlownMission
+    start_utc: dt.datetime
+    frames: int
+    bytes_sent: int
+    photo_times: PhotoTimes
+
+
+def fly_litchi_mission(mission_csv, scene: Scene, seed: int, imperfections: Imperfections) -> FlownMission:
+    """Fly the Litchi CSV over ``scene``, taking off below the first waypoint on the scene's ground."""
+    waypoints = waypoints_from_litchi(read_mission_csv(mission_csv))
+    first = waypoints[0]
+    home = home_below_first_waypoint(waypoints, ground_height_ellipsoid_m(scene, first.latitude_deg, first.longitude_deg))
+    return fly(waypoints, home, imperfections, seed=seed)
+
+
+def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True) -> int:
+    """Stream ``frames`` into one ``loop://`` port from a thread and record its output to ``path`` (+ ``.idx``)
+    with the live recorder, stamped by ``clock``; both files atomically. Returns the bytes recorded."""
+    port = serial.serial_for_url("loop://", timeout=0.05)
+    total = sum(len(frame.data) for frame in frames)
+    stop = threading.Event()
+    source = SerialSource("loop://", clock=clock)
+    source.connection = port
+    with tqdm(total=len(frames), desc="telemetry", unit="frame", disable=not progress) as bar:
+        sender = threading.Thread(target=stream, args=(frames, port.write, clock, bar.update), daemon=True)
+
+        def until_all_received():
+            received = 0
+            for chunk in source.chunks(stop):
+                yield chunk
+                received += len(chunk.data)
+                if received >= total:
+                    stop.set()
+
+        with atomic_path(path) as data_tmp, atomic_path(index_path(path)) as index_tmp:
+            try:
+                sender.start()
+                with RawCaptureWriter(data_tmp) as writer:
+                    status = record(until_all_received(), writer, default_registry())
+                index_path(data_tmp).replace(index_tmp)
+            finally:
+                index_path(data_tmp).unlink(missing_ok=True)
+        sender.join()
+    return status.bytes
+
+
+def stream_to_port(frames: list[Frame], url: str, clock: MissionClock, progress: bool = True) -> int:
+    """Stream ``frames`` to a pyserial URL (``socket://host:port``, a serial device ...), paced by ``clock``."""
+    try:
+        port = serial.serial_for_url(url, timeout=0.05)
+    except (serial.SerialException, ValueError) as error:
+        raise OSError(f"cannot open {url}: {error}") from None
+    with port, tqdm(total=len(frames), desc="telemetry", unit="frame", disable=not progress) as bar:
+        sent = stream(frames, port.write, clock, bar.update)
+        port.flush()
+    return sent
+
+
+def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyReport:
+    """Fly, deliver the telemetry, take the photos and write the truth into ``out_dir`` (module docstring)."""
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    mission = fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections)
+    frames = duml_frames(mission)
+    capture = out_dir / CAPTURE_NAME
+    clock = MissionClock(options.speedup, options.start_utc)
+    if options.link == "loop":
+        sent = record_loopback(frames, capture, clock, options.progress)
+    else:
+        if options.link == "tcp":
+            stream_to_port(frames, options.port, clock, options.progress)
+        write_raw_capture(frames, capture, clock.start_utc)
+        sent = sum(len(frame.data) for frame in frames)
+    if options.logs:
+        write_flight_logs(mission, clock.start_utc, out_dir)
+    camera = photo_camera(*options.photo_size)
+    times = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
+                        progress=options.progress)
+    write_truth(out_dir, mission.flight, mission.photos, options.seed, extra={
+        "start_utc": clock.start_utc.isoformat(), "telemetry_clock_note": "UTC = start_utc + t_s",
+        "mission_csv": str(mission_csv), "scene": scene.source, "link": options.link,
+        "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist()})
+    return FlyReport(mission, clock.start_utc, len(frames), sent, times)

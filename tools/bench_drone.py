@@ -1,0 +1,78 @@
+"""Benchmark the virtual drone: seconds to fly and photograph one full default orbit over the demo world.
+
+The default orbit (50 m radius, 30 m height, 2.5 km/h, a photo per second) is planned with flightplan, written
+as a Litchi CSV and flown with realistic imperfections. Split: flight (trajectory, sensors, telemetry, DUML
+encoding + link damage, raw capture file), rendering, and JPEG/EXIF/XMP writing, at 800x600 and 1600x1200.
+``--photos N`` renders only the first N photos and extrapolates render/write time to all photos taken (the
+table says so). The quality side of the trade: ground sampling distance at the orbit centre (cm/pixel).
+
+Usage: python tools/bench_drone.py [--photos N] [--variant default|small] [--seed S]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from flightplan import litchi  # noqa: E402
+from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
+from flightplan.orbit import DEFAULT_HEIGHT_M, DEFAULT_RADIUS_M, OrbitRequest, plan_orbit  # noqa: E402
+from sim.drone import Imperfections  # noqa: E402
+from sim.drone.link import duml_frames, write_raw_capture  # noqa: E402
+from sim.drone.photos import photo_camera, render_photos  # noqa: E402
+from sim.drone.session import fly_litchi_mission  # noqa: E402
+from sim.scene import load_scene  # noqa: E402
+from sim.worlds.demo import demo_scene_dir  # noqa: E402
+
+SIZES = ((800, 600), (1600, 1200))
+START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--photos", type=int, default=None, help="render only N photos and extrapolate")
+    parser.add_argument("--variant", default="default", help="demo world variant (default 'default')")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args()
+
+    scene = load_scene(demo_scene_dir(args.variant))
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        plan = plan_orbit(OrbitRequest(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg))
+        csv_path = litchi.write_mission_csv(plan.mission, tmp / "orbit.csv")
+        started = time.perf_counter()
+        mission = fly_litchi_mission(csv_path, scene, args.seed, Imperfections.realistic())
+        write_raw_capture(duml_frames(mission), tmp / "flight.duml", START)
+        flight_s = time.perf_counter() - started
+        taken = int(mission.photos.taken.sum())
+        print(f"default orbit: {len(plan.mission)} waypoints, {mission.flight.duration_s:.0f} s flight, "
+              f"{taken} photos taken of {len(mission.photos.t_s)} scheduled; demo world '{args.variant}'")
+        subset = "all" if args.photos is None else f"{min(args.photos, taken)} (extrapolated x{taken / min(args.photos, taken):.1f})"
+        print(f"photos timed: {subset}\n")
+        header = f"{'size':>10} {'GSD cm/px':>9} {'flight s':>9} {'render s':>9} {'write s':>8} {'total s':>8} {'vs 800x600':>10}"
+        print(header)
+        print("-" * len(header))
+        baseline = None
+        for width, height in SIZES:
+            times = render_photos(mission, scene, tmp / f"photos_{width}", photo_camera(width, height), START,
+                                limit=args.photos, progress=False)
+            scale = taken / times.photos
+            render_s, write_s = times.render_s * scale, times.write_s * scale
+            total = flight_s + render_s + write_s
+            baseline = baseline or total
+            gsd = 100.0 * math.hypot(DEFAULT_RADIUS_M, DEFAULT_HEIGHT_M) / photo_camera(width, height).fx
+            size = f"{width}x{height}"
+            print(f"{size:>10} {gsd:9.2f} {flight_s:9.2f} {render_s:9.1f} {write_s:8.1f} {total:8.1f} "
+                  f"{total / baseline:10.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
