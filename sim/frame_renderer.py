@@ -181,6 +181,15 @@ def frame_sun(sample: SunSample) -> Sun:
     return Sun(sample.azimuth_deg, sample.elevation_deg, sample.intensity * SUN_STRENGTH_TO_INTENSITY)
 
 
+@dataclass(frozen=True)
+class ViewImages:
+    """What the dataset keeps of a rendered view: ``rgb`` (H, W, 3) uint8 and planar ``depth`` (H, W) float32 m.
+    (Queued frames then hold no normals or ray lengths, a third of the memory.)"""
+
+    rgb: np.ndarray
+    depth: np.ndarray
+
+
 @dataclass
 class FrameStats:
     """What a worker reports about one rendered frame (sent to the parent for the progress bar)."""
@@ -222,7 +231,8 @@ class FrameRenderer:
         frame = render(self.scene, self.rig, sample.T_world_cam, frame_sun(sun), self.options.spp,
                        rng=frame_rng(self.options.seed, index, RENDER_STREAM), pool=self.pool)
         elapsed = time.perf_counter() - start
-        record = FrameRecord(index=index, views=frame.views, T_world_cam=frame.views[0].T_world_cam,
+        views = [ViewImages(view.rgb, view.depth) for view in frame.views]
+        record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
                              time_s=sample.time_s, seed=self.options.seed, sun=sun, render_time_s=elapsed,
                              extra=sample.record())
         return record, FrameStats(index, sample.rejected, elapsed)
