@@ -56,6 +56,9 @@ class RenderOptions:
 
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes.
+    ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`).
+    ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
+    disparity can be written).
     """
 
     frames: int | None = None
@@ -75,13 +78,20 @@ class RenderOptions:
     altitude_m: float = 50.0
     speed_m_s: float = 5.0
     frame_rate_hz: float = 10.0
+    distortion: tuple[float, ...] | None = None
+    margin_m: float = 20.0
+    max_sky_fraction: float = 0.02
+
+    def random_settings(self) -> RandomPoseSettings:
+        """The paper's ranges with this run's margin and sky limit."""
+        return RandomPoseSettings(margin_m=self.margin_m, max_miss_fraction=self.max_sky_fraction)
 
     def sampling_description(self) -> dict:
         """What ``dataset.json`` records about the sampling (settings that decide the bytes, no run details)."""
         description = {"mode": self.mode, "seed": self.seed, "samples_per_pixel": self.spp,
                        "sun_strength_to_intensity": SUN_STRENGTH_TO_INTENSITY}
         if self.mode == "random":
-            description["random"] = asdict(RandomPoseSettings())
+            description["random"] = asdict(self.random_settings())
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
@@ -104,7 +114,7 @@ class SceneGround:
 
 def build_rig(options: RenderOptions) -> Rig:
     """``cameras`` identical pinhole cameras in a row, camera k at ``k * baseline`` along camera x."""
-    camera = PinholeCamera.from_fov(options.width, options.height, options.fov_deg)
+    camera = PinholeCamera.from_fov(options.width, options.height, options.fov_deg, dist=options.distortion)
     if options.cameras == 2:
         return Rig.stereo(camera, options.baseline_m)
     offsets = [np.eye(4) for _ in range(options.cameras)]
@@ -160,12 +170,24 @@ class PoseSource:
             return self.replayed[index]
         if self.path is not None:
             return self.path.pose(self.ground, index)
-        return random_pose(self.ground, self.options.seed, index, miss_fraction=self._probe)
+        try:
+            return random_pose(self.ground, self.options.seed, index, self.options.random_settings(), self._probe)
+        except (RuntimeError, ValueError) as error:  # too much sky from every pose drawn, or margin too wide
+            raise RenderInputError(f"{self.ground.scene.source}: {error}") from None
 
 
 def frame_sun(sample: SunSample) -> Sun:
     """The renderer's sun for a sampled (paper-units) sun."""
     return Sun(sample.azimuth_deg, sample.elevation_deg, sample.intensity * SUN_STRENGTH_TO_INTENSITY)
+
+
+@dataclass(frozen=True)
+class ViewImages:
+    """What the dataset keeps of a rendered view: ``rgb`` (H, W, 3) uint8 and planar ``depth`` (H, W) float32 m.
+    (Queued frames then hold no normals or ray lengths, a third of the memory.)"""
+
+    rgb: np.ndarray
+    depth: np.ndarray
 
 
 @dataclass
@@ -209,7 +231,8 @@ class FrameRenderer:
         frame = render(self.scene, self.rig, sample.T_world_cam, frame_sun(sun), self.options.spp,
                        rng=frame_rng(self.options.seed, index, RENDER_STREAM), pool=self.pool)
         elapsed = time.perf_counter() - start
-        record = FrameRecord(index=index, views=frame.views, T_world_cam=frame.views[0].T_world_cam,
+        views = [ViewImages(view.rgb, view.depth) for view in frame.views]
+        record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
                              time_s=sample.time_s, seed=self.options.seed, sun=sun, render_time_s=elapsed,
                              extra=sample.record())
         return record, FrameStats(index, sample.rejected, elapsed)

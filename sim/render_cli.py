@@ -39,6 +39,16 @@ def _formats(text: str) -> tuple[str, ...]:
     return names
 
 
+def _distortion(text: str) -> tuple[float, ...]:
+    try:
+        coefficients = tuple(float(value) for value in text.split(","))
+    except ValueError:
+        coefficients = ()
+    if len(coefficients) != 5:
+        raise argparse.ArgumentTypeError(f"expected five numbers k1,k2,p1,p2,k3, got {text!r}")
+    return coefficients
+
+
 def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     """Options of the dataset render (added to ``parser`` if given, e.g. a subparser)."""
     parser = parser or argparse.ArgumentParser(
@@ -51,6 +61,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--frames", type=int, default=None, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default="random", help="random poses (the paper), a trajectory, or replay geotags")
     add("--geotags", type=Path, default=None, help="geotags.csv to replay (with geotags.json beside it)")
+    add("--margin", type=float, default=20.0, help="random mode: keep cameras this far inside the valid area, metres")
+    add("--max-sky", type=float, default=0.02, help="random mode: redraw a pose whose view has more sky/miss than this")
     add("--trajectory", choices=TRAJECTORIES, default="orbit", help="path flown in trajectory mode")
     add("--altitude", type=float, default=50.0, help="trajectory height above the ground, metres")
     add("--speed", type=float, default=5.0, help="trajectory speed, m/s")
@@ -60,6 +72,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--fov", type=float, default=80.0, help="horizontal field of view, degrees")
     add("--baseline", type=float, default=0.54, help="distance between neighbouring cameras, metres")
     add("--cameras", type=int, default=2, help="cameras in the rig (a row along camera x)")
+    add("--distortion", type=_distortion, default=None,
+        help="OpenCV lens distortion k1,k2,p1,p2,k3 of every camera (then choose --formats without disparity)")
     add("--spp", type=int, default=1, help="samples per pixel (anti-aliasing)")
     add("--seed", type=int, default=0, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=1, help="render processes (each builds the scene once)")
@@ -77,7 +91,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=args.formats, trajectory=args.trajectory, altitude_m=args.altitude,
-                         speed_m_s=args.speed, frame_rate_hz=args.rate)
+                         speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
+                         margin_m=args.margin, max_sky_fraction=args.max_sky)
 
 
 def _bad_input(message: str) -> int:

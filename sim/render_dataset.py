@@ -134,8 +134,13 @@ def _check_options(options: RenderOptions) -> None:
             problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
     if not options.baseline_m > 0:
         problems.append(f"baseline must be positive, got {options.baseline_m}")
+    if not 0 <= options.max_sky_fraction <= 1:
+        problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
     if not 0 < options.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
+    if options.distortion is not None and any(name.startswith("disparity") for name in options.formats):
+        problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
+                        "when rendering with --distortion")
     if problems:
         raise RenderInputError("; ".join(problems))
 
@@ -145,8 +150,9 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
     """The dataset's constant part: rig, origin, frame count, formats, scene provenance, sampling, command line."""
     meta = read_scene_json(scene_dir)
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
-    return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count, formats=tuple(options.formats),
-                                scene=scene, sampling=options.sampling_description(), command_line=list(command_line))
+    return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
+                                formats=tuple(options.formats), scene=scene,
+                                sampling=options.sampling_description(), command_line=list(command_line))
 
 
 def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
@@ -230,7 +236,7 @@ def _worker(job: Job, tasks, results) -> None:
         renderer.close()
         results.put(("done", None))
     except BaseException as error:  # noqa: BLE001 -- reported to the parent, which raises it
-        results.put(("error", f"{type(error).__name__}: {error}"))
+        results.put(("error", (isinstance(error, RenderInputError), f"{type(error).__name__}: {error}")))
 
 
 def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progress: _Progress) -> list[FrameStats]:
@@ -255,7 +261,8 @@ def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progres
                     raise RuntimeError(f"a render worker died (exit code {dead[0].exitcode})") from None
                 continue
             if kind == "error":
-                raise RuntimeError(f"a render worker failed: {payload}")
+                bad_input, message = payload
+                raise (RenderInputError if bad_input else RuntimeError)(f"a render worker failed: {message}")
             if kind == "done":
                 finished += 1
             else:

@@ -123,7 +123,8 @@ def main() -> int:
     print(f"{'configuration':<30} {'s/frame':>8} {'frames/s':>9} {'vs baseline':>11} {'1000 frames':>12}")
     for name, per_frame, startup in rows:
         projected_min = (startup + PAPER_FRAMES * per_frame) / 60
-        print(f"{name:<30} {per_frame:8.3f} {1 / per_frame:9.2f} {sequential / per_frame:10.2f}x {projected_min:9.1f} min")
+        print(f"{name:<30} {per_frame:8.3f} {1 / per_frame:9.2f} {sequential / per_frame:10.2f}x "
+              f"{projected_min:9.1f} min")
     return 0
 
 

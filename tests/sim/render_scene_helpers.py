@@ -25,8 +25,9 @@ VALID_HALF_SIZE_M = 45.0
 TEXTURE_PERIOD_M = 40.0
 
 
-def _ground() -> tuple[np.ndarray, np.ndarray]:
-    gx, gy = np.meshgrid(GROUND_EDGES_M, GROUND_EDGES_M)
+def _ground(half_size_m: float) -> tuple[np.ndarray, np.ndarray]:
+    edges = GROUND_EDGES_M * half_size_m / GROUND_EDGES_M[-1]
+    gx, gy = np.meshgrid(edges, edges)
     vertices = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=-1)
     row = len(GROUND_EDGES_M)
     i, j = np.meshgrid(np.arange(row - 1), np.arange(row - 1))
@@ -46,11 +47,13 @@ def _box() -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(box.vertices, dtype=float), np.asarray(box.faces)
 
 
-def write_scene(folder: Path, textured: bool = True, valid_half_size_m: float = VALID_HALF_SIZE_M) -> Path:
-    """Write the scene folder (``terrain.obj`` + material + ``scene.json``); ``textured=False``: no UVs/texture."""
+def write_scene(folder: Path, textured: bool = True, valid_half_size_m: float = VALID_HALF_SIZE_M,
+                ground_half_size_m: float = GROUND_EDGES_M[-1]) -> Path:
+    """Write the scene folder (``terrain.obj`` + material + ``scene.json``); ``textured=False``: no UVs/texture;
+    ``ground_half_size_m``: how far the ground reaches (sky beyond)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    (ground_v, ground_f), (box_v, box_f) = _ground(), _box()
+    (ground_v, ground_f), (box_v, box_f) = _ground(ground_half_size_m), _box()
     vertices = np.vstack([ground_v, box_v])
     faces = np.vstack([ground_f, box_f + len(ground_v)])
     if textured:

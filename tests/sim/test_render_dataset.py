@@ -24,12 +24,14 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
-from sim.render_cli import compare_main, render_main
 from sim.frame_renderer import RenderOptions
+from sim.render_cli import compare_main, render_main
 from sim.render_dataset import render_dataset
-from sim.sampling import R_WORLD_NADIR
-from render_scene_helpers import BOX_TOP_M, ORIGIN, box_top_corners, write_scene
+from sim.sampling import R_WORLD_NADIR, camera_rotation
+
+from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SMALL = dict(width=160, height=100, frames=8, seed=3)
@@ -37,9 +39,7 @@ SMALL = dict(width=160, height=100, frames=8, seed=3)
 
 def _argv(scene: Path, out: Path, **options) -> list[str]:
     argv = ["--scene", str(scene), "--out", str(out), "--quiet"]
-    for key, value in options.items():
-        argv += [f"--{key}", str(value)]
-    return argv
+    return argv + [f"--{key}={value}" for key, value in options.items()]
 
 
 @pytest.fixture(scope="module")
@@ -64,11 +64,12 @@ def dataset_bytes(dataset: Path) -> dict[str, bytes]:
     files = {}
     for path in sorted(p for p in dataset.rglob("*") if p.is_file()):
         name = str(path.relative_to(dataset))
-        if path.suffix == ".json" and "frame_meta" in name or path.name == "frames.jsonl":
+        if (path.suffix == ".json" and "frame_meta" in name) or path.name == "frames.jsonl":
             records = [json.loads(line) for line in path.read_text().splitlines()]
             files[name] = json.dumps([{k: v for k, v in r.items() if k != "render_time_s"} for r in records]).encode()
         elif path.name == "dataset.json":
-            files[name] = json.dumps({k: v for k, v in json.loads(path.read_text()).items() if k != "command_line"}).encode()
+            description = json.loads(path.read_text())
+            files[name] = json.dumps({k: v for k, v in description.items() if k != "command_line"}).encode()
         else:
             files[name] = path.read_bytes()
     return files
@@ -189,7 +190,7 @@ KILL_OPTIONS = dict(width=640, height=400, frames=6, seed=5)
 def _first_partial_frame(dataset: Path) -> int | None:
     """A frame with some files on disk but no record yet (a kill now lands in the middle of writing it)."""
     seq = dataset / "sequences/00"
-    for index in range(KILL_OPTIONS["frames"]):
+    for index in range(KILL_OPTIONS["frames"] - 1):
         if (seq / f"image_2/{index:06d}.png").exists() and not (seq / f"frame_meta/{index:06d}.json").exists():
             return index
     return None
@@ -198,7 +199,8 @@ def _first_partial_frame(dataset: Path) -> int | None:
 @pytest.mark.slow
 def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_dir, tmp_path):
     killed = tmp_path / "killed"
-    code = f"import sys; from sim.render_cli import render_main; sys.exit(render_main({_argv(scene_dir, killed, **KILL_OPTIONS)!r}))"
+    argv = _argv(scene_dir, killed, **KILL_OPTIONS)
+    code = f"import sys; from sim.render_cli import render_main; sys.exit(render_main({argv!r}))"
     process = subprocess.Popen([sys.executable, "-c", code], cwd=REPO_ROOT,
                                env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
     deadline, partial = time.monotonic() + 60, None
@@ -208,8 +210,9 @@ def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_d
     process.send_signal(signal.SIGKILL)
     process.wait()
     assert partial is not None, "the run ended before a frame was caught half-written"
-    assert not (killed / f"sequences/00/frame_meta/{partial:06d}.json").exists()
-    assert render_main(_argv(scene_dir, killed, **KILL_OPTIONS)) == 0
+    # One writer thread writes frames in order, so the frame after the half-written one is certainly unfinished.
+    assert not (killed / f"sequences/00/frame_meta/{partial + 1:06d}.json").exists()
+    assert render_main(argv) == 0
     uninterrupted = tmp_path / "uninterrupted"
     assert render_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
     assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
@@ -228,11 +231,23 @@ def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
     np.testing.assert_allclose(positions[:, 2], BOX_TOP_M + 30.0)  # 30 m over the ground at the centre: the box top
 
 
-def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]]) -> Path:
+@pytest.mark.parametrize("path", ["lawnmower", "loop"])
+def test_terrain_following_trajectories_keep_speed_and_height(scene_dir, tmp_path, path):
+    out = tmp_path / path
+    assert render_main(_argv(scene_dir, out, mode="trajectory", trajectory=path, frames=4, width=32, height=24,
+                             speed=6.0, rate=3.0, altitude=40)) == 0
+    records = frame_records(out)
+    steps = np.linalg.norm(np.diff([r["position_enu_m"] for r in records], axis=0)[:, :2], axis=1)
+    np.testing.assert_allclose(steps, 2.0, rtol=0.02)  # 6 m/s at 3 Hz, along the (possibly curved) path
+    np.testing.assert_allclose([r["sampler"]["height_above_ground_m"] for r in records], 40.0, atol=1e-6)
+
+
+def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]],
+                   R_world_cam: np.ndarray = R_WORLD_NADIR) -> Path:
     header = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
               "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,"
               "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz").split(",")
-    qx, qy, qz, qw = Rotation.from_matrix(R_WORLD_NADIR).as_quat()
+    qx, qy, qz, qw = Rotation.from_matrix(R_world_cam).as_quat()
     path = folder / "geotags.csv"
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, header)
@@ -262,6 +277,18 @@ def test_replay_renders_exactly_where_the_photos_were_taken(scene_dir, tmp_path)
     assert depth[0, 0] == pytest.approx(60.0, rel=1e-5)  # nadir view of flat ground 60 m below
 
 
+@pytest.mark.slow
+def test_without_a_scene_it_renders_the_demo_world(tmp_path, monkeypatch):
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # the demo world is built into this cache
+    out = tmp_path / "demo"
+    assert render_main(["--scene", "demo:small", "--out", str(out), "--frames", "2", "--width", "64", "--height", "36",
+                        "--quiet"]) == 0
+    description = json.loads((out / "dataset.json").read_text())
+    assert description["scene"]["provenance"]["variant"] == "small"
+    assert description["origin"] == ORIGIN.to_dict()  # the demo world sits at the demo location
+    assert np.isfinite(read_exr(out / "sequences/00/depth_2/000001.exr")).mean() > 0.98
+
+
 def test_cli_writes_a_contact_sheet(reference, scene_dir, tmp_path):
     sheet = tmp_path / "sheet.png"
     out = tmp_path / "dataset"
@@ -289,6 +316,12 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
     blocker.write_text("not a folder")
     assert str(blocker / "out") in _error_of(capsys, _argv(scene_dir, blocker / "out", frames=1, width=16, height=8))
     assert "replay mode needs --geotags" in _error_of(capsys, _argv(scene_dir, tmp_path / "d", mode="replay"))
+    assert render_main(_argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8)) == 0
+    assert "differs in sampling" in _error_of(capsys, _argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8,
+                                                           seed=9))
+    islet = write_scene(tmp_path / "islet", valid_half_size_m=25.0, ground_half_size_m=15.0)  # every view sees sky
+    assert "sky/miss pixels" in _error_of(capsys, _argv(islet, tmp_path / "g", frames=2, width=16, height=8,
+                                                        workers=2))
     with pytest.raises(SystemExit) as exit_info:
         render_main(_argv(scene_dir, tmp_path / "e", shard="2/2"))
     assert exit_info.value.code == 2
@@ -313,3 +346,30 @@ def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
     assert calib["P4"][0, 3] == pytest.approx(-calib["P4"][0, 0] * 0.6)  # third camera 2 x 0.3 m to the right
     assert read_png(out / "sequences/00/image_4/000001.png").shape == (24, 40, 3)
     assert read_exr(out / "sequences/00/depth_4/000001.exr").shape == (24, 40)
+
+
+def test_lens_distortion_renders_through_the_distorted_lens(scene_dir, tmp_path, capsys):
+    """Back-projected through the stated (k1, k2, p1, p2, k3), every ground pixel's depth lands on the ground."""
+    R_world_cam = camera_rotation(0.0, tilt_x_deg=30.0)  # looking north, 30 deg from nadir
+    geotags = _write_geotags(tmp_path, ORIGIN, [(30.0, -30.0, 60.0)], R_world_cam)
+    out = tmp_path / "distorted"
+    distortion = "-0.25,0.05,0.001,-0.002,0"
+    argv = _argv(scene_dir, out, mode="replay", geotags=geotags, width=64, height=48, distortion=distortion)
+    assert "disparity needs rectified" in _error_of(capsys, argv)
+    assert render_main(argv + ["--formats", "depth_exr"]) == 0
+    camera = json.loads((out / "dataset.json").read_text())["cameras"][0]
+    assert camera["dist"] == [float(k) for k in distortion.split(",")]  # dataset.json states the lens
+    lens = PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], 64, 48, dist=tuple(camera["dist"]))
+    depth = read_exr(out / "sequences/00/depth_2/000000.exr").ravel()
+
+    def hit_points(camera_model) -> np.ndarray:
+        rays = camera_model.ray_directions(camera_model.pixel_centres())
+        return (rays / rays[:, 2:3] * depth[:, None]) @ R_world_cam.T + [30.0, -30.0, 60.0]
+
+    points = hit_points(lens)
+    (x0, x1), (y0, y1) = BOX_X_M, BOX_Y_M
+    ground = ~((points[:, 0] > x0 - 1) & (points[:, 0] < x1 + 1) & (points[:, 1] > y0 - 1) & (points[:, 1] < y1 + 1))
+    assert ground.mean() > 0.7
+    np.testing.assert_allclose(points[ground, 2], 0.0, atol=2e-3)
+    pinhole = PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], 64, 48)
+    assert np.abs(hit_points(pinhole)[ground, 2]).max() > 1.0  # the distortion is really in the images
