@@ -66,6 +66,10 @@ class TextureOptions:
     gain_stride: int = 4
     min_overlap: int = 30
 
+    def __post_init__(self) -> None:
+        if self.texel_m is not None and not self.texel_m > 0:
+            raise ValueError(f"texel size must be a positive number of metres, got {self.texel_m}")
+
 
 @dataclass(frozen=True)
 class Texels:
