@@ -13,8 +13,8 @@ and by their GPS/datum offsets), texture time and the photorealism error (formul
 covers) of unlit renders from the recovered poses against the undistorted photos (the paper: 12.49 %).
 Table 3, the closed loop: a 24-photo orbit over the small demo world (tests/recon/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
-Table 4, the target: one full default orbit (452 photos) extrapolated from the per-photo stage times at the
-default settings (brighton rows at SfM 1600 px and dense 1000 px; mapping scaled by N^1.5).
+Table 4, the target: one full default orbit (452 photos) extrapolated from the per-photo stage times (brighton,
+dense 1000 px = the default; one table per SfM size, 1600 px = the default; mapping scaled by N^1.5).
 """
 
 from __future__ import annotations
@@ -183,9 +183,8 @@ def print_closed_loop_table(rows: list[dict]) -> None:
               f"{row['realism']:.2f} |")
 
 
-def print_target(sfm_rows: list[dict], dense_rows: list[dict], photos: int, target: int = 452) -> None:
-    """Extrapolate one full default orbit from brighton's per-photo times at the default sizes."""
-    sfm = next((r for r in sfm_rows if r["size"] == 1600), sfm_rows[-1])
+def print_target(sfm: dict, dense_rows: list[dict], photos: int, target: int = 452) -> None:
+    """Extrapolate one full orbit from brighton's per-photo times at SfM size ``sfm`` and the default dense size."""
     dense = next((r for r in dense_rows if r["size"] == 1000), dense_rows[-1])
     scale = target / photos
     s, d = sfm["report"].seconds, dense["seconds"]
@@ -234,7 +233,8 @@ def main(argv=None) -> int:
         reference = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
         dense_rows = [bench_dense(photo_dir, reference, size, args.features) for size in args.dense_sizes]
         print_dense_table(dense_rows)
-        print_target(rows, dense_rows, len(list_photos(photo_dir)))
+        for row in rows:
+            print_target(row, dense_rows, len(list_photos(photo_dir)))
     if not args.no_synthetic:
         print_closed_loop_table(bench_closed_loop())
     return 0
