@@ -211,6 +211,8 @@ def photo_samples(scene: Scene, photo: Photo, texels: Texels, options: TextureOp
     facing = cosine > 0.05
     keep = np.flatnonzero(inside)[facing]
     distance, direction, cosine = distance[facing], direction[facing], cosine[facing]
+    if len(keep) == 0:
+        return Samples(np.zeros(0, np.int64), np.zeros((0, 3), np.float32), np.zeros(0))
     hits = intersect(scene, centre[None], -direction)
     seen = np.abs(hits.t - distance) <= np.maximum(0.05, 2e-3 * distance)
     keep, distance, cosine = keep[seen], distance[seen], cosine[seen]

@@ -155,3 +155,13 @@ def test_tile_culling_keeps_every_texel_a_photo_sees(world):
         seen_all = photo_samples(grey, photo, texels, TextureOptions(), everything, 40.0).index
         seen_culled = photo_samples(grey, photo, texels, TextureOptions(), culled, 40.0).index
         assert np.array_equal(np.sort(seen_all), np.sort(seen_culled))
+
+
+def test_a_photo_looking_away_contributes_nothing(world):
+    mesh, _, photos = world
+    grey = scene_from_mesh(mesh)
+    texels = texel_grid(grey, 0.2, 4096)
+    skyward = Photo("sky", photos[0].image, CAMERA, look_at((0.0, 0.0, 40.0), (0.0, 10.0, 80.0)))
+    assert len(Tiles.of(texels).in_view(skyward)) == 0
+    samples = photo_samples(grey, skyward, texels, TextureOptions(), np.flatnonzero(texels.on_mesh), 40.0)
+    assert len(samples.index) == 0 and samples.rgb.shape == (0, 3)
