@@ -193,7 +193,7 @@ def print_target(sfm: dict, dense_rows: list[dict], photos: int, target: int = 4
                 "undistort + depth + fusion": d["undistort"] + d["depth"] + d["fusion"],
                 "mesh (area, taken linear)": d["mesh"], "texture": d["texture"]}
     parts = {name: seconds * scale ** (1.5 if "N^1.5" in name else 1.0) for name, seconds in measured.items()}
-    print(f"\ntarget: {target} photos at the defaults (SfM {sfm['size']} px, dense {dense['size']} px), "
+    print(f"\ntarget: {target} photos at SfM {sfm['size']} px (default 1600), dense {dense['size']} px, "
           f"from {photos} brighton photos x {scale:.1f}")
     print("| stage | measured s | extrapolated s |")
     print("|---|---|---|")
