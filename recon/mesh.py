@@ -4,7 +4,7 @@ Height field: points (ENU metres) are binned on a square grid (cell size from th
 distance); each cell's height is a high percentile of its points' z (roofs win over stray low points), colour
 the mean of its points. The well-observed area is the observed cells closed by a few cells with interior
 holes filled; holes inside it are filled from the nearest observed cell, then a 3x3 median removes spikes.
-Before that, observed cells that no neighbour supports (fewer than 3 of their 8 neighbours observed within
+Before that, observed cells that no neighbour supports (none of their 8 neighbours observed within
 ``support_m`` of their height) are dropped: in the sparse far field single stray points otherwise become
 columns metres tall once the hole filling spreads them.
 Outside it there are no faces (cropped). Poisson: ``pycolmap.poisson_meshing`` with trim = depth - 3.
@@ -66,7 +66,7 @@ def per_cell_percentile(cells: np.ndarray, values: np.ndarray, num_cells: int, p
     return result
 
 
-def supported(z: np.ndarray, support_m: float, min_neighbours: int = 3) -> np.ndarray:
+def supported(z: np.ndarray, support_m: float, min_neighbours: int = 1) -> np.ndarray:
     """Cells (finite ``z``) with at least ``min_neighbours`` of their 8 neighbours finite and within ``support_m``."""
     padded = np.pad(z, 1, constant_values=np.nan)
     rows, cols = z.shape
@@ -81,7 +81,7 @@ def supported(z: np.ndarray, support_m: float, min_neighbours: int = 3) -> np.nd
 
 
 def height_field(points: np.ndarray, colors: np.ndarray | None, cell_m: float, percentile: float = 75.0,
-                 min_points: int = 2, closing_cells: int = 3, support_m: float = 1.0) -> HeightField:
+                 min_points: int = 2, closing_cells: int = 3, support_m: float = 0.5) -> HeightField:
     """Grid the ``(N, 3)`` ENU points into a :class:`HeightField` (see module docstring)."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3 or len(points) < 3:

@@ -26,6 +26,7 @@ import cv2
 import numpy as np
 import pycolmap
 import trimesh
+from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from recon import dense, mesh as meshing, texture as texturing
@@ -187,9 +188,16 @@ class Recon:
             meshing.decimate(full, small, self.options.decimate_error_m)
 
     def surface_mesh(self) -> trimesh.Trimesh:
-        """The final (decimated if asked) surface mesh, ENU metres."""
-        source = self.work / ("mesh_decimated.ply" if self.options.decimate_error_m else "mesh.ply")
-        return trimesh.load(source, process=False)
+        """The final (decimated if asked) surface mesh, ENU metres, with vertex colours (decimation drops them:
+        each kept vertex takes the colour of the nearest vertex of the full mesh)."""
+        full = trimesh.load(self.work / "mesh.ply", process=False)
+        if not self.options.decimate_error_m:
+            return full
+        small = trimesh.load(self.work / "mesh_decimated.ply", process=False)
+        if small.visual.kind != "vertex" and full.visual.kind == "vertex":
+            nearest = cKDTree(full.vertices).query(small.vertices)[1]
+            small.visual.vertex_colors = np.asarray(full.visual.vertex_colors)[nearest]
+        return small
 
     def stage_texture(self):
         marker = self.work / "texture_report.json"

@@ -37,6 +37,8 @@ from sim.shade import sample_bilinear, to_srgb8
 from sim.worlds.glb import encode_textured_glb
 
 JPEG_QUALITY = 95
+#: Texels per side of the culling tiles.
+TILE_TEXELS = 64
 
 
 @dataclass(frozen=True)
@@ -64,6 +66,10 @@ class TextureOptions:
     gain_stride: int = 4
     min_overlap: int = 30
 
+    def __post_init__(self) -> None:
+        if self.texel_m is not None and not self.texel_m > 0:
+            raise ValueError(f"texel size must be a positive number of metres, got {self.texel_m}")
+
 
 @dataclass(frozen=True)
 class Texels:
@@ -86,6 +92,48 @@ class Texels:
         """Texture coordinates (v up, OBJ/trimesh convention) of ENU x/y positions."""
         return np.column_stack([(xy[:, 0] - self.xmin) / (self.cols * self.texel_m),
                                 (xy[:, 1] - self.ybottom) / (self.rows * self.texel_m)])
+
+
+@dataclass(frozen=True)
+class Tiles:
+    """On-mesh texels in square tiles, for culling those a photo cannot see: ``order`` flat texel indices sorted
+    by tile, ``start`` (tiles + 1) offsets into it, tile ``centre`` (T, 3) ENU and bounding ``radius`` (T,) m."""
+
+    order: np.ndarray
+    start: np.ndarray
+    centre: np.ndarray
+    radius: np.ndarray
+
+    @classmethod
+    def of(cls, texels: Texels, size: int = TILE_TEXELS) -> "Tiles":
+        flat = np.flatnonzero(texels.on_mesh)
+        rows, cols = np.divmod(flat, texels.cols)
+        tile = (rows // size) * (-(-texels.cols // size)) + cols // size
+        sort = np.argsort(tile, kind="stable")
+        order = flat[sort]
+        start = np.append(np.unique(tile[sort], return_index=True)[1], len(order))
+        counts = np.diff(start)
+        points = texels.points[order]
+        centre = np.add.reduceat(points, start[:-1], axis=0) / counts[:, None]
+        spread = np.linalg.norm(points - np.repeat(centre, counts, axis=0), axis=1)
+        return cls(order, start, centre, np.maximum.reduceat(spread, start[:-1]))
+
+    def in_view(self, photo: Photo) -> np.ndarray:
+        """Flat indices of the texels in tiles whose bounding sphere may appear in the photo (generously)."""
+        T, cam = np.asarray(photo.T_world_cam, dtype=np.float64), photo.camera
+        local = (self.centre - T[:3, 3]) @ T[:3, :3]
+        z = local[:, 2]
+        near = z - self.radius
+        depth = np.maximum(near, 1e-6)
+        px = cam.fx * local[:, 0] / depth + cam.cx
+        py = cam.fy * local[:, 1] / depth + cam.cy
+        margin = 2.0 * cam.fx * self.radius / depth * (1.0 + np.abs(local[:, 0] / depth) + np.abs(local[:, 1] / depth))
+        projected_inside = ((px > -margin) & (px < cam.width - 1 + margin)
+                            & (py > -margin) & (py < cam.height - 1 + margin))
+        keep = np.flatnonzero((z + self.radius > 0) & ((near <= 0) | projected_inside))
+        if len(keep) == 0:
+            return np.zeros(0, np.int64)
+        return np.concatenate([self.order[self.start[k]:self.start[k + 1]] for k in keep])
 
 
 @dataclass(frozen=True)
@@ -163,6 +211,8 @@ def photo_samples(scene: Scene, photo: Photo, texels: Texels, options: TextureOp
     facing = cosine > 0.05
     keep = np.flatnonzero(inside)[facing]
     distance, direction, cosine = distance[facing], direction[facing], cosine[facing]
+    if len(keep) == 0:
+        return Samples(np.zeros(0, np.int64), np.zeros((0, 3), np.float32), np.zeros(0))
     hits = intersect(scene, centre[None], -direction)
     seen = np.abs(hits.t - distance) <= np.maximum(0.05, 2e-3 * distance)
     keep, distance, cosine = keep[seen], distance[seen], cosine[seen]
@@ -200,7 +250,7 @@ def solve_log_gains(log_luminance: np.ndarray, min_overlap: int) -> np.ndarray:
     return gains - gains.mean()
 
 
-def exposure_gains(scene: Scene, photos: list[Photo], texels: Texels, options: TextureOptions,
+def exposure_gains(scene: Scene, photos: list[Photo], texels: Texels, tiles: Tiles, options: TextureOptions,
                    reference_distance: float) -> np.ndarray:
     """Per-photo linear gains (geometric mean 1) from the coarse texel grid (every ``gain_stride``-th texel)."""
     grid = np.arange(texels.rows * texels.cols).reshape(texels.rows, texels.cols)
@@ -210,7 +260,9 @@ def exposure_gains(scene: Scene, photos: list[Photo], texels: Texels, options: T
     position[coarse] = np.arange(len(coarse))
     log_luminance = np.full((len(photos), len(coarse)), np.nan)
     for k, photo in enumerate(photos):
-        samples = photo_samples(scene, photo, texels, options, coarse, reference_distance)
+        candidates = tiles.in_view(photo)
+        candidates = candidates[position[candidates] >= 0]
+        samples = photo_samples(scene, photo, texels, options, candidates, reference_distance)
         useful = samples.weight > 0
         luminance = samples.rgb[useful].mean(axis=1)
         log_luminance[k, position[samples.index[useful]]] = np.log(np.maximum(luminance, 1e-4))
@@ -226,13 +278,14 @@ def orthophoto(mesh: trimesh.Trimesh, photos: list[Photo], options: TextureOptio
     gsd = ground_sample_distance(scene, photos)
     texels = texel_grid(scene, options.texel_m or gsd, options.max_texture_px)
     reference_distance = gsd * float(np.median([p.camera.fx for p in photos]))
-    gains = (exposure_gains(scene, photos, texels, options, reference_distance) if options.balance_exposure
+    tiles = Tiles.of(texels)
+    gains = (exposure_gains(scene, photos, texels, tiles, options, reference_distance) if options.balance_exposure
              else np.ones(len(photos)))
     on_mesh = np.flatnonzero(texels.on_mesh)
     weight_sum = np.zeros(texels.rows * texels.cols)
     colour_sum = np.zeros((texels.rows * texels.cols, 3))
     for photo, gain in zip(progress(photos), gains):
-        samples = photo_samples(scene, photo, texels, options, on_mesh, reference_distance)
+        samples = photo_samples(scene, photo, texels, options, tiles.in_view(photo), reference_distance)
         weight_sum[samples.index] += samples.weight
         colour_sum[samples.index] += samples.weight[:, None] * gain * samples.rgb
     covered = weight_sum > 0

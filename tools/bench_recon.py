@@ -1,6 +1,7 @@
 """Recon knobs against time and error on the real DJI set (brighton_beach, 18 photos, EXIF GPS priors).
 
     /work/venv/bin/python tools/bench_recon.py [--sizes 800 1600] [--with-3200] [--dense-sizes 640 1000]
+                                               [--no-synthetic]
 
 Table 1, SfM image size: time per stage, registered photos, 3-D points, mean reprojection error,
 camera-centre residual RMS against EXIF GPS (east/north/up), time ratio to the first row. There is no
@@ -8,13 +9,19 @@ ground truth for the poses: the GPS residual is bounded by the GPS's own noise.
 Table 2, dense image size (whole pipeline, SfM at 1000 px): dense/mesh stage times and the distance of the
 fused cloud and of the 2.5-D mesh vertices to ODM's reference cloud ``model.laz`` (UTM 15N), after a
 yaw + translation ICP (our ENU frame and ODM's UTM grid differ by the meridian convergence, ~0.7 deg here,
-and by their GPS/datum offsets).
+and by their GPS/datum offsets), texture time and the photorealism error (formula 3, over the pixels the mesh
+covers) of unlit renders from the recovered poses against the undistorted photos (the paper: 12.49 %).
+Table 3, the closed loop: a 24-photo orbit over the small demo world (tests/recon/virtual_flight.py), SfM once,
+then dense/meshing/texture options, each against the true poses and surface.
+Table 4, the target: one full default orbit (452 photos) extrapolated from the per-photo stage times (brighton,
+dense 1000 px = the default; one table per SfM size, 1600 px = the default; mapping scaled by N^1.5).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -29,7 +36,9 @@ import trimesh  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
 from recon.dense import DenseOptions  # noqa: E402
-from recon.pipeline import Recon, ReconOptions  # noqa: E402
+from recon.evaluate import scene_photorealism  # noqa: E402
+from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
+from recon.texture import TextureOptions  # noqa: E402
 
 from recon.priors import focal_seed, list_photos, priors_from_exif  # noqa: E402
 from recon.sfm import SfmOptions, run_sfm  # noqa: E402
@@ -83,21 +92,115 @@ def bench_dense(photo_dir: Path, reference: np.ndarray, dense_size: int, feature
         run.run()
         fused = trimesh.load(Path(scene) / "work" / "fused.ply", process=False).vertices
         mesh = trimesh.load(Path(scene) / "work" / "mesh.ply", process=False)
+        realism = scene_photorealism(Path(scene), read_rgb)
         return {"size": dense_size, "seconds": run.seconds, "fused_points": len(fused), "faces": len(mesh.faces),
                 "fused": distances_after_yaw_icp(np.asarray(fused), reference),
-                "mesh": distances_after_yaw_icp(np.asarray(mesh.vertices), reference)}
+                "mesh": distances_after_yaw_icp(np.asarray(mesh.vertices), reference),
+                "realism": [r.error_percent for r in realism], "covered": [r.covered for r in realism]}
 
 
 def print_dense_table(rows: list[dict]) -> None:
     print("\n| dense px | undistort s | depth s | fusion s | mesh s | fused pts | mesh faces "
-          "| fused vs model.laz median/p90 m | 2.5-D mesh vs model.laz median/p90 m |")
-    print("|---|---|---|---|---|---|---|---|---|")
+          "| fused vs model.laz median/p90 m | 2.5-D mesh vs model.laz median/p90 m | texture s "
+          "| photorealism % median (min-max) | covered % median |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for row in rows:
         s = row["seconds"]
         f, m = row["fused"], row["mesh"]
         print(f"| {row['size']} | {s['undistort']:.1f} | {s['depth']:.1f} | {s['fusion']:.1f} | {s['mesh']:.1f} | "
               f"{row['fused_points']} | {row['faces']} | {np.median(f):.2f} / {np.percentile(f, 90):.2f} | "
-              f"{np.median(m):.2f} / {np.percentile(m, 90):.2f} |")
+              f"{np.median(m):.2f} / {np.percentile(m, 90):.2f} | {s['texture']:.1f} | "
+              f"{np.median(row['realism']):.2f} ({min(row['realism']):.2f}-{max(row['realism']):.2f}) | "
+              f"{100 * np.median(row['covered']):.0f} |")
+
+
+#: Closed-loop rows: (label, dense px, mesh, texture options or None for vertex colours). SfM runs once.
+CLOSED_LOOP_ROWS = (
+    ("dense 800, 2.5-D, texel 1 GSD (test)", 800, "2.5d", TextureOptions()),
+    ("dense 640", 640, "2.5d", TextureOptions()),
+    ("poisson (depth 10)", 800, "poisson", TextureOptions()),
+    ("texel 2 GSD", 800, "2.5d", TextureOptions(texel_m=0.18)),
+    ("texel 1 GSD, no exposure balancing", 800, "2.5d", TextureOptions(balance_exposure=False)),
+    ("vertex colours only", 800, "2.5d", None),
+)
+
+
+def reuse_stages(source: Path, target: Path, keep: tuple[str, ...]) -> None:
+    """Copy the finished-stage files ``keep`` (paths under ``work``) of one recon run into a fresh one."""
+    for name in keep:
+        src, dst = source / "work" / name, target / "work" / name
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        (shutil.copytree if src.is_dir() else shutil.copy2)(src, dst)
+
+
+def bench_closed_loop() -> list[dict]:
+    """The closed-loop flight once, SfM once, then every row of CLOSED_LOOP_ROWS from the stages it shares."""
+    from sim.scene import load_scene
+    from sim.worlds import demo_scene_dir
+    from tests.recon.virtual_flight import Orbit, fly, surface_errors
+    from tests.recon.test_closed_loop import INNER_RADIUS_M
+
+    world = load_scene(demo_scene_dir("small"))
+    rows = []
+    with tempfile.TemporaryDirectory() as work:
+        work = Path(work)
+        flight = fly(world, Orbit(), work)
+        first = None
+        for label, dense_px, mesh, texture in CLOSED_LOOP_ROWS:
+            scene_dir = work / f"scene{len(rows)}"
+            if first is not None:
+                same_dense = dense_px == CLOSED_LOOP_ROWS[0][1]
+                same_mesh = same_dense and mesh == CLOSED_LOOP_ROWS[0][2]
+                reuse_stages(first, scene_dir, ("sfm_report.json", "sparse")
+                             + (("dense", "fused.ply") if same_dense else ())
+                             + (("mesh.ply", "mesh_decimated.ply") if same_mesh else ()))
+            options = ReconOptions(sfm=SfmOptions(max_image_size=800, max_num_features=4096),
+                                   dense=DenseOptions(max_image_size=dense_px), mesh=mesh,
+                                   texture=texture is not None, texture_options=texture or TextureOptions())
+            run = Recon(flight.photo_dir, flight.geotags_csv, scene_dir, options, log=lambda message: None)
+            run.run()
+            first = first or scene_dir
+            reconstructed = load_scene(scene_dir)
+            realism = scene_photorealism(scene_dir, read_rgb, every=2)
+            rows.append({"label": label, "seconds": run.seconds,
+                         "surface": surface_errors(reconstructed, world, INNER_RADIUS_M),
+                         "disc": surface_errors(reconstructed, world, Orbit().radius_m),
+                         "realism": float(np.median([r.error_percent for r in realism]))})
+    return rows
+
+
+def print_closed_loop_table(rows: list[dict]) -> None:
+    print("\nclosed loop, 24 photos 800x600 over the small demo world, SfM 800 px once (first row's time); "
+          "later rows reuse the stages they share with the first (0 s)")
+    print("| options | sfm s | undistort+depth+fusion s | mesh s | texture s | surface median m (r <= 25 m) "
+          "| completeness @0.25 m (r <= 25 m / 50 m) | photorealism % median |")
+    print("|---|---|---|---|---|---|---|---|")
+    for row in rows:
+        s = row["seconds"]
+        print(f"| {row['label']} | {s['sfm']:.1f} | {s['undistort'] + s['depth'] + s['fusion']:.1f} | "
+              f"{s['mesh']:.1f} | {s['texture']:.1f} | {row['surface'].median:.3f} | "
+              f"{100 * row['surface'].completeness:.1f} % / {100 * row['disc'].completeness:.1f} % | "
+              f"{row['realism']:.2f} |")
+
+
+def print_target(sfm: dict, dense_rows: list[dict], photos: int, target: int = 452) -> None:
+    """Extrapolate one full orbit from brighton's per-photo times at SfM size ``sfm`` and the default dense size."""
+    dense = next((r for r in dense_rows if r["size"] == 1000), dense_rows[-1])
+    scale = target / photos
+    s, d = sfm["report"].seconds, dense["seconds"]
+    measured = {"extract": s["extract"], "match (spatial k=12, linear)": s["match"],
+                "map (incremental, N^1.5)": s["map"],
+                "undistort + depth + fusion": d["undistort"] + d["depth"] + d["fusion"],
+                "mesh (area, taken linear)": d["mesh"], "texture": d["texture"]}
+    parts = {name: seconds * scale ** (1.5 if "N^1.5" in name else 1.0) for name, seconds in measured.items()}
+    print(f"\ntarget: {target} photos at SfM {sfm['size']} px (default 1600), dense {dense['size']} px, "
+          f"from {photos} brighton photos x {scale:.1f}")
+    print("| stage | measured s | extrapolated s |")
+    print("|---|---|---|")
+    for name, seconds in parts.items():
+        print(f"| {name} | {measured[name]:.1f} | {seconds:.0f} |")
+    total = sum(parts.values())
+    print(f"| **total** | {sum(measured.values()):.1f} | **{total:.0f} s = {total / 60:.1f} min** (target 30 min) |")
 
 
 def main(argv=None) -> int:
@@ -107,6 +210,7 @@ def main(argv=None) -> int:
     parser.add_argument("--with-3200", action="store_true", help="add the COLMAP default size (slow)")
     parser.add_argument("--features", type=int, default=8192)
     parser.add_argument("--dense-sizes", type=int, nargs="*", default=[640, 1000])
+    parser.add_argument("--no-synthetic", action="store_true", help="skip the closed-loop options table")
     args = parser.parse_args(argv)
     pycolmap.logging.minloglevel = 2
     photo_dir = args.data / "brighton_beach" / "images"
@@ -127,7 +231,12 @@ def main(argv=None) -> int:
     if args.dense_sizes:
         las = laspy.read(args.data / "brighton_beach" / "model.laz")
         reference = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
-        print_dense_table([bench_dense(photo_dir, reference, size, args.features) for size in args.dense_sizes])
+        dense_rows = [bench_dense(photo_dir, reference, size, args.features) for size in args.dense_sizes]
+        print_dense_table(dense_rows)
+        for row in rows:
+            print_target(row, dense_rows, len(list_photos(photo_dir)))
+    if not args.no_synthetic:
+        print_closed_loop_table(bench_closed_loop())
     return 0
 
 

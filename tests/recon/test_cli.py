@@ -95,3 +95,9 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     assert main(["--photos", str(photos), "--out", str(scene)]) == 0
     assert capsys.readouterr().out.count("already done") == 7
     assert (scene / "scene.json").stat().st_mtime == mtime
+
+
+def test_bad_texel_size(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--out", tmp_path / "scene", "--texel", "-0.1"], capsys)
+    assert code == 2 and "texel size must be a positive number of metres, got -0.1" in err

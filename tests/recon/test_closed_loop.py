@@ -2,6 +2,7 @@
 surface and texture scored against the world they came from."""
 
 import json
+import shutil
 
 import numpy as np
 import pycolmap
@@ -56,3 +57,12 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     assert surface.median <= 0.10
     assert surface.completeness >= 0.90
     assert np.median([r.error_percent for r in realism]) < 14.0  # measured ~11 % (JPEG photos, 2.5-D walls)
+
+    # the fallback: the same run without texture gives a vertex-coloured scene that sim loads (decimation drops
+    # the colours; the pipeline carries them over), resumed from the finished stages
+    plain = tmp_path / "plain"
+    shutil.copytree(scene_dir / "work", plain / "work", ignore=shutil.ignore_patterns("texture_report.json", "*.glb"))
+    assert main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", plain,
+                                  "--no-texture")]) == 0
+    fallback = load_scene(plain)
+    assert fallback.surface.texture is None and fallback.surface.vertex_colors.std() > 10

@@ -8,7 +8,7 @@ import trimesh
 from flightplan.geodesy import LocalFrame
 from recon.evaluate import render_unlit
 from recon.scene_out import write_scene
-from recon.texture import Photo, TextureOptions, orthophoto, photo_samples, scene_from_mesh, solve_log_gains, \
+from recon.texture import Photo, TextureOptions, Tiles, orthophoto, photo_samples, scene_from_mesh, solve_log_gains, \
     textured_glb, texel_grid
 from sim.camera import PinholeCamera, Rig, look_at
 from sim.metrics import photorealism_error_percent
@@ -141,3 +141,27 @@ def test_occluded_texels_are_not_taken_from_a_camera_that_cannot_see_them():
     top = (np.abs(texels.points[:, 0] - x) < h - 1) & (np.abs(texels.points[:, 1] - y) < h - 1)
     assert np.median(ortho.image.reshape(-1, 3)[top][:, 0]) > 150
 
+
+
+def test_tile_culling_keeps_every_texel_a_photo_sees(world):
+    mesh, _, photos = world
+    grey = scene_from_mesh(mesh)
+    texels = texel_grid(grey, 0.1, 4096)
+    tiles = Tiles.of(texels, size=16)
+    everything = np.flatnonzero(texels.on_mesh)
+    for photo in photos:
+        culled = tiles.in_view(photo)
+        assert len(culled) < len(everything)  # each photo sees part of the terrain only
+        seen_all = photo_samples(grey, photo, texels, TextureOptions(), everything, 40.0).index
+        seen_culled = photo_samples(grey, photo, texels, TextureOptions(), culled, 40.0).index
+        assert np.array_equal(np.sort(seen_all), np.sort(seen_culled))
+
+
+def test_a_photo_looking_away_contributes_nothing(world):
+    mesh, _, photos = world
+    grey = scene_from_mesh(mesh)
+    texels = texel_grid(grey, 0.2, 4096)
+    skyward = Photo("sky", photos[0].image, CAMERA, look_at((0.0, 0.0, 40.0), (0.0, 10.0, 80.0)))
+    assert len(Tiles.of(texels).in_view(skyward)) == 0
+    samples = photo_samples(grey, skyward, texels, TextureOptions(), np.flatnonzero(texels.on_mesh), 40.0)
+    assert len(samples.index) == 0 and samples.rgb.shape == (0, 3)
