@@ -1,8 +1,10 @@
 """``aerostereo-render``: render stereo datasets from a scene, compare renders with photos, fly the virtual drone.
 
-The parser is assembled from small ``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS`
-(the one place where subcommands are named); each sets ``handler(args) -> int``. Bad input ends with a
-one-line message on stderr and exit code 2.
+``aerostereo-render [options]`` renders a dataset (the default command, :mod:`sim.render_cli`);
+``aerostereo-render compare ...`` and ``aerostereo-render fly ...`` are subcommands. Their parser is assembled
+from small ``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where
+subcommands are named); each sets ``handler(args) -> int``. Bad input ends with a one-line message on stderr
+and exit code 2.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from pathlib import Path
 
 from flightplan.litchi import LitchiFormatError
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
+from sim.render_cli import add_compare_parser, render_main
 from sim.scene import SceneError, load_scene
 from sim.worlds.demo import demo_scene_dir
 
@@ -62,8 +65,16 @@ def add_fly_parser(subparsers) -> None:
     parser.set_defaults(handler=run_fly)
 
 
-#: Subcommands; the dataset renderer (default command) and ``compare`` add theirs here.
-SUBCOMMANDS = (add_fly_parser,)
+#: Subcommands; anything else on the command line goes to the dataset renderer (the default command).
+SUBCOMMANDS = (add_fly_parser, add_compare_parser)
+
+
+def subcommand_names() -> set[str]:
+    """Names of the subcommands in :data:`SUBCOMMANDS`."""
+    subparsers = argparse.ArgumentParser().add_subparsers()
+    for add_parser in SUBCOMMANDS:
+        add_parser(subparsers)
+    return set(subparsers.choices)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -77,6 +88,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``aerostereo-render ...`` -> exit code: a subcommand, or the dataset render for any other arguments."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] not in subcommand_names():
+        return render_main(argv)
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)

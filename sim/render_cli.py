@@ -2,8 +2,7 @@
 
 Entry points for ``sim/cli.py``: :func:`build_parser` + :func:`run` (the dataset render, the default
 command), :func:`add_compare_parser` + :func:`run_compare` (``compare REAL_DIR RENDERED_DIR``), and
-:func:`render_main` / :func:`compare_main` (``argv -> exit code``). Bad input gives a one-line message on
-stderr and exit code 2.
+:func:`render_main` (``argv -> exit code``). Bad input gives a one-line message on stderr and exit code 2.
 """
 
 from __future__ import annotations
@@ -53,7 +52,9 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     """Options of the dataset render (added to ``parser`` if given, e.g. a subparser)."""
     parser = parser or argparse.ArgumentParser(
         prog=PROG, description="Render a stereo dataset (KITTI odometry layout + depth, disparity, poses) from a "
-                               "scene folder or the built-in demo world.")
+                               "scene folder or the built-in demo world.",
+        epilog="Other commands: 'aerostereo-render fly --help' (fly a Litchi mission with the virtual drone), "
+               "'aerostereo-render compare --help' (photorealism of renders against photos).")
     add = parser.add_argument
     add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
                                       "demo world (default: demo)")
@@ -145,11 +146,3 @@ def run_compare(args: argparse.Namespace) -> int:
     except ValueError as error:
         return _bad_input(str(error))
     return 0
-
-
-def compare_main(argv: Sequence[str] | None = None) -> int:
-    """``aerostereo-render compare REAL_DIR RENDERED_DIR`` -> exit code (``argv`` without ``compare``)."""
-    parser = argparse.ArgumentParser(prog=PROG)
-    subparsers = parser.add_subparsers(dest="command", required=True)
-    add_compare_parser(subparsers)
-    return run_compare(parser.parse_args(["compare", *(sys.argv[1:] if argv is None else argv)]))

@@ -53,16 +53,15 @@ from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: 
 
 
 def cli(script: str) -> list[str]:
-    """The command line that runs ``script``. The console scripts are not all installed yet, so each runs its
-    module with this Python (swap a line for ``[script]`` once it is a console script)."""
+    """The command line that runs ``script``: its module run with this Python, so the loop works whether or not
+    the console scripts are on PATH."""
     python = sys.executable
     return {
         "aerostereo-mission": [python, "-m", "flightplan"],
         "aerostereo-ingest": [python, "-m", "capture"],
         "aerostereo-recon": [python, "-m", "recon"],
         "aerostereo-render fly": [python, "-m", "sim", "fly"],
-        "aerostereo-render": [python, "-c", "import sys; from sim.render_cli import render_main; "
-                                            "sys.exit(render_main(sys.argv[1:]))"],
+        "aerostereo-render": [python, "-m", "sim"],
     }[script]
 
 

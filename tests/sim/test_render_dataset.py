@@ -27,7 +27,8 @@ from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
 from sim.frame_renderer import RenderOptions
-from sim.render_cli import compare_main, render_main
+from sim.cli import main as cli_main
+from sim.render_cli import render_main
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR, camera_rotation
 
@@ -329,13 +330,13 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
 
 def test_compare_prints_the_photorealism_table(reference, tmp_path, capsys):
     seq = reference[0] / "sequences/00"
-    assert compare_main([str(seq / "image_2"), str(seq / "image_2")]) == 0
+    assert cli_main(["compare", str(seq / "image_2"), str(seq / "image_2")]) == 0
     table = capsys.readouterr().out
     assert f"mean of {SMALL['frames']}" in table and "0.00" in table.splitlines()[-1]
-    assert compare_main([str(seq / "image_2"), str(seq / "image_3")]) == 0
+    assert cli_main(["compare", str(seq / "image_2"), str(seq / "image_3")]) == 0
     mean_error = float(capsys.readouterr().out.splitlines()[-1].split()[3])
     assert 0.0 < mean_error < 30.0  # a stereo partner differs, but far less than unrelated images
-    assert compare_main([str(tmp_path / "missing"), str(seq / "image_2")]) == 2
+    assert cli_main(["compare", str(tmp_path / "missing"), str(seq / "image_2")]) == 2
 
 
 def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
