@@ -2,7 +2,7 @@
 
 Pure functions on numpy arrays and trimesh meshes; no files except :func:`scene_mesh_enu`. Units: metres and
 degrees. Poses are ``T_world_cam`` 4x4 camera-to-world in ONE ENU frame: move estimates into the truth's frame
-first with :func:`frame_transform` (both frames are tangent planes on WGS84, so the map is rigid).
+first with :meth:`flightplan.geodesy.LocalFrame.transform_to` (both frames are tangent planes on WGS84, so the map is rigid).
 """
 
 from __future__ import annotations
@@ -17,13 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.similarity import umeyama
-from sim.sampling import _rigid_transform_between
-from sim.scene import _Y_UP_TO_ENU, read_mesh, read_scene_json
-
-
-def frame_transform(source: LocalFrame, target: LocalFrame) -> np.ndarray:
-    """4x4 rigid map from ``source`` ENU metres to ``target`` ENU metres (the one used by the dataset replay)."""
-    return _rigid_transform_between(source, target)
+from sim.scene import read_scene_json, read_scene_mesh_enu
 
 
 def _stats(values: np.ndarray) -> dict:
@@ -175,10 +169,7 @@ def scene_mesh_enu(scene_dir) -> tuple[trimesh.Trimesh, LocalFrame]:
     """A scene folder's mesh in its ENU metres (up axis and vertex offset applied, as the renderer loads it) and
     its origin."""
     meta = read_scene_json(Path(scene_dir))
-    vertices, faces, _ = read_mesh(Path(scene_dir) / meta["mesh"])
-    if meta.get("up_axis", "z") == "y":
-        vertices = vertices @ _Y_UP_TO_ENU.T
-    vertices = vertices - np.asarray(meta.get("vertex_offset_m", [0, 0, 0]), dtype=np.float64)
+    vertices, faces, _ = read_scene_mesh_enu(Path(scene_dir), meta)
     return trimesh.Trimesh(vertices, faces, process=False), meta["origin_frame"]
 
 

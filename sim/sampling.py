@@ -296,15 +296,6 @@ def random_loop(ground: GroundModel, seed: int, height_m: float, speed_m_s: floa
 # --- replay -------------------------------------------------------------------------------------
 
 GEOTAG_COLUMNS = ("image_name", "utc_time", "east_m", "north_m", "up_m", "qw", "qx", "qy", "qz")
-FRAME_PROBE_M = 1000.0
-
-
-def _rigid_transform_between(source: LocalFrame, target: LocalFrame) -> np.ndarray:
-    """4x4 map from ``source`` ENU metres to ``target`` ENU metres (both tangent frames on WGS84)."""
-    probes = np.vstack([np.zeros(3), np.eye(3) * FRAME_PROBE_M])
-    mapped = np.column_stack(target.to_enu(*source.to_geodetic(probes[:, 0], probes[:, 1], probes[:, 2])))
-    u, _, vt = np.linalg.svd((mapped[1:] - mapped[0]).T / FRAME_PROBE_M)
-    return pose_matrix(u @ vt, mapped[0])
 
 
 def _read_geotag_rows(path: Path) -> list[tuple[int, dict]]:
@@ -364,7 +355,7 @@ def replay_poses(geotags_csv: Path, scene_origin: LocalFrame, ground: GroundMode
     """
     path = Path(geotags_csv)
     source = _read_origin(path.with_suffix(".json"))
-    to_scene = _rigid_transform_between(source, scene_origin)
+    to_scene = source.transform_to(scene_origin)
     photos = sorted((_parse_geotag(path, line, row) for line, row in _read_geotag_rows(path)), key=lambda p: p[1])
     xmin, xmax, ymin, ymax = ground.valid_area
     samples = []

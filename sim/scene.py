@@ -178,12 +178,18 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     """
     scene_dir = Path(scene_dir)
     meta = read_scene_json(scene_dir)
-    mesh_path = scene_dir / meta["mesh"]
-    vertices, faces, surface = read_mesh(mesh_path)
+    vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
+    return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
+                 str(scene_dir / meta["mesh"]), device=device)
+
+
+def read_scene_mesh_enu(scene_dir: Path, meta: dict) -> tuple[np.ndarray, np.ndarray, Surface]:
+    """The mesh of a scene folder in the scene's ENU metres (``up_axis`` and ``vertex_offset_m`` of its
+    ``scene.json`` ``meta`` applied): float64 vertices, faces and :class:`Surface`."""
+    vertices, faces, surface = read_mesh(Path(scene_dir) / meta["mesh"])
     if meta.get("up_axis", "z") == "y":
         vertices = vertices @ _Y_UP_TO_ENU.T
-    vertices = vertices - np.asarray(meta.get("vertex_offset_m", [0, 0, 0]), dtype=np.float64)
-    return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"), str(mesh_path), device=device)
+    return vertices - np.asarray(meta.get("vertex_offset_m", [0, 0, 0]), dtype=np.float64), faces, surface
 
 
 def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface]:

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, frame_transform, pose_alignment, pose_errors, pose_matrix,
+from recon.accuracy import (depth_coverage, pose_alignment, pose_errors, pose_matrix,
                             scene_mesh_enu, surface_errors, transform_poses)
 from sim.dataset.images import read_exr, read_png
 from sim.metrics import compare_images, depth_errors, photorealism_error_percent, read_rgb
@@ -66,7 +66,7 @@ def paired_errors(estimated: dict, truth: dict, T_truth_estimate: np.ndarray) ->
 def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
     """Geotag position/attitude errors and the clock-offset error against the flight truth."""
     sidecar = _read_json(Path(geotags_csv).with_suffix(".json"))
-    to_truth = frame_transform(LocalFrame.from_dict(sidecar["origin"]), LocalFrame.from_dict(truth["origin"]))
+    to_truth = LocalFrame.from_dict(sidecar["origin"]).transform_to(LocalFrame.from_dict(truth["origin"]))
     true = truth_poses(truth)
     errors = paired_errors(geotag_poses(geotags_csv), true, to_truth)
     # geotags: seconds ADDED to the camera clock to get telemetry time; truth: camera minus telemetry
@@ -88,7 +88,7 @@ def sfm_poses(recon_dir: Path, truth: dict) -> tuple[dict, np.ndarray]:
         raise FileNotFoundError(f"{sparse}: no SfM model")
     origin = read_scene_json(Path(recon_dir))["origin_frame"]
     return (camera_poses(pycolmap.Reconstruction(str(sparse))),
-            frame_transform(origin, LocalFrame.from_dict(truth["origin"])))
+            origin.transform_to(LocalFrame.from_dict(truth["origin"])))
 
 
 def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
@@ -117,10 +117,10 @@ def surface_metrics(recon_dir: Path, world: Path, centre_xy, radius_m: float, sa
     recon_mesh, recon_origin = scene_mesh_enu(recon_dir)
     true_mesh, true_origin = scene_mesh_enu(world)
     if truth is None:
-        recon_mesh.apply_transform(frame_transform(recon_origin, true_origin))
+        recon_mesh.apply_transform(recon_origin.transform_to(true_origin))
     else:
         home = LocalFrame.from_dict(truth["origin"])
-        recon_mesh.apply_transform(frame_transform(home, true_origin) @ shape_alignment(recon_dir, truth))
+        recon_mesh.apply_transform(home.transform_to(true_origin) @ shape_alignment(recon_dir, truth))
     result = surface_errors(recon_mesh, true_mesh, centre_xy, radius_m, COMPLETENESS_THRESHOLD_M, samples,
                             np.random.default_rng(0)).to_dict()
     result.update(area=f"disc of {radius_m:g} m around the orbit centre", reconstructed_faces=len(recon_mesh.faces))

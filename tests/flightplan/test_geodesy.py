@@ -61,3 +61,15 @@ def test_geodesic_direct_inverse_agree_with_geographiclib():
 def test_bad_origin_is_rejected(bad):
     with pytest.raises(ValueError):
         LocalFrame(*bad)
+
+
+@pytest.mark.parametrize("target", [LocalFrame(40.1800, 44.5000, 1003.0), LocalFrame(40.2100, 44.4500, 900.0)])
+def test_transform_to_matches_geodetic_round_trip_within_a_millimetre(target):
+    source = LocalFrame(40.1792, 44.4991, 1000.0)
+    points_enu_m = np.random.default_rng(3).uniform(-2000.0, 2000.0, size=(200, 3)) * [1, 1, 0.1]
+    transform = source.transform_to(target)
+    moved = points_enu_m @ transform[:3, :3].T + transform[:3, 3]
+    expected = target.enu_points(*source.to_geodetic(*points_enu_m.T))
+    assert np.abs(moved - expected).max() < 1e-3
+    assert np.allclose(transform[:3, :3] @ transform[:3, :3].T, np.eye(3), atol=1e-12)
+    assert np.allclose(source.transform_to(source), np.eye(4), atol=1e-8)

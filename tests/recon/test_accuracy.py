@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, distances_to_surface, frame_transform, pose_alignment, pose_errors,
+from recon.accuracy import (depth_coverage, distances_to_surface, pose_alignment, pose_errors,
                             pose_matrix, surface_errors, transform_poses)
 
 
@@ -80,13 +80,13 @@ def test_pose_errors_of_known_offsets_and_rotations():
         pose_errors(estimated[:3], truth)
 
 
-def test_frame_transform_moves_poses_between_origins_like_geodesy():
+def test_transform_to_moves_poses_between_origins_like_geodesy():
     a = LocalFrame(40.1792, 44.4991, 1000.0)
     b = LocalFrame(40.1800, 44.5000, 1003.0)
     point_in_a = np.array([12.0, -30.0, 25.0])
     lat, lon, h = a.to_geodetic(*point_in_a)
     expected = b.enu_points(lat, lon, h)
-    T = frame_transform(a, b)
+    T = a.transform_to(b)
     moved = transform_poses(T, pose_matrix(point_in_a, np.array([1.0, 0, 0, 0])))
     assert moved[0, :3, 3] == pytest.approx(expected, abs=1e-6)
     assert np.allclose(moved[0, :3, :3] @ moved[0, :3, :3].T, np.eye(3))
