@@ -18,7 +18,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 
-from .atomic import atomic_path, write_text_atomic
+from flightplan.atomic import atomic_path, write_text_atomic
 from .geotag import Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import format_number, format_utc, parse_utc

@@ -20,7 +20,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from .atomic import write_text_atomic
+from flightplan.atomic import write_text_atomic
 
 # Column name -> meaning (unit, frame). Heights: above take-off (barometric/relative) and "absolute" as the
 # source calls it (DJI AbsoluteAltitude, Airdata altitude above sea level...). Angles: DJI NED ZYX degrees,

@@ -1,6 +1,10 @@
-"""Atomic file writing: write to a temporary name in the destination folder, then rename over the target.
+"""Atomic file writing for every stage: write to a temporary name in the destination folder, then rename over
+the target.
 
-An interrupted run therefore never leaves a half-written file behind. Missing parent folders are created.
+A reader (or a rerun after a crash) sees the old file, the complete new file or no file, never half a file.
+Missing parent folders are created. Temporary names are hidden and carry the target's name and suffix,
+``.NAME.RANDOM.tmp.SUFFIX``: ``glob("*.png")`` (pykitti) skips them, format-sniffing writers (matplotlib,
+trimesh, OpenCV) still see the suffix, and :func:`remove_stale_temps` finds the leftovers of exactly one target.
 """
 
 from __future__ import annotations
@@ -12,25 +16,25 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
+TEMP_MARK = ".tmp"  # before the target's suffix in every temporary name
+
 
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it to ``path``, on error delete it.
 
     An ``OSError`` (unwritable folder, ``path`` is a folder...) is re-raised naming ``path``.
-
-    The temporary name keeps the target's suffix, so writers that pick a format from it (matplotlib) work.
     """
     target = Path(path)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".tmp{target.suffix}", dir=target.parent)
+        handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=_temp_suffix(target), dir=target.parent)
     except FileExistsError as error:  # mkdir met a file where a folder should be
         raise NotADirectoryError(errno.ENOTDIR, "a parent of it is a file, not a folder", str(target)) from error
     except OSError as error:
         raise _naming(error, target) from error
     os.close(handle)
-    os.chmod(temporary, 0o644)  # mkstemp creates 0600; a mission file is meant to be shared
+    os.chmod(temporary, 0o644)  # mkstemp creates 0600; outputs are meant to be shared
     try:
         yield Path(temporary)
         os.replace(temporary, target)
@@ -39,6 +43,17 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         if isinstance(error, OSError):
             raise _naming(error, target) from error
         raise
+
+
+def _temp_suffix(target: Path) -> str:
+    return f"{TEMP_MARK}{target.suffix}"
+
+
+def remove_stale_temps(path: str | Path) -> None:
+    """Delete the temporary files that interrupted writes of ``path`` left behind (any process)."""
+    target = Path(path)
+    for stale in target.parent.glob(f".{target.name}.*{_temp_suffix(target)}"):
+        stale.unlink(missing_ok=True)
 
 
 def _naming(error: OSError, target: Path) -> OSError:
@@ -51,4 +66,11 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
     with atomic_path(path) as temporary:
         with open(temporary, "w", encoding="utf-8", newline="\n") as stream:
             stream.write(text)
+    return Path(path)
+
+
+def write_bytes_atomic(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically; return the path."""
+    with atomic_path(path) as temporary:
+        temporary.write_bytes(data)
     return Path(path)

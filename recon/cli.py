@@ -19,7 +19,7 @@ import pycolmap
 import trimesh
 
 from recon.dense import DenseOptions
-from recon.io_util import atomic_path
+from flightplan.atomic import atomic_path
 from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import ReconOptions, Recon
 from recon.priors import PriorsError

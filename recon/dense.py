@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 import pycolmap
 
-from recon.io_util import atomic_path
+from flightplan.atomic import atomic_path
 
 
 @dataclass(frozen=True)

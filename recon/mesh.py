@@ -21,7 +21,7 @@ import pycolmap
 import trimesh
 from scipy import ndimage
 
-from recon.io_util import atomic_path
+from flightplan.atomic import atomic_path
 
 
 @dataclass(frozen=True)

@@ -31,7 +31,7 @@ from tqdm import tqdm
 
 from recon import dense, mesh as meshing, texture as texturing
 from recon.dense import DenseOptions
-from recon.io_util import atomic_path, write_text_atomic
+from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import PosePriors, PriorsError, focal_seed, list_photos, priors_from_exif, read_geotags
 from recon.scene_out import write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm

@@ -13,7 +13,7 @@ import numpy as np
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from recon.io_util import atomic_path, write_text_atomic
+from flightplan.atomic import atomic_path, write_text_atomic
 
 SCENE_FORMAT = "aerostereo-scene/1"
 

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
-from recon.io_util import write_text_atomic
+from flightplan.atomic import write_text_atomic
 from recon.priors import FocalSeed, PosePriors, PriorsError
 from recon.similarity import Similarity, umeyama
 

@@ -13,7 +13,7 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from sim.dataset import DatasetError, KittiLayout, read_dataset_json
-from sim.dataset.atomic import write_atomically
+from flightplan.atomic import atomic_path
 from sim.dataset.images import read_exr, read_png
 from sim.dataset.kitti import frame_file_name
 
@@ -61,5 +61,6 @@ def write_contact_sheet(dataset_dir: Path, out_png: Path, rows: int = 4) -> Path
     figure.tight_layout()
     out_png = Path(out_png)
     out_png.parent.mkdir(parents=True, exist_ok=True)
-    write_atomically(out_png, lambda temp: figure.savefig(temp, format="png"))
+    with atomic_path(out_png) as temporary:
+        figure.savefig(temporary, format="png")
     return out_png

@@ -12,7 +12,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from ..atomic import atomic_path, write_text_atomic
+from flightplan.atomic import atomic_path, write_text_atomic
 from ..geotag import take_off_frame
 from ..messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
 from ..raw import RawCaptureWriter, index_path

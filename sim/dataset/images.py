@@ -23,7 +23,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from sim.dataset.atomic import write_atomically, write_bytes_atomically
+from flightplan.atomic import atomic_path, write_bytes_atomic
 
 EXR_CHANNEL = "Y"
 KITTI_DISPARITY_SCALE = 256.0
@@ -53,7 +53,7 @@ def encode_png(image: np.ndarray) -> bytes:
 
 def write_png(path: Path, image: np.ndarray) -> None:
     """Encode ``image`` (RGB or grey) as PNG and write it atomically."""
-    write_bytes_atomically(Path(path), encode_png(image))
+    write_bytes_atomic(path, encode_png(image))
 
 
 def read_png(path: Path) -> np.ndarray:
@@ -75,12 +75,8 @@ def write_exr(path: Path, values: np.ndarray) -> None:
     if values.ndim != 2:
         raise ValueError(f"{path}: EXR writer expects an (H, W) array, got shape {values.shape}")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-
-    def encode(temp: Path) -> None:
-        with OpenEXR.File(header, {EXR_CHANNEL: values}) as exr:
-            exr.write(str(temp))
-
-    write_atomically(Path(path), encode)
+    with atomic_path(path) as temporary, OpenEXR.File(header, {EXR_CHANNEL: values}) as exr:
+        exr.write(str(temporary))
 
 
 def read_exr(path: Path) -> np.ndarray:

@@ -30,7 +30,7 @@ import numpy as np
 
 from flightplan.geodesy import LocalFrame
 from sim.dataset import images
-from sim.dataset.atomic import remove_stale_temps, write_text_atomically
+from flightplan.atomic import remove_stale_temps, write_text_atomic
 from sim.dataset.kitti import (
     KittiLayout,
     calib_text,
@@ -168,7 +168,7 @@ def _open_description(layout: KittiLayout, description: dict) -> dict:
                                f"{', '.join(differing)}); use another --out or delete it")
         return existing
     layout.dataset_json.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomically(layout.dataset_json, _dumps(description))
+    write_text_atomic(layout.dataset_json, _dumps(description))
     return description
 
 
@@ -213,7 +213,7 @@ class KittiDatasetWriter:
             self.layout.sequence_dir.mkdir(parents=True, exist_ok=True)
         except OSError as error:
             raise DatasetError(f"{out_dir}: cannot write the dataset there ({error.strerror})") from None
-        write_text_atomically(self.layout.calib_txt, calib_text(self.description["kitti_projections"]))
+        write_text_atomic(self.layout.calib_txt, calib_text(self.description["kitti_projections"]))
         self.baseline_m = self.description["baseline_m"]
         for directory in self._directories():
             directory.mkdir(parents=True, exist_ok=True)
@@ -249,7 +249,7 @@ class KittiDatasetWriter:
                 encoded[kind](path)
         meta = self.layout.frame_meta(record.index)
         remove_stale_temps(meta)
-        write_text_atomically(meta, json.dumps(self.frame_line(record), allow_nan=False) + "\n")
+        write_text_atomic(meta, json.dumps(self.frame_line(record), allow_nan=False) + "\n")
 
     def _encodings(self, view: int, data) -> dict:
         """Writers of each file kind for one view (lazy, so unused kinds cost nothing)."""
@@ -354,9 +354,9 @@ def finalize_dataset(out_dir: Path) -> int:
                 raise DatasetError(f"{path}: missing although frame {index} has its record; rerun the render")
     records = [json.loads(line) for line in lines]
     layout.poses_txt.parent.mkdir(parents=True, exist_ok=True)
-    write_text_atomically(layout.calib_txt, calib_text(description["kitti_projections"]))
-    write_text_atomically(layout.times_txt, times_text([record["time_s"] for record in records]))
-    write_text_atomically(layout.poses_txt, poses_text([np.array(record["T_world_cam"]) for record in records]))
-    write_text_atomically(layout.frames_jsonl, "".join(lines))
+    write_text_atomic(layout.calib_txt, calib_text(description["kitti_projections"]))
+    write_text_atomic(layout.times_txt, times_text([record["time_s"] for record in records]))
+    write_text_atomic(layout.poses_txt, poses_text([np.array(record["T_world_cam"]) for record in records]))
+    write_text_atomic(layout.frames_jsonl, "".join(lines))
     return frame_count
 

@@ -30,7 +30,7 @@ from typing import Callable, Iterable, NamedTuple
 
 import numpy as np
 
-from capture.atomic import atomic_path
+from flightplan.atomic import atomic_path
 from capture.messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
 from capture.raw import RawCaptureWriter, index_path
 from capture.transports import Clock

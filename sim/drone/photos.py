@@ -23,7 +23,7 @@ import numpy as np
 from PIL import ExifTags, Image, TiffImagePlugin
 from tqdm import tqdm
 
-from capture.atomic import atomic_path
+from flightplan.atomic import atomic_path
 from capture.geotag import Geotag
 from capture.geotag_io import dji_xmp_packet, set_exif_gps
 from flightplan.aircraft import MINI_SE_CAMERA, CameraProfile

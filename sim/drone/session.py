@@ -22,7 +22,7 @@ from pathlib import Path
 import serial
 from tqdm import tqdm
 
-from capture.atomic import atomic_path
+from flightplan.atomic import atomic_path
 from capture.messages import default_registry
 from capture.raw import RawCaptureWriter, index_path
 from capture.recorder import record

@@ -28,7 +28,7 @@ def test_decode_real_pcap_to_csv(shared_data, tmp_path, capsys):
     osd = [r for r in rows if r["kind"] == "osd_general"]
     assert all(r["latitude_deg"] == "0.0" and r["has_fix"] == "0" for r in osd)
     assert rows[0]["utc_time"].startswith("2017-12-20T") and rows[0]["utc_time"].endswith("Z")
-    assert not list(tmp_path.glob(".*.tmp"))  # written through a temporary name
+    assert not list(tmp_path.glob(".*.tmp*"))  # written through a temporary name
 
 
 def test_decode_raw_capture_with_index_uses_arrival_times(tmp_path, capsys):

@@ -167,8 +167,8 @@ def test_rerun_after_interrupted_frame_completes_to_identical_bytes(dataset, tmp
     # What a kill during frame 2 leaves: record not yet written, one file absent, temp files half written.
     (sequence / "frame_meta/000002.json").unlink()
     (sequence / "disp_3/000002.exr").unlink()
-    (sequence / "disp_3/.000002.exr.999-1.tmp").write_bytes(b"half an EXR")
-    (sequence / "image_2/.000002.png.999-2.tmp").write_bytes(b"\x89PNG half")
+    (sequence / "disp_3/.000002.exr.999-1.tmp.exr").write_bytes(b"half an EXR")
+    (sequence / "image_2/.000002.png.999-2.tmp.png").write_bytes(b"\x89PNG half")
     (sequence / "frames.jsonl").unlink()
     with pytest.raises(DatasetError, match="1 of 4 frames are incomplete \\(first: 2\\)"):
         finalize_dataset(tmp_path)
@@ -177,13 +177,13 @@ def test_rerun_after_interrupted_frame_completes_to_identical_bytes(dataset, tmp
     writer.write_frame(frame_record(2))
     finalize_dataset(tmp_path)
     assert tree_bytes(tmp_path) == tree_bytes(dataset)
-    assert not list(tmp_path.rglob("*.tmp"))
+    assert not list(tmp_path.rglob(".*.tmp*"))
 
 
 KILLED_WRITER = """
 import os, signal, sys
 sys.path[:0] = sys.argv[1:3]
-import sim.dataset.atomic as atomic
+import flightplan.atomic as atomic
 from dataset_helpers import frame_record, spec
 from sim.dataset import FORMATS, KittiDatasetWriter
 
@@ -213,14 +213,14 @@ def test_rerun_after_a_writer_killed_mid_frame_completes_to_identical_bytes(data
     killed = subprocess.run([sys.executable, "-c", KILLED_WRITER, str(helpers.parents[1]), str(helpers),
                              str(tmp_path), str(kill_at)], capture_output=True, text=True, timeout=60)
     assert killed.returncode == -signal.SIGKILL, killed.stderr
-    assert len(list(tmp_path.rglob(".*.tmp"))) == 1
+    assert len(list(tmp_path.rglob(".*.tmp*"))) == 1
     writer = KittiDatasetWriter(tmp_path, spec(FRAMES, formats=ALL_FORMATS))
     assert writer.pending(range(FRAMES)) == [2, 3]
     for index in writer.pending(range(FRAMES)):
         writer.write_frame(frame_record(index))
     finalize_dataset(tmp_path)
     assert tree_bytes(tmp_path) == tree_bytes(dataset)
-    assert not list(tmp_path.rglob("*.tmp"))
+    assert not list(tmp_path.rglob(".*.tmp*"))
 
 
 def test_shards_written_apart_merge_into_the_same_sequence(tmp_path):

@@ -217,7 +217,7 @@ def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_d
     uninterrupted = tmp_path / "uninterrupted"
     assert render_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
     assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
-    assert not [p for p in killed.rglob("*.tmp")]
+    assert not [p for p in killed.rglob(".*.tmp*")]
 
 
 def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
