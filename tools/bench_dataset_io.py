@@ -20,21 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.demo_location import DEMO_ORIGIN
+from sim.camera import PinholeCamera
 from sim.dataset import AsyncFrameWriter, DatasetSpec, FrameRecord, KittiDatasetWriter
-
-
-@dataclass(frozen=True)
-class Camera:
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    width: int
-    height: int
 
 
 @dataclass
 class View:
+    """What the dataset writer reads of a rendered view (sim.render.View has more)."""
+
     rgb: np.ndarray
     depth: np.ndarray
 
@@ -56,7 +49,7 @@ def pretend_to_render(seconds: float) -> None:
 
 
 def run(frames: int, threads: int, render_s: float, width: int, height: int) -> tuple[float, float, int]:
-    camera = Camera(1000.0, 1000.0, (width - 1) / 2, (height - 1) / 2, width, height)
+    camera = PinholeCamera(1000.0, 1000.0, (width - 1) / 2, (height - 1) / 2, width, height)
     T_right = np.eye(4)
     T_right[0, 3] = 0.5
     rng = np.random.default_rng(0)

@@ -12,37 +12,24 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from sim.camera import PinholeCamera
 from sim.dataset import DatasetSpec, FrameRecord
+from sim.shade import Sun
 
 ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
 BASELINE_M = 0.5
 WIDTH, HEIGHT = 64, 48
 
 
-@dataclass(frozen=True)
-class Camera:
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    width: int
-    height: int
-
-
 @dataclass
 class View:
+    """What the dataset writer reads of a rendered view (sim.render.View has more)."""
+
     rgb: np.ndarray
     depth: np.ndarray
 
 
-@dataclass(frozen=True)
-class Sun:
-    azimuth_deg: float
-    elevation_deg: float
-    intensity: float
-
-
-CAMERA = Camera(fx=50.0, fy=52.0, cx=31.5, cy=23.25, width=WIDTH, height=HEIGHT)
+CAMERA = PinholeCamera(fx=50.0, fy=52.0, cx=31.5, cy=23.25, width=WIDTH, height=HEIGHT)
 
 
 def translation(x: float, y: float = 0.0, z: float = 0.0) -> np.ndarray:
@@ -72,7 +59,7 @@ def looking_down_pose(index: int) -> np.ndarray:
     return T
 
 
-def render_plane_view(camera: Camera, T_world_cam: np.ndarray) -> View:
+def render_plane_view(camera: PinholeCamera, T_world_cam: np.ndarray) -> View:
     """Planar depth (+inf above the horizon) and a checkerboard colour of the ground plane z = 0."""
     u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
     rays_cam = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u)], axis=-1)
