@@ -2,7 +2,7 @@
 
 The render CLI uses :class:`DatasetSpec` + :class:`KittiDatasetWriter` (wrapped in
 :class:`AsyncFrameWriter`), submits one :class:`FrameRecord` per frame, and calls
-:func:`finalize_dataset` once every frame exists. See notes/README-dataset.md.
+:func:`finalize_dataset` once every frame exists. See docs/dataset-format.md.
 """
 
 from sim.dataset.async_writer import AsyncFrameWriter

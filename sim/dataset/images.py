@@ -1,6 +1,6 @@
 """Pixel encodings of the dataset: PNG (8-bit colour/grey, 16-bit KITTI/VKITTI) and float32 EXR.
 
-Conventions (see notes/README-dataset.md):
+Conventions (see docs/dataset-format.md):
 
 * depth is planar z in metres (OpenCV camera z), float32, ``+inf`` where the ray hit nothing;
 * disparity in pixels is ``fx * B / z`` for a rectified pair with baseline ``B`` metres

@@ -1,6 +1,6 @@
 """What makes a real flight imperfect, each effect a parameter (0 = perfect), and the random processes behind them.
 
-All randomness comes from an explicit ``numpy.random.Generator``. See ``notes/README-drone.md`` for the
+All randomness comes from an explicit ``numpy.random.Generator``. See ``docs/virtual-drone.md`` for the
 defaults' sources and rationale.
 """
 
