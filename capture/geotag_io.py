@@ -1,4 +1,4 @@
-"""Geotag files: ``geotags.csv`` + ``geotags.json`` (INTERFACES.md), pose priors for recon, EXIF/XMP write-back.
+"""Geotag files: ``geotags.csv`` + ``geotags.json`` (docs/interfaces.md), pose priors for recon, EXIF/XMP write-back.
 
 ``load_geotags(path)`` is what recon (pose priors) and the simulator's replay read: one ``PosePrior`` per photo
 with the ENU camera position, ``R_world_cam`` (ENU <- OpenCV camera) and the ENU origin.
@@ -95,7 +95,8 @@ def load_geotags(csv_path) -> list[PosePrior]:
     with csv_path.open(encoding="utf-8", newline="") as handle:
         reader = csv.DictReader(handle)
         if reader.fieldnames != GEOTAG_COLUMNS:
-            raise ValueError(f"{csv_path}:1: header is not the geotags.csv header of INTERFACES.md")
+            raise ValueError(f"{csv_path}:1: expected the geotags.csv header {','.join(GEOTAG_COLUMNS)}, "
+                             f"got {','.join(reader.fieldnames or [])}")
         priors = []
         for line, row in enumerate(reader, start=2):
             try:

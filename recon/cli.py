@@ -35,7 +35,9 @@ def positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="aerostereo-recon", description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="aerostereo-recon", description="Photos + geotags -> georeferenced textured scene folder "
+                                                "(SfM, dense stereo, mesh, texture; resumable). "
+                                                "'aerostereo-recon merge --help': control-point merge of two meshes.")
     parser.add_argument("--photos", type=Path, required=True, help="folder of photos")
     parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
     parser.add_argument("--out", type=Path, required=True, help="scene folder to write (resumable)")

@@ -2,7 +2,7 @@
 
 The world is generated around ``flightplan.demo_location.DEMO_ORIGIN``: ENU metres, z up, the ground at z = 0
 under the origin. The folder holds ``world.glb`` (binary glTF: positions in ENU metres as stored, z up, one
-JPEG texture atlas with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see INTERFACES.md) and nothing else.
+JPEG texture atlas with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see docs/interfaces.md) and nothing else.
 """
 
 from __future__ import annotations
