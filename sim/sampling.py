@@ -18,13 +18,11 @@ and ``valid_area`` ``(xmin, xmax, ymin, ymax)`` where the scene has real content
 
 from __future__ import annotations
 
-import csv
 import functools
 import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime
 from pathlib import Path
 from typing import Protocol
 
@@ -32,6 +30,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
+from capture.geotag_io import PosePrior, load_geotags, sidecar_path
+from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM = 0, 1, 2, 3  # RENDER_STREAM: anti-aliasing jitter
@@ -295,80 +295,87 @@ def random_loop(ground: GroundModel, seed: int, height_m: float, speed_m_s: floa
 
 # --- replay -------------------------------------------------------------------------------------
 
-GEOTAG_COLUMNS = ("image_name", "utc_time", "east_m", "north_m", "up_m", "qw", "qx", "qy", "qz")
 
-
-def _read_geotag_rows(path: Path) -> list[tuple[int, dict]]:
+def _read_photos(path: Path) -> list[PosePrior]:
+    """The photos of ``geotags.csv`` (capture's reader), each with an attitude, in time order."""
     try:
-        with path.open(newline="", encoding="utf-8") as handle:
-            reader = csv.DictReader(handle)
-            missing = [column for column in GEOTAG_COLUMNS if column not in (reader.fieldnames or [])]
-            if missing:
-                raise ValueError(f"{path}: header lacks the columns {', '.join(missing)}")
-            rows = [(reader.line_num, row) for row in reader]
+        priors = load_geotags(path)
     except FileNotFoundError:
         raise ValueError(f"{path}: geotags file not found") from None
-    if not rows:
+    except UnicodeDecodeError as error:  # in the header (load_geotags names the line of a bad row)
+        raise ValueError(f"{path}: not UTF-8 text (byte {error.start}: {error.reason})") from None
+    except OSError as error:
+        raise ValueError(f"{path}: cannot read the geotags ({error.strerror})") from None
+    if not priors:
         raise ValueError(f"{path}: no photos (only a header)")
-    return rows
+    for prior in priors:
+        if prior.R_world_cam is None:
+            raise ValueError(f"{path}: photo {prior.image_name} has no attitude (qw,qx,qy,qz empty); replay needs one")
+    return sorted(priors, key=lambda prior: prior.utc_time_s)
 
 
-def _parse_geotag(path: Path, line: int, row: dict) -> tuple[str, datetime, np.ndarray]:
-    """(image name, UTC time, 4x4 T_world_cam in the geotags' ENU frame) of one CSV row."""
-    values = {}
-    for column in GEOTAG_COLUMNS[2:]:
-        try:
-            values[column] = float(row[column])
-        except (TypeError, ValueError):
-            raise ValueError(f"{path} line {line}: column {column}: expected a number, got {row[column]!r}") from None
-    try:
-        time = datetime.fromisoformat(row["utc_time"])
-    except (TypeError, ValueError):
-        raise ValueError(f"{path} line {line}: utc_time {row['utc_time']!r} is not ISO 8601") from None
-    if time.tzinfo is None:
-        raise ValueError(f"{path} line {line}: utc_time {row['utc_time']!r} has no zone (expected a trailing Z)")
-    quaternion = np.array([values["qx"], values["qy"], values["qz"], values["qw"]])
-    if not abs(np.linalg.norm(quaternion) - 1.0) < 1e-3:
-        raise ValueError(f"{path} line {line}: quaternion (qw, qx, qy, qz) has norm {np.linalg.norm(quaternion):.6f}, "
-                         "expected a unit quaternion")
-    position = (values["east_m"], values["north_m"], values["up_m"])
-    return row["image_name"], time, pose_matrix(Rotation.from_quat(quaternion).as_matrix(), position)
+def _origin_height_known(sidecar: Path) -> bool:
+    """The sidecar's ``origin_height_known`` (true when absent: the origin's h0 is then taken as stated)."""
+    known = json.loads(sidecar.read_text(encoding="utf-8")).get("origin_height_known", True)
+    if not isinstance(known, bool):
+        raise ValueError(f"{sidecar}: origin_height_known must be true or false, got {known!r}")
+    return known
 
 
-def _read_origin(sidecar: Path) -> LocalFrame:
-    try:
-        return LocalFrame.from_dict(json.loads(sidecar.read_text(encoding="utf-8"))["origin"])
-    except FileNotFoundError:
-        raise ValueError(f"{sidecar}: geotags sidecar not found (it holds the origin of east_m/north_m/up_m)") from None
-    except (json.JSONDecodeError, KeyError, TypeError, ValueError) as error:
-        raise ValueError(f"{sidecar}: no valid 'origin' (lat0_deg, lon0_deg, h0_ellipsoid_m): {error}") from None
+def _take_off_on_the_ground(source: LocalFrame, scene_origin: LocalFrame, ground: GroundModel,
+                            sidecar: Path) -> LocalFrame:
+    """The geotags' origin (the take-off point) with h0 put on the scene's ground below it.
+
+    For a sidecar whose ``origin_height_known`` is false: capture then wrote h0 = 0 and heights above take-off.
+    """
+    east, north, up = source.transform_to(scene_origin)[:3, 3]
+    xmin, xmax, ymin, ymax = ground.valid_area
+    outside = max(xmin - east, east - xmax, ymin - north, north - ymax, 0.0)
+    if outside > 0:
+        raise ValueError(f"{sidecar}: origin_height_known is false and the take-off point lies {outside:.0f} m "
+                         "outside the scene's valid area, so its height cannot be taken from the scene's ground")
+    anchored_h0 = source.h0_m + float(np.asarray(ground.ground_height(east, north))) - up
+    return LocalFrame(source.lat0_deg, source.lon0_deg, anchored_h0)
 
 
 def replay_poses(geotags_csv: Path, scene_origin: LocalFrame, ground: GroundModel,
                  max_outside_m: float = 100.0) -> list[PoseSample]:
     """The camera poses of a ``geotags.csv`` in the scene's ENU frame, in time order (frame 0 first).
 
-    Positions and rotations are moved from the geotags' origin (sidecar ``geotags.json``) to
-    the scene origin. A photo more than ``max_outside_m`` outside the scene's valid area means
-    the geotags come from another place: that is an error naming the photo and the distance
-    between the two origins. ``time_s`` counts from the first photo.
+    Read with :func:`capture.geotag_io.load_geotags`; positions and rotations are moved from the geotags'
+    origin (sidecar ``geotags.json``) to the scene origin. Where the sidecar says ``origin_height_known:
+    false`` (capture then stores h0 = 0 and heights above take-off), the take-off point is put on the scene's
+    ground below it; its ellipsoidal height is recorded per frame as ``take_off_h0_ellipsoid_m``.
+
+    Errors name the photo: one more than ``max_outside_m`` outside the scene's valid area (the geotags come
+    from another place; the message gives the distance between the two origins), or below the scene's
+    ground under it (a wrong origin height). ``time_s`` counts from the first photo.
     """
     path = Path(geotags_csv)
-    source = _read_origin(path.with_suffix(".json"))
+    photos = _read_photos(path)
+    source, sidecar = photos[0].origin, sidecar_path(path)
+    anchored = not _origin_height_known(sidecar)
+    if anchored:
+        source = _take_off_on_the_ground(source, scene_origin, ground, sidecar)
     to_scene = source.transform_to(scene_origin)
-    photos = sorted((_parse_geotag(path, line, row) for line, row in _read_geotag_rows(path)), key=lambda p: p[1])
     xmin, xmax, ymin, ymax = ground.valid_area
     samples = []
-    for index, (name, time, T_source_cam) in enumerate(photos):
-        T = to_scene @ T_source_cam
+    for index, photo in enumerate(photos):
+        T = to_scene @ pose_matrix(photo.R_world_cam, photo.position_enu_m)
         east, north = T[:2, 3]
         outside = max(xmin - east, east - xmax, ymin - north, north - ymax, 0.0)
         if outside > max_outside_m:
             apart_km = geodesic_inverse(source.lat0_deg, source.lon0_deg, scene_origin.lat0_deg,
                                         scene_origin.lon0_deg).distance_m / 1000
-            raise ValueError(f"{path}: photo {name} lies {outside:.0f} m outside the scene's valid area; the geotags' "
-                             f"origin is {apart_km:.3f} km from the scene origin -- geotags from another area?")
-        details = {"mode": "replay", "image_name": name, "utc_time": time.isoformat()}
-        samples.append(PoseSample(index, T, (time - photos[0][1]).total_seconds(),
-                                  _height_above_ground(ground, T[:3, 3]), 0, details))
+            raise ValueError(f"{path}: photo {photo.image_name} lies {outside:.0f} m outside the scene's valid area; "
+                             f"the geotags' origin is {apart_km:.3f} km from the scene origin -- geotags from "
+                             "another area?")
+        height = _height_above_ground(ground, T[:3, 3])
+        if height < 0:
+            raise ValueError(f"{path}: photo {photo.image_name} lies {-height:.1f} m below the scene's ground under "
+                             f"it -- is the origin height in {sidecar.name} right?")
+        details = {"mode": "replay", "image_name": photo.image_name, "utc_time": format_utc(photo.utc_time_s)}
+        if anchored:
+            details["take_off_h0_ellipsoid_m"] = source.h0_m
+        samples.append(PoseSample(index, T, photo.utc_time_s - photos[0].utc_time_s, height, 0, details))
     return samples

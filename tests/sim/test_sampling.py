@@ -17,6 +17,7 @@ from sim.sampling import (
     camera_rotation,
     lawnmower,
     orbit,
+    pose_matrix,
     random_loop,
     random_pose,
     random_sun,
@@ -165,7 +166,8 @@ GEOTAG_HEADER = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,abs
                  "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz")
 
 
-def write_geotags(folder, origin: LocalFrame, poses, start=datetime(2026, 5, 1, 10, 0, tzinfo=timezone.utc)):
+def write_geotags(folder, origin: LocalFrame, poses, start=datetime(2026, 5, 1, 10, 0, tzinfo=timezone.utc),
+                  sidecar_extra=None):
     rows = [GEOTAG_HEADER]
     for number, T in enumerate(poses):
         qx, qy, qz, qw = Rotation.from_matrix(T[:3, :3]).as_quat()
@@ -176,7 +178,8 @@ def write_geotags(folder, origin: LocalFrame, poses, start=datetime(2026, 5, 1, 
         rows.append(f"DJI_{number:04d}.JPG,{time},,,,,,,,,,,test,0,{numbers}")
     csv_path = folder / "geotags.csv"
     csv_path.write_text("\n".join(rows) + "\n", encoding="utf-8")
-    (folder / "geotags.json").write_text(json.dumps({"origin": origin.to_dict()}), encoding="utf-8")
+    sidecar = {"origin": origin.to_dict(), **(sidecar_extra or {})}
+    (folder / "geotags.json").write_text(json.dumps(sidecar), encoding="utf-8")
     return csv_path
 
 
@@ -205,16 +208,60 @@ def test_replay_refuses_geotags_from_another_area(tmp_path):
         replay_poses(path, SCENE_ORIGIN, GROUND)
 
 
-def test_replay_names_the_bad_line_and_a_missing_sidecar(tmp_path):
+def test_replay_names_the_bad_line_and_a_missing_file(tmp_path):
     path = write_geotags(tmp_path, SCENE_ORIGIN, [np.eye(4), np.eye(4)])
-    lines = path.read_text().splitlines()
+    good = path.read_text()
+    lines = good.splitlines()
     lines[2] = lines[2].replace(",0.0,0.0,0.0,1.0,", ",0.0,north?,0.0,1.0,")
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(ValueError, match="geotags.csv line 3: column north_m: expected a number, got 'north\\?'"):
+    with pytest.raises(ValueError, match=r"geotags.csv:3: .*'north\?'"):
         replay_poses(path, SCENE_ORIGIN, GROUND)
-    path.write_text(path.read_text().replace(".000000Z,", ".000000,", 1))
-    with pytest.raises(ValueError, match="geotags.csv line 2: utc_time '2026-05-01T10:00:00.000000' has no zone"):
+    path.write_text(good.replace("2026-05-01T10:00:02.500000Z", "ten past ten"))
+    with pytest.raises(ValueError, match="geotags.csv:3: .*utc_time ISO 8601"):
+        replay_poses(path, SCENE_ORIGIN, GROUND)
+    path.write_bytes(b"\xff" + good.encode())
+    with pytest.raises(ValueError, match="geotags.csv: not UTF-8 text \\(byte 0"):
+        replay_poses(path, SCENE_ORIGIN, GROUND)
+    path.write_text(good.replace(",1.0,0.0,0.0,0.0\n", ",,,,\n", 1))
+    with pytest.raises(ValueError, match="geotags.csv: photo DJI_0000.JPG has no attitude"):
+        replay_poses(path, SCENE_ORIGIN, GROUND)
+    path.unlink()
+    with pytest.raises(ValueError, match="geotags.csv: geotags file not found"):
         replay_poses(path, SCENE_ORIGIN, GROUND)
     (tmp_path / "geotags.json").unlink()
-    with pytest.raises(ValueError, match="geotags.json: geotags sidecar not found"):
+    with pytest.raises(ValueError, match="geotags.json: cannot read the origin"):
+        replay_poses(path, SCENE_ORIGIN, GROUND)
+
+
+TAKE_OFF = LocalFrame(40.1800, 44.5000, 0.0)  # ~90 m north, ~80 m east of the scene origin; h0 = 0 as capture
+# writes it when the take-off height is unknown (the scene origin is at 1000 m)
+
+
+def nadir_poses_over_take_off(heights_m) -> list[np.ndarray]:
+    """Nadir cameras straight above the take-off point (geotags frame), ``heights_m`` above it."""
+    return [pose_matrix(R_WORLD_NADIR, (0.0, 0.0, height)) for height in heights_m]
+
+
+def test_replay_refuses_photos_below_the_ground(tmp_path):
+    path = write_geotags(tmp_path, TAKE_OFF, nadir_poses_over_take_off([30.0, 40.0]))  # h0 = 0 taken at its word
+    with pytest.raises(ValueError, match=r"geotags.csv: photo DJI_0000.JPG lies 9\d\d\.\d m below the scene's ground "
+                                         r"under it -- is the origin height in geotags.json right\?"):
+        replay_poses(path, SCENE_ORIGIN, GROUND)
+
+
+def test_replay_puts_an_unknown_take_off_height_on_the_scene_ground(tmp_path):
+    path = write_geotags(tmp_path, TAKE_OFF, nadir_poses_over_take_off([30.0, 40.0]),
+                         sidecar_extra={"origin_height_known": False})
+    samples = replay_poses(path, SCENE_ORIGIN, GROUND)
+    h0 = samples[0].details["take_off_h0_ellipsoid_m"]
+    take_off = np.ravel(SCENE_ORIGIN.to_enu(TAKE_OFF.lat0_deg, TAKE_OFF.lon0_deg, h0))
+    assert take_off[2] == pytest.approx(float(GROUND.ground_height(*take_off[:2])), abs=1e-3)  # on the ground
+    for sample, height in zip(samples, (30.0, 40.0)):
+        np.testing.assert_allclose(sample.T_world_cam[:3, 3], take_off + [0.0, 0.0, height], atol=1e-3)
+        assert sample.height_above_ground_m == pytest.approx(height, abs=1e-3)
+    far_take_off = LocalFrame(40.1900, 44.5000, 0.0)  # 1.2 km north: outside the valid area
+    path = write_geotags(tmp_path, far_take_off, nadir_poses_over_take_off([30.0]),
+                         sidecar_extra={"origin_height_known": False})
+    with pytest.raises(ValueError, match=r"geotags.json: origin_height_known is false and the take-off point lies "
+                                         r"\d+ m outside the scene's valid area"):
         replay_poses(path, SCENE_ORIGIN, GROUND)
