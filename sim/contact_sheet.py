@@ -38,11 +38,16 @@ def chosen_frames(frame_count: int, rows: int) -> list[int]:
     return sorted({int(round(i)) for i in np.linspace(0, frame_count - 1, min(rows, frame_count))})
 
 
+def check_depth_written(formats, dataset: str) -> None:
+    """Raise :class:`DatasetError` unless ``formats`` include the depth EXR a contact sheet shows."""
+    if "depth_exr" not in formats:
+        raise DatasetError(f"{dataset}: a contact sheet shows depth, but the dataset has no depth_exr")
+
+
 def write_contact_sheet(dataset_dir: Path, out_png: Path, rows: int = 4) -> Path:
     """Write the contact sheet of ``dataset_dir`` to ``out_png`` (atomically). Returns ``out_png``."""
     description = read_dataset_json(Path(dataset_dir))
-    if "depth_exr" not in description["formats"]:
-        raise DatasetError(f"{dataset_dir}: a contact sheet shows depth, but the dataset has no depth_exr")
+    check_depth_written(description["formats"], str(dataset_dir))
     layout = KittiLayout(Path(dataset_dir), description["sequence"])
     frames = chosen_frames(int(description["frame_count"]), rows)
     width, height = description["cameras"][0]["width"], description["cameras"][0]["height"]

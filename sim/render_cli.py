@@ -12,7 +12,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sim.contact_sheet import write_contact_sheet
+from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import DEFAULT_FORMATS, FORMATS, DatasetError, parse_shard
 from sim.metrics import compare_folders, summary_table
 from sim.frame_renderer import MODES, TRAJECTORIES, RenderInputError, RenderOptions
@@ -20,6 +20,7 @@ from sim.render_dataset import render_dataset
 from sim.scene import SceneError
 
 EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report Ctrl-C
 PROG = "aerostereo-render"
 
 
@@ -104,6 +105,8 @@ def _bad_input(message: str) -> int:
 def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> int:
     """Render the dataset described by ``args``; print a summary. Returns the exit code."""
     try:
+        if args.contact_sheet is not None:
+            check_depth_written(args.formats, f"{args.out} (--formats)")
         summary = render_dataset(args.scene, args.out, options_from_args(args),
                                  command_line=sys.argv if command_line is None else command_line,
                                  progress=not args.quiet)
@@ -118,6 +121,9 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
         return _bad_input(str(error))
     except OSError as error:
         return _bad_input(f"{error.filename or args.out}: {error.strerror}")
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted: rerun the same command to resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return 0
 
 

@@ -132,8 +132,12 @@ def _check_options(options: RenderOptions) -> None:
     for name in ("width", "height", "spp", "workers"):
         if getattr(options, name) < 1:
             problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
-    if not options.baseline_m > 0:
-        problems.append(f"baseline must be positive, got {options.baseline_m}")
+    for name, value in (("baseline", options.baseline_m), ("altitude", options.altitude_m),
+                        ("speed", options.speed_m_s), ("rate", options.frame_rate_hz)):
+        if not value > 0:
+            problems.append(f"{name} must be positive, got {value}")
+    if not options.margin_m >= 0:
+        problems.append(f"margin must be >= 0, got {options.margin_m}")
     if not 0 <= options.max_sky_fraction <= 1:
         problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
     if not 0 < options.fov_deg < 180:

@@ -141,7 +141,10 @@ def read_scene_json(scene_dir: Path) -> dict:
         meta = json.loads(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SceneError(f"{path}: not valid UTF-8 JSON ({exc})") from None
-    if not isinstance(meta, dict) or meta.get("format") != SCENE_FORMAT:
+    if not isinstance(meta, dict):
+        raise SceneError(f"{path}: expected a JSON object {{\"format\": \"{SCENE_FORMAT}\", ...}}, "
+                         f"got a {type(meta).__name__}")
+    if meta.get("format") != SCENE_FORMAT:
         raise SceneError(f"{path}: expected \"format\": \"{SCENE_FORMAT}\", got {meta.get('format')!r}")
     for key, expected in (("units", "m"), ("frame", "enu")):
         if meta.get(key, expected) != expected:

@@ -179,8 +179,12 @@ def read_dataset_json(root: Path) -> dict:
         description = json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DatasetError(f"{path}: not found; is {root} a dataset folder?") from None
+    except UnicodeDecodeError as error:
+        raise DatasetError(f"{path}: not UTF-8 text (byte {error.start}: {error.reason})") from None
     except json.JSONDecodeError as error:
         raise DatasetError(f"{path}: invalid JSON at line {error.lineno}: {error.msg}") from None
+    if not isinstance(description, dict):
+        raise DatasetError(f"{path}: expected a JSON object, got a {type(description).__name__}")
     if description.get("format") != DATASET_FORMAT:
         raise DatasetError(f"{path}: format is {description.get('format')!r}, expected {DATASET_FORMAT!r}")
     return description

@@ -277,6 +277,12 @@ def test_reopening_with_other_settings_is_refused(tmp_path):
 def test_finalize_names_a_folder_that_is_no_dataset(tmp_path):
     with pytest.raises(DatasetError, match="dataset.json: not found"):
         finalize_dataset(tmp_path)
+    (tmp_path / "dataset.json").write_text("[1, 2]", encoding="utf-8")
+    with pytest.raises(DatasetError, match="dataset.json: expected a JSON object, got a list"):
+        finalize_dataset(tmp_path)
+    (tmp_path / "dataset.json").write_bytes(b'{"format": "\xff"}')
+    with pytest.raises(DatasetError, match="dataset.json: not UTF-8 text \\(byte 12"):
+        finalize_dataset(tmp_path)
 
 
 def test_spec_from_a_rig_object_matches_the_explicit_spec():

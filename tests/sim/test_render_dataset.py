@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
-from sim.frame_renderer import RenderOptions
+from sim.frame_renderer import FrameRenderer, RenderOptions
 from sim.cli import main as cli_main
 from sim.render_cli import render_main
 from sim.render_dataset import render_dataset
@@ -326,6 +326,35 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         render_main(_argv(scene_dir, tmp_path / "e", shard="2/2"))
     assert exit_info.value.code == 2
+
+
+def test_cli_refuses_settings_that_cannot_render_before_rendering(scene_dir, tmp_path, capsys):
+    for option, value in (("rate", 0), ("speed", -2), ("altitude", 0), ("margin", -1)):
+        message = _error_of(capsys, _argv(scene_dir, tmp_path / option, mode="trajectory", **{option: value}))
+        assert message.endswith(f"{option} must be {'>= 0' if option == 'margin' else 'positive'}, got {value:.1f}")
+    out = tmp_path / "no-depth"
+    argv = _argv(scene_dir, out, frames=1, width=16, height=8, formats="disparity_png") + ["--contact-sheet",
+                                                                                             str(tmp_path / "s.png")]
+    assert "a contact sheet shows depth, but the dataset has no depth_exr" in _error_of(capsys, argv)
+    assert not out.exists()  # refused before anything was rendered
+
+
+def test_ctrl_c_is_one_line_exit_130_and_a_rerun_resumes(scene_dir, tmp_path, capsys, monkeypatch):
+    out = tmp_path / "interrupted"
+    argv = _argv(scene_dir, out, frames=3, width=16, height=8)
+    record = FrameRenderer.record
+
+    def interrupted_at_frame_1(renderer, index):
+        if index == 1:
+            raise KeyboardInterrupt
+        return record(renderer, index)
+
+    monkeypatch.setattr(FrameRenderer, "record", interrupted_at_frame_1)
+    assert render_main(argv) == 130
+    assert capsys.readouterr().err.strip() == "aerostereo-render: interrupted: rerun the same command to resume"
+    monkeypatch.setattr(FrameRenderer, "record", record)
+    assert render_main(argv) == 0
+    assert "rendered 2 frames" in capsys.readouterr().out  # frame 0 was kept
 
 
 def test_compare_prints_the_photorealism_table(reference, tmp_path, capsys):

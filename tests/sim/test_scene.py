@@ -152,6 +152,12 @@ def test_missing_files_and_bad_descriptions_name_the_file(tmp_path):
     (tmp_path / "scene.json").write_text("{not json", encoding="utf-8")
     with pytest.raises(SceneError, match="scene.json: not valid"):
         load_scene(tmp_path)
+    (tmp_path / "scene.json").write_text('["aerostereo-scene/1"]', encoding="utf-8")
+    with pytest.raises(SceneError, match="scene.json: expected a JSON object .*, got a list"):
+        load_scene(tmp_path)
+    (tmp_path / "scene.json").write_bytes(b'{"format": "\xff"}')
+    with pytest.raises(SceneError, match="scene.json: not valid UTF-8"):
+        load_scene(tmp_path)
 
 
 def test_a_mesh_without_texture_or_colours_is_rejected(tmp_path):
