@@ -9,8 +9,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,6 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from capture.attitude import camera_matrix_world
+from flightplan.atomic import write_text_atomic
 from sim.drone.flight import Flight
 from sim.drone.sensors import Sensors
 
@@ -110,19 +109,6 @@ def _truth_rows(photos: Photos) -> list[dict]:
     return rows
 
 
-def atomic_write_text(path: Path, text: str) -> None:
-    """Write ``text`` (UTF-8) to a temporary file beside ``path`` and rename it into place."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        os.unlink(tmp)
-        raise
-
-
 def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None, extra: dict | None = None) -> None:
     """Write ``truth.json`` and ``truth.csv`` into ``out_dir``: the true pose of every photo (ENU with the
     home point as origin, and geodetic), the true camera clock offset and the imperfection parameters."""
@@ -143,5 +129,5 @@ def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None,
         "photos": rows,
         **(extra or {}),
     }
-    atomic_write_text(out_dir / "truth.csv", buffer.getvalue())
-    atomic_write_text(out_dir / "truth.json", json.dumps(document, indent=2) + "\n")
+    write_text_atomic(out_dir / "truth.csv", buffer.getvalue())
+    write_text_atomic(out_dir / "truth.json", json.dumps(document, indent=2) + "\n")

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
+from flightplan.atomic import write_bytes_atomic, write_text_atomic
 from flightplan.demo_location import DEMO_ORIGIN
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
@@ -111,14 +112,6 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
     }
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and a rename."""
-    with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", delete=False) as handle:
-        handle.write(data)
-    os.chmod(handle.name, 0o644)
-    os.replace(handle.name, path)
-
-
 def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed: int = 0) -> Path:
     """Generate the demo world ``variant`` ("default" or "small") for ``seed`` into the scene folder ``out_dir``
     (created if missing; ``world.glb`` and ``scene.json`` are replaced atomically). Same arguments, same bytes.
@@ -126,10 +119,9 @@ def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed:
     _spec(variant)
     layout, mesh, atlas = generate_world(variant, seed)
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    _write_atomic(out / MESH_NAME, encode_glb(mesh, atlas))
+    write_bytes_atomic(out / MESH_NAME, encode_glb(mesh, atlas))
     text = json.dumps(scene_description(layout, mesh, variant, seed), indent=2) + "\n"
-    _write_atomic(out / SCENE_JSON, text.encode("utf-8"))
+    write_text_atomic(out / SCENE_JSON, text)
     return out
 
 

@@ -295,6 +295,7 @@ def test_truth_files_hold_the_true_poses_and_clock_offset(realistic, tmp_path):
     photos = realistic.photos
     write_truth(tmp_path, realistic.flight, photos, seed=2)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["truth.csv", "truth.json"]  # no temporary left
+    assert {p.stat().st_mode & 0o777 for p in tmp_path.iterdir()} == {0o644}  # shareable, not 0600
     document = json.loads((tmp_path / "truth.json").read_text())
     assert document["clock_offset_s"] == Imperfections.realistic().camera_clock_offset_s
     assert document["origin"]["lat0_deg"] == realistic.flight.home.latitude_deg
