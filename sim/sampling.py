@@ -33,6 +33,7 @@ from scipy.spatial.transform import Rotation
 from capture.geotag_io import PosePrior, load_geotags, sidecar_path
 from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
+from sim.camera import pose_from_position
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM = 0, 1, 2, 3  # RENDER_STREAM: anti-aliasing jitter
 #: The nadir camera at heading 0: x east, y south (image top = north), z down.
@@ -59,14 +60,6 @@ def camera_rotation(heading_deg: float, tilt_x_deg: float = 0.0, tilt_y_deg: flo
     turn = Rotation.from_euler("z", -heading_deg, degrees=True).as_matrix()
     tilt = Rotation.from_euler("xy", [tilt_x_deg, tilt_y_deg], degrees=True).as_matrix()
     return turn @ R_WORLD_NADIR @ tilt
-
-
-def pose_matrix(R_world_cam: np.ndarray, position_enu_m) -> np.ndarray:
-    """4x4 ``T_world_cam`` from a rotation and a camera position."""
-    T = np.eye(4)
-    T[:3, :3] = R_world_cam
-    T[:3, 3] = position_enu_m
-    return T
 
 
 @dataclass(frozen=True)
@@ -129,7 +122,7 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
         tilt_x, tilt_y = (float(tilt) for tilt in rng.uniform(*settings.tilt_range_deg, size=2))
         heading = rng.uniform(*settings.heading_range_deg)
         position = (x, y, float(np.asarray(ground.ground_height(x, y))) + height)
-        T = pose_matrix(camera_rotation(heading, tilt_x, tilt_y), position)
+        T = pose_from_position(position, camera_rotation(heading, tilt_x, tilt_y))
         if miss_fraction is None or miss_fraction(T) <= settings.max_miss_fraction:
             details = {"mode": "random", "heading_deg": heading, "tilt_x_deg": tilt_x, "tilt_y_deg": tilt_y}
             return PoseSample(index, T, index / settings.frame_rate_hz, height, attempt, details)
@@ -226,7 +219,7 @@ class Trajectory:
         else:
             east, north = (self._position(np.array(s + PATH_STEP_M)) - self._position(np.array(s - PATH_STEP_M)))[:2]
         heading = math.degrees(math.atan2(east, north)) % 360.0
-        T = pose_matrix(camera_rotation(heading, self.tilt_deg), position)
+        T = pose_from_position(position, camera_rotation(heading, self.tilt_deg))
         details = {"mode": self.mode, "heading_deg": heading, "tilt_x_deg": self.tilt_deg, "tilt_y_deg": 0.0}
         return PoseSample(index, T, time_s, _height_above_ground(ground, position), 0, details)
 
@@ -361,7 +354,7 @@ def replay_poses(geotags_csv: Path, scene_origin: LocalFrame, ground: GroundMode
     xmin, xmax, ymin, ymax = ground.valid_area
     samples = []
     for index, photo in enumerate(photos):
-        T = to_scene @ pose_matrix(photo.R_world_cam, photo.position_enu_m)
+        T = to_scene @ pose_from_position(photo.position_enu_m, photo.R_world_cam)
         east, north = T[:2, 3]
         outside = max(xmin - east, east - xmax, ymin - north, north - ymax, 0.0)
         if outside > max_outside_m:

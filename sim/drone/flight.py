@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from capture.attitude import wrap_deg
 from flightplan.geodesy import LocalFrame
 from sim.drone import path as pathlib
 from sim.drone.imperfections import Imperfections, PathDeviation, first_order_lag
@@ -57,11 +58,6 @@ class FlightState:
     aircraft_ypr_deg: np.ndarray
     gimbal_ypr_deg: np.ndarray
     phase: np.ndarray
-
-
-def wrap_deg(angle_deg):
-    """Wrap angles (degrees) into [-180, 180)."""
-    return (np.asarray(angle_deg, float) + 180.0) % 360.0 - 180.0
 
 
 def bearing_enu_deg(from_enu: np.ndarray, to_enu: np.ndarray) -> np.ndarray:

@@ -56,22 +56,13 @@ def ground_height_ellipsoid_m(scene: Scene, lat_deg: float, lon_deg: float) -> f
 
 def poses_in_scene(flight_frame: LocalFrame, scene_frame: LocalFrame, position_enu_m: np.ndarray,
                    R_world_cam: np.ndarray) -> np.ndarray:
-    """Camera poses (N,4,4) given in the flight's ENU frame, re-expressed in the scene's ENU frame.
-
-    The frames' axes differ by the tiny rotation between their tangent planes; it is taken from the images of
-    the flight frame's origin and unit axes (through geodetic coordinates), so it is exact to float64.
-    """
-    def to_scene(points):
-        return scene_frame.enu_points(*flight_frame.to_geodetic(*np.asarray(points, float).T))
-
-    origin = to_scene(np.zeros((1, 3)))[0]
-    R_scene_flight = (to_scene(np.eye(3)) - origin).T
-    u, _, vt = np.linalg.svd(R_scene_flight)
-    R_scene_flight = u @ vt  # the nearest rotation (removes the metre-scale stretch of the geodetic round trip)
-    T = np.tile(np.eye(4), (len(position_enu_m), 1, 1))
-    T[:, :3, :3] = R_scene_flight @ R_world_cam
-    T[:, :3, 3] = to_scene(position_enu_m)
-    return T
+    """Camera poses (N,4,4) given in the flight's ENU frame, re-expressed in the scene's ENU frame
+    (:meth:`~flightplan.geodesy.LocalFrame.transform_to`: the frames' axes differ by the tiny rotation between
+    their tangent planes)."""
+    T_flight_cam = np.tile(np.eye(4), (len(position_enu_m), 1, 1))
+    T_flight_cam[:, :3, :3] = R_world_cam
+    T_flight_cam[:, :3, 3] = position_enu_m
+    return flight_frame.transform_to(scene_frame) @ T_flight_cam
 
 
 def photo_geotag(photos, index: int, home_height_ellipsoid_m: float, name: str) -> Geotag:

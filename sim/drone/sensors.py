@@ -10,7 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.drone.flight import Flight, FlightState, wrap_deg
+from capture.attitude import wrap_deg
+from sim.drone.flight import Flight, FlightState
 from sim.drone.imperfections import Imperfections, gauss_markov
 
 #: The GPS vertical error is this many times the horizontal one (typical VDOP/HDOP of consumer receivers).

@@ -11,13 +11,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from sim.camera import pose_from_position
 from sim.sampling import (
     R_WORLD_NADIR,
     RandomPoseSettings,
     camera_rotation,
     lawnmower,
     orbit,
-    pose_matrix,
     random_loop,
     random_pose,
     random_sun,
@@ -239,7 +239,7 @@ TAKE_OFF = LocalFrame(40.1800, 44.5000, 0.0)  # ~90 m north, ~80 m east of the s
 
 def nadir_poses_over_take_off(heights_m) -> list[np.ndarray]:
     """Nadir cameras straight above the take-off point (geotags frame), ``heights_m`` above it."""
-    return [pose_matrix(R_WORLD_NADIR, (0.0, 0.0, height)) for height in heights_m]
+    return [pose_from_position((0.0, 0.0, height), R_WORLD_NADIR) for height in heights_m]
 
 
 def test_replay_refuses_photos_below_the_ground(tmp_path):
