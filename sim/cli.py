@@ -14,31 +14,29 @@ import datetime as dt
 import sys
 from pathlib import Path
 
+from capture.track import parse_utc
 from flightplan.litchi import LitchiFormatError
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
 from sim.render_cli import add_compare_parser, render_main
+from sim.render_dataset import resolve_scene_dir
 from sim.scene import SceneError, load_scene
-from sim.worlds.demo import demo_scene_dir
 
 
 class CliError(Exception):
     """Bad user input: printed as one line, exit code 2."""
 
 
-def scene_folder(value: str) -> Path:
-    """``--scene``: a scene folder, or ``demo`` / ``demo:VARIANT`` for the built-in demo world (built once, cached)."""
-    if value == "demo" or value.startswith("demo:"):
-        return demo_scene_dir(value.partition(":")[2] or "default")
-    return Path(value)
+#: ``--scene`` of ``fly``: the same rule as the dataset render (a folder, or ``demo`` / ``demo:VARIANT``);
+#: tools/closed_loop.py imports it under this name.
+scene_folder = resolve_scene_dir
 
 
 def utc_time(text: str) -> dt.datetime:
-    """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``); naive times are UTC."""
+    """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``) read by :func:`capture.track.parse_utc` (naive = UTC)."""
     try:
-        stamp = dt.datetime.fromisoformat(text.replace("Z", "+00:00"))
+        return dt.datetime.fromtimestamp(parse_utc(text), dt.timezone.utc)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an ISO 8601 time like 2024-05-01T10:00:00Z") from None
-    return stamp if stamp.tzinfo else stamp.replace(tzinfo=dt.timezone.utc)
 
 
 def add_fly_parser(subparsers) -> None:
@@ -69,30 +67,24 @@ def add_fly_parser(subparsers) -> None:
 SUBCOMMANDS = (add_fly_parser, add_compare_parser)
 
 
-def subcommand_names() -> set[str]:
-    """Names of the subcommands in :data:`SUBCOMMANDS`."""
-    subparsers = argparse.ArgumentParser().add_subparsers()
-    for add_parser in SUBCOMMANDS:
-        add_parser(subparsers)
-    return set(subparsers.choices)
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> tuple[argparse.ArgumentParser, set[str]]:
+    """The parser of the subcommands in :data:`SUBCOMMANDS`, and their names."""
     parser = argparse.ArgumentParser(
         prog="aerostereo-render",
         description="Render stereo datasets from scenes, and fly the virtual drone over them.")
     subparsers = parser.add_subparsers(dest="command", required=True)
     for add_parser in SUBCOMMANDS:
         add_parser(subparsers)
-    return parser
+    return parser, set(subparsers.choices)
 
 
 def main(argv: list[str] | None = None) -> int:
     """``aerostereo-render ...`` -> exit code: a subcommand, or the dataset render for any other arguments."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] not in subcommand_names():
+    parser, subcommands = build_parser()
+    if not argv or argv[0] not in subcommands:
         return render_main(argv)
-    args = build_parser().parse_args(argv)
+    args = parser.parse_args(argv)
     try:
         return args.handler(args)
     except (CliError, LitchiFormatError, SceneError, ValueError, OSError) as error:
@@ -108,7 +100,7 @@ def run_fly(args) -> int:
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[args.noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs)
-    scene = load_scene(scene_folder(args.scene))
+    scene = load_scene(resolve_scene_dir(args.scene))
     report = run_session(args.mission, scene, args.out, options)
     flight, photos = report.mission.flight, report.mission.photos
     print(f"flew {args.mission} over {scene.source}: {flight.duration_s:.1f} s from {report.start_utc.isoformat()}")

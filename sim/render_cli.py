@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from sim.contact_sheet import check_depth_written, write_contact_sheet
-from sim.dataset import DEFAULT_FORMATS, FORMATS, DatasetError, parse_shard
+from sim.dataset import FORMATS, DatasetError, parse_shard
 from sim.metrics import compare_folders, summary_table
 from sim.frame_renderer import MODES, TRAJECTORIES, RenderInputError, RenderOptions
 from sim.render_dataset import render_dataset
@@ -57,31 +57,35 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         epilog="Other commands: 'aerostereo-render fly --help' (fly a Litchi mission with the virtual drone), "
                "'aerostereo-render compare --help' (photorealism of renders against photos).")
     add = parser.add_argument
+    defaults = RenderOptions()
     add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
                                       "demo world (default: demo)")
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one is resumed)")
-    add("--frames", type=int, default=None, help="number of frames (default 100; replay: every photo)")
-    add("--mode", choices=MODES, default="random", help="random poses (the paper), a trajectory, or replay geotags")
-    add("--geotags", type=Path, default=None, help="geotags.csv to replay (with geotags.json beside it)")
-    add("--margin", type=float, default=20.0, help="random mode: keep cameras this far inside the valid area, metres")
-    add("--max-sky", type=float, default=0.02, help="random mode: redraw a pose whose view has more sky/miss than this")
-    add("--trajectory", choices=TRAJECTORIES, default="orbit", help="path flown in trajectory mode")
-    add("--altitude", type=float, default=50.0, help="trajectory height above the ground, metres")
-    add("--speed", type=float, default=5.0, help="trajectory speed, m/s")
-    add("--rate", type=float, default=10.0, help="trajectory frame rate, Hz")
-    add("--width", type=int, default=1280, help="image width, pixels")
-    add("--height", type=int, default=720, help="image height, pixels")
-    add("--fov", type=float, default=80.0, help="horizontal field of view, degrees")
-    add("--baseline", type=float, default=0.54, help="distance between neighbouring cameras, metres")
-    add("--cameras", type=int, default=2, help="cameras in the rig (a row along camera x)")
-    add("--distortion", type=_distortion, default=None,
+    add("--frames", type=int, default=defaults.frames, help="number of frames (default 100; replay: every photo)")
+    add("--mode", choices=MODES, default=defaults.mode,
+        help="random poses (the paper), a trajectory, or replay geotags")
+    add("--geotags", type=Path, default=defaults.geotags, help="geotags.csv to replay (with geotags.json beside it)")
+    add("--margin", type=float, default=defaults.margin_m,
+        help="random mode: keep cameras this far inside the valid area, metres")
+    add("--max-sky", type=float, default=defaults.max_sky_fraction,
+        help="random mode: redraw a pose whose view has more sky/miss than this")
+    add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory, help="path flown in trajectory mode")
+    add("--altitude", type=float, default=defaults.altitude_m, help="trajectory height above the ground, metres")
+    add("--speed", type=float, default=defaults.speed_m_s, help="trajectory speed, m/s")
+    add("--rate", type=float, default=defaults.frame_rate_hz, help="trajectory frame rate, Hz")
+    add("--width", type=int, default=defaults.width, help="image width, pixels")
+    add("--height", type=int, default=defaults.height, help="image height, pixels")
+    add("--fov", type=float, default=defaults.fov_deg, help="horizontal field of view, degrees")
+    add("--baseline", type=float, default=defaults.baseline_m, help="distance between neighbouring cameras, metres")
+    add("--cameras", type=int, default=defaults.cameras, help="cameras in the rig (a row along camera x)")
+    add("--distortion", type=_distortion, default=defaults.distortion,
         help="OpenCV lens distortion k1,k2,p1,p2,k3 of every camera (then choose --formats without disparity)")
-    add("--spp", type=int, default=1, help="samples per pixel (anti-aliasing)")
-    add("--seed", type=int, default=0, help="seed of poses, sun and jitter")
-    add("--workers", type=int, default=1, help="render processes (each builds the scene once)")
-    add("--shard", type=_shard, default=(0, 1), help="render only frames I, I+N, I+2N... (I/N)")
-    add("--formats", type=_formats, default=DEFAULT_FORMATS,
-        help=f"comma-separated extra outputs (default {','.join(DEFAULT_FORMATS)}; known {','.join(FORMATS)})")
+    add("--spp", type=int, default=defaults.spp, help="samples per pixel (anti-aliasing)")
+    add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
+    add("--workers", type=int, default=defaults.workers, help="render processes (each builds the scene once)")
+    add("--shard", type=_shard, default=defaults.shard, help="render only frames I, I+N, I+2N... (I/N)")
+    add("--formats", type=_formats, default=defaults.formats,
+        help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; known {','.join(FORMATS)})")
     add("--contact-sheet", type=Path, default=None, help="also write a PNG of left, right and depth of a few frames")
     add("--quiet", action="store_true", help="no progress bar")
     return parser
