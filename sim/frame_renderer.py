@@ -115,8 +115,6 @@ class SceneGround:
 def build_rig(options: RenderOptions) -> Rig:
     """``cameras`` identical pinhole cameras in a row, camera k at ``k * baseline`` along camera x."""
     camera = PinholeCamera.from_fov(options.width, options.height, options.fov_deg, dist=options.distortion)
-    if options.cameras == 2:
-        return Rig.stereo(camera, options.baseline_m)
     offsets = [np.eye(4) for _ in range(options.cameras)]
     for k, T in enumerate(offsets):
         T[0, 3] = k * options.baseline_m

@@ -39,6 +39,7 @@ from sim.dataset import (
     DatasetSpec,
     KittiDatasetWriter,
     finalize_dataset,
+    needs_disparity,
     shard_frames,
 )
 from sim.frame_renderer import (
@@ -142,7 +143,7 @@ def _check_options(options: RenderOptions) -> None:
         problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
     if not 0 < options.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
-    if options.distortion is not None and any(name.startswith("disparity") for name in options.formats):
+    if options.distortion is not None and needs_disparity(options.formats):
         problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
                         "when rendering with --distortion")
     if problems:

@@ -126,7 +126,7 @@ def dataset_description(spec: DatasetSpec) -> dict:
     if spec.frame_count < 1:
         raise DatasetError(f"frame_count must be >= 1, got {spec.frame_count}")
     projections = projection_matrices(spec.cameras, spec.T_rig_cams)
-    baseline = stereo_baseline_m(spec.T_rig_cams[0], spec.T_rig_cams[1]) if _needs_disparity(spec.formats) else None
+    baseline = stereo_baseline_m(spec.T_rig_cams[0], spec.T_rig_cams[1]) if needs_disparity(spec.formats) else None
     return {
         "format": DATASET_FORMAT,
         "generator": {"name": "aerostereo", "version": generator_version()},
@@ -149,7 +149,8 @@ def dataset_description(spec: DatasetSpec) -> dict:
     }
 
 
-def _needs_disparity(formats: Iterable[str]) -> bool:
+def needs_disparity(formats: Iterable[str]) -> bool:
+    """Whether ``formats`` ask for disparity (which needs a rectified stereo pair)."""
     return any(name.startswith("disparity") for name in formats)
 
 
