@@ -1,7 +1,7 @@
 """Cameras, rigs, poses and ray generation (the renderer's "camera" stage).
 
-Conventions (one home, see DESIGN.md): camera axes are OpenCV (x right, y down, z forward); pixel
-(0, 0) is the *centre* of the top-left pixel; a pose ``T_world_cam`` is a 4x4 float64 camera-to-world
+Conventions (one home: ../shared/DESIGN.md, outside the repository, "Frames and conventions"): camera axes
+are OpenCV (x right, y down, z forward); pixel (0, 0) is the *centre* of the top-left pixel; a pose ``T_world_cam`` is a 4x4 float64 camera-to-world
 transform in the scene's local ENU frame (metres). Lens distortion follows OpenCV: ``model="pinhole"``
 takes ``(k1, k2, p1, p2, k3)``, ``model="fisheye"`` takes the equidistant ``(k1, k2, k3, k4)``.
 """

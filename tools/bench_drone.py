@@ -30,15 +30,28 @@ from sim.drone.photos import photo_camera, render_photos  # noqa: E402
 from sim.drone.session import fly_litchi_mission  # noqa: E402
 from sim.scene import load_scene  # noqa: E402
 from sim.worlds.demo import demo_scene_dir  # noqa: E402
+from sim.worlds.layout import VARIANTS  # noqa: E402
 
 SIZES = ((800, 600), (1600, 1200))
 START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)
 
 
+def photo_count(text: str) -> int:
+    """``--photos``: a whole number of photos, at least 1 (the timings are divided by it)."""
+    try:
+        count = int(text)
+    except ValueError:
+        count = 0
+    if count < 1:
+        raise argparse.ArgumentTypeError(f"expected a count >= 1, got {text!r}")
+    return count
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--photos", type=int, default=None, help="render only N photos and extrapolate")
-    parser.add_argument("--variant", default="default", help="demo world variant (default 'default')")
+    parser.add_argument("--photos", type=photo_count, default=None, help="render only N photos and extrapolate")
+    parser.add_argument("--variant", choices=sorted(VARIANTS), default="default",
+                        help="demo world variant (default 'default')")
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
 
