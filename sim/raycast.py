@@ -108,16 +108,19 @@ def intersect(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray, poo
         block_origins, block_dirs = _rows(origins, block), _rows(dirs, block)
         out = scene.embree.run(block_origins, block_dirs, output=1)
         _recast_misses(scene, block_origins, block_dirs, out)
-        miss = out["primID"] < 0
-        t[block] = np.where(miss, np.inf, out["tfar"])
         tri[block] = out["primID"]
-        u[block] = np.where(miss, 0.0, out["u"])
-        v[block] = np.where(miss, 0.0, out["v"])
+        miss = out["primID"] < 0
+        t[block] = out["tfar"]
+        u[block] = out["u"]
+        v[block] = out["v"]
         ng = out["Ng"]
-        length = np.sqrt(np.einsum("ij,ij->i", ng, ng))
-        towards_ray = np.where(np.einsum("ij,ij->i", ng, block_dirs) > 0, -1.0, 1.0)
-        scale = np.where(miss | (length == 0), 0.0, towards_ray / np.where(length > 0, length, 1.0))
-        normal[block] = ng * scale[:, None].astype(np.float32)
+        with np.errstate(divide="ignore"):
+            scale = np.float32(1.0) / np.sqrt(np.einsum("ij,ij->i", ng, ng))
+        np.negative(scale, out=scale, where=np.einsum("ij,ij->i", ng, block_dirs) > 0)
+        if miss.any():
+            t[block][miss], u[block][miss], v[block][miss], scale[miss] = np.inf, 0.0, 0.0, 0.0
+        scale[~np.isfinite(scale)] = 0.0  # a zero-length normal (float32 sliver)
+        normal[block] = ng * scale[:, None]
 
     map_blocks(cast, n, pool)
     return Hits(t, tri, u, v, normal)

@@ -136,7 +136,10 @@ def _radiance(scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, execu
         def shade(block: slice) -> None:
             hit = hits.tri[block] >= 0
             out = radiance[block]
-            out[~hit] = sky_radiance(rays.directions[block][~hit], lighting) * np.float32(lighting.exposure)
+            if not hit.all():
+                out[~hit] = sky_radiance(rays.directions[block][~hit], lighting) * np.float32(lighting.exposure)
+            else:
+                hit = slice(None)  # all rays hit: views instead of copies
             albedo = surface_albedo(scene, hits.tri[block][hit], hits.u[block][hit], hits.v[block][hit])
             out[hit] = lambert(albedo, hits.normal[block][hit], sun, lit[block][hit], lighting)
 
@@ -154,23 +157,28 @@ def _sunlit(scene: Scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, 
     if sun.elevation_deg <= 0:
         return lit
     sun_dir = sun.direction_enu
-    sun32 = sun_dir.astype(np.float32)[None]
-    origin_local = rays.origin - scene.centre_m
+    sun32 = sun_dir.astype(np.float32)
+    origin_local = (rays.origin - scene.centre_m).astype(np.float32)
     top_local = scene.bounds[1, 2] - scene.centre_m[2]
+    # Hits lie inside the scene's box, so no recentred coordinate exceeds its half-extent.
+    largest_coordinate = float(np.abs(scene.bounds - scene.centre_m).max())
 
     def trace(block: slice) -> None:
         normals = hits.normal[block]
-        candidates = np.flatnonzero((hits.tri[block] >= 0) & (np.einsum("ij,j->i", normals, sun32[0]) > 0))
+        facing = (hits.tri[block] >= 0) & (normals @ sun32 > 0)
         if not lighting.shadows:
-            lit[block][candidates] = 1.0
+            lit[block][facing] = 1.0
             return
-        t = hits.t[block][candidates].astype(np.float64)[:, None]
-        points = origin_local + t * rays.directions[block][candidates]
-        bias = SHADOW_BIAS_M + SHADOW_BIAS_RELATIVE * (t + np.abs(points).max(axis=1, keepdims=True))
-        starts = points + bias * normals[candidates]
-        reach = np.maximum((top_local - starts[:, 2]) / sun_dir[2], 0.0) + 1.0
-        blocked = occluded_local(scene, starts.astype(np.float32), sun32, reach.astype(np.float32))
-        lit[block][candidates[~blocked]] = 1.0
+        # Every ray of the block is traced in image order (coherent); the others get a negative reach,
+        # which embree skips, cheaper than gathering the candidates out and back.
+        t = np.where(facing, hits.t[block], np.float32(0.0))
+        starts = rays.directions[block] * t[:, None]
+        starts += origin_local
+        bias = np.float32(SHADOW_BIAS_M + SHADOW_BIAS_RELATIVE * largest_coordinate) + np.float32(SHADOW_BIAS_RELATIVE) * t
+        starts += bias[:, None] * normals
+        reach = np.maximum((np.float32(top_local) - starts[:, 2]) / sun32[2], 0.0) + np.float32(1.0)
+        reach[~facing] = -1.0
+        lit[block][facing & ~occluded_local(scene, starts, sun32[None], reach)] = 1.0
 
     map_blocks(trace, len(hits.t), executor)
     return lit

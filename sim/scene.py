@@ -19,6 +19,7 @@ from embreex import mesh_construction, rtcore, rtcore_scene
 from PIL import Image
 
 from flightplan.geodesy import LocalFrame
+from sim.shade import linear_texture
 
 SCENE_FORMAT = "aerostereo-scene/1"
 #: glTF "y up" (x east, y up, z south) -> ENU (east, north, up).
@@ -43,6 +44,11 @@ class Surface:
     texture: np.ndarray | None = None
     uv: np.ndarray | None = None
     vertex_colors: np.ndarray | None = None
+
+    @functools.cached_property
+    def linear_texture(self) -> np.ndarray:
+        """The texture in linear light, float32 ``(H, W, 3)``: made on first use (renderers), then kept."""
+        return linear_texture(self.texture)
 
 
 @dataclass
@@ -113,9 +119,10 @@ class Scene:
 
 
 def _checked_surface(surface: Surface, n_vertices: int, source: str) -> Surface:
-    """The surface with float32 UVs, after checking it colours every vertex."""
+    """The surface with float32 (column-major) UVs, after checking it colours every vertex."""
     if surface.texture is not None:
-        uv = np.asarray(surface.uv, dtype=np.float32) if surface.uv is not None else None
+        # Column-major: renderers gather U and V separately, each from one contiguous column.
+        uv = np.asfortranarray(surface.uv, dtype=np.float32) if surface.uv is not None else None
         if uv is None or uv.shape != (n_vertices, 2) or surface.texture.ndim != 3 or surface.texture.dtype != np.uint8:
             raise SceneError(f"{source}: a texture needs (H, W, 3) uint8 pixels and one UV per vertex")
         return Surface(texture=surface.texture, uv=uv)

@@ -9,10 +9,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
+import cv2
 import numpy as np
 
-from sim.scene import Scene
+if TYPE_CHECKING:  # sim.scene imports this module (linear textures)
+    from sim.scene import Scene
 
 
 def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
@@ -81,41 +84,60 @@ def surface_albedo(scene: Scene, tri: np.ndarray, u: np.ndarray, v: np.ndarray) 
     w0 = (1.0 - u - v)[:, None]
     surface = scene.surface
     if surface.texture is not None:
-        uv = w0 * surface.uv[corners[:, 0]] + u[:, None] * surface.uv[corners[:, 1]] + v[:, None] * surface.uv[corners[:, 2]]
-        return sample_bilinear(surface.texture, uv)
+        uv = np.empty((len(tri), 2), np.float32)
+        for axis in range(2):
+            column = surface.uv[:, axis]
+            uv[:, axis] = w0[:, 0] * column[corners[:, 0]] + u * column[corners[:, 1]] + v * column[corners[:, 2]]
+        return sample_linear(surface.linear_texture, uv)
     colors = SRGB8_TO_LINEAR[surface.vertex_colors[corners]]  # (N, 3 corners, 3 channels)
     return (w0 * colors[:, 0] + u[:, None] * colors[:, 1] + v[:, None] * colors[:, 2]).astype(np.float32)
 
 
-def sample_bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
-    """Bilinear lookup of an sRGB uint8 ``(H, W, 3)`` texture at UVs ``(N, 2)`` -> linear RGB ``(N, 3)``.
+def linear_texture(srgb8: np.ndarray) -> np.ndarray:
+    """Linear-light float32 ``(H, W, 3)`` copy of an sRGB uint8 texture (its first three channels)."""
+    return SRGB8_TO_LINEAR[np.asarray(srgb8)[..., :3]]
+
+
+#: OpenCV's remap keeps source coordinates in 16-bit integers.
+MAX_TEXTURE_SIDE = 32767
+#: Samples per row of the remap maps (OpenCV maps are images; any width below 32767 works).
+_REMAP_COLUMNS = 4096
+
+
+def sample_linear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of a linear float32 ``(H, W, 3)`` texture (:func:`linear_texture`) at UVs ``(N, 2)``.
 
     UV (0, 0) is the bottom-left corner of the image (OBJ/glTF convention after trimesh), texel centres at
-    half-integers; coordinates wrap (repeat), as OBJ and glTF default to. Filtering is done in linear light.
+    half-integers; coordinates wrap (repeat), as OBJ and glTF default to. OpenCV's ``remap`` does the
+    filtering on all cores, with weights quantised to 1/32 texel (its ``INTER_BITS``).
     """
     height, width = texture.shape[:2]
-    x = uv[:, 0] * np.float32(width) - np.float32(0.5)
-    y = (np.float32(1.0) - uv[:, 1]) * np.float32(height) - np.float32(0.5)
-    x0, y0 = np.floor(x), np.floor(y)
-    fx, fy = (x - x0).astype(np.float32)[:, None], (y - y0).astype(np.float32)[:, None]
-    x0 = x0.astype(np.int64) % width
-    y0 = y0.astype(np.int64) % height
-    x1, y1 = x0 + 1, y0 + 1
-    x1[x1 == width] = 0
-    y1[y1 == height] = 0
-    y0 *= width
-    y1 *= width
-    flat = texture.reshape(-1, texture.shape[2])[:, :3]
+    if max(height, width) > MAX_TEXTURE_SIDE:
+        raise ValueError(f"texture of {width}x{height} px: at most {MAX_TEXTURE_SIDE} px a side can be sampled")
+    n = len(uv)
+    rows = max(1, -(-n // _REMAP_COLUMNS))
+    columns = min(n, _REMAP_COLUMNS) or 1
+    maps = np.zeros((2, rows * columns), np.float32)
+    np.multiply(uv[:, 0], width, out=maps[0, :n])
+    np.multiply(uv[:, 1], -height, out=maps[1, :n])
+    maps[1, :n] += height
+    maps[:, :n] -= 0.5
+    if n and (maps[:, :n].min() < -1.0 or maps[0, :n].max() > width or maps[1, :n].max() > height):
+        # Far outside the texture (tiled UVs): wrap here, remap's border rule only reaches the next texel.
+        maps[0, :n] = np.mod(maps[0, :n] + 0.5, width) - 0.5
+        maps[1, :n] = np.mod(maps[1, :n] + 0.5, height) - 0.5
+    sampled = cv2.remap(
+        texture, maps[0].reshape(rows, columns), maps[1].reshape(rows, columns), cv2.INTER_LINEAR,
+        borderMode=cv2.BORDER_WRAP,
+    )
+    return sampled.reshape(-1, 3)[:n]
 
-    def texel(index):
-        return SRGB8_TO_LINEAR[flat[index]]
 
-    top = texel(y0 + x0)
-    top += (texel(y0 + x1) - top) * fx
-    bottom = texel(y1 + x0)
-    bottom += (texel(y1 + x1) - bottom) * fx
-    top += (bottom - top) * fy
-    return top
+def sample_bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """Bilinear lookup of an sRGB uint8 ``(H, W, 3)`` texture at UVs ``(N, 2)`` -> linear RGB ``(N, 3)``,
+    filtered in linear light (see :func:`sample_linear`; convert once with :func:`linear_texture` to sample
+    the same texture many times)."""
+    return sample_linear(linear_texture(texture), uv)
 
 
 def lambert(

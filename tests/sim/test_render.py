@@ -9,7 +9,7 @@ from sim.camera import PinholeCamera, Rig, camera_rays, look_at, project_world_p
 from sim.raycast import intersect, occluded
 from sim.render import Lighting, Sun, miss_fraction, render
 from sim.scene import Scene, Surface
-from sim.shade import linear_to_srgb, sample_bilinear, to_srgb8
+from sim.shade import SRGB8_TO_LINEAR, linear_to_srgb, sample_bilinear, to_srgb8
 from sim.synthetic import colored_scene, grid_mesh, height_field_scene, noise_texture
 
 CAMERA = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=(-0.2, 0.05, 0.001, -0.001, 0.0))
@@ -172,6 +172,28 @@ def test_bilinear_texture_lookup_of_a_known_texture():
     middle = sample_bilinear(texture, np.array([[0.5, 0.5]]))[0]
     np.testing.assert_allclose(middle, [0.5, 0.5, 0.5], atol=1e-7)  # averaged in linear light
     np.testing.assert_allclose(sample_bilinear(texture, np.array([[0.5, 0.75]]))[0], [0.5, 0.5, 0.0], atol=1e-7)
+
+
+def test_bilinear_lookup_wraps_tiled_uvs_and_matches_exact_weights():
+    rng = np.random.default_rng(3)
+    texture = rng.integers(0, 256, (5, 7, 3), dtype=np.uint8)
+    uv = rng.uniform(0.0, 1.0, (500, 2))
+    inside = sample_bilinear(texture, uv)
+    tiled = sample_bilinear(texture, uv + rng.integers(-3, 4, (500, 2)))
+    np.testing.assert_allclose(tiled, inside, atol=2e-3)  # repeats (within the 1/32-texel weight step)
+    # Exact bilinear weights in linear light, by hand: the lookup is within the 1/32-texel weight step.
+    linear = SRGB8_TO_LINEAR[texture]
+    x = uv[:, 0] * 7 - 0.5
+    y = (1.0 - uv[:, 1]) * 5 - 0.5
+    x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+    fx, fy = (x - x0)[:, None], (y - y0)[:, None]
+
+    def at(row, col):
+        return linear[row % 5, col % 7]
+
+    exact = (1 - fy) * ((1 - fx) * at(y0, x0) + fx * at(y0, x0 + 1)) + fy * ((1 - fx) * at(y0 + 1, x0) + fx * at(y0 + 1, x0 + 1))
+    error = np.abs(inside - exact).max()
+    assert error <= np.ptp(linear) / 32  # quantised weights, never off by more than one step
 
 
 def test_textured_quad_shows_its_texture_where_the_uvs_put_it():
