@@ -15,8 +15,9 @@ capture must survive ``kill -9`` at any moment with everything received so far o
 - ``monotonic_s``: receive time on the host's monotonic clock (seconds, nanoseconds), for intervals.
 
 A line is valid only if it ends in a newline and has four fields; a reader ignores a torn last line (a kill
-mid-write) and the writer cuts it off when it reopens the capture to append. Bytes after the last indexed
-chunk (a kill between the data flush and the index line) have no receive time.
+mid-write) and the writer cuts it off when it reopens the capture to append. Bytes that no line covers (a kill
+between the data flush and the index line) have no receive time; an appending rerun leaves them as a gap
+between the offsets of two lines, which a reader passes on untimed.
 """
 
 from __future__ import annotations
@@ -45,6 +46,7 @@ class RawCaptureWriter:
     def __init__(self, path: str | os.PathLike, fsync: bool = False) -> None:
         self.path = Path(path)
         self.fsync = fsync
+        self.path.parent.mkdir(parents=True, exist_ok=True)
         _cut_torn_line(index_path(self.path))
         self._data = open(self.path, "ab")
         self._index = open(index_path(self.path), "a", encoding="utf-8", newline="\n")
@@ -92,7 +94,7 @@ def _cut_torn_line(path: Path) -> None:
 
 
 class CaptureIndexError(ValueError):
-    """A malformed line in a ``.duml.idx`` file (not the torn last one)."""
+    """A malformed line in a ``.duml.idx`` file (not the torn last one), or chunks that do not fit the data."""
 
 
 @dataclass(frozen=True)
@@ -104,60 +106,74 @@ class ChunkIndex:
     utc_unix_s: np.ndarray  # float64
     monotonic_s: np.ndarray  # float64
 
-    def chunk_of(self, byte_offset: int) -> int | None:
-        """Index of the chunk holding ``byte_offset``, or None when no chunk does."""
-        i = int(np.searchsorted(self.offsets, byte_offset, side="right")) - 1
-        if i < 0 or byte_offset >= self.offsets[i] + self.lengths[i]:
-            return None
-        return i
 
-    def arrival_utc(self, byte_offset: int) -> dt.datetime | None:
-        """When the byte at ``byte_offset`` arrived (UTC). A packet is complete when its LAST byte arrives."""
-        i = self.chunk_of(byte_offset)
-        return None if i is None else dt.datetime.fromtimestamp(float(self.utc_unix_s[i]), dt.timezone.utc)
-
-    def arrival_monotonic(self, byte_offset: int) -> float | None:
-        i = self.chunk_of(byte_offset)
-        return None if i is None else float(self.monotonic_s[i])
+_IDX_FIELDS = "'offset,utc_unix_s,monotonic_s,length'"
 
 
 def read_index(path: str | os.PathLike) -> ChunkIndex:
-    """Parse a ``.duml.idx`` sidecar, tolerating a torn last line. Raises CaptureIndexError naming a bad line."""
+    """Parse a ``.duml.idx`` sidecar, tolerating a torn last line.
+
+    Raises CaptureIndexError naming the file and line for a line that is not UTF-8, has the wrong fields, a
+    time that is not finite, a negative offset, a length below 1, or a chunk that starts before the previous
+    one ends. Gaps between chunks are allowed (bytes whose index line a kill cut off, then an appending rerun).
+    """
     path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    lines = text.split("\n")[:-1]  # the piece after the last newline is torn (or empty)
+    lines = path.read_bytes().split(b"\n")[:-1]  # the piece after the last newline is torn (or empty)
     rows = []
-    for number, line in enumerate(lines, start=1):
+    chunks_end = 0
+    for number, raw_line in enumerate(lines, start=1):
+        try:
+            line = raw_line.decode("utf-8")
+        except UnicodeDecodeError as error:
+            raise CaptureIndexError(f"{path}:{number}: expected UTF-8 text {_IDX_FIELDS}, got byte "
+                                    f"0x{raw_line[error.start]:02x} at column {error.start + 1}") from None
         if not line or line.startswith("#"):
             continue
-        parts = line.split(",")
         try:
-            if len(parts) != 4:
-                raise ValueError(f"{len(parts)} fields")
-            rows.append((int(parts[0]), int(parts[3]), float(parts[1]), float(parts[2])))
+            row = _index_row(line, chunks_end)
         except ValueError as error:
-            raise CaptureIndexError(f"{path}:{number}: expected 'offset,utc_unix_s,monotonic_s,length', got {line!r} "
-                              f"({error})") from None
+            raise CaptureIndexError(f"{path}:{number}: expected {_IDX_FIELDS}, got {line!r} ({error})") from None
+        rows.append(row)
+        chunks_end = row[0] + row[1]
     table = np.array(rows, dtype=np.float64).reshape(-1, 4)
     return ChunkIndex(table[:, 0].astype(np.int64), table[:, 1].astype(np.int64), table[:, 2], table[:, 3])
+
+
+def _index_row(line: str, previous_end: int) -> tuple[int, int, float, float]:
+    """``(offset, length, utc_unix_s, monotonic_s)`` of one index line; ValueError saying what is wrong."""
+    parts = line.split(",")
+    if len(parts) != 4:
+        raise ValueError(f"{len(parts)} fields")
+    offset, length, utc, mono = int(parts[0]), int(parts[3]), float(parts[1]), float(parts[2])
+    if not (np.isfinite(utc) and np.isfinite(mono)):
+        raise ValueError("times must be finite")
+    if offset < 0 or length < 1:
+        raise ValueError("offset must be >= 0 and length >= 1")
+    if offset < previous_end:
+        raise ValueError(f"the chunk starts before the previous one ends at offset {previous_end}")
+    return offset, length, utc, mono
 
 
 def read_capture_chunks(path: str | os.PathLike):
     """Yield ``(receive_time_utc | None, receive_time_monotonic | None, bytes)`` as the chunks were received.
 
-    Without a sidecar (or past its end) the remaining bytes come as one chunk with no times.
+    Bytes no index line covers (no sidecar, a gap a kill left before an appending rerun, or past the last
+    line) come as chunks with no times, in stream order. CaptureIndexError when an indexed chunk runs past the
+    end of the data.
     """
     path = Path(path)
-    index = read_index(index_path(path)) if index_path(path).exists() else None
+    index = read_index(index_path(path)) if index_path(path).exists() else ChunkIndex(*[np.empty(0)] * 4)
     with open(path, "rb") as handle:
         data = handle.read()
     position = 0
-    if index is not None:
-        for offset, length, utc, mono in zip(index.offsets.tolist(), index.lengths.tolist(),
-                                             index.utc_unix_s.tolist(), index.monotonic_s.tolist()):
-            if offset != position or offset + length > len(data):
-                break
-            yield dt.datetime.fromtimestamp(utc, dt.timezone.utc), mono, data[offset:offset + length]
-            position = offset + length
+    for offset, length, utc, mono in zip(index.offsets.tolist(), index.lengths.tolist(),
+                                         index.utc_unix_s.tolist(), index.monotonic_s.tolist()):
+        if offset + length > len(data):
+            raise CaptureIndexError(f"{index_path(path)}: the chunk at offset {offset} ({length} bytes) runs past "
+                                    f"the end of {path} ({len(data)} bytes)")
+        if offset > position:
+            yield None, None, data[position:offset]
+        yield dt.datetime.fromtimestamp(utc, dt.timezone.utc), mono, data[offset:offset + length]
+        position = offset + length
     if position < len(data):
         yield None, None, data[position:]

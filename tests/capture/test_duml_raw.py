@@ -21,10 +21,16 @@ def test_bytes_and_arrival_times(tmp_path):
     assert path.read_bytes() == b"abcdefghi"
     index = read_index(index_path(path))
     assert index.offsets.tolist() == [0, 3, 8] and index.lengths.tolist() == [3, 5, 1]
-    assert index.arrival_utc(0) == T0 and index.arrival_utc(2) == T0
-    assert index.arrival_utc(3) == T0 + dt.timedelta(seconds=0.2)
-    assert index.arrival_monotonic(8) == pytest.approx(100.3)
-    assert index.arrival_utc(9) is None and index.arrival_utc(-1) is None
+    chunks = list(read_capture_chunks(path))
+    assert [c[2] for c in chunks] == [b"abc", b"defgh", b"i"]
+    assert chunks[0][0] == T0 and chunks[1][0] == T0 + dt.timedelta(seconds=0.2)
+    assert chunks[2][1] == pytest.approx(100.3)
+
+
+def test_writer_creates_the_capture_folder(tmp_path):
+    path = tmp_path / "new" / "folder" / "flight.duml"
+    _write(path, [b"abc"])
+    assert path.read_bytes() == b"abc" and read_index(index_path(path)).lengths.tolist() == [3]
 
 
 def test_reopening_appends_and_cuts_a_torn_index_line(tmp_path):
@@ -56,3 +62,40 @@ def test_malformed_index_line_names_the_line(tmp_path):
         handle.write("3,not-a-time,1.0,2\n")
     with pytest.raises(CaptureIndexError, match=r"flight.duml.idx:3:"):
         read_index(index_path(path))
+
+
+def test_gap_left_by_a_kill_then_an_appending_rerun_is_passed_on_untimed(tmp_path):
+    path = tmp_path / "flight.duml"
+    _write(path, [b"abc"])
+    with open(path, "ab") as handle:
+        handle.write(b"de")  # killed between the data flush and its index line
+    _write(path, [b"fgh", b"ij"])  # the rerun appends: its offsets continue after the unindexed bytes
+    chunks = list(read_capture_chunks(path))
+    assert [c[2] for c in chunks] == [b"abc", b"de", b"fgh", b"ij"]
+    assert chunks[1][:2] == (None, None)
+    assert chunks[2][0] == T0 and chunks[3][1] == pytest.approx(100.1)  # the rerun's chunks keep their times
+
+
+@pytest.mark.parametrize("line, reason", [
+    (b"3,nan,1.0,2\n", "times must be finite"),
+    (b"3,1.0,inf,2\n", "times must be finite"),
+    (b"3,1.0,1.0,-2\n", "length >= 1"),
+    (b"-3,1.0,1.0,2\n", "offset must be >= 0"),
+    (b"1,1.0,1.0,2\n", "starts before the previous one ends at offset 3"),
+    (b"3,1.0,1.0,\xff2\n", "expected UTF-8 text .* byte 0xff at column 11"),
+])
+def test_bad_index_line_names_the_file_and_line(tmp_path, line, reason):
+    path = tmp_path / "flight.duml"
+    _write(path, [b"abc"])
+    with open(index_path(path), "ab") as handle:
+        handle.write(line)
+    with pytest.raises(CaptureIndexError, match=rf"flight.duml.idx:3: .*{reason}"):
+        read_index(index_path(path))
+
+
+def test_index_running_past_the_data_is_an_error(tmp_path):
+    path = tmp_path / "flight.duml"
+    _write(path, [b"abc", b"de"])
+    path.write_bytes(b"abcd")  # the data lost its last byte, the index did not
+    with pytest.raises(CaptureIndexError, match=r"flight.duml.idx: the chunk at offset 3 \(2 bytes\) runs past"):
+        list(read_capture_chunks(path))
