@@ -9,9 +9,7 @@ from __future__ import annotations
 import csv
 import datetime as dt
 import os
-import tempfile
 from dataclasses import fields
-from pathlib import Path
 from typing import Iterable, Iterator, NamedTuple
 
 import numpy as np
@@ -19,6 +17,7 @@ import numpy as np
 from capture.duml import Deframer, Packet
 from capture.messages import MalformedMessage, MessageRegistry, UndecodedMessage
 from capture.transports import Chunk
+from flightplan.atomic import atomic_path
 
 _HISTORY_BYTES = 4096  # > the 1023 bytes a deframer can hold back, so older chunks can be forgotten
 
@@ -103,24 +102,16 @@ class DecodeSummary(NamedTuple):
 def decode_to_csv(chunks: Iterable[Chunk], out_path: str | os.PathLike, registry: MessageRegistry) -> DecodeSummary:
     """Write one row per decoded telemetry message to ``out_path`` (atomically) and summarise."""
     deframer = Deframer()
-    out_path = Path(out_path)
     rows = 0
-    handle = tempfile.NamedTemporaryFile("w", newline="", encoding="utf-8", dir=out_path.parent or ".",
-                                         prefix=f".{out_path.name}.", suffix=".tmp", delete=False)
-    try:
-        with handle:
-            writer = csv.DictWriter(handle, fieldnames=csv_columns(registry), restval="")
-            writer.writeheader()
-            for timed in timed_packets(chunks, deframer):
-                record = registry.decode(timed.packet)
-                if isinstance(record, (UndecodedMessage, MalformedMessage)):
-                    continue
-                writer.writerow(telemetry_row(timed, registry.spec_for(record).kind, record))
-                rows += 1
-        os.replace(handle.name, out_path)
-    except BaseException:
-        os.unlink(handle.name)
-        raise
+    with atomic_path(out_path) as temporary, open(temporary, "w", newline="", encoding="utf-8") as handle:
+        writer = csv.DictWriter(handle, fieldnames=csv_columns(registry), restval="")
+        writer.writeheader()
+        for timed in timed_packets(chunks, deframer):
+            record = registry.decode(timed.packet)
+            if isinstance(record, (UndecodedMessage, MalformedMessage)):
+                continue
+            writer.writerow(telemetry_row(timed, registry.spec_for(record).kind, record))
+            rows += 1
     stats = deframer.stats
     return DecodeSummary(rows, dict(registry.counts), dict(stats.skipped_bytes), dict(stats.rejected_frames),
                          stats.bytes_fed, stats.packets)

@@ -141,3 +141,21 @@ def test_kill_9_mid_capture_leaves_a_readable_prefix(tmp_path):
     index = read_index(index_path(out))  # the kill may fall between a data flush and its index line
     assert index.offsets.tolist() == [sum(index.lengths[:i]) for i in range(len(index.offsets))]
     assert index.lengths.sum() <= len(kept)
+
+
+def test_decode_output_is_shared_readable_in_a_new_folder(tmp_path):
+    capture = tmp_path / "live.duml"
+    capture.write_bytes(frame("7_osd_general_p3x"))
+    out = tmp_path / "new" / "t.csv"
+    assert cli.main(["decode", str(capture), "--out", str(out)]) == 0
+    assert out.stat().st_mode & 0o777 == 0o644 and len(out.read_text().splitlines()) == 2
+
+
+def test_decode_onto_a_folder_names_the_target(tmp_path, capsys):
+    capture = tmp_path / "live.duml"
+    capture.write_bytes(frame("7_osd_general_p3x"))
+    (tmp_path / "t.csv").mkdir()
+    assert cli.main(["decode", str(capture), "--out", str(tmp_path / "t.csv")]) == 2
+    error = capsys.readouterr().err.splitlines()[-1]  # after the note that live.duml.idx is missing
+    assert error.endswith(f"Is a directory: '{tmp_path / 't.csv'}'")  # not the temporary's name
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["live.duml", "t.csv"]  # no temporary left
