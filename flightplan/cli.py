@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 from pathlib import Path
 
 from flightplan import checks, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
+from flightplan.argtypes import finite_number
 from flightplan.atomic import write_text_atomic
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.litchi import write_mission_csv
@@ -42,21 +42,14 @@ class _Parser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def _finite(text: str) -> float:
-    value = float(text)
-    if not math.isfinite(value):
-        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
-    return value
-
-
 def _ring(text: str) -> Ring:
     """``RADIUS:HEIGHT`` or ``RADIUS:HEIGHT:PITCH`` (metres, metres above take-off, degrees)."""
     parts = text.split(":")
     if len(parts) not in (2, 3):
         raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH], got {text!r}")
     try:
-        numbers = [_finite(p) for p in parts]
-    except (ValueError, argparse.ArgumentTypeError):
+        numbers = [finite_number(p) for p in parts]
+    except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH] with finite numbers, got {text!r}") from None
     return Ring(numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else None)
 
@@ -69,17 +62,17 @@ def build_parser() -> argparse.ArgumentParser:
         "Heights are metres above take-off.",
     )
     where = parser.add_argument_group("centre (WGS84 degrees)")
-    where.add_argument("--lat", type=_finite, metavar="DEG", help="latitude of the orbit centre / POI")
-    where.add_argument("--lon", type=_finite, metavar="DEG", help="longitude of the orbit centre / POI")
+    where.add_argument("--lat", type=finite_number, metavar="DEG", help="latitude of the orbit centre / POI")
+    where.add_argument("--lon", type=finite_number, metavar="DEG", help="longitude of the orbit centre / POI")
     where.add_argument(
         "--demo",
         action="store_true",
         help=f"centre on the built-in demo location ({DEMO_ORIGIN.lat0_deg}, {DEMO_ORIGIN.lon0_deg})",
     )
     orbit = parser.add_argument_group("orbit")
-    orbit.add_argument("--radius", type=_finite, metavar="M", help=f"metres (default {DEFAULT_RADIUS_M:g})")
+    orbit.add_argument("--radius", type=finite_number, metavar="M", help=f"metres (default {DEFAULT_RADIUS_M:g})")
     orbit.add_argument(
-        "--height", type=_finite, metavar="M", help=f"metres above take-off (default {DEFAULT_HEIGHT_M:g})"
+        "--height", type=finite_number, metavar="M", help=f"metres above take-off (default {DEFAULT_HEIGHT_M:g})"
     )
     orbit.add_argument(
         "--rings",
@@ -88,23 +81,23 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="R:H[:PITCH]",
         help="several rings instead of --radius/--height; PITCH fixes the gimbal (else it follows the POI)",
     )
-    orbit.add_argument("--speed-kmh", type=_finite, default=DEFAULT_SPEED_M_S * 3.6, metavar="KMH", help="default 2.5")
+    orbit.add_argument("--speed-kmh", type=finite_number, default=DEFAULT_SPEED_M_S * 3.6, metavar="KMH", help="default 2.5")
     orbit.add_argument(
-        "--interval", type=_finite, default=DEFAULT_PHOTO_INTERVAL_S, metavar="S", help="seconds between photos (default 1)"
+        "--interval", type=finite_number, default=DEFAULT_PHOTO_INTERVAL_S, metavar="S", help="seconds between photos (default 1)"
     )
     orbit.add_argument("--waypoints", type=int, metavar="N", help="per ring (default: the fewest within --tolerance)")
     orbit.add_argument(
         "--tolerance",
-        type=_finite,
+        type=finite_number,
         default=DEFAULT_DEVIATION_TOLERANCE_M,
         metavar="M",
         help="max deviation of the flown path from the circle (default 0.25)",
     )
     orbit.add_argument("--direction", choices=("cw", "ccw"), default="cw")
-    orbit.add_argument("--start-bearing", type=_finite, default=0.0, metavar="DEG", help="of the first waypoint (default 0)")
-    orbit.add_argument("--poi-height", type=_finite, default=0.0, metavar="M", help="above take-off (default 0)")
+    orbit.add_argument("--start-bearing", type=finite_number, default=0.0, metavar="DEG", help="of the first waypoint (default 0)")
+    orbit.add_argument("--poi-height", type=finite_number, default=0.0, metavar="M", help="above take-off (default 0)")
     orbit.add_argument(
-        "--legal-height", type=_finite, default=LEGAL_MAX_HEIGHT_M, metavar="M", help="above take-off (default 120: EU/US)"
+        "--legal-height", type=finite_number, default=LEGAL_MAX_HEIGHT_M, metavar="M", help="above take-off (default 120: EU/US)"
     )
     out = parser.add_argument_group("outputs")
     out.add_argument("--out", type=Path, required=True, metavar="CSV", help="Litchi CSV to write")

@@ -167,7 +167,7 @@ def feasible_waypoint_range(radius_m: float, max_waypoints: int) -> tuple[int, i
 
 
 def choose_waypoint_count(radius_m: float, tolerance_m: float, max_waypoints: int) -> int:
-    """The fewest waypoints whose sagitta is within ``tolerance_m``, clamped to the feasible range.
+    """The fewest feasible waypoints whose sagitta is within ``tolerance_m``, else the most feasible.
 
     Raises ``ValueError`` when no count is feasible (a circle too small for the leg rules or too large).
     """
@@ -177,10 +177,8 @@ def choose_waypoint_count(radius_m: float, tolerance_m: float, max_waypoints: in
             f"no feasible waypoint count for radius {radius_m} m: legs must be {MIN_PLANNED_LEG_M:.2f}-"
             f"{litchi.MAX_LEG_M:.0f} m and a ring holds at most {max_waypoints} waypoints"
         )
-    wanted = MIN_WAYPOINTS_PER_RING
-    if tolerance_m < radius_m:
-        wanted = math.ceil(math.pi / math.acos(1.0 - tolerance_m / radius_m) - 1e-9)
-    return int(min(max(wanted, fewest), most))
+    within_tolerance = (count for count in range(fewest, most + 1) if sagitta_m(radius_m, count) <= tolerance_m)
+    return next(within_tolerance, most)
 
 
 def gsd_at_center_m(camera: CameraProfile, radius_m: float, height_above_poi_m: float) -> float:

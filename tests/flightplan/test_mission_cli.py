@@ -41,6 +41,8 @@ def test_rings_and_options(tmp_path, capsys):
     [
         (["--lat", "91", "--lon", "0"], "latitude must be within"),
         (["--lat", "nan", "--lon", "0"], "expected a finite number"),
+        (["--lat", "north", "--lon", "0"], "argument --lat: expected a finite number, got 'north'"),
+        (["--lat", "10", "--lon", "0", "--tolerance", "0"], "deviation tolerance must be positive"),
         (["--lat", "10", "--lon", "0", "--radius", "0"], "radius must be a positive"),
         (["--lat", "10", "--lon", "0", "--radius", "-3"], "radius must be a positive"),
         (["--lat", "10", "--lon", "0", "--speed-kmh", "60"], "DJI Mini SE speed (m/s) 16.6667"),

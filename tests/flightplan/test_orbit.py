@@ -182,3 +182,10 @@ def test_property_random_orbits(lat, lon, radius, direction, start):
     assert checks.check_litchi_limits(plan.mission) == []
     if not plan.notes:
         assert plan.max_deviation_m <= plan.request.deviation_tolerance_m + 1e-3
+
+
+def test_a_tolerance_below_rounding_gives_the_most_waypoints_not_a_crash():
+    from flightplan.orbit import choose_waypoint_count, feasible_waypoint_range
+
+    for tolerance in (1e-15, 5e-324):
+        assert choose_waypoint_count(50.0, tolerance, 98) == feasible_waypoint_range(50.0, 98)[1] == 98

@@ -1,0 +1,30 @@
+"""Argparse ``type=`` functions for numbers, shared by the command-line tools.
+
+Each returns a float or raises ``argparse.ArgumentTypeError`` saying what was expected, so argparse reports
+``argument --x: expected ..., got 'text'`` instead of ``invalid <function name> value``. NaN and infinities
+are rejected: ``float()`` accepts them, and they break every later comparison.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def finite_number(text: str) -> float:
+    """A finite float."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def positive_number(text: str) -> float:
+    """A finite float above zero."""
+    value = finite_number(text)
+    if value <= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
