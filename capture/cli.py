@@ -20,10 +20,11 @@ from capture.decode import decode_to_csv
 from capture.messages import default_registry
 from capture.raw import CaptureIndexError, RawCaptureWriter, index_path
 from capture.recorder import record, stop_after
-from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource,
+from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
+from flightplan.argtypes import positive_number
 
-# Modules that add subcommands with ``register(subparsers)``; a listed module that does not exist yet is skipped.
+
 class CliError(Exception):
     """Bad user input: printed as one line, exit code 2."""
 
@@ -34,7 +35,8 @@ def add_record_parser(subparsers) -> None:
                         help="serial path or pyserial URL (loop://, socket://host:port, rfc2217://...), "
                              "usb[:VID:PID] (hex) for the DUML bulk interface, or hid:VID:PID")
     parser.add_argument("--baud", type=int, default=115200, help="serial baud rate (default 115200)")
-    parser.add_argument("--duration", type=float, default=None, help="seconds to record (default: until Ctrl-C)")
+    parser.add_argument("--duration", type=positive_number, default=None,
+                        help="seconds to record (default: until Ctrl-C)")
     parser.add_argument("--out", required=True, type=Path, help="raw capture NAME.duml (appended if it exists)")
     parser.set_defaults(handler=run_record)
 
@@ -87,16 +89,15 @@ def open_source(port: str, baud: int):
 def _parse_ids(port: str, ids: str, allow_empty: bool) -> tuple[int, int | None]:
     if not ids and allow_empty:
         return DJI_VENDOR_ID, None
+    kind = port.split(":")[0]
     try:
         vendor, product = (int(part, 16) for part in ids.split(":"))
     except ValueError:
-        raise CliError(f"--port {port!r}: expected {port.split(':')[0]}:VID:PID with hex ids, e.g. usb:2ca3:001f")
+        raise CliError(f"--port {port!r}: expected {kind}:VID:PID with hex ids, e.g. {kind}:2ca3:001f") from None
     return vendor, product
 
 
 def run_record(args) -> int:
-    if args.duration is not None and args.duration <= 0:
-        raise CliError(f"--duration {args.duration}: expected a positive number of seconds")
     source = open_source(args.port, args.baud)
     source.open()  # fail before creating any file
     stop = stop_after(args.duration)
@@ -113,7 +114,8 @@ def run_decode(args) -> int:
         raise CliError(f"{args.input}: no such file")
     if not is_pcap(args.input) and not index_path(args.input).exists():
         print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
-    summary = decode_to_csv(replay_file(args.input), args.out, default_registry())
+    problems: list[str] = []
+    summary = decode_to_csv(replay_file(args.input, problems), args.out, default_registry())
     if summary.bytes_read and not summary.packets:
         args.out.unlink(missing_ok=True)
         raise CliError(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
@@ -123,6 +125,8 @@ def run_decode(args) -> int:
     print("skipped bytes: " + ", ".join(f"{reason} {count}" for reason, count in summary.skipped_bytes.items()))
     print("rejected frames: " + ", ".join(f"{reason} {count}" for reason, count in summary.rejected_frames.items()
                                           if reason != "no_sync"))
+    for problem in problems:
+        print(f"note: {problem}", file=sys.stderr)
     return 0
 
 
@@ -149,7 +153,7 @@ def _usb_lines(backend) -> list[str]:
         try:
             endpoint = f"DUML bulk IN 0x{find_duml_bulk_in(device).bEndpointAddress:02x}"
         except (usb.core.USBError, ValueError) as error:
-            endpoint = f"no DUML bulk interface found ({error})"
+            endpoint = f"no DUML bulk interface found ({error_text(error)})"
         lines.append(f"usb:{device.idVendor:04x}:{device.idProduct:04x}  bus {device.bus} address {device.address}"
                      f"  {endpoint}")
     return lines or ["(none)"]

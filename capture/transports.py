@@ -42,6 +42,13 @@ class TransportError(RuntimeError):
     """A device or file that cannot be opened or read (one-line, user-facing message)."""
 
 
+def error_text(error: BaseException) -> str:
+    """The message of ``error`` without the ``[Errno None]`` that pyusb's USBError (an OSError) puts first."""
+    if isinstance(error, OSError) and error.errno is None and error.strerror:
+        return error.strerror
+    return str(error)
+
+
 class Clock:
     """Host clocks; injectable so tests can control time."""
 
@@ -97,7 +104,7 @@ class LiveSource:
         try:
             self.connection = self._open()
         except self.disconnect_errors as error:
-            raise TransportError(f"cannot open {self.description}: {error}") from None
+            raise TransportError(f"cannot open {self.description}: {error_text(error)}") from None
 
     def chunks(self, stop: threading.Event | None = None) -> Iterator[Chunk]:
         """Yield chunks until ``stop`` is set; ``self.connection`` is the open device meanwhile."""
@@ -206,7 +213,7 @@ class UsbBulkSource(LiveSource):
                 _ensure_configured(device)
                 return _UsbLink(device, find_duml_bulk_in(device))
             except (usb.core.USBError, ValueError) as error:
-                problems.append(str(error))
+                problems.append(f"bus {device.bus} address {device.address}: {error_text(error)}")
         raise usb.core.USBError("; ".join(problems))
 
     def _read(self, link: _UsbLink) -> bytes:
@@ -224,7 +231,10 @@ def _ensure_configured(device: usb.core.Device) -> None:
     try:
         device.get_active_configuration()
     except usb.core.USBError:
-        device.set_configuration()
+        try:
+            device.set_configuration()
+        except usb.core.USBError as error:
+            raise usb.core.USBError(f"cannot select its configuration ({error_text(error)})") from None
 
 
 def find_duml_bulk_in(device: usb.core.Device) -> usb.core.Endpoint:
@@ -278,13 +288,16 @@ def hidapi_opener(vendor_id: int, product_id: int) -> Callable[[], object]:
     return open_device
 
 
-def replay_file(path: str | Path) -> Iterator[Chunk]:
-    """Chunks of a raw capture (``.duml`` + ``.idx``) or a pcap with link type 150, as they were received."""
+def replay_file(path: str | Path, problems: list[str] | None = None) -> Iterator[Chunk]:
+    """Chunks of a raw capture (``.duml`` + ``.idx``) or a pcap with link type 150, as they were received.
+
+    A pcap's cut-short last record is passed on as far as it goes and described in ``problems`` (when given).
+    """
     path = Path(path)
     if not path.is_file():
         raise TransportError(f"{path}: no such file")
     if is_pcap(path):
-        return read_pcap(path)
+        return read_pcap(path, problems)
     return (Chunk(*chunk) for chunk in read_capture_chunks(path))
 
 
@@ -296,26 +309,45 @@ def is_pcap(path: str | Path) -> bool:
 
 _PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6),
                b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9)}
+_PCAP_HEADER_BYTES = 24
+_PCAP_RECORD = {"<": struct.Struct("<4I"), ">": struct.Struct(">4I")}  # seconds, fraction, captured, original
 
 
-def read_pcap(path: str | Path) -> Iterator[Chunk]:
-    """Records of a classic pcap holding DUML (link type 150); the monotonic time counts from the first."""
+def read_pcap(path: str | Path, problems: list[str] | None = None) -> Iterator[Chunk]:
+    """Records of a classic pcap holding DUML (link type 150); the monotonic time counts from the first.
+
+    A file cut short inside its last record (a capture killed mid-write) yields that record's bytes that are
+    there, then stops, and appends one line saying so to ``problems``. TransportError for a file that is not
+    a pcap, whose header is cut short, or whose link type is not DUML.
+    """
     data = Path(path).read_bytes()
     endian, tick = _PCAP_MAGIC.get(data[:4], (None, None))
-    if endian is None or len(data) < 24:
+    if endian is None:
         raise TransportError(f"{path}: not a pcap file (magic {data[:4].hex()})")
+    if len(data) < _PCAP_HEADER_BYTES:
+        raise TransportError(f"{path}: pcap file header cut short ({len(data)} of {_PCAP_HEADER_BYTES} bytes)")
     linktype = struct.unpack_from(endian + "I", data, 20)[0]
     if linktype != PCAP_LINKTYPE_DUML:
         raise TransportError(f"{path}: pcap link type {linktype}, expected {PCAP_LINKTYPE_DUML} (DUML, DLT_USER3)")
-    record = struct.Struct(endian + "4I")
-    position, first = 24, None
-    while position + record.size <= len(data):
+    record = _PCAP_RECORD[endian]
+    position, first = _PCAP_HEADER_BYTES, None
+    while position < len(data):
+        if position + record.size > len(data):
+            _note(problems, f"{path}: truncated record at byte {position}: its header is cut short "
+                            f"({len(data) - position} of {record.size} bytes), dropped")
+            return
         seconds, fraction, captured, _ = record.unpack_from(data, position)
-        position += record.size
-        if position + captured > len(data):
-            raise TransportError(f"{path}: record at byte {position - record.size} is cut short")
         stamp = seconds + fraction * tick
         first = stamp if first is None else first
-        yield Chunk(dt.datetime.fromtimestamp(stamp, dt.timezone.utc), stamp - first,
-                    data[position:position + captured])
-        position += captured
+        payload = data[position + record.size:position + record.size + captured]
+        yield Chunk(dt.datetime.fromtimestamp(stamp, dt.timezone.utc), stamp - first, payload)
+        if len(payload) < captured:
+            _note(problems, f"{path}: truncated record at byte {position}: {len(payload)} of {captured} bytes "
+                            "there, kept")
+            return
+        position += record.size + captured
+
+
+def _note(problems: list[str] | None, problem: str) -> None:
+    if problems is not None:
+        problems.append(problem)

@@ -13,10 +13,7 @@ import math
 
 def finite_number(text: str) -> float:
     """A finite float."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
+    value = _float_or_nan(text)
     if not math.isfinite(value):
         raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
     return value
@@ -24,7 +21,14 @@ def finite_number(text: str) -> float:
 
 def positive_number(text: str) -> float:
     """A finite float above zero."""
-    value = finite_number(text)
-    if value <= 0.0:
+    value = _float_or_nan(text)
+    if not (math.isfinite(value) and value > 0.0):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def _float_or_nan(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan

@@ -62,11 +62,13 @@ def read_duml_track(path, *, shutter_signal: str = "photo_state") -> Track:
                              "only from that index (write captures with 'aerostereo-ingest record', or read a pcap)")
     registry, deframer = default_registry(), Deframer()
     builder = TrackBuilder(ReadReport(str(path), "duml"), shutter_signal)
+    truncation: list[str] = []
     try:
-        for timed in timed_packets(replay_file(path), deframer):
+        for timed in timed_packets(replay_file(path, truncation), deframer):
             builder.add(timed, registry.decode(timed.packet))
     except (TransportError, CaptureIndexError) as error:
         raise LogFormatError(str(error)) from None
+    builder.report.notes.extend(truncation)
     if deframer.stats.packets == 0:
         raise LogFormatError(f"{path}: no DUML frame found in {deframer.stats.bytes_fed} bytes "
                              "(not a DUML capture?)")

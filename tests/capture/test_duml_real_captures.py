@@ -82,3 +82,27 @@ def test_pcap_with_wrong_link_type_is_rejected(tmp_path, shared_data):
     path.write_bytes(bytes(data))
     with pytest.raises(TransportError, match="link type 1, expected 150"):
         list(replay_file(path))
+
+
+def test_pcap_cut_short_in_its_last_record_keeps_what_is_there(tmp_path, shared_data):
+    whole = _pcap(shared_data, "run1").read_bytes()
+    records = list(read_pcap(_pcap(shared_data, "run1")))
+    first_two = 24 + 2 * 16 + len(records[0].data) + len(records[1].data)
+    path = tmp_path / "killed.pcap"
+    path.write_bytes(whole[:first_two + 16 + 5])  # the third record's header and 5 of its bytes
+    problems = []
+    chunks = list(replay_file(path, problems))
+    assert [c.data for c in chunks] == [records[0].data, records[1].data, records[2].data[:5]]
+    assert problems == [f"{path}: truncated record at byte {first_two}: 5 of {len(records[2].data)} bytes there, kept"]
+    path.write_bytes(whole[:first_two + 7])  # cut inside the third record's header
+    problems = []
+    assert len(list(replay_file(path, problems))) == 2
+    assert problems == [f"{path}: truncated record at byte {first_two}: its header is cut short (7 of 16 bytes), "
+                        "dropped"]
+
+
+def test_pcap_with_a_cut_short_file_header_says_so(tmp_path, shared_data):
+    path = tmp_path / "short.pcap"
+    path.write_bytes(_pcap(shared_data, "run1").read_bytes()[:10])
+    with pytest.raises(TransportError, match=r"short.pcap: pcap file header cut short \(10 of 24 bytes\)"):
+        list(replay_file(path))

@@ -136,7 +136,16 @@ def test_usb_device_found_by_vendor_and_duml_interface():
 
 def test_usb_missing_device_is_a_clear_error():
     source = UsbBulkSource(product_id=0x9999, backend=FakeUsbBackend())
-    with pytest.raises(TransportError, match="cannot open USB device 2ca3:9999: .*no such device connected"):
+    with pytest.raises(TransportError, match=r"^cannot open USB device 2ca3:9999: no such device connected$"):
+        next(source.chunks())
+
+
+def test_usb_device_without_duml_interface_names_the_device_not_errno():
+    backend = FakeUsbBackend()
+    backend.interfaces[1].bInterfaceSubClass = 0x42  # not the DUML interface
+    source = UsbBulkSource(backend=backend)
+    with pytest.raises(TransportError, match=r"^cannot open USB device 2ca3:\*: bus 1 address 5: device 2ca3:001f has "
+                                             r"no DUML bulk interface"):
         next(source.chunks())
 
 

@@ -159,3 +159,27 @@ def test_decode_onto_a_folder_names_the_target(tmp_path, capsys):
     error = capsys.readouterr().err.splitlines()[-1]  # after the note that live.duml.idx is missing
     assert error.endswith(f"Is a directory: '{tmp_path / 't.csv'}'")  # not the temporary's name
     assert sorted(p.name for p in tmp_path.iterdir()) == ["live.duml", "t.csv"]  # no temporary left
+
+
+@pytest.mark.parametrize("duration", ["nan", "inf", "-1", "0", "soon"])
+def test_record_duration_must_be_a_positive_finite_number(tmp_path, capsys, duration):
+    with pytest.raises(SystemExit) as exit_:
+        cli.main(["record", "--port", "loop://", "--duration", duration, "--out", str(tmp_path / "x.duml")])
+    assert exit_.value.code == 2 and not list(tmp_path.iterdir())
+    assert (f"aerostereo-ingest record: error: argument --duration: expected a positive number, got {duration!r}"
+            in capsys.readouterr().err)
+
+
+def test_hid_port_with_bad_ids_shows_a_hid_example(capsys):
+    assert cli.main(["record", "--port", "hid:dji", "--out", "x.duml"]) == 2
+    assert "expected hid:VID:PID with hex ids, e.g. hid:2ca3:001f" in capsys.readouterr().err
+
+
+def test_decode_of_a_pcap_cut_short_keeps_its_records_and_notes_the_cut(shared_data, tmp_path, capsys):
+    whole = (shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run1.pcap").read_bytes()
+    pcap = tmp_path / "killed.pcap"
+    pcap.write_bytes(whole[:-3])
+    assert cli.main(["decode", str(pcap), "--out", str(tmp_path / "t.csv")]) == 0
+    captured = capsys.readouterr()
+    assert "4650 packets" in captured.out  # the last frame lost its CRC bytes, the rest decode
+    assert f"note: {pcap}: truncated record at byte " in captured.err

@@ -306,6 +306,14 @@ def test_real_pcaps_read_as_attitude_only_tracks(shared_data, run, gimbal_rows, 
     assert "skipped bytes: none" in track.report.notes[0]
 
 
+def test_pcap_cut_short_is_read_up_to_the_cut_with_a_note(shared_data, tmp_path):
+    path = tmp_path / "killed.pcap"
+    path.write_bytes((shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run1.pcap").read_bytes()[:-3])
+    track = read_track(path)
+    assert len(track) == 1168  # every gimbal row: the cut last frame is an undecoded one
+    assert f"{path}: truncated record at byte 250996: 35 of 38 bytes there, kept" in track.report.notes
+
+
 def test_geotag_with_a_pcap_without_fix_is_a_clear_error(shared_data, tmp_path, capsys):
     (tmp_path / "photos").mkdir()
     write_jpeg(tmp_path / "photos" / "IMG_0000.JPG", 1513801780.0, 54.37, 18.56)
