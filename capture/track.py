@@ -21,6 +21,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from flightplan.atomic import write_text_atomic
+from flightplan.geodesy import validate_latlon
 
 # Column name -> meaning (unit, frame). Heights: above take-off (barometric/relative) and "absolute" as the
 # source calls it (DJI AbsoluteAltitude, Airdata altitude above sea level...). Angles: DJI NED ZYX degrees,
@@ -82,6 +83,18 @@ class ReadReport:
         if self.rejected:
             text += "; rejected " + ", ".join(f"{n} {reason}" for reason, n in self.reasons().most_common())
         return text
+
+
+def position_problem(lat_deg: float, lon_deg: float) -> str | None:
+    """Why a WGS84 position (degrees) cannot be used, as a reject reason, or None when it can.
+
+    Every log reader checks its positions here, so a reason reads the same whatever the source.
+    """
+    try:
+        validate_latlon(lat_deg, lon_deg)
+    except ValueError as error:
+        return f"position out of range: {error}"
+    return None
 
 
 @dataclass(frozen=True)

@@ -41,7 +41,7 @@ from ..duml import Deframer, DeframerStats
 from ..messages import (CameraState, GimbalParams, HomePoint, MalformedMessage, MessageRegistry, OsdGeneral,
                         default_registry, is_shutter_edge)
 from ..raw import CaptureIndexError, index_path
-from ..track import Home, LogFormatError, ReadReport, Track
+from ..track import Home, LogFormatError, ReadReport, Track, position_problem
 from ..transports import TransportError, is_pcap, replay_file
 
 TELEMETRY = (OsdGeneral, GimbalParams, HomePoint, CameraState)
@@ -141,8 +141,8 @@ class TrackBuilder:
     def add_osd(self, time_s: float, osd: OsdGeneral, where: str) -> None:
         if not osd.has_fix:
             return self.reject(f"no GPS fix: OSD {where} has lat/lon exactly 0 ({osd.gps_satellites} satellites)")
-        if abs(osd.latitude_deg) > 90.0 or abs(osd.longitude_deg) > 180.0:
-            return self.reject(f"position out of range: OSD {where} lat {osd.latitude_deg}, lon {osd.longitude_deg}")
+        if problem := position_problem(osd.latitude_deg, osd.longitude_deg):
+            return self.reject(f"{problem} (OSD {where})")
         self.add_row(time_s, osd_row(osd))
 
     def add_home(self, home: HomePoint, where: str) -> None:

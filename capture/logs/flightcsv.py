@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..attitude import wrap_deg
-from ..track import Home, LogFormatError, ReadReport, Track, parse_utc
+from ..track import Home, LogFormatError, ReadReport, Track, parse_utc, position_problem
 
 LENGTH_TO_M = {"feet": 0.3048, "ft": 0.3048, "m": 1.0, "meters": 1.0, "metres": 1.0, "meter": 1.0, "metre": 1.0}
 SPEED_TO_M_S = {"mph": 0.44704, "mps": 1.0, "m/s": 1.0, "kmh": 1 / 3.6, "km/h": 1 / 3.6, "kph": 1 / 3.6,
@@ -178,8 +178,8 @@ def parse_rows(path, lines, header, columns, time_col, elapsed_col, flag_col, re
         if not (math.isfinite(row["lat_deg"]) and math.isfinite(row["lon_deg"])):
             report.reject(line_no, "missing latitude/longitude")
             continue
-        if not (-90 <= row["lat_deg"] <= 90 and -180 <= row["lon_deg"] <= 360):
-            report.reject(line_no, f"latitude/longitude out of range: ({row['lat_deg']}, {row['lon_deg']})")
+        if problem := position_problem(row["lat_deg"], row["lon_deg"]):
+            report.reject(line_no, problem)
             continue
         for name, value in row.items():
             out[name].append(value)

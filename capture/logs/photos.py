@@ -19,7 +19,7 @@ from defusedxml import ElementTree as SafeET
 from PIL import ExifTags, Image, UnidentifiedImageError
 
 from ..attitude import wrap_deg
-from ..track import LogFormatError, ReadReport, Track
+from ..track import LogFormatError, ReadReport, Track, position_problem
 
 DRONE_DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 PHOTO_SUFFIXES = (".jpg", ".jpeg")
@@ -71,7 +71,16 @@ def read_photo(path) -> PhotoInfo:
             info.values.update(parse_dji_xmp(xmp))
         except ValueError as error:
             info.problems.append(f"XMP: {error}")
+    drop_unusable_position(info)
     return info
+
+
+def drop_unusable_position(info: PhotoInfo) -> None:
+    """Remove a latitude/longitude (EXIF GPS, or XMP over it) outside WGS84 ranges, noting why in ``problems``."""
+    if "lat_deg" in info.values and "lon_deg" in info.values:
+        if problem := position_problem(info.values["lat_deg"], info.values["lon_deg"]):
+            info.problems.append(f"GPS: {problem}, ignored")
+            del info.values["lat_deg"], info.values["lon_deg"]
 
 
 def read_exif_time(exif: Image.Exif, info: PhotoInfo) -> None:

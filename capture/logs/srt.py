@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from ..attitude import wrap_deg
-from ..track import Home, LogFormatError, ReadReport, Track
+from ..track import Home, LogFormatError, ReadReport, Track, position_problem
 
 NUMBER = r"[-+]?\d+(?:\.\d+)?"
 TIMECODE = re.compile(r"^(\d+):(\d{2}):(\d{2})[,.](\d{1,3})\s*-->\s*(\d+):(\d{2}):(\d{2})[,.](\d{1,3})$")
@@ -121,8 +121,8 @@ def parse_cue(lines: list[str]) -> tuple[dict, tuple[float, float, float] | None
         row.update({f"{prefix}_pitch_deg": pitch, f"{prefix}_roll_deg": roll, f"{prefix}_yaw_deg": float(wrap_deg(yaw))})
     if "lat_deg" not in row or "lon_deg" not in row:
         raise ValueError(f"no position (GPS(...) or [latitude]/[longitude]) in cue: {data[:60]!r}")
-    if not (-90 <= row["lat_deg"] <= 90 and -180 <= row["lon_deg"] <= 360):
-        raise ValueError(f"position out of range: lat {row['lat_deg']}, lon {row['lon_deg']}")
+    if problem := position_problem(row["lat_deg"], row["lon_deg"]):
+        raise ValueError(problem)
     if "cue_s" not in row and "date_s" not in row:
         raise ValueError("cue has neither a timecode nor a date line")
     return row, home

@@ -108,3 +108,11 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(shared_data, tmp_path, 
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("aerostereo-ingest: error: ") and message in err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_photo_position_out_of_range_is_ignored_and_said_why(tmp_path):
+    write_jpeg(tmp_path / "IMG_0000.JPG", 1.7e9, 95.0, 18.5)  # 95 degrees north
+    photo = read_photo(tmp_path / "IMG_0000.JPG")
+    assert "lat_deg" not in photo.values and "lon_deg" not in photo.values
+    assert photo.problems == ["GPS: position out of range: latitude must be within [-90, 90] degrees, got 95.0, "
+                              "ignored"]
