@@ -71,8 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return args.handler(args)
     except (CliError, TransportError, CaptureIndexError, OSError) as error:
-        print(f"aerostereo-ingest {args.command}: error: {error}", file=sys.stderr)
-        return 2
+        return cli_logs.report_error(args.command, error)
 
 
 def open_source(port: str, baud: int):

@@ -1,7 +1,8 @@
 """``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
 
 ``register(subparsers)`` adds both; each sets ``handler`` to a function taking the parsed args and returning an
-exit code (0 ok, 2 bad input: one line on stderr, nothing written).
+exit code (0 ok, 2 bad input: one line on stderr, nothing written). :func:`report_error` writes that line for
+every ``aerostereo-ingest`` subcommand.
 """
 
 from __future__ import annotations
@@ -10,11 +11,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from flightplan.argtypes import finite_number, positive_number
+
 from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
-from .geotag_io import load_geotags, write_colmap_reference, write_exif_copies, write_geotags
+from .geotag_io import geotag_paths, load_geotags, write_colmap_reference, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
 from .logs.photos import read_photos
-from .track import LogFormatError, parse_utc
+from .track import LogFormatError, ReadReport, parse_utc
 
 EXIT_BAD_INPUT = 2
 
@@ -28,7 +31,7 @@ def register(subparsers) -> None:
                              "or a folder of photos); repeatable")
     geotag.add_argument("--clock-offset", default="auto", type=parse_clock_offset,
                         help="'auto' (default) or seconds to add to the camera clock to get telemetry UTC")
-    geotag.add_argument("--max-gap", type=float, default=DEFAULT_MAX_GAP_S,
+    geotag.add_argument("--max-gap", type=positive_number, default=DEFAULT_MAX_GAP_S,
                         help="longest telemetry gap (s) to interpolate across (default %(default)s)")
     add_time_options(geotag)
     geotag.add_argument("--out", required=True, help="geotags.csv to write (the .json sidecar goes beside it)")
@@ -51,17 +54,18 @@ def register(subparsers) -> None:
 def add_time_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start-time", type=parse_time_arg,
                         help="UTC start (ISO 8601) of SRT logs that carry no date (e.g. a Mini's video)")
-    parser.add_argument("--srt-utc-offset", type=float, default=0.0,
+    parser.add_argument("--srt-utc-offset", type=finite_number, default=0.0,
                         help="UTC offset (hours) of the aircraft clock in dated SRT files (default 0)")
 
 
 def parse_clock_offset(text: str):
+    """``'auto'`` or a finite number of seconds."""
     if text == "auto":
         return text
     try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
+        return finite_number(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or a finite number of seconds, got {text!r}") from None
 
 
 def parse_time_arg(text: str) -> float:
@@ -71,8 +75,9 @@ def parse_time_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected an ISO 8601 time like 2021-09-06T02:23:48Z, got {text!r}") from None
 
 
-def fail(message: str) -> int:
-    print(f"aerostereo-ingest: error: {message}", file=sys.stderr)
+def report_error(command: str, message) -> int:
+    """Print ``aerostereo-ingest COMMAND: error: MESSAGE`` (argparse's own form) on stderr; the exit code."""
+    print(f"aerostereo-ingest {command}: error: {message}", file=sys.stderr)
     return EXIT_BAD_INPUT
 
 
@@ -83,29 +88,29 @@ def read_logs(args) -> list:
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset."""
     try:
+        geotag_paths(args.out)  # a bad --out fails before the logs are read
         tracks = read_logs(args)
         photos, photo_report = read_photos(args.photos)
         if not photos:
-            return fail(f"{args.photos}: no readable JPEG photos")
+            return report_error(args.command, f"{args.photos}: no readable JPEG photos")
         result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap)
         if not result.tags:
             reasons = "; ".join(f"{name}: {reason}" for name, reason in result.untagged[:3])
-            return fail(f"no photo could be geotagged ({reasons})")
+            return report_error(args.command, f"no photo could be geotagged ({reasons})")
         exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
         if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
-            return fail(f"{exif_dir}: refusing to overwrite the original photos; choose another --exif-dir")
+            return report_error(args.command, f"{exif_dir}: refusing to overwrite the original photos; "
+                                              "choose another --exif-dir")
         csv_path, json_path = write_geotags(result, args.out)
         if args.colmap_ref:
             write_colmap_reference(load_geotags(csv_path), args.colmap_ref)
         if args.write_exif:
             write_exif_copies(result, args.photos, exif_dir)
     except (LogFormatError, ValueError, OSError) as error:
-        return fail(str(error))
+        return report_error(args.command, error)
     sources = {report.source for report in result.sources}
     for report in [*result.sources, *([photo_report] if photo_report.source not in sources else [])]:
-        print(report.summary())
-        for note in report.notes:
-            print(f"  note: {note}")
+        print_report(report)
     print(result.clock.summary())
     for note in result.notes:
         print(f"note: {note}")
@@ -115,10 +120,21 @@ def run_geotag(args) -> int:
     return 0
 
 
+def print_report(report: ReadReport, shown_rejects: int = 20) -> None:
+    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line."""
+    print(report.summary())
+    for note in report.notes:
+        print(f"  note: {note}")
+    for problem in report.rejected[:shown_rejects]:
+        print(f"  rejected {problem}")
+    if len(report.rejected) > shown_rejects:
+        print(f"  ... and {len(report.rejected) - shown_rejects} more rejected")
+
+
 def run_track(args) -> int:
     """Read one log, print its report, export CSV and/or KML."""
     if not args.out and not args.kml:
-        return fail("give --out track.csv and/or --kml track.kml")
+        return report_error(args.command, "give --out track.csv and/or --kml track.kml")
     try:
         track = read_track(args.file, kind=args.kind, start_time_s=args.start_time,
                            srt_utc_offset_h=args.srt_utc_offset)
@@ -127,12 +143,8 @@ def run_track(args) -> int:
         if args.kml:
             track.write_kml(args.kml)
     except (LogFormatError, ValueError, OSError) as error:
-        return fail(str(error))
-    print(track.report.summary())
-    for note in track.report.notes:
-        print(f"  note: {note}")
-    for problem in track.report.rejected[:20]:
-        print(f"  rejected {problem}")
+        return report_error(args.command, error)
+    print_report(track.report)
     print(f"{len(track)} rows, {len(track.photo_times_s)} photo events, clock {track.clock}, "
           f"fields: {', '.join(sorted(track.fields))}")
     return 0

@@ -7,6 +7,7 @@ with the ENU camera position, ``R_world_cam`` (ENU <- OpenCV camera) and the ENU
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 from dataclasses import dataclass
@@ -46,6 +47,15 @@ def sidecar_path(csv_path) -> Path:
     return Path(csv_path).with_suffix(".json")
 
 
+def geotag_paths(csv_path) -> tuple[Path, Path]:
+    """``(csv_path, its sidecar)``; ValueError when they are the same file (``--out geotags.json``)."""
+    csv_path = Path(csv_path)
+    if sidecar_path(csv_path) == csv_path:
+        raise ValueError(f"{csv_path}: the geotags CSV would overwrite its own .json sidecar; name it e.g. "
+                         f"{csv_path.with_suffix('.csv').name}")
+    return csv_path, sidecar_path(csv_path)
+
+
 def tag_row(tag: Geotag, offset_s: float) -> list[str]:
     """One CSV row (strings) for a geotag, in GEOTAG_COLUMNS order."""
     quaternion = [math.nan] * 4
@@ -59,10 +69,12 @@ def tag_row(tag: Geotag, offset_s: float) -> list[str]:
 
 
 def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
-    """Write ``geotags.csv`` and its ``.json`` sidecar atomically; returns both paths."""
-    csv_path = Path(csv_path)
-    lines = [",".join(GEOTAG_COLUMNS)]
-    lines += [",".join(csv_cell(c) for c in tag_row(tag, result.clock.offset_s)) for tag in result.tags]
+    """Write ``geotags.csv``, then its ``.json`` sidecar, each atomically; returns both paths."""
+    csv_path, json_path = geotag_paths(csv_path)
+    table = io.StringIO()
+    writer = csv.writer(table, lineterminator="\n")
+    writer.writerow(GEOTAG_COLUMNS)
+    writer.writerows(tag_row(tag, result.clock.offset_s) for tag in result.tags)
     sidecar = {
         "origin": result.origin.to_dict(),
         "origin_height_known": result.origin_height_known,
@@ -74,15 +86,9 @@ def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
         "untagged": [{"image_name": name, "reason": reason} for name, reason in result.untagged],
         "notes": result.notes,
     }
-    json_path = sidecar_path(csv_path)
+    write_text_atomic(csv_path, table.getvalue())
     write_text_atomic(json_path, json.dumps(sidecar, indent=2) + "\n")
-    write_text_atomic(csv_path, "\n".join(lines) + "\n")
     return csv_path, json_path
-
-
-def csv_cell(text: str) -> str:
-    """Quote a cell only if it needs it (commas, quotes)."""
-    return '"' + text.replace('"', '""') + '"' if ("," in text or '"' in text) else text
 
 
 def load_geotags(csv_path) -> list[PosePrior]:

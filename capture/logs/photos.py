@@ -178,7 +178,7 @@ def read_photos(folder) -> tuple[list[PhotoInfo], ReadReport]:
         try:
             photo = read_photo(path)
         except LogFormatError as error:
-            report.reject(None, str(error))
+            report.reject(None, f"unreadable photo: {error}")
             continue
         for problem in photo.problems:
             report.notes.append(f"{path.name}: {problem}")
@@ -193,7 +193,7 @@ def read_photos_track(folder) -> Track:
     timed = [p for p in photos if math.isfinite(p.exif_time_s) and {"lat_deg", "lon_deg"} <= set(p.values)]
     for photo in photos:
         if photo not in timed:
-            report.reject(None, f"{photo.path}: no EXIF time or no GPS position")
+            report.reject(None, f"no EXIF time or no GPS position: {photo.path}")
     report.rows_used = len(timed)
     if not timed:
         raise LogFormatError(f"{folder}: no photo with both an EXIF time and a GPS position")

@@ -106,8 +106,42 @@ def test_bad_input_is_one_line_exit_2_and_writes_nothing(shared_data, tmp_path, 
     argv = [a.format(data=shared_data, tmp=tmp_path) for a in argv]
     assert run(argv) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("aerostereo-ingest: error: ") and message in err
+    assert err.count("\n") == 1 and err.startswith(f"aerostereo-ingest {argv[0]}: error: ") and message in err
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("option, value, expected", [
+    ("--clock-offset", "nan", "expected 'auto' or a finite number of seconds, got 'nan'"),
+    ("--max-gap", "nan", "expected a positive number, got 'nan'"),
+    ("--max-gap", "-1", "expected a positive number, got '-1'"),
+    ("--srt-utc-offset", "inf", "expected a finite number, got 'inf'"),
+])
+def test_geotag_number_options_reject_nan_and_out_of_range(tmp_path, capsys, option, value, expected):
+    with pytest.raises(SystemExit) as exit_:
+        run(["geotag", "--photos", tmp_path, "--log", tmp_path, "--out", tmp_path / "g.csv", option, value])
+    assert exit_.value.code == 2
+    assert f"aerostereo-ingest geotag: error: argument {option}: {expected}" in capsys.readouterr().err
+
+
+def test_geotag_out_named_like_its_sidecar_is_refused_before_reading(tmp_path, capsys):
+    assert run(["geotag", "--photos", tmp_path / "none", "--log", tmp_path / "none.csv",
+                "--out", tmp_path / "geotags.json"]) == 2
+    err = capsys.readouterr().err
+    assert "geotags.json: the geotags CSV would overwrite its own .json sidecar; name it e.g. geotags.csv" in err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_geotag_counts_rejected_photos_per_reason(shared_data, tmp_path, capsys):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for source in sorted((shared_data / "brighton_beach" / "images").glob("*.JPG"))[:3]:
+        (photos / source.name).write_bytes(source.read_bytes())
+    for name in ("BAD1.JPG", "BAD2.JPG"):
+        (photos / name).write_text("not a JPEG")
+    assert run(["geotag", "--photos", photos, "--log", photos, "--out", tmp_path / "g.csv"]) == 0
+    printed = capsys.readouterr().out
+    assert f"{photos} [photos]: 3 of 5 rows used; rejected 2 unreadable photo\n" in printed
+    assert printed.count(f"  rejected {photos}: unreadable photo: {photos / 'BAD'}") == 2
 
 
 def test_photo_position_out_of_range_is_ignored_and_said_why(tmp_path):
