@@ -108,9 +108,10 @@ def run_geotag(args) -> int:
             write_exif_copies(result, args.photos, exif_dir)
     except (LogFormatError, ValueError, OSError) as error:
         return report_error(args.command, error)
-    sources = {report.source for report in result.sources}
-    for report in [*result.sources, *([photo_report] if photo_report.source not in sources else [])]:
-        print_report(report)
+    for report in result.sources:
+        print_report(report, shown_rejects=0)  # counts per reason; `track` lists a log's rejects
+    if photo_report.source not in {report.source for report in result.sources}:
+        print_report(photo_report)  # which photos could not be read
     print(result.clock.summary())
     for note in result.notes:
         print(f"note: {note}")

@@ -15,10 +15,11 @@ Packets are deframed and time-stamped by :func:`capture.decode.timed_packets` an
 
 Time: the arrival UTC of the packet's LAST byte -- from the ``.duml.idx`` sidecar for a raw capture, from the
 record timestamps for a pcap. A raw capture without its index has no times at all (the frames carry none),
-so it is an error (a start time would not help: nothing says when each packet came); packets past the end
-of an index (a kill between a data flush and its index line) are rejected (``no arrival time``). A photo
-event is the arrival of the first camera state that shows the shutter, so it lags the shutter by up to one
-camera-state push interval (``Track.event_time_error_s``).
+so it is an error (a start time would not help: nothing says when each packet came); packets no index line
+covers (a kill between a data flush and its index line) are rejected (``no arrival time``). The shutter
+fell between the camera state that shows it and the one before, so a photo event is placed midway between
+their arrivals: within half a camera-state push interval of the shutter (``Track.event_time_error_s``), with
+no lag on average.
 
 Counting: ``rows_read`` = telemetry messages (the four kinds above, plus malformed ones of any registered
 kind); each is used or rejected with a reason (``no GPS fix``, ``home point not set``, ``malformed
@@ -119,7 +120,7 @@ class TrackBuilder:
         if timed.packet.is_response:
             return self.reject(f"response packet: {kind} {where} is an answer, not a telemetry push")
         if timed.receive_time_utc is None:
-            return self.reject(f"no arrival time: {kind} {where} lies past the end of the index")
+            return self.reject(f"no arrival time: {kind} {where} has no index line (cut off by a kill)")
         time_s = timed.receive_time_utc.timestamp()
         if isinstance(record, OsdGeneral):
             self.add_osd(time_s, record, where)
@@ -153,7 +154,7 @@ class TrackBuilder:
 
     def add_camera_state(self, time_s: float, state: CameraState) -> None:
         if is_shutter_edge(self.previous_camera, state, self.shutter_signal):
-            self.photo_times.append(time_s)
+            self.photo_times.append(0.5 * (self.camera_times[-1] + time_s))  # between the state before and this
         self.previous_camera = state
         self.camera_times.append(time_s)
         self.report.rows_used += 1
@@ -169,18 +170,18 @@ class TrackBuilder:
         columns = {name: np.array([row.get(name, math.nan) for row in self.rows]) for name in names}
         return Track.from_rows(self.times, columns, self.report, photo_times_s=self.photo_times,
                                home=self.homes[0] if self.homes else None,
-                               event_time_error_s=self.camera_interval_s())
+                               event_time_error_s=0.5 * self.camera_interval_s())
 
     def camera_interval_s(self) -> float:
-        """Median interval between camera-state pushes: how late a shutter edge may be seen (0 if unknown)."""
+        """Median interval between camera-state pushes (0 if unknown): a shutter falls within one of them."""
         return float(np.median(np.diff(self.camera_times))) if len(self.camera_times) > 1 else 0.0
 
     def notes(self) -> list[str]:
         notes = ["times: arrival UTC of each packet's last byte"]
         if self.camera_times:
             notes.append(f"{len(self.photo_times)} photo events from {len(self.camera_times)} camera-state pushes "
-                         f"(shutter signal {self.shutter_signal}; events up to {self.camera_interval_s():.3f} s "
-                         "after the shutter)")
+                         f"(shutter signal {self.shutter_signal}; events midway between two pushes, within "
+                         f"{0.5 * self.camera_interval_s():.3f} s of the shutter)")
         else:
             notes.append("no camera-state pushes: no photo events")
         no_fix = self.report.reasons()["no GPS fix"]

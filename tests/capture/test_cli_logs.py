@@ -141,7 +141,6 @@ def test_geotag_counts_rejected_photos_per_reason(shared_data, tmp_path, capsys)
     assert run(["geotag", "--photos", photos, "--log", photos, "--out", tmp_path / "g.csv"]) == 0
     printed = capsys.readouterr().out
     assert f"{photos} [photos]: 3 of 5 rows used; rejected 2 unreadable photo\n" in printed
-    assert printed.count(f"  rejected {photos}: unreadable photo: {photos / 'BAD'}") == 2
 
 
 def test_photo_position_out_of_range_is_ignored_and_said_why(tmp_path):
