@@ -25,6 +25,10 @@ from .logs.photos import PhotoInfo
 from .track import ReadReport, Track, format_utc
 
 DEFAULT_MAX_GAP_S = 2.0
+# Where the origin's height h0 comes from (``GeotagResult.origin_height_datum``, the sidecar's field):
+HOME_POINT_ALTITUDE = "home_point_altitude"  # the log's home record (DUML Home Point, SRT HOME) as the aircraft gives it
+MEAN_SEA_LEVEL = "mean_sea_level"  # the log's absolute heights (EXIF GPS altitude, DJI AbsoluteAltitude, Airdata)
+HEIGHT_UNKNOWN = "unknown"  # no absolute height in the logs: h0 = 0
 MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF second (manual offset)
 EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
 
@@ -50,13 +54,19 @@ class Geotag:
 
 @dataclass
 class GeotagResult:
+    """The geotags, the photos left untagged (name, reason), the ENU origin and how its height was found."""
+
     tags: list[Geotag]
     untagged: list[tuple[str, str]]
     origin: LocalFrame
-    origin_height_known: bool
+    origin_height_datum: str  # HOME_POINT_ALTITUDE, MEAN_SEA_LEVEL or HEIGHT_UNKNOWN
     clock: ClockOffset
     sources: list[ReadReport]
     notes: list[str] = field(default_factory=list)
+
+    @property
+    def origin_height_known(self) -> bool:
+        return self.origin_height_datum != HEIGHT_UNKNOWN
 
 
 class TrackInterpolator:
@@ -152,18 +162,24 @@ def unique_times(times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return unique, index
 
 
-def take_off_frame(track: Track) -> tuple[LocalFrame, bool]:
-    """ENU frame at the take-off point; h0 = absolute height there if known (else 0, flagged False)."""
+def take_off_frame(track: Track) -> tuple[LocalFrame, str]:
+    """ENU frame at the take-off point, and where its height h0 (metres) comes from.
+
+    h0 is the home record's altitude if the log has one (:data:`HOME_POINT_ALTITUDE`), else the median of the
+    log's absolute height minus height above take-off (:data:`MEAN_SEA_LEVEL`: EXIF and DJI absolute heights
+    are above mean sea level, not the WGS84 ellipsoid the frame's h0 nominally is), else 0
+    (:data:`HEIGHT_UNKNOWN`).
+    """
     home = track.take_off()
     if home is None:
         raise ValueError(f"{track.report.source}: the track has no position to use as origin")
     if math.isfinite(home.absolute_height_m):
-        return LocalFrame(home.lat_deg, home.lon_deg, home.absolute_height_m), True
+        return LocalFrame(home.lat_deg, home.lon_deg, home.absolute_height_m), HOME_POINT_ALTITUDE
     both = np.isfinite(track["absolute_height_m"]) & np.isfinite(track["height_above_takeoff_m"])
     if both.any():
         h0 = float(np.median(track["absolute_height_m"][both] - track["height_above_takeoff_m"][both]))
-        return LocalFrame(home.lat_deg, home.lon_deg, h0), True
-    return LocalFrame(home.lat_deg, home.lon_deg, 0.0), False
+        return LocalFrame(home.lat_deg, home.lon_deg, h0), MEAN_SEA_LEVEL
+    return LocalFrame(home.lat_deg, home.lon_deg, 0.0), HEIGHT_UNKNOWN
 
 
 def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
@@ -212,7 +228,7 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     if relative:
         raise ValueError(f"{relative[0]}: log has no wall-clock time (SRT without a date); give its start time (start_time_s, CLI --start-time)")
     track = Track.concat(tracks)
-    frame, height_known = take_off_frame(track)
+    frame, height_datum = take_off_frame(track)
     interpolator = TrackInterpolator(track, frame, max_gap_s)
     timed = [p for p in photos if math.isfinite(p.exif_time_s)]
     untagged = [(p.name, "no EXIF DateTimeOriginal") for p in photos if not math.isfinite(p.exif_time_s)]
@@ -233,9 +249,11 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
         else:
             tags.append(tag)
     notes = list(interpolator.notes)
-    if not height_known:
+    if height_datum == HEIGHT_UNKNOWN:
         notes.append("take-off absolute height unknown: origin h0 = 0")
-    return GeotagResult(tags, untagged, frame, height_known, clock, [t.report for t in tracks], notes)
+    elif height_datum == MEAN_SEA_LEVEL:
+        notes.append("origin h0 = take-off height above mean sea level (the log's absolute heights), not ellipsoidal")
+    return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes)
 
 
 def make_tag(name: str, t: float, interpolator: TrackInterpolator, source: str, time_source: str) -> Geotag | str:

@@ -78,6 +78,7 @@ def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
     sidecar = {
         "origin": result.origin.to_dict(),
         "origin_height_known": result.origin_height_known,
+        "origin_height_datum": result.origin_height_datum,
         "clock_offset_s": result.clock.offset_s,
         "clock_offset_std_s": result.clock.std_s if math.isfinite(result.clock.std_s) else None,
         "clock_offset_method": result.clock.method,

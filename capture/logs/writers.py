@@ -13,7 +13,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from flightplan.atomic import atomic_path, write_text_atomic
-from ..geotag import take_off_frame
+from ..geotag import HEIGHT_UNKNOWN, take_off_frame
 from ..messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
 from ..raw import RawCaptureWriter, index_path
 from ..track import Track
@@ -132,8 +132,9 @@ def duml_records(track: Track) -> list[tuple[float, object]]:
     """``(time_s, record)`` pushes an aircraft would send for ``track``, in time order: per row an OSD General
     (rows with a position), a Gimbal Params (rows with gimbal yaw) and a Camera State (``photo_state`` 1 on the
     first row at or after each photo event), and the take-off point as a Home Point once a second."""
-    frame, height_known = take_off_frame(track)
-    home = HomePoint(frame.lon0_deg, frame.lat0_deg, frame.h0_m if height_known else math.nan, 1, 60, 0, 0, 0, 0, 0)
+    frame, height_datum = take_off_frame(track)
+    h0 = math.nan if height_datum == HEIGHT_UNKNOWN else frame.h0_m
+    home = HomePoint(frame.lon0_deg, frame.lat0_deg, h0, 1, 60, 0, 0, 0, 0, 0)
     flags = photo_flags(track)
     new_second = np.r_[True, np.diff(np.floor(track.time_s)) > 0]
     records = []

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from capture.geotag import geotag_photos
+from capture.geotag import HEIGHT_UNKNOWN, MEAN_SEA_LEVEL, geotag_photos
 from capture.geotag_io import GEOTAG_COLUMNS, colmap_reference_text, load_geotags, write_geotags
 from capture.logs import read_track
 from capture.logs.photos import PhotoInfo
@@ -169,3 +169,18 @@ def test_subsecond_exif_and_an_hour_off_camera_clock(offset_s, subsecond):
     assert abs(result.clock.offset_s - offset_s) < (0.01 if subsecond else 0.05)
     position_error, _ = errors(result, orbit, shutter)
     assert position_error.max() < 0.05
+
+
+def test_origin_height_datum_says_where_h0_came_from(tmp_path):
+    orbit, shutter, track = flight(duration_s=40.0)
+    photos = photos_for(shutter, CAMERA_OFFSET_S, orbit)
+    result = geotag_photos(photos, [track])  # the synthetic log has absolute heights and no home record
+    assert result.origin_height_datum == MEAN_SEA_LEVEL and result.origin.h0_m == pytest.approx(orbit.frame.h0_m)
+    write_geotags(result, tmp_path / "g.csv")
+    sidecar = json.loads((tmp_path / "g.json").read_text())
+    assert sidecar["origin_height_datum"] == "mean_sea_level" and sidecar["origin_height_known"] is True
+    without = Track.from_rows(track.time_s, {k: v for k, v in track.columns.items() if k != "absolute_height_m"},
+                              track.report, photo_times_s=track.photo_times_s)
+    unknown = geotag_photos(photos, [without])
+    assert unknown.origin_height_datum == HEIGHT_UNKNOWN and not unknown.origin_height_known
+    assert "take-off absolute height unknown: origin h0 = 0" in unknown.notes

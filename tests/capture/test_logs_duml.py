@@ -351,6 +351,7 @@ def test_geotag_command_with_a_duml_log(capture, tmp_path, capsys):
     assert {row["source"] for row in rows} == {"duml/event"}
     sidecar = json.loads(out.with_suffix(".json").read_text())
     assert sidecar["origin"]["h0_ellipsoid_m"] == pytest.approx(ORBIT.frame.h0_m)  # the home point's altitude
+    assert sidecar["origin_height_datum"] == "home_point_altitude"
     # the shutter events are within half a camera push interval (0.05 s) of the shutter, unbiased
     assert abs(sidecar["clock_offset_s"] - CAMERA_OFFSET_S) < 0.05 + 3 * sidecar["clock_offset_std_s"]
     priors = load_geotags(out)
