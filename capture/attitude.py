@@ -56,11 +56,6 @@ def ned_angles(r_ned_body: Rotation) -> np.ndarray:
     return ypr
 
 
-def body_rotation_world(yaw_deg, pitch_deg, roll_deg) -> Rotation:
-    """Aircraft (or gimbal) attitude -> ``Rotation`` R_world_body: FRD body axes to ENU world."""
-    return _ENU_FROM_NED * ned_rotation(yaw_deg, pitch_deg, roll_deg)
-
-
 def camera_rotation_world(gimbal_yaw_deg, gimbal_pitch_deg, gimbal_roll_deg) -> Rotation:
     """Absolute DJI gimbal angles -> ``Rotation`` R_world_cam (OpenCV camera axes to ENU world)."""
     return camera_from_gimbal(ned_rotation(gimbal_yaw_deg, gimbal_pitch_deg, gimbal_roll_deg))
@@ -102,8 +97,3 @@ class AttitudeSeries:
         if self._slerp is not None:
             return self._slerp(queries)
         return self.rotations[np.zeros(queries.shape, dtype=int)] if queries.ndim else self.rotations[0]
-
-
-def slerp_rotations(times_s, rotations: Rotation, query_times_s) -> Rotation:
-    """One-off slerp of rotations at ``times_s`` to ``query_times_s`` (see :class:`AttitudeSeries`)."""
-    return AttitudeSeries(times_s, rotations)(query_times_s)

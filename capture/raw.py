@@ -24,10 +24,14 @@ from __future__ import annotations
 
 import datetime as dt
 import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from flightplan.atomic import atomic_path
 
 IDX_HEADER = "# aerostereo-duml-idx/1 offset,utc_unix_s,monotonic_s,length\n"
 
@@ -81,6 +85,20 @@ class RawCaptureWriter:
 
     def __exit__(self, *exc) -> None:
         self.close()
+
+
+@contextmanager
+def atomic_capture(path: str | os.PathLike) -> Iterator[RawCaptureWriter]:
+    """A :class:`RawCaptureWriter` on temporary files beside ``path``, for a capture written in one go (a
+    simulation, a conversion): on success ``NAME.duml`` and ``NAME.duml.idx`` replace any old ones, on error
+    neither is touched and the temporaries are removed. A live recording appends with the writer itself."""
+    with atomic_path(path) as data_tmp, atomic_path(index_path(path)) as index_tmp:
+        try:
+            with RawCaptureWriter(data_tmp) as writer:
+                yield writer
+            index_path(data_tmp).replace(index_tmp)
+        finally:
+            index_path(data_tmp).unlink(missing_ok=True)
 
 
 def _cut_torn_line(path: Path) -> None:

@@ -38,7 +38,6 @@ class PhotoInfo:
     path: Path
     exif_time_s: float = math.nan
     time_resolution_s: float = 1.0
-    utc_offset_known: bool = False
     values: dict[str, float] = field(default_factory=dict)  # track field -> value (EXIF GPS, then XMP)
     problems: list[str] = field(default_factory=list)
 
@@ -103,7 +102,6 @@ def read_exif_time(exif: Image.Exif, info: PhotoInfo) -> None:
     if len(offset) == 6 and offset[0] in "+-" and offset[3] == ":":
         sign = 1 if offset[0] == "+" else -1
         stamp -= sign * timedelta(hours=int(offset[1:3]), minutes=int(offset[4:6]))
-        info.utc_offset_known = True
     info.exif_time_s = stamp.timestamp()
 
 

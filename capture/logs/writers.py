@@ -7,15 +7,14 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
 from datetime import datetime, timezone
 
 import numpy as np
 
-from flightplan.atomic import atomic_path, write_text_atomic
+from flightplan.atomic import write_text_atomic
 from ..geotag import HEIGHT_UNKNOWN, take_off_frame
 from ..messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
-from ..raw import RawCaptureWriter, index_path
+from ..raw import atomic_capture
 from ..track import Track
 from .flightcsv import LENGTH_TO_M, SPEED_TO_M_S
 
@@ -165,12 +164,6 @@ def write_duml_capture(track: Track, path) -> None:
     """Write :func:`duml_records` as a raw capture ``path`` + ``path.idx`` (one chunk per frame, received at its
     row's time), both files atomically."""
     records = duml_records(track)
-    with atomic_path(path) as data_tmp, atomic_path(index_path(path)) as index_tmp:
-        try:
-            with RawCaptureWriter(data_tmp) as writer:
-                for seq, (t, record) in enumerate(records):
-                    writer.append(datetime.fromtimestamp(t, timezone.utc), t - records[0][0],
-                                  encode_message(record, seq).encode())
-            os.replace(index_path(data_tmp), index_tmp)
-        finally:
-            index_path(data_tmp).unlink(missing_ok=True)
+    with atomic_capture(path) as writer:
+        for seq, (t, record) in enumerate(records):
+            writer.append(datetime.fromtimestamp(t, timezone.utc), t - records[0][0], encode_message(record, seq).encode())

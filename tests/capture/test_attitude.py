@@ -8,12 +8,10 @@ from scipy.spatial.transform import Rotation
 
 from capture.attitude import (
     AttitudeSeries,
-    body_rotation_world,
     camera_matrix_world,
     gimbal_angles_from_camera,
     ned_angles,
     ned_rotation,
-    slerp_rotations,
     wrap_deg,
 )
 
@@ -54,15 +52,15 @@ def test_positive_roll_lowers_the_right_side():
 
 
 def test_aircraft_body_axes_are_forward_right_down():
-    R = body_rotation_world(90.0, 0.0, 0.0).as_matrix()
-    np.testing.assert_allclose(R, [[1, 0, 0], [0, -1, 0], [0, 0, -1]], atol=1e-12)  # columns: fwd=E, right=S, down
+    R = ned_rotation(90.0, 0.0, 0.0).as_matrix()  # R_ned_body, columns in NED
+    np.testing.assert_allclose(R, [[0, -1, 0], [1, 0, 0], [0, 0, 1]], atol=1e-12)  # fwd=E, right=S, down=down
 
 
 def test_slerp_crosses_the_yaw_wrap_the_short_way():
     series = AttitudeSeries([0.0, 1.0], ned_rotation([179.0, -179.0], [-30.0, -30.0], [0.0, 0.0]))
     yaw, pitch, _ = ned_angles(series(0.5))
     assert abs(wrap_deg(yaw - 180.0)) < 1e-9 and pitch == pytest.approx(-30.0)
-    quarter = ned_angles(slerp_rotations([0.0, 1.0], series.rotations, 0.25))
+    quarter = ned_angles(series(0.25))
     assert wrap_deg(quarter[0] - 179.5) == pytest.approx(0.0, abs=1e-9)
 
 

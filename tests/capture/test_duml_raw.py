@@ -4,7 +4,8 @@ import datetime as dt
 
 import pytest
 
-from capture.raw import CaptureIndexError, RawCaptureWriter, index_path, read_capture_chunks, read_index
+from capture.raw import (CaptureIndexError, RawCaptureWriter, atomic_capture, index_path, read_capture_chunks,
+                         read_index)
 
 T0 = dt.datetime(2024, 5, 1, 12, 0, 0, tzinfo=dt.timezone.utc)
 
@@ -99,3 +100,15 @@ def test_index_running_past_the_data_is_an_error(tmp_path):
     path.write_bytes(b"abcd")  # the data lost its last byte, the index did not
     with pytest.raises(CaptureIndexError, match=r"flight.duml.idx: the chunk at offset 3 \(2 bytes\) runs past"):
         list(read_capture_chunks(path))
+
+
+def test_atomic_capture_replaces_both_files_or_neither(tmp_path):
+    path = tmp_path / "sim" / "flight.duml"
+    with atomic_capture(path) as writer:
+        writer.append(T0, 1.0, b"abc")
+    assert path.read_bytes() == b"abc" and read_index(index_path(path)).lengths.tolist() == [3]
+    with pytest.raises(RuntimeError), atomic_capture(path) as writer:
+        writer.append(T0, 2.0, b"XYZW")
+        raise RuntimeError("the simulation failed")
+    assert [c[2] for c in read_capture_chunks(path)] == [b"abc"]  # the old capture, whole
+    assert sorted(p.name for p in path.parent.iterdir()) == ["flight.duml", "flight.duml.idx"]
