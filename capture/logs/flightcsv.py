@@ -109,7 +109,7 @@ def read_flight_csv(path, kind: str | None = None) -> Track:
         raise LogFormatError(f"{path}:1: no 'datetime(utc)' column")
     elapsed_col = find_column(header, "time", "millisecond")
     flag_col = find_column(header, photo_flag)
-    home = litchi_home(header, lines, path) if kind == "litchi" else None
+    home = litchi_home(header, lines) if kind == "litchi" else None
 
     rows = parse_rows(path, lines, header, columns, time_col, elapsed_col, flag_col, report)
     times = refine_whole_seconds(rows["datetime"], rows["elapsed_ms"], path, report)
@@ -250,8 +250,8 @@ def rising_edge_times(times: np.ndarray, flag: np.ndarray) -> np.ndarray:
     return events
 
 
-def litchi_home(header, lines, path) -> Home | None:
-    """Litchi's home_latitude/home_longitude from the first row that has them non-zero."""
+def litchi_home(header, lines) -> Home | None:
+    """Litchi's home_latitude/home_longitude from the first row that has them non-zero and in range."""
     lat_col, lon_col = find_column(header, "home_latitude"), find_column(header, "home_longitude")
     if lat_col is None or lon_col is None:
         return None
@@ -260,6 +260,6 @@ def litchi_home(header, lines, path) -> Home | None:
             lat, lon = cell_number(cells, lat_col, "home_latitude"), cell_number(cells, lon_col, "home_longitude")
         except ValueError:
             continue
-        if math.isfinite(lat) and math.isfinite(lon) and (lat, lon) != (0.0, 0.0):
+        if (lat, lon) != (0.0, 0.0) and not position_problem(lat, lon):
             return Home(lat, lon)
     return None
