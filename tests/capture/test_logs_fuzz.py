@@ -91,6 +91,18 @@ def test_no_fix_rows_are_rejected_not_used(shared_data, tmp_path):
     assert "no GPS fix" in track.report.rejected[0].reason and track["lat_deg"].min() > 47
 
 
+def test_out_of_range_positions_are_rejected_with_one_reason(shared_data, tmp_path):
+    lines = (shared_data / "litchi" / "airdata_mini2_imperial_head.csv").read_text().splitlines()
+    cells = lines[1].split(",")
+    cells[2] = "147.5"  # latitude
+    lines[1] = ",".join(cells)
+    path = tmp_path / "bad_lat.csv"
+    path.write_text("\n".join(lines) + "\n")
+    track = read_track(path)
+    assert len(track) == 49 and track.report.reasons() == {"position out of range": 1}
+    assert "latitude must be within [-90, 90] degrees, got 147.5" in str(track.report.rejected[0])
+
+
 def test_unknown_unit_is_a_clear_error(shared_data, tmp_path):
     text = (shared_data / "litchi" / "airdata_mini2_imperial_head.csv").read_text()
     path = tmp_path / "furlong.csv"
@@ -148,6 +160,8 @@ def test_litchi_imperial_export(tmp_path):
     assert track["gimbal_pitch_deg"][0] == pytest.approx(-90.0) and track["gimbal_yaw_deg"][0] == pytest.approx(32.2)
     assert track["aircraft_yaw_deg"][0] == pytest.approx(-148.0)
     assert track.home.lat_deg == pytest.approx(54.1)
+    path.write_text(path.read_text().replace(",54.1,18.5,", ",94.1,18.5,"))  # a home latitude out of range
+    assert read_track(path).home is None
     # datetime(utc) already has milliseconds: used as is; rising edges placed between the 0 row and the 1 row
     assert track.time_s[1] - track.time_s[0] == pytest.approx(0.113, abs=1e-6)
     start = track.time_s[0]
