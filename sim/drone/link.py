@@ -2,9 +2,9 @@
 
 :func:`duml_frames` encodes a flight's telemetry (``sim.drone.schedule``) with :func:`capture.messages.encode_message`:
 OSD General (0x03/0x43), Gimbal Params (0x04/0x05), Home Point (0x03/0x44) and Camera State (0x02/0x80). The
-camera pushes its state at ``CAMERA_STATE_HZ`` and once at every shutter; ``photo_state`` is 1 (single shot)
-from the shutter for ``SHUTTER_PULSE_S``, then 0 again, and ``remaining_shots`` counts down -- the edge
-``capture`` reads as a photo event. Each frame is passed through ``FlownMission.damage_link`` in send order.
+camera pushes its state at a fixed ``CAMERA_STATE_HZ``, as a real one does; ``photo_state`` is 1 (single shot)
+for one push interval from the shutter, so exactly one push shows each photo, and ``remaining_shots`` counts
+down -- the edge ``capture`` reads as a photo event (placed midway between that push and the one before). Each frame is passed through ``FlownMission.damage_link`` in send order.
 
 Frames carry their send time in seconds on the telemetry clock (since the motors started). Sinks:
 
@@ -37,9 +37,11 @@ from capture.transports import Clock
 from sim.drone.imperfections import in_windows
 from sim.drone.schedule import GimbalRecord, HomeRecord, OsdRecord, ShutterRecord
 
-#: Camera State push rate (Hz) between shutters, and how long ``photo_state`` stays "single shot" after one.
+#: Camera State push rate (Hz); ``photo_state`` stays "single shot" for one push interval after a shutter.
 CAMERA_STATE_HZ = 5.0
-SHUTTER_PULSE_S = 0.1
+#: How far a photo event read from the pushes can be from its shutter: half a push interval. With photos at a
+#: fixed interval the error is the same for every photo, so the estimated clock offset carries it too.
+PHOTO_EVENT_ERROR_S = 0.5 / CAMERA_STATE_HZ
 #: DJI flight modes (OSD ctrl_info bits 0-6): 6 = GPS_Atti (P-mode); 14 = waypoint mission.
 MODE_GPS_ATTI, MODE_WAYPOINT = 6, 14
 GPS_LEVEL_GOOD = 5
@@ -85,15 +87,15 @@ def home_message(r: HomeRecord) -> HomePoint:
 
 
 def camera_states(shutter: Iterable[ShutterRecord], duration_s: float, dropouts_s: np.ndarray):
-    """``(t_s, CameraState)`` pushes: every 1/CAMERA_STATE_HZ and at each shutter (pushes inside a link
-    dropout are lost; the shutter records already are). ``photo_state`` 1 within SHUTTER_PULSE_S of a shutter."""
+    """``(t_s, CameraState)`` pushes every 1/CAMERA_STATE_HZ (pushes inside a link dropout are lost; the
+    shutter records already are); ``photo_state`` 1 at the first push at or after a shutter."""
     shots = np.array([r.t_s for r in shutter])
-    grid = np.arange(0.0, duration_s + 1e-9, 1.0 / CAMERA_STATE_HZ)
-    grid = grid[~in_windows(grid, dropouts_s)]
-    times = np.unique(np.concatenate([grid, shots]))
+    period_s = 1.0 / CAMERA_STATE_HZ
+    times = np.arange(0.0, duration_s + 1e-9, period_s)
+    times = times[~in_windows(times, dropouts_s)]
     taken_before = np.searchsorted(shots, times, side="right")
     last_shot = np.where(taken_before > 0, shots[np.maximum(taken_before - 1, 0)], -np.inf)
-    shooting = times - last_shot < SHUTTER_PULSE_S
+    shooting = times - last_shot < period_s - 1e-9
     return [(float(t), dataclasses.replace(
                 CAMERA_TEMPLATE, status_flags=CAMERA_TEMPLATE.status_flags | (int(s) << 3),
                 remaining_shots=REMAINING_SHOTS_AT_START - int(n)))

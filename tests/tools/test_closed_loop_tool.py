@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.scene import read_scene_json
 from tools.closed_loop import LoopConfig, cli, fly_over_tcp, main, parse_sweep, plan_mission, run_loop, world_folder
 from tools.closed_loop_eval import sweep_table
@@ -29,12 +30,12 @@ def test_reduced_closed_loop_stays_within_the_error_bounds(quick_report):
                if s["name"] not in ("world", "record"))
     m = report["metrics"]
     # geotags: every photo, within the drone's GPS model (bias ~1.4 m RMS horizontal), attitude 0.1 deg noise,
-    # the camera clock offset (0.35 s) recovered to a few hundredths of a second
+    # the camera clock offset (0.35 s) recovered to half a camera-state push interval (photo events come from pushes)
     geotag = m["geotag"]
     assert geotag["photos"] == {"taken": 29, "tagged": 29, "untagged": 0}
     assert geotag["position_m"]["max"] < 4.0
     assert geotag["rotation_deg"]["max"] < 0.5
-    assert abs(geotag["clock_offset_s"]["error"]) < 0.05
+    assert abs(geotag["clock_offset_s"]["error"]) < PHOTO_EVENT_ERROR_S + 0.02
     # SfM: all photos registered; geo-registered to the same biased GPS, so the offset is the GPS bias; a 20 m arc
     # leaves its yaw weakly fixed (measured ~3 deg)
     sfm = m["sfm"]
