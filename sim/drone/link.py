@@ -30,9 +30,8 @@ from typing import Callable, Iterable, NamedTuple
 
 import numpy as np
 
-from flightplan.atomic import atomic_path
 from capture.messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
-from capture.raw import RawCaptureWriter, index_path
+from capture.raw import atomic_capture
 from capture.transports import Clock
 from sim.drone.imperfections import in_windows
 from sim.drone.schedule import GimbalRecord, HomeRecord, OsdRecord, ShutterRecord
@@ -126,14 +125,9 @@ def write_raw_capture(frames: list[Frame], path, start_utc: dt.datetime) -> None
     """Write ``frames`` as a raw capture ``path`` + ``path.idx``: one chunk per frame, received at
     ``start_utc + t_s`` (monotonic time = ``t_s``); both files atomically. Frames the link lost entirely
     (empty) are skipped."""
-    with atomic_path(path) as data_tmp, atomic_path(index_path(path)) as index_tmp:
-        try:
-            with RawCaptureWriter(data_tmp) as writer:
-                for frame in frames:
-                    writer.append(start_utc + dt.timedelta(seconds=frame.t_s), frame.t_s, frame.data)
-            index_path(data_tmp).replace(index_tmp)
-        finally:
-            index_path(data_tmp).unlink(missing_ok=True)
+    with atomic_capture(path) as writer:
+        for frame in frames:
+            writer.append(start_utc + dt.timedelta(seconds=frame.t_s), frame.t_s, frame.data)
 
 
 class MissionClock(Clock):

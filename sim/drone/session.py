@@ -22,9 +22,8 @@ from pathlib import Path
 import serial
 from tqdm import tqdm
 
-from flightplan.atomic import atomic_path
 from capture.messages import default_registry
-from capture.raw import RawCaptureWriter, index_path
+from capture.raw import atomic_capture
 from capture.recorder import record
 from capture.transports import SerialSource
 from flightplan.litchi import read_mission_csv
@@ -102,14 +101,9 @@ def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bo
                 if received >= total:
                     stop.set()
 
-        with atomic_path(path) as data_tmp, atomic_path(index_path(path)) as index_tmp:
-            try:
-                sender.start()
-                with RawCaptureWriter(data_tmp) as writer:
-                    status = record(until_all_received(), writer, default_registry())
-                index_path(data_tmp).replace(index_tmp)
-            finally:
-                index_path(data_tmp).unlink(missing_ok=True)
+        with atomic_capture(path) as writer:
+            sender.start()
+            status = record(until_all_received(), writer, default_registry())
         sender.join()
     return status.bytes
 
