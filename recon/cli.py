@@ -1,8 +1,10 @@
 """``aerostereo-recon``: photos + geotags -> georeferenced scene folder; ``merge``: control-point merge.
 
-    aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR [--image-size PX]
-                     [--mesh 2.5d|poisson] [--grid M] [--workers J] [--every K] [--dense-size PX]
-                     [--texel M] [--no-texture]
+    aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR
+                     [--image-size PX] [--max-features N] [--neighbors K] [--sequential N] [--every K]
+                     [--mapper incremental|global] [--focal auto|fixed|refine]
+                     [--dense-size PX] [--mesh 2.5d|poisson] [--grid M] [--decimate-error M]
+                     [--texel M] [--no-texture] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
 Bad input -> one line on stderr, exit code 2.
@@ -18,7 +20,7 @@ from pathlib import Path
 import pycolmap
 import trimesh
 
-from recon.dense import DenseOptions
+from recon.dense import DenseError, DenseOptions
 from flightplan.atomic import atomic_path
 from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import ReconOptions, Recon
@@ -72,7 +74,10 @@ def build_merge_parser() -> argparse.ArgumentParser:
 def load_mesh(path: Path) -> trimesh.Trimesh:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: mesh file not found")
-    loaded = trimesh.load(path, force="mesh", process=False)
+    try:
+        loaded = trimesh.load(path, force="mesh", process=False)
+    except Exception as error:  # trimesh's format readers raise KeyError, ValueError, struct.error, ... on bad files
+        raise ValueError(f"{path}: not a readable mesh ({type(error).__name__}: {error})") from None
     if len(loaded.faces) == 0:
         raise ValueError(f"{path}: no triangles in this mesh")
     return loaded
@@ -114,7 +119,7 @@ def main(argv=None) -> int:
         if argv[:1] == ["merge"]:
             return run_merge(argv[1:])
         return run_recon(argv)
-    except (PriorsError, SfmError, PairsFileError, FileNotFoundError, ValueError) as exc:
+    except (PriorsError, SfmError, DenseError, PairsFileError, FileNotFoundError, ValueError) as exc:
         print(f"aerostereo-recon: error: {exc}", file=sys.stderr)
         return 2
 

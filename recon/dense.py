@@ -22,6 +22,10 @@ import pycolmap
 from flightplan.atomic import atomic_path
 
 
+class DenseError(RuntimeError):
+    """The registered photos give no depth (no usable stereo pair) or no fused point (message says why)."""
+
+
 @dataclass(frozen=True)
 class DenseOptions:
     """Knobs of the dense stage (image size of the depth maps, pair selection, SGBM, consistency, fusion)."""
@@ -244,11 +248,17 @@ def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: Dense
 def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda it: it) -> dict[str, float]:
     """Depth + normal maps for every undistorted view; returns valid-pixel fraction per image name.
 
-    Images whose maps exist already are skipped (resumable).
+    Images whose maps exist already are skipped (resumable). :class:`DenseError` when no view has a stereo
+    neighbour (the photos are too far apart), before anything is written.
     """
     rec = pycolmap.Reconstruction(workspace / "sparse")
     views = views_from_model(rec)
     neighbours = choose_neighbours(rec, options)
+    if not any(neighbours.values()):
+        raise DenseError(
+            f"no stereo pair among the {len(views)} registered photos (none shares {options.min_shared_points} "
+            f"sparse points at a {options.min_angle_deg:g}-{options.max_angle_deg:g} deg triangulation angle with "
+            f"another): the photos are too far apart or too few for depth maps")
     coverage = {}
     grey = {}
 
@@ -275,11 +285,16 @@ def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda i
 
 
 def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
-    """``pycolmap.stereo_fusion`` of the geometric maps -> coloured PLY (points in model units); point count."""
+    """``pycolmap.stereo_fusion`` of the geometric maps -> coloured PLY (points in model units); point count.
+
+    :class:`DenseError` (and no PLY written) when no point is consistent in enough views."""
     fusion = pycolmap.StereoFusionOptions()
     fusion.min_num_pixels = options.fusion_min_pixels
     fusion.max_normal_error = options.fusion_max_normal_error_deg
     fusion.num_threads = options.num_threads
     with atomic_path(output_ply) as tmp:
         fused = pycolmap.stereo_fusion(tmp, workspace, input_type="geometric", options=fusion, output_type="ply")
+        if fused.num_points3D() == 0:
+            raise DenseError(f"fusion found no point seen consistently in {options.fusion_min_pixels} depth maps: "
+                             f"the photos overlap too little")
     return int(fused.num_points3D())

@@ -152,8 +152,11 @@ def decimate(input_ply: Path, output_ply: Path, max_error_m: float, min_face_rat
 
 
 def read_point_cloud(ply: Path) -> tuple[np.ndarray, np.ndarray | None]:
-    """Points (N, 3) float64 and colours (N, 3) uint8 (or None) of a PLY point cloud."""
+    """Points (N, 3) float64 and colours (N, 3) uint8 (or None) of a PLY point cloud; ValueError naming the file
+    when it holds no point."""
     cloud = trimesh.load(ply, process=False)
+    if not hasattr(cloud, "vertices") or len(cloud.vertices) == 0:
+        raise ValueError(f"{ply}: no points in this point cloud")
     points = np.asarray(cloud.vertices, dtype=np.float64)
     colors = getattr(cloud, "colors", None)
     colors = None if colors is None or len(colors) != len(points) else np.asarray(colors)[:, :3]

@@ -32,7 +32,8 @@ from tqdm import tqdm
 from recon import dense, mesh as meshing, texture as texturing
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
-from recon.priors import PosePriors, PriorsError, focal_seed, list_photos, priors_from_exif, read_geotags
+from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
+                          read_geotags)
 from recon.scene_out import write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 
@@ -53,19 +54,29 @@ class ReconOptions:
     texture: bool = True
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
 
+    def __post_init__(self) -> None:
+        if self.grid_m is not None and not (np.isfinite(self.grid_m) and self.grid_m > 0):
+            raise ValueError(f"grid cell must be a positive number of metres, got {self.grid_m}")
+        if not (np.isfinite(self.decimate_error_m) and self.decimate_error_m >= 0):
+            raise ValueError(f"decimation error must be 0 (off) or a positive number of metres, "
+                             f"got {self.decimate_error_m}")
+
 
 def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
     """Photo names to use and their priors (geotags.csv, or EXIF GPS when no geotags are given).
 
-    Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out.
+    Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out; a photo
+    that is not a readable image is a :class:`PriorsError` naming it.
     """
     names = list_photos(photo_dir)
     if len(names) < MIN_PHOTOS:
         raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
     if geotags_csv is None:
-        return names, priors_from_exif(photo_dir, names)
+        return names, priors_from_exif(photo_dir, names)  # reads every photo's EXIF
     priors = read_geotags(geotags_csv)
-    return [n for n in names if n not in set(priors.untagged)], priors
+    names = [n for n in names if n not in set(priors.untagged)]
+    check_readable(photo_dir, names)
+    return names, priors
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -106,6 +117,8 @@ class Recon:
                  log=tqdm.write):
         self.photo_dir, self.geotags_csv = Path(photo_dir), geotags_csv and Path(geotags_csv)
         self.scene_dir, self.options, self.log = Path(scene_dir), options, log
+        if self.scene_dir.exists() and not self.scene_dir.is_dir():
+            raise ValueError(f"{self.scene_dir}: is a file; the output must be a (new or resumable) scene folder")
         self.work = self.scene_dir / "work"
         self.names, self.priors = load_priors(self.photo_dir, self.geotags_csv)
         if self.priors.untagged:

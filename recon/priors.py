@@ -1,24 +1,28 @@
 """Pose priors for SfM: camera positions (local ENU metres) and, where known, attitudes.
 
 Two sources: ``geotags.csv`` + ``geotags.json`` (read with :func:`capture.geotag_io.load_geotags`) or the
-photos' own EXIF GPS (Pillow), used when no geotags exist.
+photos' own EXIF GPS (read with :func:`capture.logs.photos.read_exif_gps`), used when no geotags exist.
 Also the camera-intrinsics seed (focal length in pixels) from a small camera profile table or EXIF.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from PIL import ExifTags, Image
+from PIL import ExifTags, Image, UnidentifiedImageError
 
 from capture.geotag_io import load_geotags, sidecar_path
+from capture.logs.photos import PhotoInfo, read_exif_gps
 from flightplan.geodesy import LocalFrame
 
 DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
+FULL_FRAME_DIAGONAL_MM = 43.27  # the 36 x 24 mm frame that 35 mm-equivalent focal lengths refer to
 
 
 class PriorsError(ValueError):
@@ -63,6 +67,8 @@ def list_photos(photo_dir: Path) -> list[str]:
 def read_geotags(csv_path: Path, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
     """Read ``geotags.csv`` and its sidecar (origin, photos left untagged) with capture's loader."""
     csv_path = Path(csv_path)
+    if not csv_path.is_file():
+        raise PriorsError(f"{csv_path}: geotags file not found")
     try:
         tags = load_geotags(csv_path)
         meta = json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))
@@ -81,20 +87,34 @@ def read_geotags(csv_path: Path, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
                       untagged)
 
 
-def _rational_deg(dms) -> float:
-    d, m, s = (float(v) for v in dms)
-    return d + m / 60.0 + s / 3600.0
+@contextmanager
+def open_photo(photo: Path) -> Iterator[Image.Image]:
+    """The photo opened with Pillow (header only); :class:`PriorsError` naming the file if it is not an image."""
+    try:
+        with Image.open(photo) as image:
+            yield image
+    except (UnidentifiedImageError, OSError) as error:
+        raise PriorsError(f"{photo}: not a readable image ({error})") from None
+
+
+def check_readable(photo_dir: Path, names) -> None:
+    """:class:`PriorsError` naming the first photo Pillow cannot open (before any stage starts)."""
+    for name in names:
+        with open_photo(Path(photo_dir) / name):
+            pass
 
 
 def exif_gps(photo: Path) -> tuple[float, float, float] | None:
-    """(lat_deg, lon_deg, altitude_m) from a photo's EXIF GPS IFD, or None. Altitude is GPS/MSL as stored."""
-    gps = Image.open(photo).getexif().get_ifd(ExifTags.IFD.GPSInfo)
-    if not {1, 2, 3, 4}.issubset(gps):
+    """(lat_deg, lon_deg, altitude_m) from a photo's EXIF GPS IFD, or None. Altitude is GPS/MSL as stored
+    (0 when absent); a malformed GPS IFD is a :class:`PriorsError` naming the file."""
+    info = PhotoInfo(Path(photo))
+    with open_photo(photo) as image:
+        read_exif_gps(image.getexif(), info)
+    if info.problems:
+        raise PriorsError(f"{photo}: {'; '.join(info.problems)}")
+    if not {"lat_deg", "lon_deg"} <= set(info.values):
         return None
-    lat = _rational_deg(gps[2]) * (-1.0 if gps[1] == "S" else 1.0)
-    lon = _rational_deg(gps[4]) * (-1.0 if gps[3] == "W" else 1.0)
-    alt = float(gps.get(6, 0.0)) * (-1.0 if gps.get(5, b"\x00") in (b"\x01", 1) else 1.0)
-    return lat, lon, alt
+    return info.values["lat_deg"], info.values["lon_deg"], info.values.get("absolute_height_m", 0.0)
 
 
 def priors_from_exif(photo_dir: Path, names, sigma_m=DEFAULT_SIGMA_M) -> PosePriors:
@@ -133,9 +153,9 @@ def focal_seed(photo: Path) -> FocalSeed:
     """Seed the focal length: sensor table + EXIF FocalLength, else 35 mm-equivalent, else 1.2 x max side.
 
     The 35 mm-equivalent rule assumes a 4:3 native sensor of the photo's width (true for small drone
-    cameras), i.e. ``f35 / 43.27 mm x diagonal of (width, 3/4 width)``; 16:9 crops keep the full width.
+    cameras), i.e. ``f35 / FULL_FRAME_DIAGONAL_MM x diagonal of (width, 3/4 width)``; 16:9 crops keep the full width.
     """
-    with Image.open(photo) as image:
+    with open_photo(photo) as image:
         width, height = image.size
         exif = image.getexif()
         sub = exif.get_ifd(ExifTags.IFD.Exif)
@@ -146,5 +166,5 @@ def focal_seed(photo: Path) -> FocalSeed:
         return FocalSeed(float(focal_mm) / SENSOR_WIDTH_MM[model] * width, width, height, f"profile {model}")
     if focal_35:
         diagonal = np.hypot(width, 0.75 * width)
-        return FocalSeed(float(focal_35) / 43.27 * diagonal, width, height, "exif 35mm-equivalent")
+        return FocalSeed(float(focal_35) / FULL_FRAME_DIAGONAL_MM * diagonal, width, height, "exif 35mm-equivalent")
     return FocalSeed(1.2 * max(width, height), width, height, "default 1.2 x max side")

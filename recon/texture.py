@@ -67,7 +67,7 @@ class TextureOptions:
     min_overlap: int = 30
 
     def __post_init__(self) -> None:
-        if self.texel_m is not None and not self.texel_m > 0:
+        if self.texel_m is not None and not (np.isfinite(self.texel_m) and self.texel_m > 0):
             raise ValueError(f"texel size must be a positive number of metres, got {self.texel_m}")
 
 

@@ -101,3 +101,45 @@ def test_bad_texel_size(tmp_path, capsys):
     blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
     code, err = run_cli(["--photos", tmp_path / "photos", "--out", tmp_path / "scene", "--texel", "-0.1"], capsys)
     assert code == 2 and "texel size must be a positive number of metres, got -0.1" in err
+
+
+def test_bad_grid_and_decimation_error(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    base = ["--photos", tmp_path / "photos", "--out", tmp_path / "scene"]
+    for option, value, message in (("--grid", "0", "grid cell must be a positive number of metres, got 0.0"),
+                                   ("--grid", "nan", "grid cell must be a positive number of metres, got nan"),
+                                   ("--texel", "inf", "texel size must be a positive number of metres, got inf"),
+                                   ("--decimate-error", "-1", "decimation error must be 0 (off) or a positive")):
+        code, err = run_cli(base + [option, value], capsys)
+        assert code == 2 and message in err and "Traceback" not in err, (option, value, err)
+    assert not (tmp_path / "scene").exists()
+
+
+def test_unreadable_photo_is_named(tmp_path, capsys):
+    """With geotags (only the first photo's EXIF is otherwise read) and with EXIF GPS priors."""
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg"])
+    (tmp_path / "photos" / "c.jpg").write_bytes(b"\xff\xd8 truncated")
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])])
+    for priors in (["--geotags", geotags], []):
+        code, err = run_cli(["--photos", tmp_path / "photos", *priors, "--out", tmp_path / "scene"], capsys)
+        assert code == 2 and f"{tmp_path / 'photos' / 'c.jpg'}: not a readable image" in err, err
+        assert "Traceback" not in err
+
+
+def test_missing_geotags_file(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", tmp_path / "nope.csv",
+                         "--out", tmp_path / "scene"], capsys)
+    assert code == 2 and f"{tmp_path / 'nope.csv'}: geotags file not found" in err
+
+
+def test_out_is_a_file(tmp_path, capsys):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])])
+    (tmp_path / "scene.glb").write_bytes(b"x")
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, "--out", tmp_path / "scene.glb"],
+                        capsys)
+    assert code == 2 and "scene.glb: is a file; the output must be a (new or resumable) scene folder" in err
+    assert (tmp_path / "scene.glb").read_bytes() == b"x"

@@ -1,9 +1,11 @@
 """Dense SGBM depth on a synthetic textured plane seen by two known cameras (truth: ray-plane depth)."""
 
 import numpy as np
+import pycolmap
 import pytest
 
-from recon.dense import fuse_pair_depths, normals_from_depth, pair_depth, write_colmap_maps
+from recon.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, normals_from_depth,
+                         pair_depth, write_colmap_maps)
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth
 
 @pytest.fixture(scope="module")
@@ -65,3 +67,15 @@ def test_colmap_maps_are_written_channel_planar(tmp_path):
     stored_normals = read_colmap_mat(tmp_path / "stereo" / "normal_maps" / "view.png.geometric.bin")
     assert stored_depth[0, 0, 0] == 0.0 and np.allclose(stored_depth[0, 1:, :], depth[1:, :])
     assert np.allclose(stored_normals, normals.transpose(2, 0, 1))
+
+
+def test_photos_without_a_stereo_pair_stop_before_any_depth_map(tmp_path):
+    """Three registered views sharing only 10 sparse points (fewer than a pair needs): a clear error, and nothing
+    written that a resumed run would take for a finished depth stage."""
+    options = pycolmap.SyntheticDatasetOptions()
+    options.num_rigs, options.num_cameras_per_rig, options.num_frames_per_rig, options.num_points3D = 1, 1, 3, 10
+    (tmp_path / "sparse").mkdir()
+    pycolmap.synthesize_dataset(options).write(tmp_path / "sparse")
+    with pytest.raises(DenseError, match="no stereo pair among the 3 registered photos.*too far apart"):
+        compute_depth_maps(tmp_path, DenseOptions())
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["sparse"]

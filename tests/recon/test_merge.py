@@ -96,6 +96,17 @@ def test_merge_cli_bad_pairs_file_exits_2(tmp_path, capsys):
     assert code == 2 and "pairs.txt:1: expected 6 numbers" in err and "Traceback" not in err
 
 
+def test_merge_cli_corrupt_mesh_is_named(tmp_path, capsys):
+    trimesh.creation.box().export(tmp_path / "a.ply")
+    (tmp_path / "b.ply").write_bytes(b"not a mesh at all\n")
+    (tmp_path / "pairs.txt").write_text("0 0 0 0 0 0\n1 0 0 1 0 0\n0 1 0 0 1 0\n")
+    code = main(["merge", str(tmp_path / "a.ply"), str(tmp_path / "b.ply"), "--pairs", str(tmp_path / "pairs.txt"),
+                 "--out", str(tmp_path / "c.ply")])
+    err = capsys.readouterr().err
+    assert code == 2 and f"{tmp_path / 'b.ply'}: not a readable mesh" in err and "Traceback" not in err
+    assert not (tmp_path / "c.ply").exists()
+
+
 def test_merge_meshes_keeps_reference():
     a = trimesh.creation.icosphere()
     merged = merge_meshes(a, a.copy(), Similarity(1.0, np.eye(3), np.array([5.0, 0, 0])))

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 from trimesh.ray.ray_pyembree import RayMeshIntersector
 
-from recon.mesh import decimate, height_field, height_field_mesh, per_cell_percentile
+from recon.mesh import decimate, height_field, height_field_mesh, per_cell_percentile, read_point_cloud
 
 BOX = (10.0, 20.0, 5.0, 15.0, 6.0)  # xmin, xmax, ymin, ymax, height (m)
 
@@ -72,3 +72,12 @@ def test_decimation_respects_target_error(cloud, tmp_path):
     vertical = np.abs(hits[:, 2] - probes[ray_index, 2])
     assert len(ray_index) > 0.95 * len(probes)
     assert np.percentile(vertical, 90) < 0.05
+
+
+def test_empty_point_cloud_is_a_clear_error(tmp_path):
+    """A fused cloud without points (as stereo fusion writes when nothing agrees) names the file."""
+    ply = tmp_path / "fused.ply"
+    ply.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\n"
+                   "property float z\nend_header\n")
+    with pytest.raises(ValueError, match=f"{ply}: no points in this point cloud"):
+        read_point_cloud(ply)
