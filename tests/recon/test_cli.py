@@ -7,11 +7,14 @@ import numpy as np
 import pytest
 import trimesh
 from PIL import Image
+from scipy.spatial.transform import Rotation
 
 from recon.cli import main
 from recon.evaluate import scene_photorealism
-from recon.pipeline import read_rgb
+from recon.pipeline import Recon, ReconOptions, read_rgb
+from recon.sfm import SfmOptions
 from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tests.recon.synthetic import HEIGHT, WIDTH, look_down_view, make_texture, render_plane
 
 
 def blank_photos(folder, names):
@@ -143,3 +146,28 @@ def test_out_is_a_file(tmp_path, capsys):
                         capsys)
     assert code == 2 and "scene.glb: is a file; the output must be a (new or resumable) scene folder" in err
     assert (tmp_path / "scene.glb").read_bytes() == b"x"
+
+
+@pytest.mark.slow
+def test_partial_registration_names_the_photos_left_out(tmp_path):
+    """Six overlapping nadir views of a textured plane and one featureless photo: SfM registers the six and the
+    run says which photo it left out (log and sfm_report.json). ~15 s."""
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    texture = make_texture()
+    nadir = Rotation.from_matrix(look_down_view((0.0, 0.0, 30.0), yaw_deg=0.0).R.T).as_quat(scalar_first=True)
+    rows = []
+    for i, (east, north) in enumerate([(x, y) for y in (0.0, 4.0) for x in (0.0, 4.0, 8.0)]):
+        Image.fromarray(render_plane(texture, look_down_view((east, north, 30.0), yaw_deg=0.0))).save(
+            photos / f"view_{i}.png")
+        rows.append(geotag_row(f"view_{i}.png", (east, north, 30.0), nadir))
+    Image.new("L", (WIDTH, HEIGHT), 128).save(photos / "z_blank.png")
+    rows.append(geotag_row("z_blank.png", (4.0, 2.0, 30.0), nadir))
+    logs = []
+    recon = Recon(photos, write_geotags(tmp_path, rows), tmp_path / "scene",
+                  ReconOptions(sfm=SfmOptions(max_num_features=2048, num_threads=2)), log=logs.append)
+    recon.work.mkdir(parents=True)
+    recon.stage_sfm()
+    report = json.loads((recon.work / "sfm_report.json").read_text())
+    assert report["registered"] == [f"view_{i}.png" for i in range(6)] and report["unregistered"] == ["z_blank.png"]
+    assert "[sfm] WARNING: 1 photo(s) not registered: z_blank.png" in logs
