@@ -24,6 +24,7 @@ prints time against error.
     python tools/closed_loop.py --out closed_loop                   # demo world, whole orbit (real time)
     python tools/closed_loop.py --out cl_quick --quick              # small world, short arc, low resolution
     python tools/closed_loop.py --out cl_sweep --quick --sweep sfm_image_size=400,800
+    python tools/closed_loop.py --out cl_quick --reevaluate        # evaluate a finished run again
 """
 
 from __future__ import annotations
@@ -39,14 +40,17 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from flightplan import litchi  # noqa: E402
+from flightplan.atomic import write_text_atomic  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from sim.scene import SceneError, read_scene_json  # noqa: E402
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
@@ -96,16 +100,28 @@ class LoopConfig:
                    sfm_image_size=480, dense_size=320, spp=1, surface_samples=8000)
 
 
-#: Sweep knobs: name -> (config field, value parser).
+class Knob(NamedTuple):
+    """A sweep knob: the :class:`LoopConfig` field it sets, its value parser, the allowed values (None: any) and
+    what it is (the option's help)."""
+
+    field: str
+    parse: Callable[[str], object]
+    choices: tuple[str, ...] | None
+    what: str
+
+
+#: Sweep knobs by name (also one ``--NAME`` option each). ``noise`` is the fly command's ``--noise``: it switches
+#: ALL the flight's imperfections (GPS, barometer, attitude, gimbal, wind, camera clock offset), not the GPS alone.
 KNOBS = {
-    "gps_noise": ("noise", str),
-    "photo_interval": ("photo_interval_s", float),
-    "sfm_image_size": ("sfm_image_size", int),
-    "dense_size": ("dense_size", int),
-    "mesh": ("mesh", str),
-    "decimate_error": ("decimate_error_m", float),
-    "grid": ("grid_m", float),
-    "spp": ("spp", int),
+    "noise": Knob("noise", str, ("realistic", "none"),
+                  "flight imperfections, all together (GPS, baro, attitude, gimbal, wind, clock offset)"),
+    "photo_interval": Knob("photo_interval_s", float, None, "seconds between photos"),
+    "sfm_image_size": Knob("sfm_image_size", int, None, "recon --image-size, px"),
+    "dense_size": Knob("dense_size", int, None, "recon --dense-size, px"),
+    "mesh": Knob("mesh", str, ("2.5d", "poisson"), "recon --mesh"),
+    "decimate_error": Knob("decimate_error_m", float, None, "recon --decimate-error, m"),
+    "grid": Knob("grid_m", float, None, "recon --grid, m"),
+    "spp": Knob("spp", int, None, "render samples per pixel"),
 }
 
 
@@ -262,11 +278,17 @@ def skipped(name: str, needs: str) -> StageResult:
     return StageResult(name, "skipped", detail=f"not run: {needs} did not succeed")
 
 
+def refuse_non_empty(out: Path) -> None:
+    """ValueError saying what to do when ``out`` already holds a run (a second run would mix with it)."""
+    if out.exists() and (not out.is_dir() or any(out.iterdir())):
+        raise ValueError(f"{out}: not empty (an earlier run?); remove it (rm -r {out}), give another --out, or "
+                         f"add --reevaluate to evaluate that run again")
+
+
 def run_loop(config: LoopConfig, out: Path) -> dict:
     """Run every stage into ``out`` (new or empty: the recorder appends to a capture and recon resumes, so a
     second run into the same folder would mix runs) and evaluate; returns the report (report.json/.md)."""
-    if out.exists() and any(out.iterdir()):
-        raise ValueError(f"{out}: not empty; give a new --out (or --reevaluate to evaluate that run again)")
+    refuse_non_empty(out)
     out.mkdir(parents=True, exist_ok=True)
     log_dir = out / "logs"
     log_dir.mkdir(exist_ok=True)
@@ -343,10 +365,26 @@ def evaluate_run(config: dict, stages: list[dict], world: Path, out: Path) -> di
     return report
 
 
+def finished_report(out: Path) -> Path:
+    """``out/report.json``; ValueError when ``out`` holds no finished run."""
+    path = out / "report.json"
+    if not path.is_file():
+        raise ValueError(f"{path}: not found; --reevaluate needs the folder of a finished run")
+    return path
+
+
 def reevaluate(out: Path) -> dict:
     """Evaluate a finished run folder again (its ``report.json`` gives the stages and settings)."""
-    previous = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    previous = json.loads(finished_report(out).read_text(encoding="utf-8"))
     return evaluate_run(previous["config"], previous["stages"], world_folder(previous["config"]["scene"]), out)
+
+
+def arc_waypoints(text: str) -> int:
+    """``--arc``: 0 (the whole orbit) or at least 2 waypoints (one waypoint is no flight)."""
+    value = int(text)
+    if value != 0 and value < 2:
+        raise argparse.ArgumentTypeError(f"must be 0 (the whole orbit) or at least 2 waypoints, got {text}")
+    return value
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -356,13 +394,15 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--quick", action="store_true",
                         help="the reduced loop: small world, 3-waypoint arc, 480x360 photos, loop link at 10x")
     parser.add_argument("--scene", help="scene folder, or demo / demo:small (default demo)")
-    parser.add_argument("--arc", type=int, dest="arc_waypoints", help="fly only the first N waypoints (0: all)")
+    parser.add_argument("--arc", type=arc_waypoints, dest="arc_waypoints",
+                        help="fly only the first N >= 2 waypoints (0: all)")
     parser.add_argument("--photo-size", nargs=2, type=int, metavar=("W", "H"))
     parser.add_argument("--link", choices=("tcp", "loop"))
     parser.add_argument("--speedup", type=float, help="flight pace for --link loop (tcp runs in real time)")
     parser.add_argument("--seed", type=int)
-    for knob, (field_name, parse) in KNOBS.items():
-        parser.add_argument(f"--{knob.replace('_', '-')}", type=parse, dest=field_name, help=f"knob {knob}")
+    for name, knob in KNOBS.items():
+        parser.add_argument(f"--{name.replace('_', '-')}", type=knob.parse, choices=knob.choices, dest=knob.field,
+                            help=f"{knob.what} (sweep knob {name})")
     parser.add_argument("--reevaluate", action="store_true",
                         help="only evaluate the finished run in --out again (after changing the evaluation)")
     parser.add_argument("--sweep", metavar="KNOB=V1,V2,...",
@@ -372,7 +412,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def config_from_args(args: argparse.Namespace) -> LoopConfig:
     config = LoopConfig.quick() if args.quick else LoopConfig()
-    for name in ("scene", "arc_waypoints", "link", "speedup", "seed", *(f for f, _ in KNOBS.values())):
+    for name in ("scene", "arc_waypoints", "link", "speedup", "seed", *(knob.field for knob in KNOBS.values())):
         if getattr(args, name) is not None:
             setattr(config, name, getattr(args, name))
     if args.photo_size:
@@ -387,11 +427,14 @@ def parse_sweep(text: str) -> tuple[str, list]:
     knob, _, values = text.partition("=")
     if knob not in KNOBS or not values:
         raise ValueError(f"--sweep {text!r}: expected KNOB=V1,V2,... with KNOB one of {', '.join(KNOBS)}")
-    field_name, parse = KNOBS[knob]
+    parse, choices = KNOBS[knob].parse, KNOBS[knob].choices
     try:
-        return knob, [parse(value) for value in values.split(",")]
+        parsed = [parse(value) for value in values.split(",")]
     except ValueError:
         raise ValueError(f"--sweep {text!r}: values of {knob} must be {parse.__name__}") from None
+    if choices and not set(parsed) <= set(choices):
+        raise ValueError(f"--sweep {text!r}: values of {knob} must be among {', '.join(choices)}")
+    return knob, parsed
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -399,9 +442,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         config = config_from_args(args)
         sweep = parse_sweep(args.sweep) if args.sweep else None
+        if sweep and args.reevaluate:
+            raise ValueError("--sweep runs new loops; --reevaluate evaluates one finished run: give one of them")
         read_scene_json(world_folder(config.scene))
-        if not args.reevaluate and args.out.exists() and any(args.out.iterdir()):
-            raise ValueError(f"{args.out}: not empty; give a new --out (or --reevaluate to evaluate that run again)")
+        if args.reevaluate:
+            finished_report(args.out)
+        else:
+            refuse_non_empty(args.out)
     except (ValueError, SceneError) as error:
         print(f"closed_loop: error: {error}", file=sys.stderr)
         return 2
@@ -412,10 +459,10 @@ def main(argv: list[str] | None = None) -> int:
     knob, values = sweep
     reports = []
     for value in values:
-        setattr(config, KNOBS[knob][0], value)
+        setattr(config, KNOBS[knob].field, value)
         reports.append((value, run_loop(config, args.out / f"{knob}={value}")))
     table = sweep_table(knob, reports)
-    (args.out / "sweep.md").write_text(table + "\n", encoding="utf-8")
+    write_text_atomic(args.out / "sweep.md", table + "\n")
     print(table)
     return 0 if all(report["complete"] for _, report in reports) else 1
 

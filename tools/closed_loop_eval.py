@@ -8,17 +8,16 @@ reconstruction's ``scene.json``), exactly as the dataset renderer moves replayed
 
 from __future__ import annotations
 
-import csv
 import json
 import math
-import os
-import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from capture.geotag_io import load_geotags
+from flightplan.atomic import atomic_path, write_text_atomic
 from flightplan.geodesy import LocalFrame
 from recon.accuracy import (depth_coverage, pose_alignment, pose_errors, pose_matrix,
                             scene_mesh_enu, surface_errors, transform_poses)
@@ -43,13 +42,18 @@ def truth_poses(truth: dict) -> dict[str, np.ndarray]:
     return poses
 
 
-def geotag_poses(geotags_csv: Path) -> dict[str, np.ndarray]:
-    """``T_world_cam`` of every geotagged photo, by name, in the geotags' ENU frame."""
-    with Path(geotags_csv).open(encoding="utf-8", newline="") as handle:
-        rows = list(csv.DictReader(handle))
-    return {row["image_name"]: pose_matrix(np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")]),
-                                           np.array([float(row[k]) for k in ("qw", "qx", "qy", "qz")]))[0]
-            for row in rows}
+def geotag_poses(geotags_csv: Path) -> tuple[dict[str, np.ndarray], list[str]]:
+    """``T_world_cam`` of every geotagged photo with an attitude, by name, in the geotags' ENU frame (read with
+    :func:`capture.geotag_io.load_geotags`), and the names of the rows without an attitude (empty quaternion)."""
+    poses, without_attitude = {}, []
+    for prior in load_geotags(geotags_csv):
+        if prior.R_world_cam is None:
+            without_attitude.append(prior.image_name)
+            continue
+        pose = np.eye(4)
+        pose[:3, :3], pose[:3, 3] = prior.R_world_cam, prior.position_enu_m
+        poses[prior.image_name] = pose
+    return poses, without_attitude
 
 
 def paired_errors(estimated: dict, truth: dict, T_truth_estimate: np.ndarray) -> dict:
@@ -68,11 +72,13 @@ def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
     sidecar = _read_json(Path(geotags_csv).with_suffix(".json"))
     to_truth = LocalFrame.from_dict(sidecar["origin"]).transform_to(LocalFrame.from_dict(truth["origin"]))
     true = truth_poses(truth)
-    errors = paired_errors(geotag_poses(geotags_csv), true, to_truth)
+    poses, without_attitude = geotag_poses(geotags_csv)
+    errors = paired_errors(poses, true, to_truth)
     # geotags: seconds ADDED to the camera clock to get telemetry time; truth: camera minus telemetry
     errors["clock_offset_s"] = {"estimated": sidecar["clock_offset_s"], "true": -truth["clock_offset_s"],
                                 "error": sidecar["clock_offset_s"] + truth["clock_offset_s"]}
-    errors["photos"] = {"taken": len(true), "tagged": errors["count"], "untagged": len(sidecar.get("untagged", []))}
+    errors["photos"] = {"taken": len(true), "tagged": errors["count"] + len(without_attitude),
+                        "untagged": len(sidecar.get("untagged", [])), "without_attitude": len(without_attitude)}
     return errors
 
 
@@ -224,34 +230,12 @@ def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Pat
     measure("twin_vs_true", {"render_twin", "render_true"},
             lambda: twin_vs_true_metrics(render_dirs["twin"], render_dirs["true"]))
     measure("twin_vs_photos", {"render_twin", "fly"}, lambda: twin_vs_photos_metrics(render_dirs["twin"], photos))
-    try:
-        import importlib.util
-        textured = importlib.util.find_spec("recon.texture") is not None
-    except ImportError:
-        textured = False
-    if not textured:
-        report["notes"].append("recon/texture.py is not on this branch: the twin is the vertex-coloured mesh")
     report["evaluation_s"] = time.perf_counter() - t0
     report["complete"] = all(s["status"] == "ok" for s in stages) and not report["not_measured"]
     return report
 
 
 # ---------------------------------------------------------------- report files
-
-
-def _atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp" + path.suffix)
-    os.close(fd)
-    try:
-        write(Path(tmp))
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def write_text_atomic(path: Path, text: str) -> None:
-    _atomic_write(Path(path), lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def _f(value, digits: int = 3) -> str:
@@ -308,15 +292,20 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
     return rows
 
 
+def total_wall_s(report: dict) -> float:
+    """Wall time of the whole run, seconds: every stage once plus the evaluation. The recorder is left out: over
+    the tcp link it runs alongside fly (its time overlaps fly's), over the loop link it is part of fly."""
+    return sum(s["wall_s"] for s in report["stages"] if s["name"] != "record") + report["evaluation_s"]
+
+
 def markdown(report: dict) -> str:
     """The Markdown report: stages (time, memory), the errors table, notes, the plot."""
     lines = ["# Closed-loop report", "", "| stage | status | wall s | peak RSS MiB | detail |", "|---|---|---|---|---|"]
     for s in report["stages"]:
         rss = "" if s["max_rss_mib"] is None else f"{s['max_rss_mib']:.0f}"
         lines.append(f"| {s['name']} | {s['status']} | {s['wall_s']:.1f} | {rss} | {s['detail']} |")
-    total = sum(s["wall_s"] for s in report["stages"] if s["name"] != "record" or s["max_rss_mib"] is None)
     lines += [f"| evaluation (in-process) | ok | {report['evaluation_s']:.1f} | | |",
-              f"| **total** | | **{total + report['evaluation_s']:.1f}** | | record overlaps fly on the tcp link |",
+              f"| **total** | | **{total_wall_s(report):.1f}** | | record overlaps fly (not counted) |",
               "", "| quantity | value |", "|---|---|"]
     lines += [f"| {name} | {value} |" for name, value in summary_rows(report)]
     lines += [""] + [f"- {note}" for note in report["notes"]]
@@ -348,7 +337,8 @@ def plot(report: dict, path: Path) -> None:
     axes[2].barh([s["name"] for s in stages], [s["wall_s"] for s in stages])
     axes[2].set(title="wall time per stage", xlabel="s")
     figure.tight_layout()
-    _atomic_write(path, lambda tmp: figure.savefig(tmp, dpi=90))
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, dpi=90)
     plt.close(figure)
 
 
@@ -368,7 +358,8 @@ def write_report(report: dict, out: Path) -> None:
 
 
 def sweep_table(knob: str, reports: list[tuple[object, dict]]) -> str:
-    """Speed against error of the whole pipeline, one row per value of ``knob``; times relative to the first.
+    """Speed against error of the whole pipeline, one row per value of ``knob``; total time as
+    :func:`total_wall_s`, relative to the first.
     Surface columns: the middle half-radius disc (absolute, and the shape with the georeference error removed);
     render columns: formula 3 over whole images."""
     header = (f"| {knob} | total s | x first | peak RSS MiB | geotag pos m | SfM pos m | surface median/p90 m | "
@@ -376,7 +367,7 @@ def sweep_table(knob: str, reports: list[tuple[object, dict]]) -> str:
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     base = None
     for value, report in reports:
-        total = sum(s["wall_s"] for s in report["stages"]) + report["evaluation_s"]
+        total = total_wall_s(report)
         base = base or total
         rss = max((s["max_rss_mib"] or 0) for s in report["stages"])
         m = report["metrics"]

@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.scene import read_scene_json
 from tools.closed_loop import LoopConfig, cli, fly_over_tcp, main, parse_sweep, plan_mission, run_loop, world_folder
-from tools.closed_loop_eval import sweep_table
+from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tools.closed_loop_eval import geotag_poses, markdown, sweep_table, total_wall_s
 
 
 @pytest.fixture(scope="module")
@@ -32,7 +34,7 @@ def test_reduced_closed_loop_stays_within_the_error_bounds(quick_report):
     # geotags: every photo, within the drone's GPS model (bias ~1.4 m RMS horizontal), attitude 0.1 deg noise,
     # the camera clock offset (0.35 s) recovered to half a camera-state push interval (photo events come from pushes)
     geotag = m["geotag"]
-    assert geotag["photos"] == {"taken": 29, "tagged": 29, "untagged": 0}
+    assert geotag["photos"] == {"taken": 29, "tagged": 29, "untagged": 0, "without_attitude": 0}
     assert geotag["position_m"]["max"] < 4.0
     assert geotag["rotation_deg"]["max"] < 0.5
     assert abs(geotag["clock_offset_s"]["error"]) < PHOTO_EVENT_ERROR_S + 0.02
@@ -84,11 +86,13 @@ def test_tcp_link_delivers_every_byte_to_the_record_process(tmp_path):
 
 def test_sweep_knobs_are_checked():
     assert parse_sweep("sfm_image_size=400,800") == ("sfm_image_size", [400, 800])
-    assert parse_sweep("gps_noise=realistic,none") == ("gps_noise", ["realistic", "none"])
+    assert parse_sweep("noise=realistic,none") == ("noise", ["realistic", "none"])
     with pytest.raises(ValueError, match="KNOB one of"):
         parse_sweep("colour=1,2")
     with pytest.raises(ValueError, match="must be int"):
         parse_sweep("spp=one")
+    with pytest.raises(ValueError, match="values of mesh must be among 2.5d, poisson"):
+        parse_sweep("mesh=2.5d,marching")
 
 
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys):
@@ -97,9 +101,21 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys):
     assert main(["--out", str(tmp_path), "--scene", str(tmp_path / "nowhere")]) == 2
     (tmp_path / "old_run.txt").write_text("x")
     assert main(["--out", str(tmp_path), "--quick"]) == 2
+    assert main(["--out", str(tmp_path / "no_run"), "--reevaluate"]) == 2
+    assert main(["--out", str(tmp_path), "--reevaluate", "--sweep", "spp=1,2"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 4 and "nowhere" in err[2] and "not empty" in err[3]
+    assert len(err) == 6 and "nowhere" in err[2]
+    assert f"{tmp_path}: not empty (an earlier run?); remove it (rm -r {tmp_path}), give another --out" in err[3]
+    assert f"{tmp_path / 'no_run' / 'report.json'}: not found; --reevaluate needs the folder of a finished run" in err[4]
+    assert "--sweep runs new loops; --reevaluate evaluates one finished run" in err[5]
     assert all(line.startswith("closed_loop: error:") for line in err)
+
+
+@pytest.mark.parametrize("option", [["--arc", "1"], ["--arc", "-3"], ["--mesh", "marching"], ["--noise", "gps"]])
+def test_bad_option_values_are_refused_by_the_parser(tmp_path, capsys, option):
+    with pytest.raises(SystemExit) as stop:
+        main(["--out", str(tmp_path), *option])
+    assert stop.value.code == 2 and f"argument {option[0]}" in capsys.readouterr().err
 
 
 def test_sweep_table_reports_time_ratios_and_not_measured_errors():
@@ -111,3 +127,27 @@ def test_sweep_table_reports_time_ratios_and_not_measured_errors():
     table = sweep_table("spp", [(1, report(10.0, 1.25)), (4, report(25.0, None))]).splitlines()
     assert table[2].startswith("| 1 | 10.0 | 1.00 | 100 | 1.250 |")
     assert table[3].startswith("| 4 | 25.0 | 2.50 | 100 | n/a |")
+
+
+def test_total_time_counts_the_recorder_once():
+    """Over the tcp link the recorder runs alongside fly: the total counts fly, not fly + record."""
+    stages = [{"name": "fly", "status": "ok", "wall_s": 10.0, "max_rss_mib": 100.0, "detail": ""},
+              {"name": "record", "status": "ok", "wall_s": 10.5, "max_rss_mib": 50.0, "detail": ""},
+              {"name": "geotag", "status": "ok", "wall_s": 2.0, "max_rss_mib": 80.0, "detail": ""}]
+    report = {"stages": stages, "evaluation_s": 1.0, "metrics": {}, "not_measured": {}, "notes": []}
+    assert total_wall_s(report) == 13.0
+    assert "| **total** | | **13.0** |" in markdown(report)
+    assert sweep_table("spp", [(1, report)]).splitlines()[2].startswith("| 1 | 13.0 | 1.00 | 100 |")
+
+
+def test_geotag_poses_count_rows_without_attitude(tmp_path):
+    """A geotag row with an empty quaternion (no attitude) is named, not a crash; the others keep their pose."""
+    half = np.sqrt(0.5)
+    csv = write_geotags(tmp_path, [geotag_row("a.jpg", (1.0, 2.0, 30.0), (half, 0.0, 0.0, half)),
+                                   geotag_row("b.jpg", (3.0, 4.0, 31.0), ("", "", "", ""))])
+    poses, without_attitude = geotag_poses(csv)
+    assert without_attitude == ["b.jpg"] and list(poses) == ["a.jpg"]
+    expected = np.eye(4)
+    expected[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]  # 90 deg about up
+    expected[:3, 3] = [1.0, 2.0, 30.0]
+    assert np.allclose(poses["a.jpg"], expected)
