@@ -5,9 +5,10 @@ one ground pixel of the photos, i.e. median viewing distance / focal length). Ea
 come from a vertical ray onto the mesh (sim's embree scene built from the mesh in memory). For every photo
 (undistorted pinhole camera, ``T_world_cam`` in the same ENU frame):
 
-1. project the texel points; keep those in front, inside the image and facing the camera;
-2. **visibility**: cast a ray from the camera centre towards each point; the texel is seen when the first hit
-   is the point itself (hit distance within ``max(0.05 m, 0.2 %)`` of the camera distance);
+1. project the texel points (``sim.camera.project_world_points``); keep those in front, inside the image and
+   facing the camera;
+2. **visibility**: an occlusion ray (``sim.raycast.occluded``) from the camera centre towards each point; the
+   texel is seen when nothing is hit before it (up to ``max(0.05 m, 0.2 %)`` of the camera distance short of it);
 3. sample the photo bilinearly in linear light;
 4. weight = border feather (0 at the image edge, 1 beyond ``feather_px``) x quality**``view_power`` with
    quality = cos(viewing angle) x (reference distance / distance): the best view dominates and neighbouring
@@ -30,8 +31,9 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from sim.camera import PinholeCamera
-from sim.raycast import default_workers, intersect
+from recon.sfm import camera_poses
+from sim.camera import PinholeCamera, project_world_points
+from sim.raycast import default_workers, intersect, occluded
 from sim.scene import Scene, Surface
 from sim.shade import sample_bilinear, to_srgb8
 from sim.worlds.glb import encode_textured_glb
@@ -195,15 +197,12 @@ def texel_grid(scene: Scene, texel_m: float, max_texture_px: int) -> Texels:
 def photo_samples(scene: Scene, photo: Photo, texels: Texels, options: TextureOptions, subset: np.ndarray,
                   reference_distance: float) -> Samples:
     """Visible texels among ``subset`` (flat indices) for one photo, their linear colours and blend weights."""
-    T = np.asarray(photo.T_world_cam, dtype=np.float64)
-    centre, R = T[:3, 3], T[:3, :3]
+    centre = np.asarray(photo.T_world_cam, dtype=np.float64)[:3, 3]
     cam = photo.camera
     points = texels.points[subset]
-    local = (points - centre) @ R
-    with np.errstate(invalid="ignore", divide="ignore"):
-        px = cam.fx * local[:, 0] / local[:, 2] + cam.cx
-        py = cam.fy * local[:, 1] / local[:, 2] + cam.cy
-    inside = (local[:, 2] > 0) & (px >= 0) & (px <= cam.width - 1) & (py >= 0) & (py <= cam.height - 1)
+    pixels, _ = project_world_points(cam, photo.T_world_cam, points)  # NaN behind the camera
+    px, py = pixels[:, 0], pixels[:, 1]
+    inside = (px >= 0) & (px <= cam.width - 1) & (py >= 0) & (py <= cam.height - 1)
     to_camera = centre - points[inside]
     distance = np.linalg.norm(to_camera, axis=1)
     direction = to_camera / distance[:, None]
@@ -213,8 +212,8 @@ def photo_samples(scene: Scene, photo: Photo, texels: Texels, options: TextureOp
     distance, direction, cosine = distance[facing], direction[facing], cosine[facing]
     if len(keep) == 0:
         return Samples(np.zeros(0, np.int64), np.zeros((0, 3), np.float32), np.zeros(0))
-    hits = intersect(scene, centre[None], -direction)
-    seen = np.abs(hits.t - distance) <= np.maximum(0.05, 2e-3 * distance)
+    tolerance = np.maximum(0.05, 2e-3 * distance)  # the texel's own surface must not hide it
+    seen = ~occluded(scene, centre[None], -direction, distance - tolerance)
     keep, distance, cosine = keep[seen], distance[seen], cosine[seen]
     u, v = px[keep], py[keep]
     uv = np.column_stack([(u + 0.5) / cam.width, 1.0 - (v + 0.5) / cam.height]).astype(np.float32)
@@ -324,9 +323,6 @@ def load_photos(model, image_dir, read_rgb) -> list[Photo]:
     registered = sorted((img for img in model.images.values() if img.has_pose), key=lambda img: img.name)
     with ThreadPoolExecutor(default_workers()) as pool:
         images = list(pool.map(lambda img: read_rgb(image_dir / img.name), registered))
-    photos = []
-    for img, rgb in zip(registered, images):
-        T = np.eye(4)
-        T[:3, :4] = img.cam_from_world().inverse().matrix()
-        photos.append(Photo(img.name, rgb, pinhole_from_colmap(img.camera), T))
-    return photos
+    poses = camera_poses(model)
+    return [Photo(img.name, rgb, pinhole_from_colmap(img.camera), poses[img.name])
+            for img, rgb in zip(registered, images)]
