@@ -11,7 +11,7 @@ fused cloud and of the 2.5-D mesh vertices to ODM's reference cloud ``model.laz`
 yaw + translation ICP (our ENU frame and ODM's UTM grid differ by the meridian convergence, ~0.7 deg here,
 and by their GPS/datum offsets), texture time and the photorealism error (formula 3, over the pixels the mesh
 covers) of unlit renders from the recovered poses against the undistorted photos (the paper: 12.49 %).
-Table 3, the closed loop: a 24-photo orbit over the small demo world (tests/recon/virtual_flight.py), SfM once,
+Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
 Table 4, the target: one full default orbit (452 photos) extrapolated from the per-photo stage times (brighton,
 dense 1000 px = the default; one table per SfM size, 1600 px = the default; mapping scaled by N^1.5).
@@ -42,6 +42,7 @@ from recon.texture import TextureOptions  # noqa: E402
 
 from recon.priors import focal_seed, list_photos, priors_from_exif  # noqa: E402
 from recon.sfm import SfmOptions, run_sfm  # noqa: E402
+from recon.similarity import umeyama  # noqa: E402
 
 DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
@@ -74,10 +75,7 @@ def distances_after_yaw_icp(points: np.ndarray, reference: np.ndarray, iteration
         moved = pts @ yaw_rotation(yaw).T + shift
         dist, idx = tree.query(moved)
         keep = dist < np.percentile(dist, 80)
-        a = moved[keep, :2] - moved[keep, :2].mean(axis=0)
-        b = ref[idx[keep], :2] - ref[idx[keep], :2].mean(axis=0)
-        u, _, vt = np.linalg.svd(a.T @ b)
-        rot2 = vt.T @ np.diag([1.0, np.sign(np.linalg.det(vt.T @ u.T))]) @ u.T
+        rot2 = umeyama(moved[keep, :2], ref[idx[keep], :2], with_scale=False).rotation
         yaw += np.arctan2(rot2[1, 0], rot2[0, 0])
         rotated = pts @ yaw_rotation(yaw).T
         shift = (ref[idx[keep]] - rotated[keep]).mean(axis=0)
@@ -137,8 +135,7 @@ def bench_closed_loop() -> list[dict]:
     """The closed-loop flight once, SfM once, then every row of CLOSED_LOOP_ROWS from the stages it shares."""
     from sim.scene import load_scene
     from sim.worlds import demo_scene_dir
-    from tests.recon.virtual_flight import Orbit, fly, surface_errors
-    from tests.recon.test_closed_loop import INNER_RADIUS_M
+    from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors
 
     world = load_scene(demo_scene_dir("small"))
     rows = []
@@ -163,8 +160,8 @@ def bench_closed_loop() -> list[dict]:
             reconstructed = load_scene(scene_dir)
             realism = scene_photorealism(scene_dir, read_rgb, every=2)
             rows.append({"label": label, "seconds": run.seconds,
-                         "surface": surface_errors(reconstructed, world, INNER_RADIUS_M),
-                         "disc": surface_errors(reconstructed, world, Orbit().radius_m),
+                         "surface": height_errors(reconstructed, world, INNER_RADIUS_M),
+                         "disc": height_errors(reconstructed, world, Orbit().radius_m),
                          "realism": float(np.median([r.error_percent for r in realism]))})
     return rows
 

@@ -13,7 +13,7 @@ from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm import SfmOptions
-from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import HEIGHT, WIDTH, look_down_view, make_texture, render_plane
 
 

@@ -7,21 +7,17 @@ import shutil
 import numpy as np
 import pycolmap
 import pytest
-from scipy.spatial.transform import Rotation
 
+from recon.accuracy import pose_errors
 from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import read_rgb
 from recon.sfm import camera_poses
 from sim.scene import load_scene
 from sim.worlds import demo_scene_dir
-from tests.recon.virtual_flight import Orbit, fly, surface_errors
+from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors
 
 ORBIT = Orbit()
-#: The well-observed area: every photo's lower image edge reaches the ground ~32 m from the centre (30 m up,
-#: 50 m out, 31 deg pitch, 57 deg vertical field of view), so the ring under the cameras is seen only from across
-#: the orbit, 80-100 m away at grazing angles, and the 2.5-D model leaves much of it open (README notes).
-INNER_RADIUS_M = 25.0
 
 
 @pytest.mark.slow
@@ -36,16 +32,16 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     assert report["unregistered"] == []
 
     poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
-    position_error = np.array([poses[n][:3, 3] - flight.poses[n][:3, 3] for n in flight.names])
-    angle_error = np.array([np.degrees(Rotation.from_matrix(poses[n][:3, :3].T @ flight.poses[n][:3, :3]).magnitude())
-                            for n in flight.names])
+    estimated = np.array([poses[n] for n in flight.names])
+    position_error = estimated[:, :3, 3] - np.array([flight.poses[n][:3, 3] for n in flight.names])
+    angle_error_max = pose_errors(estimated, np.array([flight.poses[n] for n in flight.names])).rotation_deg["max"]
     reconstructed = load_scene(scene_dir)
-    surface = surface_errors(reconstructed, world, INNER_RADIUS_M)
-    whole_disc = surface_errors(reconstructed, world, ORBIT.radius_m)
+    surface = height_errors(reconstructed, world, INNER_RADIUS_M)
+    whole_disc = height_errors(reconstructed, world, ORBIT.radius_m)
     realism = scene_photorealism(scene_dir, read_rgb, every=4)
     print(f"\nclosed loop: position error |mean| {np.abs(position_error.mean(axis=0)).round(3)} m, "
           f"max {np.abs(position_error).max(axis=0).round(3)} m (GPS sigma {ORBIT.gps_sigma_m}); "
-          f"orientation max {angle_error.max():.3f} deg; surface median {surface.median:.3f} m, "
+          f"orientation max {angle_error_max:.3f} deg; surface median {surface.median:.3f} m, "
           f"completeness@{surface.tolerance_m} {100 * surface.completeness:.1f} %, vertical offset "
           f"{surface.vertical_offset:+.3f} m within {INNER_RADIUS_M} m (whole {ORBIT.radius_m} m disc: median "
           f"{whole_disc.median:.3f} m, completeness {100 * whole_disc.completeness:.1f} %); photorealism % {[round(r.error_percent, 2) for r in realism]}")
@@ -53,7 +49,7 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     # every camera within the GPS noise (2 sigma per axis), the model's offset far inside it (24 fixes averaged)
     assert np.all(np.abs(position_error) < 2 * np.asarray(ORBIT.gps_sigma_m))
     assert np.all(np.abs(position_error.mean(axis=0)) < np.asarray(ORBIT.gps_sigma_m) / 2)
-    assert angle_error.max() < 0.5
+    assert angle_error_max < 0.5
     assert surface.median <= 0.10
     assert surface.completeness >= 0.90
     assert np.median([r.error_percent for r in realism]) < 14.0  # measured ~11 % (JPEG photos, 2.5-D walls)

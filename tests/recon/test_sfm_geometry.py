@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 from recon.priors import PosePriors, PriorsError, read_geotags
 from recon.sfm import check_inputs, georegister, loop_pair, select_core
 from recon.similarity import Similarity
-from tests.recon.geotag_helpers import ORIGIN, geotag_row, write_geotags
+from tools.geotag_csv import ORIGIN, geotag_row, write_geotags
 
 
 def orbit_cameras(n=30, radius=50.0, height=30.0):

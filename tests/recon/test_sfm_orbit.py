@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 from recon.dense import View
 from recon.priors import FocalSeed, read_geotags
 from recon.sfm import SfmOptions, camera_poses, run_sfm
-from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import FOCAL, HEIGHT, WIDTH, make_texture, render_plane
 
 NUM_PHOTOS, RADIUS_M, HEIGHT_M, PITCH_DEG = 24, 15.0, 15.0, -60.0

@@ -11,7 +11,7 @@ import pytest
 from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.scene import read_scene_json
 from tools.closed_loop import LoopConfig, cli, fly_over_tcp, main, parse_sweep, plan_mission, run_loop, world_folder
-from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tools.geotag_csv import geotag_row, write_geotags
 from tools.closed_loop_eval import geotag_poses, markdown, sweep_table, total_wall_s
 
 

@@ -1,4 +1,5 @@
-"""Writers of small geotags.csv/geotags.json files (INTERFACES.md layout) for recon tests."""
+"""Writers of small geotags.csv/geotags.json files (docs/interfaces.md layout) from known poses, for recon's
+tests and benchmarks."""
 
 import json
 

@@ -1,5 +1,5 @@
 """A virtual orbit over the small demo world: photos rendered by sim from known poses, noisy geotags, and the
-truth to score a reconstruction against (poses, surface heights). Shared by the closed-loop test and
+truth to score a reconstruction against (poses, surface heights). Shared by tests/recon/test_closed_loop.py and
 tools/bench_recon.py."""
 
 from __future__ import annotations
@@ -11,15 +11,20 @@ import numpy as np
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
+from recon.priors import FULL_FRAME_DIAGONAL_MM
 from sim.camera import PinholeCamera, Rig, look_at
 from sim.render import render
 from sim.scene import Scene
 from sim.shade import Sun
-from tests.recon.geotag_helpers import geotag_row, write_geotags
+from tools.geotag_csv import geotag_row, write_geotags
 
 #: 35 mm-equivalent focal length written to EXIF (an integer there), and the lens it means for 800x600 photos
-#: (recon's seed: f35 / 43.27 mm x the image diagonal).
+#: (recon's seed: f35 / FULL_FRAME_DIAGONAL_MM x the image diagonal).
 FOCAL_35MM = 24
+#: The well-observed area of the default orbit: every photo's lower image edge reaches the ground ~32 m from the
+#: centre (30 m up, 50 m out, 31 deg pitch, 57 deg vertical field of view), so the ring under the cameras is seen
+#: only from across the orbit, 80-100 m away at grazing angles, and the 2.5-D model leaves much of it open.
+INNER_RADIUS_M = 25.0
 
 
 @dataclass(frozen=True)
@@ -36,7 +41,7 @@ class Orbit:
 
     @property
     def camera(self) -> PinholeCamera:
-        focal = FOCAL_35MM / 43.27 * float(np.hypot(self.width, self.height))
+        focal = FOCAL_35MM / FULL_FRAME_DIAGONAL_MM * float(np.hypot(self.width, self.height))
         return PinholeCamera(focal, focal, (self.width - 1) / 2, (self.height - 1) / 2, self.width, self.height)
 
 
@@ -87,7 +92,7 @@ def fly(scene: Scene, orbit: Orbit, folder: Path, sun: Sun = Sun(135.0, 45.0)) -
 
 
 @dataclass(frozen=True)
-class SurfaceErrors:
+class HeightErrors:
     """Vertical distances (m) between the reconstructed and the true topmost surface on a grid over the orbit's
     disc: ``median`` over grid points with a reconstruction, ``completeness`` = fraction of all grid points within
     ``tolerance_m``, ``vertical_offset`` = median signed error (the georegistration's height error)."""
@@ -98,8 +103,8 @@ class SurfaceErrors:
     tolerance_m: float
 
 
-def surface_errors(reconstructed: Scene, truth: Scene, radius_m: float, step_m: float = 0.5,
-                   tolerance_m: float = 0.25) -> SurfaceErrors:
+def height_errors(reconstructed: Scene, truth: Scene, radius_m: float, step_m: float = 0.5,
+                  tolerance_m: float = 0.25) -> HeightErrors:
     """Compare the two surfaces by vertical rays (the 2.5-D model's own geometry) over a disc at the origin."""
     axis = np.arange(-radius_m, radius_m + step_m / 2, step_m)
     x, y = np.meshgrid(axis, axis)
@@ -108,5 +113,5 @@ def surface_errors(reconstructed: Scene, truth: Scene, radius_m: float, step_m: 
     difference = reconstructed.ground_height(x, y) - truth.ground_height(x, y)
     found = np.isfinite(difference)
     error = np.abs(difference[found])
-    return SurfaceErrors(float(np.median(error)), float(np.count_nonzero(error <= tolerance_m)) / len(x),
+    return HeightErrors(float(np.median(error)), float(np.count_nonzero(error <= tolerance_m)) / len(x),
                          float(np.median(difference[found])), tolerance_m)
