@@ -39,6 +39,14 @@ from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 
 STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
 
+#: What the origin's ``h0_ellipsoid_m`` (and so every absolute height of the scene) really is, by priors source.
+HEIGHT_DATUM = {
+    "exif": "mean sea level: the first photo's EXIF GPS altitude, stored as h0_ellipsoid_m without a geoid "
+            "correction (off from the ellipsoid by the local geoid undulation)",
+    "geotags": "as geotags.json's origin (the drone's absolute take-off height; its origin_height_known says "
+               "whether there was one)",
+}
+
 
 @dataclass(frozen=True)
 class ReconOptions:
@@ -240,8 +248,7 @@ class Recon:
             "generator": "recon.pipeline",
             "photos": str(self.photo_dir),
             "geotags": str(self.geotags_csv) if self.geotags_csv else "exif",
-            "origin_height": ("EXIF GPS altitude (MSL, geoid not applied)" if self.priors.source == "exif"
-                              else "geotags.json origin"),
+            "height_datum": HEIGHT_DATUM[self.priors.source],
             "options": asdict(self.options),
             "sfm": {k: sfm_report[k] for k in ("registered", "unregistered", "mean_reprojection_error_px",
                                                 "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
