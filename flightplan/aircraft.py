@@ -117,3 +117,5 @@ DJI_MINI_SE = AircraftProfile(
 #: Maximum height above take-off allowed without special permission: EU open category 120 m (Regulation
 #: 2019/947); US Part 107 allows 400 ft = 121.92 m, so 120 m satisfies both.
 LEGAL_MAX_HEIGHT_M = 120.0
+#: Diagonal (mm) of the 36 x 24 mm frame that 35 mm-equivalent focal lengths refer to.
+FULL_FRAME_DIAGONAL_MM = 43.27

@@ -18,11 +18,11 @@ from PIL import ExifTags, Image, UnidentifiedImageError
 
 from capture.geotag_io import load_geotags, sidecar_path
 from capture.logs.photos import PhotoInfo, read_exif_gps
+from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
 from flightplan.geodesy import LocalFrame
 
 DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
 PHOTO_SUFFIXES = (".jpg", ".jpeg", ".png", ".tif", ".tiff")
-FULL_FRAME_DIAGONAL_MM = 43.27  # the 36 x 24 mm frame that 35 mm-equivalent focal lengths refer to
 
 
 class PriorsError(ValueError):

@@ -26,11 +26,6 @@ class CliError(Exception):
     """Bad user input: printed as one line, exit code 2."""
 
 
-#: ``--scene`` of ``fly``: the same rule as the dataset render (a folder, or ``demo`` / ``demo:VARIANT``);
-#: tools/closed_loop.py imports it under this name.
-scene_folder = resolve_scene_dir
-
-
 def utc_time(text: str) -> dt.datetime:
     """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``) read by :func:`capture.track.parse_utc` (naive = UTC)."""
     try:

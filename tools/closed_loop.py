@@ -264,8 +264,8 @@ def plan_mission(config: LoopConfig, centre: LocalFrame, out: Path, log_dir: Pat
 
 def world_folder(scene: str) -> Path:
     """The scene folder of ``--scene`` (the demo world is built once into the cache)."""
-    from sim.cli import scene_folder
-    return scene_folder(scene)
+    from sim.render_dataset import resolve_scene_dir
+    return resolve_scene_dir(scene)
 
 
 def photo_hfov_deg(truth_json: Path) -> float:

@@ -11,7 +11,7 @@ import numpy as np
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from recon.priors import FULL_FRAME_DIAGONAL_MM
+from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
 from sim.camera import PinholeCamera, Rig, look_at
 from sim.render import render
 from sim.scene import Scene

@@ -26,7 +26,7 @@ from tqdm import tqdm
 from flightplan.atomic import atomic_path
 from capture.geotag import Geotag
 from capture.geotag_io import dji_xmp_packet, set_exif_gps
-from flightplan.aircraft import MINI_SE_CAMERA, CameraProfile
+from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM, MINI_SE_CAMERA, CameraProfile
 from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera, Rig
 from sim.raycast import default_workers
@@ -35,7 +35,6 @@ from sim.scene import Scene
 
 MAKE, MODEL = "DJI", "FC7103"
 JPEG_QUALITY = 92
-FULL_FRAME_DIAGONAL_MM = 43.27
 DEFAULT_SUN = Sun(azimuth_deg=150.0, elevation_deg=50.0)
 
 
