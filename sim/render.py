@@ -165,7 +165,7 @@ def _sunlit(scene: Scene, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, 
 
     def trace(block: slice) -> None:
         normals = hits.normal[block]
-        facing = (hits.tri[block] >= 0) & (normals @ sun32 > 0)
+        facing = (hits.tri[block] >= 0) & (np.einsum("ij,j->i", normals, sun32) > 0)
         if not lighting.shadows:
             lit[block][facing] = 1.0
             return
