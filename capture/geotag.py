@@ -201,8 +201,9 @@ def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
 
 
 def event_tolerance(track: Track) -> float:
-    """How far a shutter event may be from its true time: the source's own bound, at least EVENT_TOLERANCE_S."""
-    return max(EVENT_TOLERANCE_S, track.event_time_error_s)
+    """How far a shutter event may be from its true time: the source's own bound plus as much again for the
+    arrival jitter of a live link (a busy recorder stamps late), at least EVENT_TOLERANCE_S."""
+    return max(EVENT_TOLERANCE_S, 2.0 * track.event_time_error_s)
 
 
 def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
