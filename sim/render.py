@@ -23,7 +23,8 @@ from sim.shade import Lighting, Sun, lambert, sky_radiance, surface_albedo, to_s
 
 __all__ = ["Frame", "Lighting", "Sun", "View", "miss_fraction", "render"]
 
-#: Shadow-ray origins are pushed off the surface by this much plus a float32-precision term (metres).
+#: Shadow-ray origins are pushed off the surface by this much plus a float32-precision term: the relative
+#: factor times (ray length + the largest recentred coordinate in the scene) (metres).
 SHADOW_BIAS_M = 1e-3
 SHADOW_BIAS_RELATIVE = 4e-6
 
