@@ -92,8 +92,8 @@ def test_virtual_flight_streamed_to_record_geotags_within_the_noise_model(tmp_pa
     with geotags.open(encoding="utf-8", newline="") as handle:
         rows = list(csv.DictReader(handle))
     assert sidecar["untagged"] == [] and [r["image_name"] for r in rows] == [truth.names[i] for i in taken]
-    # photo events come from 5 Hz camera-state pushes: the offset is known to half a push interval (+ matching)
-    assert sidecar["clock_offset_s"] == pytest.approx(-imperfections.camera_clock_offset_s, abs=PHOTO_EVENT_ERROR_S + 0.02)
+    # photo events come from 5 Hz camera-state pushes: the offset is known to half a push interval (+ arrival jitter)
+    assert sidecar["clock_offset_s"] == pytest.approx(-imperfections.camera_clock_offset_s, abs=PHOTO_EVENT_ERROR_S + 0.05)
 
     frame = mission.flight.frame  # ENU at the TRUE home; the geotags' origin is the home GPS measured
     lat, lon, up = (np.array([float(r[k]) for r in rows]) for k in ("lat_deg", "lon_deg", "height_above_takeoff_m"))

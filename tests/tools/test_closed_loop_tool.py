@@ -37,7 +37,7 @@ def test_reduced_closed_loop_stays_within_the_error_bounds(quick_report):
     assert geotag["photos"] == {"taken": 29, "tagged": 29, "untagged": 0, "without_attitude": 0}
     assert geotag["position_m"]["max"] < 4.0
     assert geotag["rotation_deg"]["max"] < 0.5
-    assert abs(geotag["clock_offset_s"]["error"]) < PHOTO_EVENT_ERROR_S + 0.02
+    assert abs(geotag["clock_offset_s"]["error"]) < PHOTO_EVENT_ERROR_S + 0.05
     # SfM: all photos registered; geo-registered to the same biased GPS, so the offset is the GPS bias; a 20 m arc
     # leaves its yaw weakly fixed (measured ~3 deg)
     sfm = m["sfm"]
