@@ -19,7 +19,7 @@ from embreex import mesh_construction, rtcore, rtcore_scene
 from PIL import Image
 
 from flightplan.geodesy import LocalFrame
-from sim.shade import linear_texture
+from sim.shade import MAX_TEXTURE_SIDE, linear_texture
 
 SCENE_FORMAT = "aerostereo-scene/1"
 #: glTF "y up" (x east, y up, z south) -> ENU (east, north, up).
@@ -125,6 +125,10 @@ def _checked_surface(surface: Surface, n_vertices: int, source: str) -> Surface:
         uv = np.asfortranarray(surface.uv, dtype=np.float32) if surface.uv is not None else None
         if uv is None or uv.shape != (n_vertices, 2) or surface.texture.ndim != 3 or surface.texture.dtype != np.uint8:
             raise SceneError(f"{source}: a texture needs (H, W, 3) uint8 pixels and one UV per vertex")
+        if max(surface.texture.shape[:2]) > MAX_TEXTURE_SIDE:
+            height, width = surface.texture.shape[:2]
+            raise SceneError(f"{source}: texture of {width}x{height} px; the renderer samples at most "
+                             f"{MAX_TEXTURE_SIDE} px a side (split or downscale it)")
         return Surface(texture=surface.texture, uv=uv)
     colors = surface.vertex_colors
     if colors is None or colors.shape != (n_vertices, 3) or colors.dtype != np.uint8:

@@ -137,6 +137,13 @@ def test_degenerate_triangles_are_dropped():
         Scene(vertices, degenerate, Surface(texture=np.zeros((2, 2, 3), np.uint8), uv=uv))
 
 
+def test_a_texture_too_wide_to_sample_is_refused_at_load():
+    vertices, faces, uv = slope_mesh(cells=2)
+    Scene(vertices, faces, Surface(texture=np.zeros((1, 32767, 3), np.uint8), uv=uv))  # the widest allowed
+    with pytest.raises(SceneError, match="texture of 32768x1 px; the renderer samples at most 32767"):
+        Scene(vertices, faces, Surface(texture=np.zeros((1, 32768, 3), np.uint8), uv=uv))
+
+
 def test_missing_files_and_bad_descriptions_name_the_file(tmp_path):
     with pytest.raises(SceneError, match="scene.json not found"):
         load_scene(tmp_path)
