@@ -78,10 +78,12 @@ class PinholeCamera:
         """Image shape ``(height, width)``."""
         return int(self.height), int(self.width)
 
-    def pixel_centres(self) -> np.ndarray:
-        """``(H*W, 2)`` float64 pixel-centre coordinates ``(u, v)`` in image (row-major) order."""
-        v, u = np.mgrid[0 : self.height, 0 : self.width]
-        return np.stack([u.ravel(), v.ravel()], axis=-1).astype(np.float64)
+    def pixel_centres(self, pixels: slice = slice(None)) -> np.ndarray:
+        """``(N, 2)`` float64 pixel-centre coordinates ``(u, v)`` of the image-order (row-major) pixel indices
+        ``pixels`` (default: all ``H*W``)."""
+        index = np.arange(self.width * self.height)[pixels]
+        row, column = np.divmod(index, self.width)
+        return np.stack([column, row], axis=-1).astype(np.float64)
 
     @cached_property
     def centre_directions(self) -> np.ndarray:
@@ -167,13 +169,20 @@ class Rig:
         return [T_world_rig @ T for T in self.T_rig_cam]
 
 
+#: Largest deviation of ``R.T @ R`` from the identity accepted as a rotation (float32-derived rotations pass).
+POSE_ORTHONORMAL_TOLERANCE = 1e-5
+_IDENTITY3 = np.eye(3)
+_LAST_ROW = np.array([0.0, 0.0, 0.0, 1.0])
+
+
 def check_pose(T: np.ndarray) -> np.ndarray:
     """Return ``T`` as float64 4x4 after checking it is a rigid transform (orthonormal rotation, last row 0 0 0 1)."""
     T = np.asarray(T, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ValueError(f"pose must be a finite 4x4 matrix, got shape {T.shape}")
     R = T[:3, :3]
-    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0 or not np.allclose(T[3], [0, 0, 0, 1]):
+    orthonormal = np.abs(R.T @ R - _IDENTITY3).max() <= POSE_ORTHONORMAL_TOLERANCE
+    if not orthonormal or np.linalg.det(R) < 0 or np.abs(T[3] - _LAST_ROW).max() > 1e-8:
         raise ValueError("pose must be rigid: orthonormal right-handed rotation and last row [0, 0, 0, 1]")
     return T
 
@@ -238,14 +247,17 @@ class Rays:
     depth_scale: np.ndarray
 
 
-def camera_rays(camera: PinholeCamera, T_world_cam: np.ndarray, offsets: np.ndarray | None = None) -> Rays:
-    """Rays through every pixel of ``camera`` at ``T_world_cam``: pixel centres, or centres plus
-    ``(H*W, 2)`` sub-pixel ``offsets``. Centre directions are computed once per camera object and reused."""
+def camera_rays(
+    camera: PinholeCamera, T_world_cam: np.ndarray, offsets: np.ndarray | None = None, pixels: slice = slice(None)
+) -> Rays:
+    """Rays through the image-order pixels ``pixels`` (default: every pixel) of ``camera`` at ``T_world_cam``:
+    pixel centres, or centres plus ``(N, 2)`` sub-pixel ``offsets``. Centre directions are computed once per
+    camera object and reused."""
     T_world_cam = check_pose(T_world_cam)
     if offsets is None:
-        dirs_cam = camera.centre_directions
+        dirs_cam = camera.centre_directions[pixels]
     else:
-        dirs_cam = camera.ray_directions(camera.pixel_centres() + offsets).astype(np.float32)
+        dirs_cam = camera.ray_directions(camera.pixel_centres(pixels) + offsets).astype(np.float32)
     dirs_world = rows_times_matrix(dirs_cam, T_world_cam[:3, :3].T.astype(np.float32))
     return Rays(T_world_cam[None, :3, 3], dirs_world, dirs_cam[:, 2])
 
@@ -258,6 +270,14 @@ def rows_times_matrix(rows: np.ndarray, matrix: np.ndarray, chunk: int = 32768) 
     for start in range(0, len(rows), chunk):
         np.matmul(rows[start : start + chunk], matrix, out=out[start : start + chunk])
     return out
+
+
+def row_dots(rows: np.ndarray, other: np.ndarray) -> np.ndarray:
+    """Dot product of each row of an ``(N, 3)`` array with one vector ``(3,)`` or with the same row of another
+    ``(N, 3)`` array. Column by column: ~2x faster than einsum here, and unlike a matrix product it never
+    starts BLAS threads that would race the ray-casting threads (see :func:`rows_times_matrix`)."""
+    columns = np.asarray(other).T
+    return rows[:, 0] * columns[0] + rows[:, 1] * columns[1] + rows[:, 2] * columns[2]
 
 
 def project_world_points(camera: PinholeCamera, T_world_cam: np.ndarray, points_world: np.ndarray):

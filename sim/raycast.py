@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.camera import row_dots
 from sim.scene import Scene
 
 #: embree's "no hit" distance.
@@ -105,25 +106,29 @@ def intersect(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray, poo
     normal = np.empty((n, 3), np.float32)
 
     def cast(block: slice) -> None:
-        block_origins, block_dirs = _rows(origins, block), _rows(dirs, block)
-        out = scene.embree.run(block_origins, block_dirs, output=1)
-        _recast_misses(scene, block_origins, block_dirs, out)
-        tri[block] = out["primID"]
-        miss = out["primID"] < 0
-        t[block] = out["tfar"]
-        u[block] = out["u"]
-        v[block] = out["v"]
-        ng = out["Ng"]
-        with np.errstate(divide="ignore"):
-            scale = np.float32(1.0) / np.sqrt(np.einsum("ij,ij->i", ng, ng))
-        np.negative(scale, out=scale, where=np.einsum("ij,ij->i", ng, block_dirs) > 0)
-        if miss.any():
-            t[block][miss], u[block][miss], v[block][miss], scale[miss] = np.inf, 0.0, 0.0, 0.0
-        scale[~np.isfinite(scale)] = 0.0  # a zero-length normal (float32 sliver)
-        normal[block] = ng * scale[:, None]
+        hits = intersect_local(scene, _rows(origins, block), _rows(dirs, block))
+        t[block], tri[block], u[block], v[block], normal[block] = hits.t, hits.tri, hits.u, hits.v, hits.normal
 
     map_blocks(cast, n, pool)
     return Hits(t, tri, u, v, normal)
+
+
+def intersect_local(scene: Scene, origins32: np.ndarray, directions32: np.ndarray) -> Hits:
+    """Single-threaded :func:`intersect` on recentred float32 inputs (:meth:`Scene.to_local`), both ``(N, 3)``
+    (a shared row may be broadcast to ``(N, 3)``)."""
+    out = scene.embree.run(origins32, directions32, output=1)
+    _recast_misses(scene, origins32, directions32, out)
+    tri, t, ng = out["primID"], out["tfar"], out["Ng"]
+    with np.errstate(divide="ignore"):
+        scale = np.float32(1.0) / np.sqrt(row_dots(ng, ng))
+    np.negative(scale, out=scale, where=row_dots(ng, directions32) > 0)
+    miss = tri < 0
+    if miss.any():
+        t[miss], out["u"][miss], out["v"][miss], scale[miss] = np.inf, 0.0, 0.0, 0.0
+    scale[~np.isfinite(scale)] = 0.0  # a zero-length normal (float32 sliver)
+    for axis in range(3):
+        ng[:, axis] *= scale
+    return Hits(t, tri, out["u"], out["v"], ng)
 
 
 def _recast_misses(scene: Scene, origins32: np.ndarray, dirs32: np.ndarray, out: dict) -> None:

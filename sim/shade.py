@@ -14,6 +14,8 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 
+from sim.camera import row_dots
+
 if TYPE_CHECKING:  # sim.scene imports this module (linear textures)
     from sim.scene import Scene
 
@@ -40,8 +42,10 @@ LINEAR16_TO_SRGB8 = np.round(linear_to_srgb(np.arange(65536) / 65535.0) * 255.0)
 
 def to_srgb8(linear: np.ndarray) -> np.ndarray:
     """Linear RGB -> 8-bit sRGB (clipped; by table, within one code of exact rounding)."""
-    index = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0) * np.float32(65535.0) + np.float32(0.5)
-    return LINEAR16_TO_SRGB8[index.astype(np.int32)]
+    index = np.multiply(linear, np.float32(65535.0), dtype=np.float32)
+    index += np.float32(0.5)
+    np.clip(index, 0.0, 65535.0, out=index)
+    return LINEAR16_TO_SRGB8.take(index.astype(np.uint16))
 
 
 @dataclass(frozen=True)
@@ -80,17 +84,19 @@ def sky_radiance(directions: np.ndarray, lighting: Lighting) -> np.ndarray:
 
 def surface_albedo(scene: Scene, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Linear albedo ``(N, 3)`` at hits given by triangle index and barycentrics (texture or vertex colours)."""
-    corners = scene.faces[tri]
-    w0 = (1.0 - u - v)[:, None]
+    corners = scene.faces.take(tri, axis=0)  # take: ~2.5x faster than fancy indexing here
+    w0 = 1.0 - u - v
     surface = scene.surface
     if surface.texture is not None:
         uv = np.empty((len(tri), 2), np.float32)
         for axis in range(2):
             column = surface.uv[:, axis]
-            uv[:, axis] = w0[:, 0] * column[corners[:, 0]] + u * column[corners[:, 1]] + v * column[corners[:, 2]]
+            corner_uv = [column.take(corners[:, corner]) for corner in range(3)]
+            uv[:, axis] = w0 * corner_uv[0] + u * corner_uv[1] + v * corner_uv[2]
         return sample_linear(surface.linear_texture, uv)
     colors = SRGB8_TO_LINEAR[surface.vertex_colors[corners]]  # (N, 3 corners, 3 channels)
-    return (w0 * colors[:, 0] + u[:, None] * colors[:, 1] + v[:, None] * colors[:, 2]).astype(np.float32)
+    w0, u, v = w0[:, None], u[:, None], v[:, None]
+    return (w0 * colors[:, 0] + u * colors[:, 1] + v * colors[:, 2]).astype(np.float32)
 
 
 def linear_texture(srgb8: np.ndarray) -> np.ndarray:
@@ -141,9 +147,18 @@ def sample_bilinear(texture: np.ndarray, uv: np.ndarray) -> np.ndarray:
 
 
 def lambert(
-    albedo: np.ndarray, normals: np.ndarray, sun: Sun, lit: np.ndarray, lighting: Lighting
+    albedo: np.ndarray, normals: np.ndarray, sun: Sun, lit: np.ndarray, lighting: Lighting,
+    out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals."""
-    cosine = np.clip(np.einsum("ij,j->i", normals, sun.direction_enu.astype(np.float32)), 0.0, None) * lit
-    irradiance = sun.intensity * cosine + lighting.ambient
-    return albedo * (irradiance * lighting.exposure)[:, None].astype(np.float32)
+    """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals, float32
+    ``(N, 3)``, written into ``out`` when given."""
+    irradiance = row_dots(normals, sun.direction_enu.astype(np.float32))
+    np.maximum(irradiance, 0.0, out=irradiance)
+    irradiance *= lit
+    irradiance *= np.float32(sun.intensity)
+    irradiance += np.float32(lighting.ambient)
+    irradiance *= np.float32(lighting.exposure)
+    radiance = np.empty(albedo.shape, np.float32) if out is None else out
+    for channel in range(3):  # by columns: faster than broadcasting (N, 1) against (N, 3)
+        np.multiply(albedo[:, channel], irradiance, out=radiance[:, channel])
+    return radiance

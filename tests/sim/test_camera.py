@@ -13,6 +13,7 @@ from sim.camera import (
     look_at,
     pose_from_position,
     project_world_points,
+    row_dots,
     stratified_offsets,
 )
 
@@ -89,6 +90,33 @@ def test_look_at_points_z_at_target_with_image_up_towards_up():
 def test_pose_from_position_rejects_a_non_rotation():
     with pytest.raises(ValueError, match="rigid"):
         pose_from_position([0, 0, 0], np.diag([1.0, 1.0, -1.0]))
+
+
+def test_pose_check_accepts_float32_rounding_and_rejects_a_skewed_rotation():
+    T = look_at([3.0, -40.0, 25.0], [0.0, 0.0, 0.0])
+    T[:3, :3] = T[:3, :3].astype(np.float32)
+    pose_from_position(T[:3, 3], T[:3, :3])
+    T[0, 1] += 1e-4
+    with pytest.raises(ValueError, match="rigid"):
+        pose_from_position(T[:3, 3], T[:3, :3])
+
+
+def test_rays_of_a_pixel_range_are_those_rows_of_the_whole_image():
+    camera = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=DISTORTED["pinhole"])
+    T = look_at([1.0, -30.0, 20.0], [0.0, 0.0, 0.0])
+    pixels = slice(1000, 4321)
+    offsets = np.random.default_rng(0).random((camera.width * camera.height, 2)) - 0.5
+    np.testing.assert_array_equal(camera.pixel_centres(pixels), camera.pixel_centres()[pixels])
+    np.testing.assert_array_equal(camera_rays(camera, T, pixels=pixels).directions, camera_rays(camera, T).directions[pixels])
+    part = camera_rays(camera, T, offsets[pixels], pixels=pixels)
+    np.testing.assert_allclose(part.directions, camera_rays(camera, T, offsets).directions[pixels], atol=1e-7)
+    np.testing.assert_allclose(part.depth_scale, camera_rays(camera, T, offsets).depth_scale[pixels], atol=1e-7)
+
+
+def test_row_dots_match_the_dot_product_of_each_row():
+    a, b = np.random.default_rng(1).standard_normal((2, 50, 3)).astype(np.float32)
+    np.testing.assert_allclose(row_dots(a, b), np.einsum("ij,ij->i", a, b), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(row_dots(a, b[0]), a @ b[0], rtol=1e-6, atol=1e-6)
 
 
 def test_stratified_offsets_put_one_sample_in_every_row_and_column_stratum():

@@ -1,5 +1,7 @@
 """Rendering against analytic scenes: depth, distance, normals, reprojection, hard cases, stereo, shading."""
 
+from concurrent.futures import ThreadPoolExecutor
+
 import cv2
 import numpy as np
 import pytest
@@ -245,6 +247,24 @@ def test_supersampling_is_seeded_and_keeps_centre_depth():
     np.testing.assert_array_equal(four.depth, one.depth)
     np.testing.assert_array_equal(four.rgb, again.rgb)
     assert not np.array_equal(four.rgb, one.rgb)
+
+
+def test_images_do_not_depend_on_the_blocks_or_the_number_of_threads(monkeypatch):
+    scene = height_field_scene(40, size_m=200.0)
+    rig = Rig.stereo(CAMERA, 0.5)
+    T = look_at([0.0, -120.0, 90.0], [0.0, 0.0, 0.0])
+    whole = render(scene, rig, T, Sun(120.0, 35.0))
+    jittered = render(scene, rig, T, Sun(120.0, 35.0), 3, pool=ThreadPoolExecutor(1), rng=np.random.default_rng(2))
+    monkeypatch.setattr("sim.render.BLOCK_PIXELS", 1000)  # 13 blocks per 128x96 view
+    blocks = render(scene, rig, T, Sun(120.0, 35.0), pool=ThreadPoolExecutor(3))
+    for a, b in zip(whole.views, blocks.views):
+        for name in ("rgb", "depth", "distance", "normal", "valid"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    monkeypatch.setattr("sim.render.BLOCK_PIXELS", 131072)
+    threads = render(scene, rig, T, Sun(120.0, 35.0), 3, pool=ThreadPoolExecutor(3), rng=np.random.default_rng(2))
+    for a, b in zip(jittered.views, threads.views):
+        np.testing.assert_array_equal(a.rgb, b.rgb)
+    assert 0.0 < whole.views[0].valid.mean() < 1.0 and 0.0 < (jittered.views[0].rgb != whole.views[0].rgb).mean() < 1.0
 
 
 def test_rays_are_generated_in_image_order():
