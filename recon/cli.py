@@ -43,7 +43,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--photos", type=Path, required=True, help="folder of photos")
     parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
     parser.add_argument("--out", type=Path, required=True, help="scene folder to write (resumable)")
-    parser.add_argument("--image-size", type=positive_int, default=1600, help="SfM max image side, px")
+    parser.add_argument("--image-size", type=positive_int, default=SfmOptions.max_image_size,
+                        help="SfM max image side, px (default %(default)s)")
     parser.add_argument("--max-features", type=positive_int, default=8192, help="SIFT features per photo")
     parser.add_argument("--dense-size", type=positive_int, default=1000, help="depth-map max image side, px")
     parser.add_argument("--mesh", choices=("2.5d", "poisson"), default="2.5d")

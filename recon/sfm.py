@@ -44,7 +44,7 @@ class SfmOptions:
     ``every_kth``: only every k-th photo enters mapping; the rest are registered into the finished model.
     """
 
-    max_image_size: int = 1600
+    max_image_size: int = 800
     max_num_features: int = 8192
     spatial_neighbors: int = 12
     sequential_overlap: int = 0
@@ -180,8 +180,20 @@ def ensure_loop_matched(database_path: Path, pair: tuple[str, str], options: Sfm
 # ---------------------------------------------------------------- mapping
 
 
+#: Global bundle adjustment after the model grows by this factor (COLMAP's default 1.1 runs ~65 global
+#: adjustments on a 452-photo orbit; 1.3 runs ~23).
+GLOBAL_BA_GROWTH = 1.3
+
+
 def _mapping_options(options: SfmOptions, refine_focal: bool, fix_existing: bool = False):
+    """Incremental mapping with position priors; global bundle adjustment lighter than COLMAP's defaults: less
+    often (:data:`GLOBAL_BA_GROWTH`) and without the redundant points (COLMAP's
+    ``ba_global_ignore_redundant_points3D``: its authors measured ~2x faster mapping at unchanged accuracy). The
+    closed-loop tests and ``tools/bench_recon_orbit.py`` measure the accuracy against the virtual drone's truth."""
     mapping = pycolmap.IncrementalPipelineOptions()
+    mapping.ba_global_frames_ratio = GLOBAL_BA_GROWTH
+    mapping.ba_global_points_ratio = GLOBAL_BA_GROWTH
+    mapping.mapper.ba_global_ignore_redundant_points3D = True
     mapping.use_prior_position = True
     mapping.use_robust_loss_on_prior_position = True
     mapping.ba_refine_focal_length = refine_focal

@@ -14,7 +14,8 @@ covers) of unlit renders from the recovered poses against the undistorted photos
 Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
 Table 4, the target: one full default orbit (452 photos) extrapolated from the per-photo stage times (brighton,
-dense 1000 px = the default; one table per SfM size, 1600 px = the default; mapping scaled by N^1.5).
+dense 1000 px = the default; one table per SfM size, 800 px = the default; mapping scaled by N^1.5).
+Table 4 is an estimate; tools/bench_recon_orbit.py measures a real 452-photo orbit.
 """
 
 from __future__ import annotations
@@ -190,7 +191,7 @@ def print_target(sfm: dict, dense_rows: list[dict], photos: int, target: int = 4
                 "undistort + depth + fusion": d["undistort"] + d["depth"] + d["fusion"],
                 "mesh (area, taken linear)": d["mesh"], "texture": d["texture"]}
     parts = {name: seconds * scale ** (1.5 if "N^1.5" in name else 1.0) for name, seconds in measured.items()}
-    print(f"\ntarget: {target} photos at SfM {sfm['size']} px (default 1600), dense {dense['size']} px, "
+    print(f"\ntarget: {target} photos at SfM {sfm['size']} px (default {SfmOptions.max_image_size}), dense {dense['size']} px, "
           f"from {photos} brighton photos x {scale:.1f}")
     print("| stage | measured s | extrapolated s |")
     print("|---|---|---|")
