@@ -81,7 +81,7 @@ class PinholeCamera:
     def pixel_centres(self, pixels: slice = slice(None)) -> np.ndarray:
         """``(N, 2)`` float64 pixel-centre coordinates ``(u, v)`` of the image-order (row-major) pixel indices
         ``pixels`` (default: all ``H*W``)."""
-        index = np.arange(self.width * self.height)[pixels]
+        index = np.arange(*pixels.indices(self.width * self.height))
         row, column = np.divmod(index, self.width)
         return np.stack([column, row], axis=-1).astype(np.float64)
 

@@ -162,7 +162,7 @@ def _render_pixels(scene, images: _ViewImages, pixels: slice, sun, spp, lighting
     with times.stage("rays"):
         centre = camera_rays(camera, T_world_cam, pixels=pixels)
     with times.stage("cast"):
-        origin = scene.to_local(centre.origin).astype(np.float32)
+        origin = scene.to_local(centre.origin)
         centre_hits = intersect_local(scene, np.broadcast_to(origin, centre.directions.shape), centre.directions)
     if spp == 1:
         radiance = _radiance(scene, origin, centre, centre_hits, sun, lighting, times)
@@ -202,8 +202,8 @@ def _sunlit(scene: Scene, origin32: np.ndarray, rays: Rays, hits: Hits, sun: Sun
 
     Only hits whose (camera-facing) normal faces the sun get a shadow ray - the others are self-shadowed -
     and a shadow ray only has to reach the top of the scene's bounding box: nothing above it can occlude.
-    Every ray is traced in image order (coherent); the others get a negative reach, which embree skips,
-    cheaper than gathering the candidates out and back.
+    Every ray is traced in image order (coherent); rays without a shadow ray get a negative reach, which embree
+    skips, cheaper than gathering the candidates out and back.
     """
     lit = np.zeros(len(hits.t), np.float32)
     if sun.elevation_deg <= 0:
