@@ -31,11 +31,14 @@ import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
 
 from recon.accuracy import pose_errors  # noqa: E402
+from recon.cli import positive_int  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.sfm import SfmOptions, camera_poses  # noqa: E402
 from sim.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
-from tools.virtual_flight import INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, save_jpeg  # noqa: E402
+from tools.virtual_flight import (  # noqa: E402
+    INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, save_jpeg,
+)
 
 TARGET_S = 30 * 60
 #: A DJI Mini SE photo (4:3, 12 MP): the decoding cost of full-size photos is measured at this size.
@@ -52,7 +55,7 @@ def virtual_flight(world, orbit: Orbit, folder: Path) -> tuple[Flight, float]:
         fly(world, orbit, staging)
         seconds = time.perf_counter() - start
         staging.rename(folder)
-    names = [f"orbit_{k:03d}.jpg" for k in range(orbit.photos)]  # fly()'s names, poses and camera
+    names = [photo_name(k) for k in range(orbit.photos)]  # fly()'s names, poses and camera
     poses = dict(zip(names, orbit_poses(world, orbit)))
     return Flight(folder / "photos", folder / "geotags.csv", names, poses, orbit.camera), seconds
 
@@ -76,10 +79,11 @@ def decode_seconds(size: tuple[int, int]) -> float:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="work folder (the flight is kept and reused)")
-    parser.add_argument("--photos", type=int, default=452)
-    parser.add_argument("--photo-size", type=int, nargs=2, default=(2000, 1500), metavar=("W", "H"))
-    parser.add_argument("--image-size", type=int, help="SfM max image side, px (default: recon's)")
-    parser.add_argument("--every", type=int, default=1, help="only every k-th photo enters SfM")
+    parser.add_argument("--photos", type=positive_int, default=452)
+    parser.add_argument("--photo-size", type=positive_int, nargs=2, default=(2000, 1500), metavar=("W", "H"))
+    parser.add_argument("--image-size", type=positive_int, default=SfmOptions.max_image_size,
+                        help="SfM max image side, px (default: recon's, %(default)s)")
+    parser.add_argument("--every", type=positive_int, default=1, help="only every k-th photo enters SfM")
     parser.add_argument("--scene", default="default", help="demo world variant (default, small)")
     args = parser.parse_args(argv)
     pycolmap.logging.minloglevel = 2
@@ -87,8 +91,7 @@ def main(argv=None) -> int:
     orbit = Orbit(photos=args.photos, width=args.photo_size[0], height=args.photo_size[1])
     flight, flight_s = virtual_flight(world, orbit, args.out / f"flight-{args.photos}-{orbit.width}x{orbit.height}")
 
-    sfm = SfmOptions(every_kth=args.every) if args.image_size is None else \
-        SfmOptions(max_image_size=args.image_size, every_kth=args.every)
+    sfm = SfmOptions(max_image_size=args.image_size, every_kth=args.every)
     scene_dir = args.out / f"scene-{sfm.max_image_size}-{sfm.every_kth}"
     shutil.rmtree(scene_dir, ignore_errors=True)
     run = Recon(flight.photo_dir, flight.geotags_csv, scene_dir, ReconOptions(sfm=sfm))

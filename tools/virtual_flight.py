@@ -54,6 +54,11 @@ class Flight:
     camera: PinholeCamera
 
 
+def photo_name(index: int) -> str:
+    """File name of the orbit's photo ``index`` (0 first)."""
+    return f"orbit_{index:03d}.jpg"
+
+
 def orbit_poses(scene: Scene, orbit: Orbit) -> list[np.ndarray]:
     """Cameras on a circle ``height_m`` above the ground at the centre, looking at the centre (ENU)."""
     ground = float(scene.ground_height(0.0, 0.0))
@@ -78,7 +83,7 @@ def fly(scene: Scene, orbit: Orbit, folder: Path, sun: Sun = Sun(135.0, 45.0)) -
     camera = orbit.camera
     rows, poses = [], {}
     for k, pose in enumerate(orbit_poses(scene, orbit)):
-        name = f"orbit_{k:03d}.jpg"
+        name = photo_name(k)
         view = render(scene, Rig((camera,), (np.eye(4),)), pose, sun).views[0]
         save_jpeg(photo_dir / name, view.rgb)
         poses[name] = pose
