@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 import pycolmap
+from scipy.spatial import cKDTree
+from tqdm import tqdm
 
 from flightplan.atomic import write_text_atomic
 from recon.priors import FocalSeed, PosePriors, PriorsError
@@ -41,7 +43,8 @@ class SfmOptions:
     ``focal``: "fixed" keeps the seeded focal length, "refine" lets bundle adjustment move it, "auto" maps
     with it fixed and refines it afterwards only when the viewing directions spread by more than
     ``STRONG_GEOMETRY_DEG`` (converging oblique orbit); a flat nadir block cannot determine it.
-    ``every_kth``: only every k-th photo enters mapping; the rest are registered into the finished model.
+    ``every_kth``: only every k-th photo enters mapping; the rest are registered into the finished model
+    (None: :func:`auto_every_kth` picks k from the photo spacing and the flight height).
     """
 
     max_image_size: int = 800
@@ -50,7 +53,7 @@ class SfmOptions:
     sequential_overlap: int = 0
     mapper: str = "incremental"
     focal: str = "auto"
-    every_kth: int = 1
+    every_kth: int | None = None
     num_threads: int = -1
     seed: int = 0
 
@@ -60,6 +63,7 @@ class SfmReport:
     """What SfM achieved; residuals are SfM camera centre minus prior position (ENU metres)."""
 
     num_photos: int
+    mapped_every_kth: int
     registered: list[str]
     unregistered: list[str]
     num_points3d: int
@@ -164,17 +168,30 @@ def verified_inliers(database_path: Path, name_a: str, name_b: str) -> int:
     return int(dict(zip(pair_ids, counts)).get(wanted, 0))
 
 
+def match_pairs(database_path: Path, pairs, options: SfmOptions) -> None:
+    """Match and verify exactly the photo ``pairs`` (names), e.g. an orbit's closing pair."""
+    pairs_file = Path(database_path).with_name("match_pairs.txt")
+    pairs_file.write_text("".join(f"{a} {b}\n" for a, b in pairs), encoding="utf-8")
+    pairing = pycolmap.ImportedPairingOptions()
+    pairing.match_list_path = str(pairs_file)
+    pycolmap.match_image_pairs(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
+
+
 def ensure_loop_matched(database_path: Path, pair: tuple[str, str], options: SfmOptions) -> int:
     """Match the orbit's closing pair explicitly if spatial matching left it out; return its inliers."""
     inliers = verified_inliers(database_path, *pair)
     if inliers >= LOOP_MIN_INLIERS:
         return inliers
-    pairs_file = Path(database_path).with_name("loop_pairs.txt")
-    pairs_file.write_text(f"{pair[0]} {pair[1]}\n", encoding="utf-8")
-    pairing = pycolmap.ImportedPairingOptions()
-    pairing.match_list_path = str(pairs_file)
-    pycolmap.match_image_pairs(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
+    match_pairs(database_path, [pair], options)
     return verified_inliers(database_path, *pair)
+
+
+def nearest_mapped_pairs(priors: PosePriors, mapped, rest, count: int) -> list[tuple[str, str]]:
+    """Each photo of ``rest`` paired with the ``count`` photos of ``mapped`` nearest to it by prior position."""
+    tree = cKDTree(priors.subset(mapped).positions_enu)
+    _, nearest = tree.query(priors.subset(rest).positions_enu, k=min(count, len(mapped)))
+    nearest = np.asarray(nearest).reshape(len(rest), -1)
+    return [(name, mapped[j]) for name, row in zip(rest, nearest) for j in row]
 
 
 # ---------------------------------------------------------------- mapping
@@ -230,12 +247,38 @@ def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: Sfm
     return largest_model(models)
 
 
-def register_remaining(database_path, photo_dir, model_dir: Path, out_dir: Path, options: SfmOptions):
-    """Register the database's unregistered photos into the model in ``model_dir`` (its frames kept fixed)."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    mapping = _mapping_options(options, refine_focal=False, fix_existing=True)
-    models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, mapping, input_path=model_dir)
-    return largest_model(models)
+#: A photo left out of mapping is matched with this many mapped photos nearest to it, then registered.
+REGISTER_NEIGHBOURS = 4
+
+
+def register_remaining(database_path: Path, rec: pycolmap.Reconstruction, names, progress=lambda it: it) -> list[str]:
+    """Register ``names`` (in the database, not in ``rec``) into ``rec`` in place, without bundle adjustment.
+
+    Each photo gets an absolute pose (RANSAC P3P + refinement) from its 2-D matches to the model's 3-D points,
+    and then triangulates new points with the registered photos it matches, so that its own observations can
+    pick dense stereo neighbours. The model's cameras stay where mapping put them. Photos that fail are tried
+    once more after the others; returns the names that still failed.
+    """
+    with pycolmap.Database.open(database_path) as db:
+        cache = pycolmap.DatabaseCache.create(db, pycolmap.DatabaseCacheOptions())
+    ids = {image.name: image_id for image_id, image in cache.images.items()}
+    mapper = pycolmap.IncrementalMapper(cache)
+    mapper.begin_reconstruction(rec)
+    pose_options = pycolmap.IncrementalMapperOptions()
+    pose_options.abs_pose_refine_focal_length = False
+    pose_options.abs_pose_refine_extra_params = False
+    triangulation = pycolmap.IncrementalTriangulatorOptions()
+    pending = list(names)
+    for attempt in range(2):
+        failed = []
+        for name in progress(pending) if attempt == 0 else pending:
+            if mapper.register_next_image(pose_options, ids[name]):
+                mapper.triangulate_image(triangulation, ids[name])
+            else:
+                failed.append(name)
+        pending = failed
+    mapper.end_reconstruction(False)
+    return pending
 
 
 def viewing_spread_deg(rec: pycolmap.Reconstruction) -> float:
@@ -344,6 +387,35 @@ def apply_similarity(rec: pycolmap.Reconstruction, sim: Similarity) -> None:
 # ---------------------------------------------------------------- the whole stage
 
 
+#: Automatic thinning of dense sequences: mapped photos about this far apart, seen from the flight height.
+CORE_SPACING_DEG = 5.0
+#: ... and never fewer than this many photos in mapping.
+MIN_CORE_PHOTOS = 10
+#: The photo spacing is measured over this many steps, so that GPS noise (~0.3 m) does not inflate a 0.7 m step.
+SPACING_SPAN = 10
+
+
+def auto_every_kth(priors: PosePriors, names) -> int:
+    """Every k-th photo (in name order) enters mapping: consecutive mapped photos about ``CORE_SPACING_DEG``
+    apart as seen from the ground at the flight's median height above the priors' origin.
+
+    For capture's geotags the origin is the take-off point, so the height is the flight height (a default
+    orbit, 30 m up with photos 0.69 m apart: k = 4). With EXIF priors the origin is the first photo (height
+    ~0), and with photos already that far apart, k = 1: every photo is mapped. At least
+    ``MIN_CORE_PHOTOS`` photos are mapped.
+    """
+    positions = priors.subset(names).positions_enu
+    if len(positions) < 2 * MIN_CORE_PHOTOS:
+        return 1
+    span = np.linalg.norm(positions[SPACING_SPAN:] - positions[:-SPACING_SPAN], axis=1)
+    step = float(np.median(span)) / SPACING_SPAN
+    height = float(np.median(positions[:, 2]))
+    if step <= 0 or height <= 0:
+        return 1
+    spaced = round(np.tan(np.radians(CORE_SPACING_DEG)) * height / step)
+    return int(max(1, min(spaced, len(positions) // MIN_CORE_PHOTOS)))
+
+
 def select_core(names, every_kth: int) -> list[str]:
     """Every k-th photo, always including the last one (so an orbit's loop stays closed)."""
     core = list(names[::every_kth])
@@ -394,7 +466,10 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
     work_dir.mkdir(parents=True, exist_ok=True)
     database = work_dir / "database.db"
     database.unlink(missing_ok=True)
-    core = select_core(photo_names, max(1, options.every_kth))
+    every_kth = options.every_kth or auto_every_kth(priors, photo_names)
+    core = select_core(photo_names, every_kth)
+    step(f"mapping {len(core)} of {len(photo_names)} photos (every {every_kth}), registering the rest afterwards"
+         if every_kth > 1 else f"mapping all {len(photo_names)} photos")
     seconds, warnings = {}, []
 
     def timed(name, fn, *args):
@@ -412,19 +487,23 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
     if pair and loop_inliers < LOOP_MIN_INLIERS:
         warnings.append(f"orbit loop pair {pair} has only {loop_inliers} verified matches")
     rec = timed("map", map_photos, database, photo_dir, work_dir / "mapped", options)
-    rest = [n for n in photo_names if n not in core]
-    if rest:
+    new = [n for n in photo_names if n not in core]
+    if new:
         def register_rest():
-            create_database(database, photo_dir, rest, seed, options)
+            create_database(database, photo_dir, new, seed, options)
             write_pose_priors(database, priors)
-            match_photos(database, options)
-            core_dir = work_dir / "core_model"
-            core_dir.mkdir(exist_ok=True)
-            georegister_model(rec, core, priors)  # the rest's priors then pull in the same frame
-            rec.write(core_dir)
-            return register_remaining(database, photo_dir, core_dir, work_dir / "registered", options)
+            posed = camera_poses(rec)
+            mapped = [n for n in core if n in posed]
+            match_pairs(database, nearest_mapped_pairs(priors, mapped, new, REGISTER_NEIGHBOURS), options)
+            georegister_model(rec, core, priors)  # so that the model's frame is the priors' one throughout
+            unposed = [n for n in photo_names if n not in posed]
+            return register_remaining(database, rec, unposed,
+                                      progress=lambda it: tqdm(it, desc="register", unit="photo", leave=False))
 
-        rec = timed("register_rest", register_rest)
+        failed = timed("register_rest", register_rest)
+        if failed:
+            warnings.append(f"{len(failed)} photo(s) could not be registered into the mapped model: "
+                            f"{', '.join(failed[:10])}")
     spread = viewing_spread_deg(rec)
     refined = options.focal == "refine" or (options.focal == "auto" and spread > STRONG_GEOMETRY_DEG)
     if refined and options.focal == "auto":
@@ -441,6 +520,7 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
     residual = np.array([poses[n][:3, 3] for n in registered]) - priors.subset(registered).positions_enu
     report = SfmReport(
         num_photos=len(photo_names),
+        mapped_every_kth=every_kth,
         registered=registered,
         unregistered=[n for n in photo_names if n not in poses],
         num_points3d=rec.num_points3D(),

@@ -6,7 +6,7 @@
 A virtual flight renders the default orbit (50 m radius, 30 m up, 452 photos = one photo a second at 2.5 km/h)
 over the demo world from known poses, with GPS and attitude noise on the geotags (tools/virtual_flight.py), into
 ``DIR/flight`` (kept and reused: it takes minutes). ``aerostereo-recon``'s pipeline then runs at its default
-settings (``--image-size``/``--every`` override those two) into ``DIR/scene-<size>-<every>``, which is removed
+settings (``--image-size``/``--every`` override those two) into ``DIR/scene-<size>-<every|auto>``, which is removed
 first so every stage is timed. Printed: seconds per stage and in all against the 30-minute target, and beside
 them the errors against the truth: registered photos, camera position and rotation error, surface height error
 (median, completeness at 0.25 m) within 25 m of the centre and over the whole 50 m disc.
@@ -19,6 +19,7 @@ that difference per photo read and prints it.
 from __future__ import annotations
 
 import argparse
+import json
 import shutil
 import sys
 import tempfile
@@ -83,7 +84,8 @@ def main(argv=None) -> int:
     parser.add_argument("--photo-size", type=positive_int, nargs=2, default=(2000, 1500), metavar=("W", "H"))
     parser.add_argument("--image-size", type=positive_int, default=SfmOptions.max_image_size,
                         help="SfM max image side, px (default: recon's, %(default)s)")
-    parser.add_argument("--every", type=positive_int, default=1, help="only every k-th photo enters SfM")
+    parser.add_argument("--every", type=positive_int, default=None,
+                        help="only every k-th photo enters mapping (default: recon's automatic choice)")
     parser.add_argument("--scene", default="default", help="demo world variant (default, small)")
     args = parser.parse_args(argv)
     pycolmap.logging.minloglevel = 2
@@ -92,12 +94,13 @@ def main(argv=None) -> int:
     flight, flight_s = virtual_flight(world, orbit, args.out / f"flight-{args.photos}-{orbit.width}x{orbit.height}")
 
     sfm = SfmOptions(max_image_size=args.image_size, every_kth=args.every)
-    scene_dir = args.out / f"scene-{sfm.max_image_size}-{sfm.every_kth}"
+    scene_dir = args.out / f"scene-{sfm.max_image_size}-{sfm.every_kth or 'auto'}"
     shutil.rmtree(scene_dir, ignore_errors=True)
     run = Recon(flight.photo_dir, flight.geotags_csv, scene_dir, ReconOptions(sfm=sfm))
     run.run()
 
     poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
+    every_kth = json.loads((scene_dir / "work" / "sfm_report.json").read_text(encoding="utf-8"))["mapped_every_kth"]
     registered = [name for name in flight.names if name in poses]
     errors = pose_errors(np.array([poses[n] for n in registered]), np.array([flight.poses[n] for n in registered]))
     reconstructed = load_scene(scene_dir)
@@ -108,7 +111,8 @@ def main(argv=None) -> int:
 
     print(f"\n{args.photos} photos {orbit.width}x{orbit.height} over the {args.scene} demo world "
           f"(flight rendered in {flight_s:.0f} s{'' if flight_s else ', reused'}); recon at SfM "
-          f"{sfm.max_image_size} px, every {sfm.every_kth}, other settings default")
+          f"{sfm.max_image_size} px, mapping every {every_kth}{'' if sfm.every_kth else ' (automatic)'}, "
+          f"other settings default")
     print("| stage | s |\n|---|---|")
     for stage, seconds in run.seconds.items():
         print(f"| {stage} | {seconds:.1f} |")

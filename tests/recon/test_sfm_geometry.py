@@ -5,7 +5,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from recon.priors import PosePriors, PriorsError, read_geotags
-from recon.sfm import check_inputs, georegister, loop_pair, select_core
+from recon.sfm import auto_every_kth, check_inputs, georegister, loop_pair, select_core
 from recon.similarity import Similarity
 from tools.geotag_csv import ORIGIN, geotag_row, write_geotags
 
@@ -83,6 +83,26 @@ def test_loop_pair_and_core_selection():
     core = select_core(names, 3)
     assert core[0] == "p00.jpg" and core[-1] == "p39.jpg" and len(core) == 14
     assert select_core(names, 5)[-2:] == ["p35.jpg", "p39.jpg"]
+
+
+def orbit_priors(count: int, radius_m: float, height_m: float, gps_sigma_m: float = 0.3) -> PosePriors:
+    """``count`` photos around a circle ``height_m`` above the origin, GPS-noisy positions."""
+    angles = np.linspace(0, 2 * np.pi, count, endpoint=False)
+    centres = np.column_stack([radius_m * np.cos(angles), radius_m * np.sin(angles), np.full(count, height_m)])
+    noisy = centres + np.random.default_rng(3).normal(0, gps_sigma_m, centres.shape)
+    return PosePriors(tuple(f"p{i:03d}.jpg" for i in range(count)), noisy, None, ORIGIN)
+
+
+@pytest.mark.parametrize("count, radius_m, height_m, expected", [
+    (452, 50.0, 30.0, 4),   # the default orbit: 0.69 m steps, tan(5 deg) * 30 m = 2.6 m -> every 4th
+    (452, 50.0, 60.0, 8),   # twice as high: twice as far apart
+    (452, 50.0, 0.0, 1),    # EXIF priors: origin at the first photo, no height -> map every photo
+    (24, 50.0, 30.0, 1),    # photos 13 m apart already
+    (40, 2.0, 30.0, 4),     # tight circle would give k = 8: at least 10 photos stay in mapping
+])
+def test_auto_every_kth_spaces_mapped_photos_by_angle_from_the_flight_height(count, radius_m, height_m, expected):
+    priors = orbit_priors(count, radius_m, height_m)
+    assert auto_every_kth(priors, list(priors.names)) == expected
 
 
 def test_check_inputs_errors():

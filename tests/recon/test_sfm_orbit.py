@@ -79,3 +79,23 @@ def test_orbit_registers_closes_the_loop_and_is_levelled(orbit, tmp_path):
     offset = est_centres - centres
     assert np.allclose(offset.mean(axis=0), GPS_BIAS, atol=0.35)
     assert np.abs(offset - offset.mean(axis=0)).max() < 0.25
+
+
+@pytest.mark.slow
+def test_photos_left_out_of_mapping_register_by_absolute_pose(orbit, tmp_path):
+    """Every 3rd photo mapped (8 + the last), the other 15 registered into that model without bundle adjustment
+    of their own: all 24 land as close to the truth as when every photo is mapped."""
+    photos, priors, centres, rotations = orbit
+    pycolmap.logging.minloglevel = 2
+    seed = FocalSeed(FOCAL, WIDTH, HEIGHT, "test: exact")
+    rec, report = run_sfm(photos, priors.names, priors, seed, tmp_path,
+                          SfmOptions(max_num_features=2048, spatial_neighbors=8, focal="fixed", every_kth=3))
+    assert len(report.registered) == NUM_PHOTOS and not report.warnings
+    assert "register_rest" in report.seconds
+    poses = camera_poses(rec)
+    offset = np.array([poses[n][:3, 3] for n in priors.names]) - centres
+    assert np.abs(offset - offset.mean(axis=0)).max() < 0.25
+    errors = Rotation.from_matrix(np.einsum("nij,nkj->nik", [poses[n][:3, :3] for n in priors.names], rotations))
+    assert np.degrees((errors.mean().inv() * errors).magnitude()).max() < 0.1  # about their common yaw offset
+    left_out = [rec.find_image_with_name(n) for n in priors.names[1::3]]
+    assert all(image.num_points3D >= 100 for image in left_out)  # they observe points: dense can pair them
