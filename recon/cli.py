@@ -3,7 +3,7 @@
     aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR
                      [--image-size PX] [--max-features N] [--neighbors K] [--sequential N] [--every K]
                      [--mapper incremental|global] [--focal auto|fixed|refine]
-                     [--dense-size PX] [--mesh 2.5d|poisson] [--grid M] [--decimate-error M]
+                     [--dense-size PX] [--depth-spacing DEG] [--mesh 2.5d|poisson] [--grid M] [--decimate-error M]
                      [--texel M] [--no-texture] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
@@ -46,11 +46,17 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--image-size", type=positive_int, default=SfmOptions.max_image_size,
                         help="SfM max image side, px (default %(default)s)")
     parser.add_argument("--max-features", type=positive_int, default=8192, help="SIFT features per photo")
-    parser.add_argument("--dense-size", type=positive_int, default=1000, help="depth-map max image side, px")
+    parser.add_argument("--dense-size", type=positive_int, default=DenseOptions.max_image_size,
+                        help="depth-map max image side, px (default %(default)s)")
+    parser.add_argument("--depth-spacing", type=float, default=DenseOptions.view_spacing_deg,
+                        help="depth maps only for photos at least this many degrees apart seen from the scene "
+                             "(default %(default)s; 0: every photo)")
     parser.add_argument("--mesh", choices=("2.5d", "poisson"), default="2.5d")
     parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
     parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
-    parser.add_argument("--every", type=positive_int, default=1, help="only every k-th photo enters SfM")
+    parser.add_argument("--every", type=positive_int, default=None,
+                        help="only every k-th photo enters mapping, the rest are registered into its model "
+                             "(default: from the photo spacing, about 5 deg apart seen from the flight height)")
     parser.add_argument("--neighbors", type=positive_int, default=12, help="spatial matching: nearest photos")
     parser.add_argument("--sequential", type=int, default=0, help="also match each photo with the next N (0: off)")
     parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
@@ -101,9 +107,10 @@ def run_recon(argv) -> int:
         pycolmap.logging.minloglevel = 2
     options = ReconOptions(
         sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features,
-                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every, mapper=args.mapper, focal=args.focal,
-                       num_threads=args.workers),
-        dense=DenseOptions(max_image_size=args.dense_size, num_threads=args.workers),
+                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every,
+                       mapper=args.mapper, focal=args.focal, num_threads=args.workers),
+        dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
+                           num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
         texture=not args.no_texture, texture_options=TextureOptions(texel_m=args.texel),
     )

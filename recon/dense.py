@@ -19,7 +19,7 @@ import cv2
 import numpy as np
 import pycolmap
 
-from flightplan.atomic import atomic_path
+from flightplan.atomic import atomic_path, write_text_atomic
 
 
 class DenseError(RuntimeError):
@@ -28,10 +28,16 @@ class DenseError(RuntimeError):
 
 @dataclass(frozen=True)
 class DenseOptions:
-    """Knobs of the dense stage (image size of the depth maps, pair selection, SGBM, consistency, fusion)."""
+    """Knobs of the dense stage (image size of the depth maps, pair selection, SGBM, consistency, fusion).
+
+    ``view_spacing_deg``: depth maps are computed only for views at least this far apart as seen from the
+    scene (baseline / median depth, see :func:`spaced_views`); 0 computes one for every view. All views stay
+    available as stereo neighbours.
+    """
 
     max_image_size: int = 1000
     num_neighbors: int = 4
+    view_spacing_deg: float = 1.5
     target_angle_deg: float = 10.0
     min_angle_deg: float = 3.0
     max_angle_deg: float = 25.0
@@ -41,6 +47,10 @@ class DenseOptions:
     fusion_min_pixels: int = 3
     fusion_max_normal_error_deg: float = 20.0
     num_threads: int = -1
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.view_spacing_deg < 90:
+            raise ValueError(f"depth-map view spacing must be 0 (every photo) up to 90 deg, got {self.view_spacing_deg}")
 
 
 @dataclass(frozen=True)
@@ -182,16 +192,16 @@ def views_from_model(rec: pycolmap.Reconstruction) -> dict[int, View]:
     return views
 
 
-def choose_neighbours(rec: pycolmap.Reconstruction, options: DenseOptions) -> dict[int, list[int]]:
-    """For each image, up to ``num_neighbors`` images sharing sparse points whose median triangulation angle
-    is within [min, max] degrees, closest to the target angle first."""
+def choose_neighbours(rec: pycolmap.Reconstruction, options: DenseOptions, ref_ids=None) -> dict[int, list[int]]:
+    """For each image of ``ref_ids`` (default: all registered), up to ``num_neighbors`` images sharing sparse
+    points whose median triangulation angle is within [min, max] degrees, closest to the target angle first."""
     observers: dict[int, set[int]] = {}
     for point_id, point in rec.points3D.items():
         for element in point.track.elements:
             observers.setdefault(element.image_id, set()).add(point_id)
     centres = {i: img.projection_center() for i, img in rec.images.items() if img.has_pose}
     neighbours = {}
-    for ref_id in centres:
+    for ref_id in centres if ref_ids is None else ref_ids:
         scored = []
         for src_id in centres:
             shared = observers.get(ref_id, set()) & observers.get(src_id, set())
@@ -207,14 +217,33 @@ def choose_neighbours(rec: pycolmap.Reconstruction, options: DenseOptions) -> di
     return neighbours
 
 
-def depth_range(rec: pycolmap.Reconstruction, image_id: int, view: View, margin: float = 0.2):
-    """(near, far) planar depth of the sparse points seen by an image, widened by ``margin``."""
+def sparse_depths(rec: pycolmap.Reconstruction, image_id: int, view: View) -> np.ndarray:
+    """Planar depths (model units, > 0) of the sparse points an image observes."""
     image = rec.images[image_id]
-    xyz = np.array([rec.points3D[p.point3D_id].xyz for p in image.points2D if p.has_point3D()])
+    xyz = np.array([rec.points3D[p.point3D_id].xyz for p in image.points2D if p.has_point3D()]).reshape(-1, 3)
     z = (xyz @ view.R.T + view.t)[:, 2]
-    z = z[z > 0]
-    near, far = np.percentile(z, 1), np.percentile(z, 99)
+    return z[z > 0]
+
+
+def depth_range(depths: np.ndarray, margin: float = 0.2) -> tuple[float, float]:
+    """(near, far) planar depth: the 1st and 99th percentiles of a view's sparse ``depths``, widened by ``margin``."""
+    near, far = np.percentile(depths, 1), np.percentile(depths, 99)
     return near * (1 - margin), far * (1 + margin)
+
+
+def spaced_views(centres: np.ndarray, depths: np.ndarray, min_angle_deg: float) -> list[int]:
+    """Indices of the views to compute depth maps for, taken greedily in the given order.
+
+    A view is taken when every view taken before it lies at least ``tan(min_angle_deg) * depth`` away (its
+    median scene depth): an orbit shooting every 0.7 m from ~45 m gets depth maps from every second photo at
+    1.5 deg, a sparser flight keeps every photo. ``centres`` (N, 3) and ``depths`` (N,) in model units.
+    """
+    taken: list[int] = []
+    factor = np.tan(np.radians(min_angle_deg))
+    for index, (centre, depth) in enumerate(zip(centres, depths)):
+        if not taken or np.linalg.norm(centres[taken] - centre, axis=1).min() >= factor * depth:
+            taken.append(index)
+    return taken
 
 
 def write_colmap_maps(workspace: Path, name: str, depth: np.ndarray, normals: np.ndarray) -> None:
@@ -246,14 +275,20 @@ def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: Dense
 
 
 def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda it: it) -> dict[str, float]:
-    """Depth + normal maps for every undistorted view; returns valid-pixel fraction per image name.
+    """Depth + normal maps for the undistorted views :func:`spaced_views` picks (in name order); returns the
+    valid-pixel fraction per image name. ``stereo/fusion.cfg`` is rewritten to list exactly those views.
 
     Images whose maps exist already are skipped (resumable). :class:`DenseError` when no view has a stereo
     neighbour (the photos are too far apart), before anything is written.
     """
     rec = pycolmap.Reconstruction(workspace / "sparse")
     views = views_from_model(rec)
-    neighbours = choose_neighbours(rec, options)
+    order = sorted(views, key=lambda image_id: rec.images[image_id].name)
+    depths = {image_id: sparse_depths(rec, image_id, views[image_id]) for image_id in order}
+    taken = spaced_views(np.array([views[i].centre for i in order]), np.array([np.median(depths[i]) for i in order]),
+                         options.view_spacing_deg)
+    refs = [order[k] for k in taken]
+    neighbours = choose_neighbours(rec, options, refs)
     if not any(neighbours.values()):
         raise DenseError(
             f"no stereo pair among the {len(views)} registered photos (none shares {options.min_shared_points} "
@@ -267,11 +302,11 @@ def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda i
             grey[image_id] = cv2.imread(str(workspace / "images" / rec.images[image_id].name), cv2.IMREAD_GRAYSCALE)
         return grey[image_id]
 
-    for ref_id in progress(sorted(views)):
+    for ref_id in progress(refs):
         name = rec.images[ref_id].name
         if (workspace / "stereo" / "normal_maps" / f"{name}.geometric.bin").exists():
             continue
-        near_far = depth_range(rec, ref_id, views[ref_id])
+        near_far = depth_range(depths[ref_id])
         estimates = [pair_depth(load(ref_id), load(src), views[ref_id], views[src], near_far, options.block_size)
                      for src in neighbours[ref_id]]
         if not estimates:
@@ -281,6 +316,8 @@ def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda i
         depth[(depth < near_far[0]) | (depth > near_far[1])] = np.nan
         write_colmap_maps(workspace, name, depth, normals_from_depth(depth, views[ref_id].K))
         coverage[name] = float(np.mean(np.isfinite(depth)))
+    with_maps = [rec.images[i].name for i in refs if neighbours[i]]
+    write_text_atomic(workspace / "stereo" / "fusion.cfg", "".join(f"{name}\n" for name in with_maps))
     return coverage
 
 

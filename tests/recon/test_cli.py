@@ -113,7 +113,9 @@ def test_bad_grid_and_decimation_error(tmp_path, capsys):
     for option, value, message in (("--grid", "0", "grid cell must be a positive number of metres, got 0.0"),
                                    ("--grid", "nan", "grid cell must be a positive number of metres, got nan"),
                                    ("--texel", "inf", "texel size must be a positive number of metres, got inf"),
-                                   ("--decimate-error", "-1", "decimation error must be 0 (off) or a positive")):
+                                   ("--decimate-error", "-1", "decimation error must be 0 (off) or a positive"),
+                                   ("--depth-spacing", "-1", "view spacing must be 0 (every photo) up to 90 deg, got -1"),
+                                   ("--depth-spacing", "nan", "view spacing must be 0 (every photo) up to 90 deg")):
         code, err = run_cli(base + [option, value], capsys)
         assert code == 2 and message in err and "Traceback" not in err, (option, value, err)
     assert not (tmp_path / "scene").exists()

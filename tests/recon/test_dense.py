@@ -5,7 +5,7 @@ import pycolmap
 import pytest
 
 from recon.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, normals_from_depth,
-                         pair_depth, write_colmap_maps)
+                         pair_depth, spaced_views, write_colmap_maps)
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth
 
 @pytest.fixture(scope="module")
@@ -25,6 +25,18 @@ def test_sgbm_recovers_plane_depth(texture, src_offset, yaw_deg):
     assert valid.mean() > 0.5
     assert np.median(relative) < 0.01
     assert np.percentile(relative, 90) < 0.03
+
+
+def test_spaced_views_thin_a_dense_sequence_by_angle_seen_from_the_scene():
+    """Photos every 0.7 m along a line at 45 m depth: 1.5 deg (1.18 m) takes every second one, 0 takes all; a
+    sparse sequence (5 m apart) keeps all; a view is measured against every view taken, not only the last."""
+    line = np.column_stack([0.7 * np.arange(10), np.zeros(10), np.zeros(10)])
+    depths = np.full(10, 45.0)
+    assert spaced_views(line, depths, 1.5) == [0, 2, 4, 6, 8]
+    assert spaced_views(line, depths, 0.0) == list(range(10))
+    assert spaced_views(line * 5 / 0.7, depths, 1.5) == list(range(10))
+    back_and_forth = np.array([[0.0, 0, 0], [2.0, 0, 0], [0.3, 0, 0], [1.0, 0, 0]])
+    assert spaced_views(back_and_forth, np.full(4, 45.0), 1.5) == [0, 1]
 
 
 def test_consistency_keeps_agreeing_or_single_estimates():
