@@ -290,12 +290,22 @@ def viewing_spread_deg(rec: pycolmap.Reconstruction) -> float:
 
 
 def refine_focal(rec: pycolmap.Reconstruction) -> None:
-    """Bundle adjustment with the focal length (and radial distortion) free, principal point fixed."""
+    """Bundle adjustment with the focal length (and radial distortion) free, principal point fixed.
+
+    pycolmap 4.2's ``bundle_adjustment`` leaves glog's ``minloglevel`` at 0 (INFO) whatever it was before, so
+    every later stage would flood stderr with undistortion and fusion lines; the caller's level is restored
+    (and the solver's summary, a log line of its own, is not printed).
+    """
     ba = pycolmap.BundleAdjustmentOptions()
     ba.refine_focal_length = True
     ba.refine_principal_point = False
     ba.refine_extra_params = True
-    pycolmap.bundle_adjustment(rec, ba)
+    ba.print_summary = False
+    log_level = pycolmap.logging.minloglevel
+    try:
+        pycolmap.bundle_adjustment(rec, ba)
+    finally:
+        pycolmap.logging.minloglevel = log_level
 
 
 # ---------------------------------------------------------------- geo-registration and levelling

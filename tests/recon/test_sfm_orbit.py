@@ -66,6 +66,7 @@ def test_orbit_registers_closes_the_loop_and_is_levelled(orbit, tmp_path):
     # converging oblique views determine the focal length: "auto" frees it and recovers the truth
     assert report.focal_refined and report.view_spread_deg > 20
     assert report.focal_final_px == pytest.approx(FOCAL, rel=0.005)
+    assert pycolmap.logging.minloglevel == 2  # the focal bundle adjustment leaves the caller's log level alone
     poses = camera_poses(rec)
     est_centres = np.array([poses[n][:3, 3] for n in priors.names])
     est_rotations = np.array([poses[n][:3, :3] for n in priors.names])
