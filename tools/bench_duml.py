@@ -4,8 +4,8 @@ Traffic per simulated second, like a P3X FC/OFDM link: OSD General 10 Hz, Gimbal
 plus ~100 Hz of other chatter (random cmd ids, 1-60 byte payloads); then 1 % of all bytes are corrupted.
 A 1 MB block of such traffic is generated and repeated up to the requested size.
 
-    /work/venv/bin/python tools/bench_duml.py            # 100 MB, as reported in the README
-    /work/venv/bin/python tools/bench_duml.py --size-mb 10
+    .venv/bin/python tools/bench_duml.py            # 100 MB, as reported in the README
+    .venv/bin/python tools/bench_duml.py --size-mb 10
 """
 
 from __future__ import annotations

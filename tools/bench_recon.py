@@ -1,11 +1,15 @@
-"""Recon knobs against time and error on the real DJI set (brighton_beach, 18 photos, EXIF GPS priors).
+"""Recon knobs against time and error: the real DJI set (brighton_beach, 18 photos, EXIF GPS priors) and
+virtual flights over the small demo world (known poses and surface).
 
-    /work/venv/bin/python tools/bench_recon.py [--sizes 800 1600] [--with-3200] [--dense-sizes 640 1000]
-                                               [--no-synthetic]
+    .venv/bin/python tools/bench_recon.py [--sizes 800 1600] [--with-3200] [--dense-sizes 640 1000]
+                                          [--no-synthetic]
 
-Table 1, SfM image size: time per stage, registered photos, 3-D points, mean reprojection error,
-camera-centre residual RMS against EXIF GPS (east/north/up), time ratio to the first row. There is no
+Table 1, SfM image size on brighton_beach: time per stage, registered photos, 3-D points, mean reprojection
+error, camera-centre residual RMS against EXIF GPS (east/north/up), time ratio to the first row. There is no
 ground truth for the poses: the GPS residual is bounded by the GPS's own noise.
+Table 1b, SfM image size on a virtual flight: the closed-loop orbit (24 photos) rendered at a DJI photo's
+4000x3000, so that every size is a real downscale; time per stage against the camera position and rotation
+error and the focal length error against the virtual drone's truth.
 Table 2, dense image size (whole pipeline, SfM at 1000 px): dense/mesh stage times and the distance of the
 fused cloud and of the 2.5-D mesh vertices to ODM's reference cloud ``model.laz`` (UTM 15N), after a
 yaw + translation ICP (our ENU frame and ODM's UTM grid differ by the meridian convergence, ~0.7 deg here,
@@ -13,16 +17,13 @@ and by their GPS/datum offsets), texture time and the photorealism error (formul
 covers) of unlit renders from the recovered poses against the undistorted photos (the paper: 12.49 %).
 Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
-Table 4, the target: one full default orbit (452 photos) extrapolated from the per-photo stage times (brighton,
-dense 1000 px = the default; one table per SfM size, 800 px = the default; mapping scaled by N^1.5).
-Table 4 is an estimate; tools/bench_recon_orbit.py measures a real 452-photo orbit.
+The 30-minute target (one full default orbit, 452 photos) is measured by tools/bench_recon_orbit.py.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import shutil
 import sys
 import tempfile
 import time
@@ -36,28 +37,71 @@ import pycolmap  # noqa: E402
 import trimesh  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
+from recon.accuracy import pose_errors  # noqa: E402
 from recon.dense import DenseOptions  # noqa: E402
 from recon.evaluate import scene_photorealism  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.texture import TextureOptions  # noqa: E402
 
-from recon.priors import focal_seed, list_photos, priors_from_exif  # noqa: E402
-from recon.sfm import SfmOptions, run_sfm  # noqa: E402
+from recon.priors import focal_seed, list_photos, priors_from_exif, read_geotags  # noqa: E402
+from recon.sfm import SfmOptions, camera_poses, run_sfm  # noqa: E402
 from recon.similarity import umeyama  # noqa: E402
+from sim.scene import load_scene  # noqa: E402
+from sim.worlds import demo_scene_dir  # noqa: E402
+from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reuse_stages  # noqa: E402
 
 DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
-def bench_size(photo_dir: Path, size: int, features: int) -> dict:
-    names = list_photos(photo_dir)
-    priors = priors_from_exif(photo_dir, names)
+def timed_sfm(photo_dir: Path, names, priors, size: int, features: int) -> dict:
+    """One SfM run at ``size`` px (focal seeded from the first photo) in a scratch folder: the size, the wall
+    time, the report and the camera poses (``T_world_cam`` by name)."""
     seed = focal_seed(photo_dir / names[0])
     with tempfile.TemporaryDirectory() as work:
         t0 = time.perf_counter()
-        _, report = run_sfm(photo_dir, names, priors, seed, Path(work),
-                            SfmOptions(max_image_size=size, max_num_features=features))
+        rec, report = run_sfm(photo_dir, names, priors, seed, Path(work),
+                              SfmOptions(max_image_size=size, max_num_features=features))
         total = time.perf_counter() - t0
-    return {"size": size, "total": total, "report": report}
+    return {"size": size, "total": total, "report": report, "poses": camera_poses(rec)}
+
+
+def bench_size(photo_dir: Path, size: int, features: int) -> dict:
+    names = list_photos(photo_dir)
+    return timed_sfm(photo_dir, names, priors_from_exif(photo_dir, names), size, features)
+
+
+def print_size_table(rows: list[dict], error_header: str, error_cells) -> None:
+    """SfM time per stage for each size row, the ratio to the first row, and ``error_cells(row)`` (a string of
+    table cells under ``error_header``)."""
+    base = rows[0]["total"]
+    print(f"| max px | extract s | match s | map s | total s | x first | registered | 3-D pts | reproj px "
+          f"| {error_header} |")
+    print("|---|---|---|---|---|---|---|---|---|" + "---|" * (error_header.count("|") + 1))
+    for row in rows:
+        r, s = row["report"], row["report"].seconds
+        print(f"| {row['size']} | {s['extract']:.1f} | {s['match']:.1f} | {s['map']:.1f} | {row['total']:.1f} | "
+              f"{row['total'] / base:.2f} | {len(r.registered)}/{r.num_photos} | {r.num_points3d} | "
+              f"{r.mean_reprojection_error_px:.2f} | {error_cells(row)} |")
+
+
+#: Table 1b's flight: the closed-loop orbit with photos of a DJI camera's size (12 MP, 4:3).
+VIRTUAL_SFM_ORBIT_SIZE = (4000, 3000)
+
+
+def bench_sizes_virtual(sizes, features: int) -> tuple[list[dict], Orbit]:
+    """SfM at each of ``sizes`` on one virtual orbit of 4000x3000 photos; each row gains its pose errors
+    against the truth (``errors``) and its final focal length error in % (``focal_error_pct``)."""
+    orbit = Orbit(width=VIRTUAL_SFM_ORBIT_SIZE[0], height=VIRTUAL_SFM_ORBIT_SIZE[1])
+    with tempfile.TemporaryDirectory() as work:
+        flight = fly(load_scene(demo_scene_dir("small")), orbit, Path(work))
+        priors = read_geotags(flight.geotags_csv)
+        rows = [timed_sfm(flight.photo_dir, flight.names, priors, size, features) for size in sizes]
+    for row in rows:
+        registered = [name for name in flight.names if name in row["poses"]]
+        row["errors"] = pose_errors(np.array([row["poses"][n] for n in registered]),
+                                    np.array([flight.poses[n] for n in registered]))
+        row["focal_error_pct"] = 100 * (row["report"].focal_final_px / flight.camera.fx - 1)
+    return rows, orbit
 
 
 def yaw_rotation(yaw: float) -> np.ndarray:
@@ -124,20 +168,8 @@ CLOSED_LOOP_ROWS = (
 )
 
 
-def reuse_stages(source: Path, target: Path, keep: tuple[str, ...]) -> None:
-    """Copy the finished-stage files ``keep`` (paths under ``work``) of one recon run into a fresh one."""
-    for name in keep:
-        src, dst = source / "work" / name, target / "work" / name
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        (shutil.copytree if src.is_dir() else shutil.copy2)(src, dst)
-
-
 def bench_closed_loop() -> list[dict]:
     """The closed-loop flight once, SfM once, then every row of CLOSED_LOOP_ROWS from the stages it shares."""
-    from sim.scene import load_scene
-    from sim.worlds import demo_scene_dir
-    from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors
-
     world = load_scene(demo_scene_dir("small"))
     rows = []
     with tempfile.TemporaryDirectory() as work:
@@ -181,26 +213,6 @@ def print_closed_loop_table(rows: list[dict]) -> None:
               f"{row['realism']:.2f} |")
 
 
-def print_target(sfm: dict, dense_rows: list[dict], photos: int, target: int = 452) -> None:
-    """Extrapolate one full orbit from brighton's per-photo times at SfM size ``sfm`` and the default dense size."""
-    dense = next((r for r in dense_rows if r["size"] == 1000), dense_rows[-1])
-    scale = target / photos
-    s, d = sfm["report"].seconds, dense["seconds"]
-    measured = {"extract": s["extract"], "match (spatial k=12, linear)": s["match"],
-                "map (incremental, N^1.5)": s["map"],
-                "undistort + depth + fusion": d["undistort"] + d["depth"] + d["fusion"],
-                "mesh (area, taken linear)": d["mesh"], "texture": d["texture"]}
-    parts = {name: seconds * scale ** (1.5 if "N^1.5" in name else 1.0) for name, seconds in measured.items()}
-    print(f"\ntarget: {target} photos at SfM {sfm['size']} px (default {SfmOptions.max_image_size}), dense {dense['size']} px, "
-          f"from {photos} brighton photos x {scale:.1f}")
-    print("| stage | measured s | extrapolated s |")
-    print("|---|---|---|")
-    for name, seconds in parts.items():
-        print(f"| {name} | {measured[name]:.1f} | {seconds:.0f} |")
-    total = sum(parts.values())
-    print(f"| **total** | {sum(measured.values()):.1f} | **{total:.0f} s = {total / 60:.1f} min** (target 30 min) |")
-
-
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA)
@@ -208,31 +220,29 @@ def main(argv=None) -> int:
     parser.add_argument("--with-3200", action="store_true", help="add the COLMAP default size (slow)")
     parser.add_argument("--features", type=int, default=8192)
     parser.add_argument("--dense-sizes", type=int, nargs="*", default=[640, 1000])
-    parser.add_argument("--no-synthetic", action="store_true", help="skip the closed-loop options table")
+    parser.add_argument("--no-synthetic", action="store_true", help="skip the virtual-flight tables (1b and 3)")
     args = parser.parse_args(argv)
     pycolmap.logging.minloglevel = 2
     photo_dir = args.data / "brighton_beach" / "images"
     sizes = args.sizes + ([3200] if args.with_3200 else [])
     rows = [bench_size(photo_dir, size, args.features) for size in sizes]
-    base = rows[0]["total"]
     print(f"brighton_beach, {len(list_photos(photo_dir))} photos 4000x2250, SIFT <= {args.features}, spatial k=12, "
           "incremental + ENU priors, focal fixed at the profile value")
-    print("| max px | extract s | match s | map s | total s | x first | registered | 3-D pts | reproj px "
-          "| GPS residual RMS E/N/U m |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for row in rows:
-        r, s = row["report"], row["report"].seconds
-        rms = "/".join(f"{v:.2f}" for v in r.residual_rms_enu_m)
-        print(f"| {row['size']} | {s['extract']:.1f} | {s['match']:.1f} | {s['map']:.1f} | {row['total']:.1f} | "
-              f"{row['total'] / base:.2f} | {len(r.registered)}/{r.num_photos} | {r.num_points3d} | "
-              f"{r.mean_reprojection_error_px:.2f} | {rms} |")
+    print_size_table(rows, "GPS residual RMS E/N/U m",
+                     lambda row: "/".join(f"{v:.2f}" for v in row["report"].residual_rms_enu_m))
+    if not args.no_synthetic:
+        rows, orbit = bench_sizes_virtual(sizes, args.features)
+        print(f"\nvirtual flight: {orbit.photos} photos {orbit.width}x{orbit.height} on the closed-loop orbit over the "
+              f"small demo world (GPS sigma {orbit.gps_sigma_m} m), SIFT <= {args.features}, default SfM otherwise")
+        print_size_table(rows, "position error median / max m | rotation error median / max deg | focal error %",
+                         lambda row: f"{row['errors'].position_m['median']:.3f} / {row['errors'].position_m['max']:.3f} | "
+                                     f"{row['errors'].rotation_deg['median']:.3f} / "
+                                     f"{row['errors'].rotation_deg['max']:.3f} | {row['focal_error_pct']:+.2f}")
     if args.dense_sizes:
         las = laspy.read(args.data / "brighton_beach" / "model.laz")
         reference = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
         dense_rows = [bench_dense(photo_dir, reference, size, args.features) for size in args.dense_sizes]
         print_dense_table(dense_rows)
-        for row in rows:
-            print_target(row, dense_rows, len(list_photos(photo_dir)))
     if not args.no_synthetic:
         print_closed_loop_table(bench_closed_loop())
     return 0

@@ -1,9 +1,10 @@
 """A virtual orbit over the small demo world: photos rendered by sim from known poses, noisy geotags, and the
-truth to score a reconstruction against (poses, surface heights). Shared by tests/recon/test_closed_loop.py and
-tools/bench_recon.py."""
+truth to score a reconstruction against (poses, surface heights). Shared by tests/recon/test_closed_loop.py,
+tools/bench_recon.py and tools/bench_recon_orbit.py."""
 
 from __future__ import annotations
 
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -120,3 +121,12 @@ def height_errors(reconstructed: Scene, truth: Scene, radius_m: float, step_m: f
     error = np.abs(difference[found])
     return HeightErrors(float(np.median(error)), float(np.count_nonzero(error <= tolerance_m)) / len(x),
                          float(np.median(difference[found])), tolerance_m)
+
+
+def reuse_stages(source: Path, target: Path, keep: tuple[str, ...]) -> None:
+    """Copy the finished-stage files ``keep`` (paths under ``work``) of one recon run into a fresh one, so that
+    a benchmark compares later-stage options without redoing (and re-timing) the stages they share."""
+    for name in keep:
+        src, dst = source / "work" / name, target / "work" / name
+        dst.parent.mkdir(parents=True, exist_ok=True)
+        (shutil.copytree if src.is_dir() else shutil.copy2)(src, dst)
