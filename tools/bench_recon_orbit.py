@@ -1,14 +1,18 @@
 """One full default orbit to a textured scene, measured end to end: recon's time per stage beside its error.
 
-    /work/venv/bin/python tools/bench_recon_orbit.py --out DIR [--photos 452] [--photo-size 2000 1500]
-                                                     [--image-size PX] [--every K] [--scene demo]
+    .venv/bin/python tools/bench_recon_orbit.py --out DIR [--photos 452] [--photo-size 2000 1500]
+                                                [--image-size PX] [--every K] [--depth-spacing DEG ...]
+                                                [--scene default|small]
 
 A virtual flight renders the default orbit (50 m radius, 30 m up, 452 photos = one photo a second at 2.5 km/h)
 over the demo world from known poses, with GPS and attitude noise on the geotags (tools/virtual_flight.py), into
-``DIR/flight`` (kept and reused: it takes minutes). ``aerostereo-recon``'s pipeline then runs at its default
-settings (``--image-size``/``--every`` override those two) into ``DIR/scene-<size>-<every|auto>``, which is removed
-first so every stage is timed. Printed: seconds per stage and in all against the 30-minute target, and beside
-them the errors against the truth: registered photos, camera position and rotation error, surface height error
+``DIR/flight-<photos>-<W>x<H>`` (kept and reused: it takes minutes). ``aerostereo-recon``'s pipeline then runs at
+its default settings (``--image-size``/``--every``/``--depth-spacing`` override those) into
+``DIR/scene-<size>-<every|auto>-<spacing>``, which is removed first so every stage is timed; each further
+``--depth-spacing`` value reruns the stages after SfM on a copy of the first run's SfM, so depth-map thinning is
+compared with its baseline (e.g. ``--depth-spacing 1.5 0``: every view) in the same run. Printed, one column per
+spacing: seconds per stage, after SfM (against the first column) and in all (against the 30-minute target), and
+the errors against the truth: registered photos, camera position and rotation error, surface height error
 (median, completeness at 0.25 m) within 25 m of the centre and over the whole 50 m disc.
 
 The photos are 2000x1500 by default (3 MP; a DJI photo is 12 MP): SfM and the depth maps work on downscaled
@@ -33,12 +37,13 @@ import pycolmap  # noqa: E402
 
 from recon.accuracy import pose_errors  # noqa: E402
 from recon.cli import positive_int  # noqa: E402
+from recon.dense import DenseOptions  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.sfm import SfmOptions, camera_poses  # noqa: E402
 from sim.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.virtual_flight import (  # noqa: E402
-    INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, save_jpeg,
+    INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, reuse_stages, save_jpeg,
 )
 
 TARGET_S = 30 * 60
@@ -77,6 +82,48 @@ def decode_seconds(size: tuple[int, int]) -> float:
     return float(np.median(times))
 
 
+def score(scene_dir: Path, flight: Flight, world, orbit: Orbit) -> dict:
+    """A finished scene against the virtual drone's truth: pose errors of the registered photos, the mapping
+    stride SfM used, and surface height errors within ``INNER_RADIUS_M`` and over the whole orbit disc."""
+    poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
+    registered = [name for name in flight.names if name in poses]
+    reconstructed = load_scene(scene_dir)
+    return {
+        "registered": len(registered),
+        "every_kth": json.loads((scene_dir / "work" / "sfm_report.json").read_text(encoding="utf-8"))["mapped_every_kth"],
+        "poses": pose_errors(np.array([poses[n] for n in registered]), np.array([flight.poses[n] for n in registered])),
+        "inner": height_errors(reconstructed, world, INNER_RADIUS_M),
+        "disc": height_errors(reconstructed, world, orbit.radius_m),
+    }
+
+
+def print_tables(runs: list[dict], flight: Flight, orbit: Orbit) -> None:
+    """Seconds per stage and errors, one column per depth-map spacing; time ratios against the first column."""
+    header = " | ".join(f"spacing {run['spacing']:g} deg" for run in runs)
+    rule = "|---|" + "---|" * len(runs)
+    print(f"| stage | {header} |\n{rule}")
+    for stage in runs[0]["seconds"]:
+        print(f"| {stage} | " + " | ".join(f"{run['seconds'][stage]:.1f}" for run in runs) + " |")
+    after_sfm = [sum(seconds for stage, seconds in run["seconds"].items() if stage != "sfm") for run in runs]
+    print("| after sfm | " + " | ".join(f"{s:.0f} s ({s / after_sfm[0]:.2f}x first)" for s in after_sfm) + " |")
+    print("| **total** | " + " | ".join(
+        f"**{total:.0f} s = {total / 60:.1f} min** ({total / TARGET_S:.2f}x target{', SfM reused' if k else ''})"
+        for k, total in enumerate(sum(run["seconds"].values()) for run in runs)) + " |")
+    print(f"\n| error | {header} |\n{rule}")
+    rows = {
+        "registered": lambda e: f"{e['registered']}/{len(flight.names)}",
+        f"camera position median / max (m), GPS sigma {orbit.gps_sigma_m}":
+            lambda e: f"{e['poses'].position_m['median']:.3f} / {e['poses'].position_m['max']:.3f}",
+        "camera rotation median / max (deg)":
+            lambda e: f"{e['poses'].rotation_deg['median']:.3f} / {e['poses'].rotation_deg['max']:.3f}",
+    }
+    for key, radius in (("inner", INNER_RADIUS_M), ("disc", orbit.radius_m)):
+        rows[f"surface r <= {radius:.0f} m: median (m) / completeness at {runs[0]['errors'][key].tolerance_m} m"] = \
+            lambda e, key=key: f"{e[key].median:.3f} / {100 * e[key].completeness:.1f} %"
+    for label, cell in rows.items():
+        print(f"| {label} | " + " | ".join(cell(run["errors"]) for run in runs) + " |")
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--out", type=Path, required=True, help="work folder (the flight is kept and reused)")
@@ -86,49 +133,41 @@ def main(argv=None) -> int:
                         help="SfM max image side, px (default: recon's, %(default)s)")
     parser.add_argument("--every", type=positive_int, default=None,
                         help="only every k-th photo enters mapping (default: recon's automatic choice)")
+    parser.add_argument("--depth-spacing", type=float, nargs="+", default=[DenseOptions.view_spacing_deg],
+                        metavar="DEG", help="depth-map view spacing(s), deg (default: recon's, %(default)s); "
+                                            "later ones reuse the first run's SfM")
     parser.add_argument("--scene", default="default", help="demo world variant (default, small)")
     args = parser.parse_args(argv)
+    try:
+        dense = [DenseOptions(view_spacing_deg=spacing) for spacing in args.depth_spacing]
+    except ValueError as error:
+        parser.error(f"argument --depth-spacing: {error}")
     pycolmap.logging.minloglevel = 2
     world = load_scene(demo_scene_dir(args.scene))
     orbit = Orbit(photos=args.photos, width=args.photo_size[0], height=args.photo_size[1])
     flight, flight_s = virtual_flight(world, orbit, args.out / f"flight-{args.photos}-{orbit.width}x{orbit.height}")
 
     sfm = SfmOptions(max_image_size=args.image_size, every_kth=args.every)
-    scene_dir = args.out / f"scene-{sfm.max_image_size}-{sfm.every_kth or 'auto'}"
-    shutil.rmtree(scene_dir, ignore_errors=True)
-    run = Recon(flight.photo_dir, flight.geotags_csv, scene_dir, ReconOptions(sfm=sfm))
-    run.run()
-
-    poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
-    every_kth = json.loads((scene_dir / "work" / "sfm_report.json").read_text(encoding="utf-8"))["mapped_every_kth"]
-    registered = [name for name in flight.names if name in poses]
-    errors = pose_errors(np.array([poses[n] for n in registered]), np.array([flight.poses[n] for n in registered]))
-    reconstructed = load_scene(scene_dir)
-    inner = height_errors(reconstructed, world, INNER_RADIUS_M)
-    disc = height_errors(reconstructed, world, orbit.radius_m)
-    total = sum(run.seconds.values())
+    runs = []
+    for options in dense:
+        scene_dir = args.out / f"scene-{sfm.max_image_size}-{sfm.every_kth or 'auto'}-{options.view_spacing_deg:g}"
+        shutil.rmtree(scene_dir, ignore_errors=True)
+        if runs:
+            reuse_stages(runs[0]["scene_dir"], scene_dir, ("sfm_report.json", "sparse"))
+        run = Recon(flight.photo_dir, flight.geotags_csv, scene_dir, ReconOptions(sfm=sfm, dense=options))
+        run.run()
+        runs.append({"spacing": options.view_spacing_deg, "scene_dir": scene_dir, "seconds": run.seconds,
+                     "errors": score(scene_dir, flight, world, orbit)})
     extra_decode = len(flight.names) * (decode_seconds(FULL_PHOTO_SIZE) - decode_seconds(args.photo_size))
 
     print(f"\n{args.photos} photos {orbit.width}x{orbit.height} over the {args.scene} demo world "
           f"(flight rendered in {flight_s:.0f} s{'' if flight_s else ', reused'}); recon at SfM "
-          f"{sfm.max_image_size} px, mapping every {every_kth}{'' if sfm.every_kth else ' (automatic)'}, "
-          f"other settings default")
-    print("| stage | s |\n|---|---|")
-    for stage, seconds in run.seconds.items():
-        print(f"| {stage} | {seconds:.1f} |")
-    print(f"| **total** | **{total:.0f} s = {total / 60:.1f} min** (target {TARGET_S / 60:.0f} min, "
-          f"{total / TARGET_S:.2f}x) |")
+          f"{sfm.max_image_size} px, mapping every {runs[0]['errors']['every_kth']}"
+          f"{'' if sfm.every_kth else ' (automatic)'}, other settings default"
+          + ("; later columns reuse the first one's SfM (0 s)" if len(runs) > 1 else ""))
+    print_tables(runs, flight, orbit)
     print(f"12 MP photos instead: +{extra_decode:.0f} s per pass that reads every photo "
           f"({FULL_PHOTO_SIZE[0]}x{FULL_PHOTO_SIZE[1]} vs {orbit.width}x{orbit.height} JPEG decoding)")
-    print("\n| error | value |\n|---|---|")
-    print(f"| registered | {len(registered)}/{len(flight.names)} |")
-    print(f"| camera position median / max (m) | {errors.position_m['median']:.3f} / {errors.position_m['max']:.3f} "
-          f"(GPS sigma {orbit.gps_sigma_m}) |")
-    print(f"| camera rotation median / max (deg) | {errors.rotation_deg['median']:.3f} / "
-          f"{errors.rotation_deg['max']:.3f} |")
-    for label, surface in ((f"r <= {INNER_RADIUS_M:.0f} m", inner), (f"r <= {orbit.radius_m:.0f} m", disc)):
-        print(f"| surface {label}: median (m) / completeness at {surface.tolerance_m} m | {surface.median:.3f} / "
-              f"{100 * surface.completeness:.1f} % |")
     return 0
 
 
