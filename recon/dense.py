@@ -1,11 +1,12 @@
 """CPU dense reconstruction: rectified OpenCV SGBM depth per view, 2-view consistency, pycolmap fusion.
 
-COLMAP's PatchMatch needs CUDA; this module replaces it. For every undistorted (pinhole) view, two neighbours
-with a useful triangulation angle are picked from the sparse model; each pair is rectified
-(``cv2.stereoRectify``), matched with ``cv2.StereoSGBM`` over a disparity range taken from the sparse points,
-and the disparity is turned back into planar depth in the reference view. Depths from the two neighbours
-that agree (relative tolerance) are kept and averaged. Depth + normal maps are written in COLMAP's format
-into the workspace made by ``pycolmap.undistort_images`` and fused with ``pycolmap.stereo_fusion``.
+COLMAP's PatchMatch needs CUDA; this module replaces it. For the undistorted (pinhole) views spaced apart by
+``view_spacing_deg``, up to ``num_neighbors`` neighbours with a useful triangulation angle are picked from the
+sparse model; each pair is rectified (``cv2.stereoRectify``), matched with ``cv2.StereoSGBM`` over a disparity
+range taken from the sparse points, and the disparity is turned back into planar depth in the reference view.
+Depths from the neighbours that agree (relative tolerance) are kept and averaged, and dropped where the
+reference image is flat. Depth + normal maps are written in COLMAP's format into the workspace made by
+``pycolmap.undistort_images`` and fused with ``pycolmap.stereo_fusion``.
 
 Units: metres (model units after geo-registration); depth = z along the optical axis (OpenCV camera).
 """
@@ -32,7 +33,8 @@ class DenseOptions:
 
     ``view_spacing_deg``: depth maps are computed only for views at least this far apart as seen from the
     scene (baseline / median depth, see :func:`spaced_views`); 0 computes one for every view. All views stay
-    available as stereo neighbours.
+    available as stereo neighbours. ``texture_window``/``min_texture_std``: depth is dropped where the reference
+    image is flat (see :func:`textureless`).
     """
 
     max_image_size: int = 1000
@@ -43,6 +45,8 @@ class DenseOptions:
     max_angle_deg: float = 25.0
     min_shared_points: int = 20
     block_size: int = 5
+    texture_window: int = 9
+    min_texture_std: float = 1.0
     consistency: float = 0.02
     fusion_min_pixels: int = 3
     fusion_max_normal_error_deg: float = 20.0
@@ -130,6 +134,18 @@ def pair_depth(ref_img: np.ndarray, src_img: np.ndarray, ref: View, src: View,
     disparity = disparity.T if vertical else disparity
     rect_depth = focal_baseline / disparity
     return rectified_to_view_depth(rect_depth, ref.K, r1, p1)
+
+
+def textureless(grey: np.ndarray, window: int, min_std: float) -> np.ndarray:
+    """True where ``grey`` (H, W) varies by less than ``min_std`` grey levels (standard deviation) over the
+    ``window`` x ``window`` pixels around it: flat sky, clipped highlights. SGBM's smoothness terms carry a
+    disparity into such areas from their edges, and neighbouring views agree on it, so it would survive every
+    consistency check (the sky beyond the demo world's edge became a ring of points 20 m up across the orbit).
+    """
+    image = grey.astype(np.float32)
+    mean = cv2.boxFilter(image, -1, (window, window))
+    mean_square = cv2.boxFilter(image * image, -1, (window, window))
+    return mean_square - mean * mean < min_std * min_std
 
 
 def rectified_to_view_depth(rect_depth: np.ndarray, K: np.ndarray, r1: np.ndarray, p1: np.ndarray) -> np.ndarray:
@@ -314,6 +330,7 @@ def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda i
             continue
         depth = fuse_pair_depths(estimates, options.consistency)
         depth[(depth < near_far[0]) | (depth > near_far[1])] = np.nan
+        depth[textureless(load(ref_id), options.texture_window, options.min_texture_std)] = np.nan
         write_colmap_maps(workspace, name, depth, normals_from_depth(depth, views[ref_id].K))
         coverage[name] = float(np.mean(np.isfinite(depth)))
     with_maps = [rec.images[i].name for i in refs if neighbours[i]]

@@ -52,7 +52,9 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     assert angle_error_max < 0.5
     assert surface.median <= 0.10
     assert surface.completeness >= 0.90
-    assert np.median([r.error_percent for r in realism]) < 14.0  # measured ~11 % (JPEG photos, 2.5-D walls)
+    # nothing floats above the world: the flat sky beyond its edge once became a ring of points 20-26 m up
+    assert reconstructed.bounds[1, 2] < world.bounds[1, 2] + 1.0
+    assert np.median([r.error_percent for r in realism]) < 7.0  # measured ~4 % (JPEG photos, 2.5-D walls)
 
     # the fallback: the same run without texture gives a vertex-coloured scene that sim loads (decimation drops
     # the colours; the pipeline carries them over), resumed from the finished stages

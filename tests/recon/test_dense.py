@@ -5,7 +5,7 @@ import pycolmap
 import pytest
 
 from recon.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, normals_from_depth,
-                         pair_depth, spaced_views, write_colmap_maps)
+                         pair_depth, spaced_views, textureless, write_colmap_maps)
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth
 
 @pytest.fixture(scope="module")
@@ -25,6 +25,34 @@ def test_sgbm_recovers_plane_depth(texture, src_offset, yaw_deg):
     assert valid.mean() > 0.5
     assert np.median(relative) < 0.01
     assert np.percentile(relative, 90) < 0.03
+
+
+def test_flat_sky_is_masked_where_sgbm_fills_it_in(texture):
+    """The top third of both images is a flat 'sky' (as beyond the demo world's edge, or clipped highlights): SGBM
+    carries a depth into it from the plane's edge, the texture mask takes it away again; the plane keeps all of its
+    estimates and the sky keeps only the half-window band along the horizon."""
+    ref = look_down_view((0.0, 0.0, 30.0), 0.0, tilt_deg=5.0)
+    src = look_down_view((4.0, 0.0, 30.0), 3.0, tilt_deg=-3.0)
+    ref_img, src_img = render_plane(texture, ref), render_plane(texture, src)
+    sky_rows = 160
+    ref_img[:sky_rows], src_img[:sky_rows] = 200, 200
+    depth = pair_depth(ref_img, src_img, ref, src, (20.0, 45.0))
+    assert np.isfinite(depth[:sky_rows]).mean() > 0.2
+    options = DenseOptions()
+    flat = textureless(ref_img, options.texture_window, options.min_texture_std)
+    half = options.texture_window // 2
+    assert flat[:sky_rows - half].all() and not flat[sky_rows + half:].any()
+    kept = np.where(flat, np.nan, depth)
+    assert not np.isfinite(kept[:sky_rows - half]).any()
+    assert np.isfinite(kept[sky_rows + half:]).mean() == pytest.approx(np.isfinite(depth[sky_rows + half:]).mean())
+
+
+def test_textureless_passes_faint_texture_and_sensor_noise():
+    """A 1.5-level noise (above the 1-level threshold) is texture; a constant image is not."""
+    rng = np.random.default_rng(2)
+    noisy = np.clip(128 + rng.normal(0, 1.5, (60, 80)), 0, 255).astype(np.uint8)
+    assert not textureless(noisy, 9, 1.0)[8:-8, 8:-8].any()
+    assert textureless(np.full((60, 80), 128, np.uint8), 9, 1.0).all()
 
 
 def test_spaced_views_thin_a_dense_sequence_by_angle_seen_from_the_scene():
