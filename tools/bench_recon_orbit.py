@@ -35,7 +35,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
 
-from recon.accuracy import pose_errors  # noqa: E402
 from recon.cli import positive_int  # noqa: E402
 from recon.dense import DenseOptions  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
@@ -85,13 +84,10 @@ def decode_seconds(size: tuple[int, int]) -> float:
 def score(scene_dir: Path, flight: Flight, world, orbit: Orbit) -> dict:
     """A finished scene against the virtual drone's truth: pose errors of the registered photos, the mapping
     stride SfM used, and surface height errors within ``INNER_RADIUS_M`` and over the whole orbit disc."""
-    poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
-    registered = [name for name in flight.names if name in poses]
     reconstructed = load_scene(scene_dir)
     return {
-        "registered": len(registered),
         "every_kth": json.loads((scene_dir / "work" / "sfm_report.json").read_text(encoding="utf-8"))["mapped_every_kth"],
-        "poses": pose_errors(np.array([poses[n] for n in registered]), np.array([flight.poses[n] for n in registered])),
+        "poses": flight.pose_errors(camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))),
         "inner": height_errors(reconstructed, world, INNER_RADIUS_M),
         "disc": height_errors(reconstructed, world, orbit.radius_m),
     }
@@ -111,7 +107,7 @@ def print_tables(runs: list[dict], flight: Flight, orbit: Orbit) -> None:
         for k, total in enumerate(sum(run["seconds"].values()) for run in runs)) + " |")
     print(f"\n| error | {header} |\n{rule}")
     rows = {
-        "registered": lambda e: f"{e['registered']}/{len(flight.names)}",
+        "registered": lambda e: f"{e['poses'].count}/{len(flight.names)}",
         f"camera position median / max (m), GPS sigma {orbit.gps_sigma_m}":
             lambda e: f"{e['poses'].position_m['median']:.3f} / {e['poses'].position_m['max']:.3f}",
         "camera rotation median / max (deg)":

@@ -13,6 +13,7 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
+from recon.accuracy import PoseErrors, pose_errors
 from sim.camera import PinholeCamera, Rig, look_at
 from sim.render import render
 from sim.scene import Scene
@@ -53,6 +54,13 @@ class Flight:
     names: list[str]
     poses: dict[str, np.ndarray]  # true T_world_cam, ENU of the world
     camera: PinholeCamera
+
+    def pose_errors(self, estimated: dict[str, np.ndarray]) -> PoseErrors:
+        """Errors of the ``estimated`` ``T_world_cam`` by name (same ENU frame) against the truth, over the
+        photos they include (``count`` = how many were registered)."""
+        registered = [name for name in self.names if name in estimated]
+        return pose_errors(np.array([estimated[n] for n in registered]).reshape(-1, 4, 4),
+                           np.array([self.poses[n] for n in registered]).reshape(-1, 4, 4))
 
 
 def photo_name(index: int) -> str:

@@ -8,7 +8,6 @@ import numpy as np
 import pycolmap
 import pytest
 
-from recon.accuracy import pose_errors
 from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import read_rgb
@@ -34,7 +33,7 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     poses = camera_poses(pycolmap.Reconstruction(scene_dir / "work" / "sparse"))
     estimated = np.array([poses[n] for n in flight.names])
     position_error = estimated[:, :3, 3] - np.array([flight.poses[n][:3, 3] for n in flight.names])
-    angle_error_max = pose_errors(estimated, np.array([flight.poses[n] for n in flight.names])).rotation_deg["max"]
+    angle_error_max = flight.pose_errors(poses).rotation_deg["max"]
     reconstructed = load_scene(scene_dir)
     surface = height_errors(reconstructed, world, INNER_RADIUS_M)
     whole_disc = height_errors(reconstructed, world, ORBIT.radius_m)
