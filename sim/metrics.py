@@ -44,6 +44,16 @@ def photorealism_error_percent(reference: np.ndarray, test: np.ndarray) -> float
     return float(100.0 * difference.sum(dtype=np.int64) / (difference.size * FULL_SCALE))
 
 
+def photorealism_error_masked(reference: np.ndarray, test: np.ndarray, mask: np.ndarray) -> float:
+    """Formula 3 over the pixels of the ``(H, W)`` boolean ``mask`` only (e.g. where a render has surface: its
+    holes show sky, an error of completeness rather than of appearance); NaN when the mask is empty."""
+    _check_pair(reference, test)
+    mask = np.asarray(mask, dtype=bool)
+    if mask.shape != reference.shape[:2]:
+        raise ValueError(f"mask is {mask.shape} but the images are {reference.shape[:2]}: sizes must match")
+    return photorealism_error_percent(reference[mask], test[mask]) if mask.any() else float("nan")
+
+
 def psnr_db(reference: np.ndarray, test: np.ndarray) -> float:
     """Peak signal-to-noise ratio in dB for 8-bit images; ``inf`` when they are identical."""
     _check_pair(reference, test)

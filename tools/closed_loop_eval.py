@@ -19,10 +19,10 @@ import numpy as np
 from capture.geotag_io import load_geotags
 from flightplan.atomic import atomic_path, write_text_atomic
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, pose_alignment, pose_errors, pose_matrix,
-                            scene_mesh_enu, surface_errors, transform_poses)
+from recon.accuracy import depth_coverage, pose_errors, scene_mesh_enu, surface_errors, transform_poses
+from recon.scene_cameras import registered_poses, shape_alignment, truth_poses
 from sim.dataset.images import read_exr, read_png
-from sim.metrics import compare_images, depth_errors, photorealism_error_percent, read_rgb
+from sim.metrics import compare_images, depth_errors, photorealism_error_masked, read_rgb
 from sim.scene import read_scene_json
 
 COMPLETENESS_THRESHOLD_M = 0.25
@@ -30,16 +30,6 @@ COMPLETENESS_THRESHOLD_M = 0.25
 
 def _read_json(path: Path) -> dict:
     return json.loads(Path(path).read_text(encoding="utf-8"))
-
-
-def truth_poses(truth: dict) -> dict[str, np.ndarray]:
-    """``T_world_cam`` of every photo taken, by image name, in the truth's ENU frame (the true home)."""
-    poses = {}
-    for row in truth["photos"]:
-        if row["taken"] and row["image_name"]:
-            poses[row["image_name"]] = pose_matrix(np.array([row["east_m"], row["north_m"], row["up_m"]]),
-                                                   np.array([row["qw"], row["qx"], row["qy"], row["qz"]]))[0]
-    return poses
 
 
 def geotag_poses(geotags_csv: Path) -> tuple[dict[str, np.ndarray], list[str]]:
@@ -82,38 +72,13 @@ def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
     return errors
 
 
-def sfm_poses(recon_dir: Path, truth: dict) -> tuple[dict, np.ndarray]:
-    """The registered SfM poses (``T_world_cam`` by name, in the reconstruction's geo-registered frame) and the
-    map from that frame to the truth's."""
-    import pycolmap
-
-    from recon.sfm import camera_poses
-
-    sparse = Path(recon_dir) / "work" / "sparse"
-    if not sparse.is_dir():
-        raise FileNotFoundError(f"{sparse}: no SfM model")
-    origin = read_scene_json(Path(recon_dir))["origin_frame"]
-    return (camera_poses(pycolmap.Reconstruction(str(sparse))),
-            origin.transform_to(LocalFrame.from_dict(truth["origin"])))
-
-
 def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
     """Registered SfM camera poses (geo-registered into the reconstruction's frame) against the truth."""
-    poses, to_truth = sfm_poses(recon_dir, truth)
+    poses, to_truth = registered_poses(recon_dir, truth)
     true = truth_poses(truth)
     errors = paired_errors(poses, true, to_truth)
     errors["registered"] = f"{errors['count']}/{len(true)}"
     return errors
-
-
-def shape_alignment(recon_dir: Path, truth: dict) -> np.ndarray:
-    """Map from the reconstruction's frame into the truth's that also removes the georeferencing error: the
-    similarity taking the SfM cameras onto the true ones (:func:`recon.accuracy.pose_alignment`)."""
-    poses, to_truth = sfm_poses(recon_dir, truth)
-    true = truth_poses(truth)
-    names = sorted(set(poses) & set(true))
-    estimated = transform_poses(to_truth, np.array([poses[n] for n in names]))
-    return pose_alignment(estimated, np.array([true[n] for n in names])) @ to_truth
 
 
 def surface_metrics(recon_dir: Path, world: Path, centre_xy, radius_m: float, samples: int,
@@ -143,12 +108,6 @@ def _mean(values) -> float:
     return float(np.mean(values)) if values else float("nan")
 
 
-def _covered_error(reference: np.ndarray, render: np.ndarray, covered: np.ndarray) -> float:
-    """Formula 3 over the pixels where the twin has surface (its holes show sky, which is an error of
-    completeness, not of appearance); NaN when it has none."""
-    return photorealism_error_percent(reference[covered], render[covered]) if covered.any() else float("nan")
-
-
 def _image_summary(comparisons, covered_errors) -> dict:
     return {"photorealism_error_percent": _mean(c.error_percent for c in comparisons),
             "photorealism_error_covered_percent": _mean(covered_errors),
@@ -165,7 +124,8 @@ def twin_vs_true_metrics(twin: Path, true: Path) -> dict:
         true_rgb, twin_rgb = (read_png(folder / sequence / "image_2" / f"{name}.png") for folder in (true, twin))
         true_depth, twin_depth = (read_exr(folder / sequence / "depth_2" / f"{name}.exr") for folder in (true, twin))
         comparisons.append(compare_images(true_rgb, twin_rgb, name))
-        covered_errors.append(_covered_error(true_rgb, twin_rgb, np.isfinite(twin_depth) & np.isfinite(true_depth)))
+        covered = np.isfinite(twin_depth) & np.isfinite(true_depth)
+        covered_errors.append(photorealism_error_masked(true_rgb, twin_rgb, covered))
         depths.append(depth_errors(twin_depth, true_depth))
         coverages.append(depth_coverage(twin_depth, true_depth))
     return {**_image_summary(comparisons, covered_errors),
@@ -183,7 +143,7 @@ def twin_vs_photos_metrics(twin: Path, photos: Path) -> dict:
         photo = read_rgb(photos / image_name)
         comparisons.append(compare_images(photo, render, image_name))
         covered = np.isfinite(read_exr(twin / "sequences" / "00" / "depth_2" / f"{name}.exr"))
-        covered_errors.append(_covered_error(photo, render, covered))
+        covered_errors.append(photorealism_error_masked(photo, render, covered))
     return _image_summary(comparisons, covered_errors)
 
 

@@ -12,6 +12,7 @@ from sim.metrics import (
     compare_folders,
     compare_images,
     depth_errors,
+    photorealism_error_masked,
     photorealism_error_percent,
     psnr_db,
     ssim,
@@ -31,6 +32,18 @@ def test_a_constant_offset_gives_the_hand_computed_values():
     brighter = IMAGE + np.uint8(51)
     assert photorealism_error_percent(IMAGE, brighter) == pytest.approx(20.0)  # 100 * 51 / 255
     assert psnr_db(IMAGE, brighter) == pytest.approx(20 * math.log10(5))  # 10 log10(255^2 / 51^2)
+
+
+def test_formula_3_over_a_mask_counts_only_its_pixels():
+    changed = IMAGE.copy()
+    changed[:10] = IMAGE[:10] + np.uint8(51)  # the top quarter 20 % off
+    top = np.zeros(IMAGE.shape[:2], bool)
+    top[:20] = True  # the top half: one half off by 20 %, one half exact
+    assert photorealism_error_masked(IMAGE, changed, top) == pytest.approx(10.0)
+    assert photorealism_error_masked(IMAGE, changed, ~top) == 0.0
+    assert math.isnan(photorealism_error_masked(IMAGE, changed, np.zeros_like(top)))
+    with pytest.raises(ValueError, match="mask is"):
+        photorealism_error_masked(IMAGE, changed, top[:, :10])
 
 
 def test_formula_3_counts_all_three_channels():
