@@ -79,15 +79,22 @@ def transform_poses(T_target_source: np.ndarray, poses: np.ndarray) -> np.ndarra
 def pose_alignment(estimated: np.ndarray, truth: np.ndarray, lever_m: float = 30.0) -> np.ndarray:
     """4x4 similarity that best maps the ``estimated`` (N,4,4) camera poses onto the ``truth`` ones (Umeyama on
     each camera centre and the points ``lever_m`` along its optical (z) and right (x) axes, so the cameras'
-    orientations fix the rotation even on a nearly straight path). Applied to a reconstruction, it removes the
-    georeferencing error and leaves the error of its shape."""
+    orientations fix the rotation even on a nearly straight path). The estimated levers are ``lever_m / scale``
+    long, refitted until the scale settles, so a reconstruction at another scale maps exactly. Applied to a
+    reconstruction, it removes the georeferencing error and leaves the error of its shape."""
     estimated, truth = np.asarray(estimated, dtype=np.float64), np.asarray(truth, dtype=np.float64)
 
-    def anchors(poses: np.ndarray) -> np.ndarray:
+    def anchors(poses: np.ndarray, lever: float) -> np.ndarray:
         centres = poses[:, :3, 3]
-        return np.concatenate([centres, centres + lever_m * poses[:, :3, 2], centres + lever_m * poses[:, :3, 0]])
+        return np.concatenate([centres, centres + lever * poses[:, :3, 2], centres + lever * poses[:, :3, 0]])
 
-    return umeyama(anchors(estimated), anchors(truth)).matrix()
+    target, scale = anchors(truth, lever_m), 1.0
+    for _ in range(50):
+        fit = umeyama(anchors(estimated, lever_m / scale), target)
+        settled, scale = abs(fit.scale - scale) <= 1e-12 * scale, fit.scale
+        if settled:
+            break
+    return fit.matrix()
 
 
 @dataclass(frozen=True)

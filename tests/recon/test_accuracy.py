@@ -109,3 +109,15 @@ def test_pose_alignment_recovers_a_known_rigid_motion_from_cameras_on_a_straight
     known[:3, 3] = [1.0, -0.5, 0.3]
     estimated = transform_poses(np.linalg.inv(known), truth)
     assert pose_alignment(estimated, truth) == pytest.approx(known, abs=1e-9)
+
+
+def test_pose_alignment_recovers_a_known_similarity_of_another_scale():
+    angles = np.linspace(0, 2 * np.pi, 8, endpoint=False)
+    centres = np.column_stack([30 * np.cos(angles), 30 * np.sin(angles), np.full(8, 30.0)])
+    truth = pose_matrix(centres, Rotation.random(8, random_state=2).as_quat(scalar_first=True))
+    known = np.eye(4)
+    known[:3, :3] = 1.25 * Rotation.from_euler("zyx", [30.0, 1.0, -2.0], degrees=True).as_matrix()
+    known[:3, 3] = [-3.0, 6.0, 1.5]
+    estimated = transform_poses(np.linalg.inv(known), truth)
+    estimated[:, :3, :3] *= 1.25  # rigid camera axes in the estimate's frame
+    assert pose_alignment(estimated, truth) == pytest.approx(known, abs=1e-9)
