@@ -19,6 +19,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.observed import inside, observed_area
@@ -52,6 +53,11 @@ class TwinFrame:
     def rotation(self) -> np.ndarray:
         """``R_world_twin`` (3x3)."""
         return self.T_world_twin[:3, :3] / self.scale
+
+    @property
+    def rotation_deg(self) -> float:
+        """Angle of the rotation part, degrees."""
+        return float(np.degrees(Rotation.from_matrix(self.rotation).magnitude()))
 
     def camera_pose(self, T_world_cam: np.ndarray) -> np.ndarray:
         """The same camera in the twin's frame (rigid ``T_twin_cam``): centre mapped by the inverse similarity,

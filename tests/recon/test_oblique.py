@@ -163,6 +163,7 @@ def test_a_twin_moved_by_a_known_similarity_scores_like_the_truth(tmp_path):
     frame = twin_frame(tmp_path / "twin", truth, ORIGIN)
     np.testing.assert_allclose(frame.T_world_twin, np.linalg.inv(S_twin_world), atol=1e-6)
     assert frame.scale == pytest.approx(1.25)
+    assert frame.rotation_deg == pytest.approx(np.linalg.norm([2.0, -1.0, 30.0]))
     area = true_camera_area(truth, [row["image_name"] for row in truth["photos"]], ORIGIN)
     assert len(area) == 12 and np.hypot(*area.T) == pytest.approx(np.full(12, 30.0))
 

@@ -1,0 +1,50 @@
+"""tools/bench_twin_oblique.py end to end on a twin that is the true world moved by a known similarity."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.recon.test_oblique import orbit_truth, similarity, write_moved_twin
+from tests.sim.render_scene_helpers import write_scene
+from tools.bench_twin_oblique import main
+
+
+@pytest.fixture()
+def flight(tmp_path):
+    """(world folder, truth.json, twin folder)."""
+    world = write_scene(tmp_path / "world")
+    truth = orbit_truth()
+    (tmp_path / "truth.json").write_text(json.dumps(truth))
+    write_moved_twin(world, tmp_path / "twin", similarity(1.1, [0.0, 0.0, -20.0], [3.0, 1.0, -2.0]), truth)
+    return world, tmp_path / "truth.json", tmp_path / "twin"
+
+
+def test_a_moved_copy_of_the_world_scores_full_coverage_and_no_error(flight, tmp_path, capsys):
+    world, truth, twin = flight
+    code = main(["--world", str(world), "--truth", str(truth), "--scene", f"copy={twin}", "--views", "2",
+                 "--size", "96", "72", "--json", str(tmp_path / "out.json"), "--pictures", str(tmp_path / "pics")])
+    assert code == 0
+    row = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| copy |")]
+    assert len(row) == 1 and "| 100.0 % |" in row[0]
+    report = json.loads((tmp_path / "out.json").read_text())
+    summary = report["scenes"]["copy"]["summary"]
+    assert summary["views"] == 2 and summary["coverage"] > 0.999
+    assert summary["error_in_area"] < 0.1 and summary["depth_abs_rel"] < 1e-5
+    assert report["scenes"]["copy"]["alignment"]["scale"] == pytest.approx(1 / 1.1)
+    assert sorted(p.name for p in (tmp_path / "pics").iterdir()) == ["view000_copy.png", "view001_copy.png"]
+
+
+def test_a_missing_scene_folder_exits_2_naming_it(flight, tmp_path, capsys):
+    world, truth, _ = flight
+    assert main(["--world", str(world), "--truth", str(truth), "--scene", f"x={tmp_path / 'nowhere'}"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "nowhere" in err
+
+
+def test_a_scene_without_a_label_is_refused(flight, capsys):
+    world, truth, twin = flight
+    with pytest.raises(SystemExit) as stop:
+        main(["--world", str(world), "--truth", str(truth), "--scene", str(twin)])
+    assert stop.value.code == 2 and "expected LABEL=DIR" in capsys.readouterr().err
