@@ -55,14 +55,14 @@ def labelled_scene(text: str) -> tuple[str, Path]:
 
 
 def load_inputs(args) -> tuple:
-    """The true world, the truth, each twin's scene and frame, and the observed area (world ENU)."""
+    """The true world, each twin's scene and frame, and the observed area (world ENU)."""
     truth = json.loads(args.truth.read_text(encoding="utf-8"))
     world = load_scene(resolve_scene_dir(args.world))
     twins, registered = {}, set()
     for label, folder in args.scene:
         twins[label] = (load_scene(folder), twin_frame(folder, truth, world.origin))
         registered |= set(scene_camera_poses(folder))
-    return world, truth, twins, true_camera_area(truth, registered, world.origin)
+    return world, twins, true_camera_area(truth, registered, world.origin)
 
 
 def print_table(summaries: dict, truth_s: float, views: int) -> None:
@@ -123,7 +123,10 @@ def main(argv=None) -> int:
         parser.error(f"argument --scene: labels must differ, got {labels}")
     try:
         camera = PinholeCamera.from_fov(*args.size, args.fov)
-        world, truth, twins, area = load_inputs(args)
+    except ValueError as error:
+        parser.error(f"argument --fov: {error}")
+    try:
+        world, twins, area = load_inputs(args)
         start = time.perf_counter()
         poses = sample_views(world, camera, area, args.views, args.seed)
     except (OSError, ValueError, KeyError, RuntimeError) as error:  # SceneError, RenderInputError: ValueErrors

@@ -43,8 +43,13 @@ def test_a_missing_scene_folder_exits_2_naming_it(flight, tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "nowhere" in err
 
 
-def test_a_scene_without_a_label_is_refused(flight, capsys):
-    world, truth, twin = flight
+@pytest.mark.parametrize("extra, message", [
+    (["--scene", "twin"], "argument --scene: expected LABEL=DIR, got 'twin'"),
+    (["--scene", "a=x", "--scene", "a=y"], "argument --scene: labels must differ"),
+    (["--scene", "a=x", "--fov", "190"], "argument --fov: horizontal field of view must be in (0, 180) degrees"),
+    (["--scene", "a=x", "--views", "0"], "argument --views: must be a positive integer, got 0"),
+])
+def test_bad_options_exit_2_naming_the_argument(capsys, extra, message):
     with pytest.raises(SystemExit) as stop:
-        main(["--world", str(world), "--truth", str(truth), "--scene", str(twin)])
-    assert stop.value.code == 2 and "expected LABEL=DIR" in capsys.readouterr().err
+        main(["--truth", "truth.json", *extra])
+    assert stop.value.code == 2 and message in capsys.readouterr().err
