@@ -91,16 +91,13 @@ def true_camera_area(truth: dict, names, world_origin: LocalFrame) -> np.ndarray
     return observed_area(centres @ to_world[:3, :3].T + to_world[:3, 3])
 
 
-class _AreaGround:
+class _AreaGround(SceneGround):
     """The true world as the pose sampler sees it, with the observed area's bounding box as valid area."""
 
     def __init__(self, scene: Scene, polygon: np.ndarray):
-        self._ground = SceneGround(scene)
+        super().__init__(scene)
         (xmin, ymin), (xmax, ymax) = polygon.min(axis=0), polygon.max(axis=0)
         self.valid_area = (float(xmin), float(xmax), float(ymin), float(ymax))
-
-    def ground_height(self, x, y):
-        return self._ground.ground_height(x, y)
 
 
 def sample_views(scene: Scene, camera: PinholeCamera, polygon: np.ndarray, count: int, seed: int,
@@ -113,7 +110,8 @@ def sample_views(scene: Scene, camera: PinholeCamera, polygon: np.ndarray, count
             return 1.0  # outside the observed area: rejected like a view of the sky
         return miss_fraction(scene, camera, T_world_cam)
 
-    return [random_pose(_AreaGround(scene, polygon), seed, index, settings, probe) for index in range(count)]
+    ground = _AreaGround(scene, polygon)
+    return [random_pose(ground, seed, index, settings, probe) for index in range(count)]
 
 
 def render_view(scene: Scene, camera: PinholeCamera, T_world_cam: np.ndarray, sun: Sun,
@@ -123,9 +121,10 @@ def render_view(scene: Scene, camera: PinholeCamera, T_world_cam: np.ndarray, su
 
 
 def surface_points(view: View) -> np.ndarray:
-    """``(H, W, 3)`` ENU point hit by each pixel's centre ray (+inf where nothing is hit)."""
+    """``(H, W, 3)`` ENU point hit by each pixel's centre ray (NaN where nothing is hit)."""
     rays = camera_rays(view.camera, view.T_world_cam)
-    points = rays.origin + view.distance.reshape(-1, 1).astype(np.float64) * rays.directions
+    distance = np.where(view.valid, view.distance, np.nan).reshape(-1, 1).astype(np.float64)
+    points = rays.origin + distance * rays.directions
     return points.reshape(*view.depth.shape, 3)
 
 
