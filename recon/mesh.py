@@ -8,6 +8,9 @@ Before that, observed cells that no neighbour supports (none of their 8 neighbou
 ``support_m`` of their height) are dropped: in the sparse far field single stray points otherwise become
 columns metres tall once the hole filling spreads them.
 Outside it there are no faces (cropped). Poisson: ``pycolmap.poisson_meshing`` with trim = depth - 3.
+3-D surface (:func:`surface_3d`, keeps walls and overhangs): the fused cloud cropped to the observed area plus a
+margin, screened Poisson of that, faces outside the area dropped and floaters (connected pieces with less than
+``min_piece_fraction`` of the faces) removed.
 Decimation: ``pycolmap.simplify_mesh`` (QEM) bounded by a target error.
 """
 
@@ -19,9 +22,10 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 import trimesh
-from scipy import ndimage
+from scipy import ndimage, sparse
 
 from flightplan.atomic import atomic_path
+from recon.observed import inside, observed_area
 
 
 @dataclass(frozen=True)
@@ -132,11 +136,12 @@ def height_field_mesh(field: HeightField) -> trimesh.Trimesh:
     return mesh
 
 
-def poisson_mesh(fused_ply: Path, output_ply: Path, depth: int = 10) -> None:
-    """Screened Poisson surface of the fused cloud (needs normals), trimmed at ``depth - 3``."""
+def poisson_mesh(fused_ply: Path, output_ply: Path, depth: int = 10, trim: float | None = None) -> None:
+    """Screened Poisson surface of the fused cloud (needs normals), trimmed where the point density is below
+    ``trim`` (None: ``depth - 3``)."""
     options = pycolmap.PoissonMeshingOptions()
     options.depth = depth
-    options.trim = depth - 3
+    options.trim = depth - 3 if trim is None else trim
     with atomic_path(output_ply) as tmp:
         pycolmap.poisson_meshing(fused_ply, tmp, options)
 
@@ -161,3 +166,85 @@ def read_point_cloud(ply: Path) -> tuple[np.ndarray, np.ndarray | None]:
     colors = getattr(cloud, "colors", None)
     colors = None if colors is None or len(colors) != len(points) else np.asarray(colors)[:, :3]
     return points, colors
+
+
+def read_binary_ply_vertices(ply: Path) -> tuple[bytes, np.ndarray]:
+    """Header (bytes, through ``end_header``) and vertex records (structured array) of a binary little-endian PLY
+    holding one ``vertex`` element (what pycolmap's fusion writes); ValueError naming the file otherwise."""
+    data = Path(ply).read_bytes()
+    end = data.find(b"end_header\n")
+    header = data[:end + len(b"end_header\n")] if end >= 0 else b""
+    lines = header.decode("ascii", "replace").splitlines()
+    if "format binary_little_endian 1.0" not in lines or not lines[-1] == "end_header":
+        raise ValueError(f"{ply}: expected a binary little-endian PLY point cloud")
+    types = {"float": "<f4", "double": "<f8", "uchar": "u1", "uint8": "u1", "int": "<i4", "uint": "<u4"}
+    fields, count = [], None
+    for line in lines:
+        words = line.split()
+        if words[:2] == ["element", "vertex"]:
+            count = int(words[2])
+        elif words[:1] == ["element"]:
+            raise ValueError(f"{ply}: expected only a vertex element, found {line!r}")
+        elif words[:1] == ["property"] and len(words) == 3 and words[1] in types:
+            fields.append((words[2], types[words[1]]))
+        elif words[:1] == ["property"]:
+            raise ValueError(f"{ply}: unsupported property {line!r}")
+    records = np.frombuffer(data, dtype=np.dtype(fields), count=count, offset=len(header))
+    return header, records
+
+
+def crop_point_cloud(input_ply: Path, output_ply: Path, polygon: np.ndarray) -> int:
+    """Write the points of ``input_ply`` whose ENU (x, y) lie inside ``polygon`` ((K, 2) metres) to
+    ``output_ply``, every property kept; returns how many."""
+    header, records = read_binary_ply_vertices(input_ply)
+    kept = records[inside(polygon, np.column_stack([records["x"], records["y"]]))]
+    count_line = f"element vertex {len(records)}".encode()
+    with atomic_path(output_ply) as tmp:
+        tmp.write_bytes(header.replace(count_line, f"element vertex {len(kept)}".encode(), 1) + kept.tobytes())
+    return len(kept)
+
+
+def largest_pieces(mesh: trimesh.Trimesh, min_piece_fraction: float) -> trimesh.Trimesh:
+    """``mesh`` without its edge-connected pieces smaller than ``min_piece_fraction`` of all faces (floaters)."""
+    adjacency = np.asarray(mesh.face_adjacency)
+    graph = sparse.coo_matrix((np.ones(len(adjacency)), (adjacency[:, 0], adjacency[:, 1])),
+                              shape=(len(mesh.faces), len(mesh.faces)))
+    piece = sparse.csgraph.connected_components(graph, directed=False)[1]
+    sizes = np.bincount(piece)
+    return face_subset(mesh, sizes[piece] >= min_piece_fraction * len(mesh.faces))
+
+
+def face_subset(mesh: trimesh.Trimesh, keep: np.ndarray) -> trimesh.Trimesh:
+    """The faces ``keep`` (boolean mask) of ``mesh`` with their vertices (and vertex colours) only."""
+    part = trimesh.Trimesh(mesh.vertices, mesh.faces[keep], process=False,
+                           vertex_colors=mesh.visual.vertex_colors if mesh.visual.kind == "vertex" else None)
+    part.remove_unreferenced_vertices()
+    return part
+
+
+def surface_3d(fused_ply: Path, output_ply: Path, area: np.ndarray, margin_m: float, depth: int = 10,
+               trim: float | None = None, min_piece_fraction: float = 0.01) -> trimesh.Trimesh:
+    """3-D surface of the fused cloud (ENU metres) over the observed ``area`` ((K, 2) polygon) grown by
+    ``margin_m``: Poisson of the cloud cropped to that, faces with their centroid outside it and floaters dropped.
+    Written to ``output_ply`` and returned."""
+    grown = grow_polygon(area, margin_m)
+    cropped = Path(output_ply).with_name(f".{Path(output_ply).stem}.cropped.ply")
+    crop_point_cloud(fused_ply, cropped, grown)
+    try:
+        poisson_mesh(cropped, output_ply, depth, trim)
+    finally:
+        cropped.unlink(missing_ok=True)
+    surface = trimesh.load(output_ply, process=False)
+    surface = face_subset(surface, inside(grown, np.asarray(surface.triangles_center)))
+    surface = largest_pieces(surface, min_piece_fraction)
+    with atomic_path(output_ply) as tmp:
+        surface.export(tmp)
+    return surface
+
+
+def grow_polygon(polygon: np.ndarray, margin_m: float, corners: int = 16) -> np.ndarray:
+    """The convex hull of a convex ``polygon`` ((K, 2), metres) grown outwards by ``margin_m`` (its corners
+    rounded with ``corners`` points each)."""
+    angles = np.linspace(0.0, 2.0 * np.pi, corners, endpoint=False)
+    ring = margin_m * np.column_stack([np.cos(angles), np.sin(angles)])
+    return observed_area((np.asarray(polygon, dtype=np.float64)[:, None, :] + ring[None]).reshape(-1, 2))

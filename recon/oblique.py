@@ -137,7 +137,8 @@ def wall_mask(view: View) -> np.ndarray:
 class ViewScores:
     """The twin against the truth at one pose. ``in_area``: pixels whose true surface point lies in the
     observed area; ``coverage``: the fraction of them where the twin has surface; ``error_*``: formula 3 (%)
-    over the in-area pixels the twin covers (all, walls, flat), NaN where there are none; ``depth_abs_rel``:
+    over the in-area pixels the twin covers (all, walls, flat), NaN where there are none; ``error_all_*``: the
+    same over every in-area pixel, holes included (there the twin shows its sky); ``depth_abs_rel``:
     mean |z_twin - z_true| / z_true over the same pixels; ``error_whole``: formula 3 over the whole image;
     ``wall_fraction``: walls among the in-area pixels."""
 
@@ -146,6 +147,9 @@ class ViewScores:
     error_in_area: float
     error_walls: float
     error_flat: float
+    error_all_in_area: float
+    error_all_walls: float
+    error_all_flat: float
     depth_abs_rel: float
     error_whole: float
     wall_fraction: float
@@ -168,6 +172,9 @@ def score_view(true_view: View, twin_view: View, polygon: np.ndarray, depth_scal
         error_in_area=photorealism_error_masked(truth, twin, covered),
         error_walls=photorealism_error_masked(truth, twin, covered & walls),
         error_flat=photorealism_error_masked(truth, twin, covered & ~walls),
+        error_all_in_area=photorealism_error_masked(truth, twin, in_area),
+        error_all_walls=photorealism_error_masked(truth, twin, in_area & walls),
+        error_all_flat=photorealism_error_masked(truth, twin, in_area & ~walls),
         depth_abs_rel=depth_errors(twin_depth, true_view.depth).abs_rel if covered.any() else math.nan,
         error_whole=photorealism_error_percent(truth, twin),
         wall_fraction=float((in_area & walls).sum() / count) if count else math.nan)
@@ -177,11 +184,13 @@ def summarise(scores: Sequence[ViewScores]) -> dict:
     """Mean of each score over the views where it is defined, the walls:flat ratio of the mean errors, and the
     number of views."""
     summary = {}
-    for name in ("coverage", "error_in_area", "error_walls", "error_flat", "depth_abs_rel", "error_whole",
-                 "wall_fraction"):
+    for name in ("coverage", "error_in_area", "error_walls", "error_flat", "error_all_in_area", "error_all_walls",
+                 "error_all_flat", "depth_abs_rel", "error_whole", "wall_fraction"):
         values = np.array([getattr(s, name) for s in scores], dtype=np.float64)
         summary[name] = float(np.nanmean(values)) if np.isfinite(values).any() else math.nan
     flat = summary["error_flat"]
     summary["walls_to_flat"] = summary["error_walls"] / flat if flat > 0 else math.nan
+    all_flat = summary["error_all_flat"]
+    summary["all_walls_to_flat"] = summary["error_all_walls"] / all_flat if all_flat > 0 else math.nan
     summary["views"] = len(scores)
     return summary

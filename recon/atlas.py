@@ -1,0 +1,389 @@
+"""Texture a 3-D mesh with an atlas: each face coloured from the best photo that sees it.
+
+The approach of Waechter, Moehrle and Goesele, "Let there be color!" (mvs-texturing), small: frames are the scene's
+ENU metres for the mesh and undistorted pinhole photos (:class:`recon.texture.Photo`, OpenCV axes, ``T_world_cam``
+in the same frame).
+
+1. **Candidate views** per face: the ``candidates`` best photos in which the face's centroid is in front, inside the
+   image, facing the camera and not occluded (an embree occlusion ray from the camera centre). Quality is the face's
+   projected area per square metre of surface, ``(f / d)^2 cos(angle)``: resolution and viewing angle in one number.
+2. **Labelling**: one photo per face, minimising a data cost (``1 - quality / best quality of that face``) plus a
+   Potts penalty ``smoothness`` for every edge neighbour on another photo (iterated conditional modes, alternating
+   halves of the faces so that neighbours never flip together): neighbouring faces stay on one photo where quality
+   allows, so seams are few.
+3. **Charts**: connected faces on the same photo form a patch whose UVs are its projection into that photo (no
+   distortion beyond the view's own); a face no photo sees is a chart of its own, flattened in its plane. xatlas
+   packs the charts into one atlas at ``1 / texel_m`` texels per metre, with a gutter of ``padding_px``.
+4. **Exposure**: per-photo gains (linear light, geometric mean 1) solved globally from the candidates' colours at
+   shared face centroids (:func:`recon.texture.solve_log_gains`) and applied to every sample.
+5. **Texels**: each texel inside a face (or in the gutter beside it) gets that face's 3-D point (barycentric,
+   clamped to the triangle), projected into the face's photo and sampled bilinearly in linear light, times the
+   photo's gain. Texels of faces no photo sees take the nearest coloured texel.
+"""
+
+from __future__ import annotations
+
+import io
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+import trimesh
+import xatlas
+from PIL import Image
+from scipy import ndimage, sparse
+
+from recon.texture import JPEG_QUALITY, Photo, ground_sample_distance, scene_from_mesh, solve_log_gains
+from sim.camera import project_world_points, row_dots
+from sim.raycast import occluded
+from sim.scene import Scene
+from sim.shade import linear_texture, sample_linear, to_srgb8
+from sim.worlds.glb import encode_textured_glb
+
+#: Sub-pixel bits of the face rasteriser (OpenCV ``shift``).
+RASTER_SHIFT = 4
+#: Texels per chunk when turning texels into surface points (bounds the memory of the barycentric step).
+TEXEL_CHUNK = 1 << 20
+#: Packing efficiency assumed when sizing the atlas before xatlas packs it.
+PACKING_EFFICIENCY = 0.7
+
+
+@dataclass(frozen=True)
+class AtlasOptions:
+    """``texel_m`` None = one ground pixel of the photos (the atlas shrinks uniformly when that would exceed
+    ``max_texture_px`` on a side); ``candidates`` best views kept per face; ``smoothness`` Potts penalty per
+    neighbour on another photo (data costs are in [0, 1]); ``border_px`` how far inside the image a face's centroid
+    must project; ``gain_faces`` faces sampled for the exposure gains, ``min_overlap`` of them shared for a photo
+    pair to count; ``padding_px`` gutter between charts."""
+
+    texel_m: float | None = None
+    max_texture_px: int = 8192
+    candidates: int = 6
+    smoothness: float = 0.3
+    iterations: int = 10
+    border_px: float = 4.0
+    balance_exposure: bool = True
+    gain_faces: int = 20000
+    min_overlap: int = 30
+    padding_px: int = 2
+
+    def __post_init__(self) -> None:
+        if self.texel_m is not None and not (np.isfinite(self.texel_m) and self.texel_m > 0):
+            raise ValueError(f"texel size must be a positive number of metres, got {self.texel_m}")
+        if self.candidates < 1:
+            raise ValueError(f"candidates must be at least 1, got {self.candidates}")
+
+
+@dataclass(frozen=True)
+class FaceViews:
+    """The best photos of every face, best first: ``view`` (F, K) photo indices (-1: none) and ``quality`` (F, K),
+    projected pixels per square metre of surface (0 where none)."""
+
+    view: np.ndarray
+    quality: np.ndarray
+
+
+@dataclass(frozen=True)
+class Atlas:
+    """A textured mesh: ``vertices`` (M, 3) ENU metres (split where charts meet), ``faces`` (F, 3) in the input
+    mesh's face order, ``uv`` (M, 2) with v up (OBJ/trimesh convention), ``image`` (H, W, 3) uint8 sRGB; per face its
+    photo ``labels`` (index into the photos, -1: none saw it); per photo name its exposure ``gains`` (texture =
+    gain x photo, linear light); ``coverage`` the fraction of the surface area some photo sees."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray
+    image: np.ndarray
+    labels: np.ndarray
+    gains: dict[str, float]
+    coverage: float
+    texel_m: float
+
+    def glb(self, generator: str = "recon.atlas") -> bytes:
+        """Binary glTF of the textured mesh (ENU metres as stored), the atlas embedded as JPEG."""
+        buffer = io.BytesIO()
+        Image.fromarray(self.image).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
+        return encode_textured_glb(self.vertices, self.faces, self.uv, buffer.getvalue(), generator)
+
+
+# ---------------------------------------------------------------- 1. candidate views
+
+
+def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, photo: Photo,
+                  border_px: float) -> tuple[np.ndarray, np.ndarray]:
+    """Faces whose centroid ``photo`` sees (in front, ``border_px`` inside the image, not edge-on, not occluded)
+    and their quality ``(f / d)^2 |cos|`` (the mesh may be two-sided: either face side counts)."""
+    cam, T = photo.camera, np.asarray(photo.T_world_cam, dtype=np.float64)
+    pixels, depth = project_world_points(cam, T, centroids)
+    px, py = pixels[:, 0], pixels[:, 1]
+    inside = np.flatnonzero((depth > 0) & (px >= border_px) & (px <= cam.width - 1 - border_px)
+                            & (py >= border_px) & (py <= cam.height - 1 - border_px))
+    to_camera = T[:3, 3] - centroids[inside]
+    distance = np.sqrt(row_dots(to_camera, to_camera))
+    direction = to_camera / distance[:, None]
+    cosine = np.abs(row_dots(direction, normals[inside]))
+    facing = cosine > 0.05
+    inside, distance, direction, cosine = inside[facing], distance[facing], direction[facing], cosine[facing]
+    tolerance = np.maximum(0.05, 2e-3 * distance)  # the face's own surface must not hide it
+    seen = ~occluded(scene, T[None, :3, 3], -direction, distance - tolerance)
+    return inside[seen], (cosine * (cam.fx / distance) ** 2)[seen]
+
+
+def face_candidates(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions,
+                    progress=lambda it: it) -> FaceViews:
+    """The ``options.candidates`` best photos of every face of ``mesh`` (see :func:`visible_faces`)."""
+    centroids, normals = np.asarray(mesh.triangles_center), np.asarray(mesh.face_normals)
+    view = np.full((len(centroids), options.candidates), -1, np.int32)
+    quality = np.zeros((len(centroids), options.candidates))
+    for index, photo in enumerate(progress(photos)):
+        faces, q = visible_faces(scene, centroids, normals, photo, options.border_px)
+        weakest = quality[faces].argmin(axis=1)
+        better = q > quality[faces, weakest]
+        view[faces[better], weakest[better]] = index
+        quality[faces[better], weakest[better]] = q[better]
+    order = np.argsort(-quality, axis=1, kind="stable")
+    return FaceViews(np.take_along_axis(view, order, axis=1), np.take_along_axis(quality, order, axis=1))
+
+
+# ---------------------------------------------------------------- 2. labelling
+
+
+def face_neighbours(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F, 3) indices of the faces sharing an edge with each face, -1 padded (a non-manifold edge's extra
+    neighbours are dropped)."""
+    adjacency = np.asarray(mesh.face_adjacency)
+    pairs = np.concatenate([adjacency, adjacency[:, ::-1]])
+    pairs = pairs[np.argsort(pairs[:, 0], kind="stable")]
+    counts = np.bincount(pairs[:, 0], minlength=len(mesh.faces))
+    slot = np.arange(len(pairs)) - np.repeat(np.cumsum(counts) - counts, counts)
+    keep = slot < 3
+    neighbours = np.full((len(mesh.faces), 3), -1, np.int64)
+    neighbours[pairs[keep, 0], slot[keep]] = pairs[keep, 1]
+    return neighbours
+
+
+def label_faces(views: FaceViews, neighbours: np.ndarray, smoothness: float, iterations: int) -> np.ndarray:
+    """One photo index per face (-1 where no photo sees it): data cost + Potts smoothness, minimised by iterated
+    conditional modes over alternating halves of the faces (deterministic)."""
+    best = views.quality[:, :1]
+    data = np.where(views.view >= 0, 1.0 - views.quality / np.where(best > 0, best, 1.0), np.inf)
+    labels = views.view[:, 0].copy()
+    halves = np.arange(len(labels)) % 2
+    for _ in range(iterations):
+        changes = 0
+        for half in (0, 1):
+            around = np.where(neighbours >= 0, labels[neighbours], -1)  # (F, 3)
+            disagree = (views.view[:, :, None] != around[:, None, :]) & (around[:, None, :] >= 0)
+            choice = np.argmin(data + smoothness * disagree.sum(axis=2), axis=1)
+            proposal = np.take_along_axis(views.view, choice[:, None], axis=1)[:, 0]
+            changed = (halves == half) & (proposal != labels)
+            labels[changed] = proposal[changed]
+            changes += np.count_nonzero(changed)
+        if not changes:
+            break
+    return labels
+
+
+# ---------------------------------------------------------------- 3. charts and packing
+
+
+def patches(mesh: trimesh.Trimesh, labels: np.ndarray) -> np.ndarray:
+    """Patch id per face: connected components of edge-adjacent faces on the same photo (unseen faces: alone)."""
+    adjacency = np.asarray(mesh.face_adjacency)
+    a, b = adjacency[:, 0], adjacency[:, 1]
+    same = (labels[a] == labels[b]) & (labels[a] >= 0)
+    graph = sparse.coo_matrix((np.ones(np.count_nonzero(same)), (a[same], b[same])),
+                              shape=(len(labels), len(labels)))
+    return sparse.csgraph.connected_components(graph, directed=False)[1]
+
+
+def split_by_patch(faces: np.ndarray, patch: np.ndarray, num_vertices: int):
+    """Vertices duplicated per patch: (source vertex (M,), patch of each (M,), new faces (F, 3))."""
+    key = patch[:, None].astype(np.int64) * num_vertices + faces
+    unique, inverse = np.unique(key.ravel(), return_inverse=True)
+    return unique % num_vertices, unique // num_vertices, inverse.reshape(-1, 3)
+
+
+def in_plane_uv(triangles: np.ndarray) -> np.ndarray:
+    """(F, 3, 2) coordinates (metres) of each triangle's corners in its own plane (corner 0 at the origin)."""
+    edge1 = triangles[:, 1] - triangles[:, 0]
+    edge2 = triangles[:, 2] - triangles[:, 0]
+    axis_u = edge1 / np.maximum(np.linalg.norm(edge1, axis=1), 1e-12)[:, None]
+    normal = np.cross(edge1, edge2)
+    axis_v = np.cross(normal / np.maximum(np.linalg.norm(normal, axis=1), 1e-12)[:, None], axis_u)
+    uv = np.zeros((len(triangles), 3, 2))
+    for corner, edge in ((1, edge1), (2, edge2)):
+        uv[:, corner] = np.column_stack([row_dots(edge, axis_u), row_dots(edge, axis_v)])
+    return uv
+
+
+def chart_uvs(mesh: trimesh.Trimesh, labels: np.ndarray, photos: list[Photo]):
+    """Split vertices, faces and chart UVs before packing: (source vertex (M,), faces (F, 3), uv (M, 2)).
+
+    A patch's UVs are its vertices' pixel positions in its photo (divided by the image's larger side); an unseen
+    face's are its corners in its own plane, shifted so that no two such charts share a UV (xatlas welds vertices
+    that share a position and a UV into one chart)."""
+    vertices, faces = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    patch = patches(mesh, labels)
+    source, vertex_patch, split_faces = split_by_patch(faces, patch, len(vertices))
+    patch_label = np.full(patch.max() + 1, -1)
+    patch_label[patch] = labels
+    vertex_label = patch_label[vertex_patch]
+    uv = np.zeros((len(source), 2))
+    for k in np.unique(vertex_label[vertex_label >= 0]):
+        own = vertex_label == k
+        camera = photos[k].camera
+        pixels, _ = project_world_points(camera, photos[k].T_world_cam, vertices[source[own]])
+        uv[own] = pixels / max(camera.width, camera.height)
+    unseen = np.flatnonzero(labels < 0)
+    if len(unseen):
+        flat = in_plane_uv(vertices[faces[unseen]])
+        shift = np.column_stack([(unseen * 0.6180339887) % 1.0, (unseen * 0.4142135624) % 1.0]) * 10.0
+        uv[split_faces[unseen].ravel()] = (flat + shift[:, None, :]).reshape(-1, 2)
+    return source, split_faces, uv
+
+
+def pack(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texels_per_m: float, max_texture_px: int,
+         padding_px: int):
+    """xatlas packing of the input charts: (vertex map (M',), faces (F, 3), uv (M', 2) in [0, 1] with v down as
+    xatlas lays rows, width, height, texels per metre used). The density shrinks until the atlas fits."""
+    while True:
+        atlas = xatlas.Atlas()
+        atlas.add_mesh(vertices.astype(np.float32), faces.astype(np.uint32), uvs=uv.astype(np.float32))
+        charts = xatlas.ChartOptions()
+        charts.use_input_mesh_uvs = True
+        packing = xatlas.PackOptions()
+        packing.padding = padding_px
+        packing.texels_per_unit = texels_per_m
+        packing.bilinear = True
+        atlas.generate(charts, packing)
+        if atlas.atlas_count == 1 and max(atlas.width, atlas.height) <= max_texture_px:
+            vmapping, packed_faces, packed_uv = atlas[0]
+            return vmapping, packed_faces.astype(np.int64), packed_uv, atlas.width, atlas.height, texels_per_m
+        texels_per_m *= 0.95 * max_texture_px / max(atlas.width, atlas.height, max_texture_px + 1)
+
+
+# ---------------------------------------------------------------- 4. exposure
+
+
+def atlas_gains(views: FaceViews, centroids: np.ndarray, photos: list[Photo], linear: list[np.ndarray],
+                options: AtlasOptions) -> np.ndarray:
+    """Per-photo linear gains (geometric mean 1) from the candidates' luminance at up to ``gain_faces`` face
+    centroids seen by at least two photos."""
+    shared = np.flatnonzero((views.view >= 0).sum(axis=1) >= 2)
+    sample = shared[np.linspace(0, len(shared) - 1, min(options.gain_faces, len(shared))).astype(np.int64)] \
+        if len(shared) else shared
+    log_luminance = np.full((len(photos), len(sample)), np.nan)
+    for k, photo in enumerate(photos):
+        column = np.flatnonzero((views.view[sample] == k).any(axis=1))
+        if len(column):
+            rgb = sample_photo(photo, linear[k], centroids[sample[column]])
+            log_luminance[k, column] = np.log(np.maximum(rgb.mean(axis=1), 1e-4))
+    return np.exp(solve_log_gains(log_luminance, options.min_overlap))
+
+
+# ---------------------------------------------------------------- 5. texels
+
+
+def sample_photo(photo: Photo, linear: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Linear RGB (N, 3) of the photo (its :func:`sim.shade.linear_texture`) at world points (bilinear, clamped)."""
+    pixels, _ = project_world_points(photo.camera, photo.T_world_cam, points)
+    cam = photo.camera
+    uv = np.column_stack([(pixels[:, 0] + 0.5) / cam.width, 1.0 - (pixels[:, 1] + 0.5) / cam.height])
+    return sample_linear(linear, np.nan_to_num(uv).astype(np.float32))
+
+
+def rasterise_faces(uv_px: np.ndarray, faces: np.ndarray, width: int, height: int, padding_px: int) -> np.ndarray:
+    """(height, width) int32 face index of every texel (-1: none); texels of the gutter within ``padding_px`` take
+    the nearest face's index. ``uv_px`` are texel coordinates (pixel centres at integers)."""
+    ids = np.full((height, width), -1, np.int32)
+    corners = np.round(uv_px[faces] * (1 << RASTER_SHIFT)).astype(np.int32)
+    for index, triangle in enumerate(corners):
+        cv2.fillConvexPoly(ids, triangle, index, lineType=cv2.LINE_8, shift=RASTER_SHIFT)
+    empty = ids < 0
+    if empty.any() and padding_px > 0:
+        distance, nearest = ndimage.distance_transform_edt(empty, return_indices=True)
+        gutter = empty & (distance <= padding_px)
+        ids[gutter] = ids[nearest[0][gutter], nearest[1][gutter]]
+    return ids
+
+
+def dot2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise dot products of two (N, 2) arrays."""
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
+
+
+def texel_points(uv_px: np.ndarray, corners_3d: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
+    """3-D points (N, 3) of texel centres ``texel_xy`` (N, 2) inside triangles given by their texel corners
+    ``uv_px`` (N, 3, 2) and 3-D corners (N, 3, 3): barycentric coordinates, clamped to the triangle."""
+    v0, v1 = uv_px[:, 1] - uv_px[:, 0], uv_px[:, 2] - uv_px[:, 0]
+    v2 = texel_xy - uv_px[:, 0]
+    d00, d01, d11 = dot2(v0, v0), dot2(v0, v1), dot2(v1, v1)
+    d20, d21 = dot2(v2, v0), dot2(v2, v1)
+    denominator = d00 * d11 - d01 * d01
+    degenerate = np.abs(denominator) < 1e-12
+    denominator[degenerate] = 1.0
+    b1 = np.where(degenerate, 1.0 / 3.0, (d11 * d20 - d01 * d21) / denominator)
+    b2 = np.where(degenerate, 1.0 / 3.0, (d00 * d21 - d01 * d20) / denominator)
+    weights = np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, None)
+    weights /= np.maximum(weights.sum(axis=1), 1e-12)[:, None]
+    return np.einsum("nk,nkj->nj", weights, corners_3d)
+
+
+def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
+          photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray) -> np.ndarray:
+    """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face sampled from the face's photo times its
+    gain; the rest take the nearest painted texel (grey if none)."""
+    height, width = ids.shape
+    colour = np.zeros((height * width, 3), np.float32)
+    painted = np.zeros(height * width, bool)
+    flat = ids.ravel()
+    texels = np.flatnonzero((flat >= 0) & (labels[np.maximum(flat, 0)] >= 0))
+    for start in range(0, len(texels), TEXEL_CHUNK):
+        chunk = texels[start:start + TEXEL_CHUNK]
+        face = flat[chunk]
+        rows, cols = np.divmod(chunk, width)
+        points = texel_points(uv_px[faces[face]], vertices[faces[face]], np.column_stack([cols, rows]).astype(float))
+        label = labels[face]
+        for k in np.unique(label):
+            own = label == k
+            colour[chunk[own]] = gains[k] * sample_photo(photos[k], linear[k], points[own])
+        painted[chunk] = True
+    image = to_srgb8(colour).reshape(height, width, 3)
+    if not painted.any():
+        return np.full_like(image, 128)
+    nearest = ndimage.distance_transform_edt(~painted.reshape(height, width), return_distances=False,
+                                             return_indices=True)
+    return image[tuple(nearest)]
+
+
+# ---------------------------------------------------------------- the whole stage
+
+
+def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions = AtlasOptions(),
+                  progress=lambda it: it, log=lambda message: None) -> Atlas:
+    """The textured atlas of an ENU ``mesh`` from undistorted ``photos`` (see the module docstring)."""
+    if not photos:
+        raise ValueError("texturing needs at least one photo")
+    scene = scene_from_mesh(mesh)
+    views = face_candidates(scene, mesh, photos, options, progress)
+    labels = label_faces(views, face_neighbours(mesh), options.smoothness, options.iterations)
+    linear = [linear_texture(photo.image) for photo in photos]
+    centroids = np.asarray(mesh.triangles_center)
+    gains = (atlas_gains(views, centroids, photos, linear, options) if options.balance_exposure
+             else np.ones(len(photos)))
+    source, split_faces, uv = chart_uvs(mesh, labels, photos)
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    texel_m = options.texel_m or ground_sample_distance(scene, photos)
+    vmapping, faces, packed_uv, width, height, texels_per_m = pack(
+        vertices[source], split_faces, uv, 1.0 / texel_m, options.max_texture_px, options.padding_px)
+    packed_vertices = vertices[source[vmapping]]
+    uv_px = packed_uv * np.array([width, height]) - 0.5
+    ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
+    image = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains)
+    area = np.asarray(mesh.area_faces)
+    coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
+    log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
+        f"patches, {width}x{height} texels of {1.0 / texels_per_m:.3f} m, coverage {100 * coverage:.1f} %")
+    return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
+                 {photo.name: float(g) for photo, g in zip(photos, gains)}, coverage, 1.0 / texels_per_m)
