@@ -10,7 +10,7 @@ Each stage leaves a marker under ``SCENE_DIR/work``; a stage whose marker exists
 | fusion | ``work/fused.ply`` |
 | mesh | ``work/mesh.ply`` (decimated: ``work/mesh_decimated.ply``) |
 | texture | ``work/texture_report.json`` (textured mesh ``work/terrain.glb``; skipped with ``texture=False``) |
-| scene | ``SCENE_DIR/scene.json`` (``terrain.glb``, or ``terrain.ply`` with vertex colours as the fallback; ``cameras.json``) |
+| scene | ``SCENE_DIR/scene.json`` (``terrain.glb`` or the ``terrain.ply`` fallback, and ``cameras.json``) |
 """
 
 from __future__ import annotations

@@ -77,7 +77,8 @@ def test_cameras_json_round_trip_from_an_sfm_model_to_the_sim_scene(tmp_path):
     assert json.loads((tmp_path / "scene.json").read_text())["cameras"] == "cameras.json"
     loaded = load_scene(tmp_path).cameras
     assert [c.name for c in loaded] == ["a.JPG", "b.JPG", "c.JPG"]  # registered only, in name order
-    assert [c.exposure_gain for c in loaded] == [1.25, 1.0, 0.8] and [c.held_out for c in loaded] == [False, False, True]
+    assert [c.exposure_gain for c in loaded] == [1.25, 1.0, 0.8]
+    assert [c.held_out for c in loaded] == [False, False, True]
     for scene_camera in loaded:
         image = next(i for i in model.images.values() if i.name == scene_camera.name)
         np.testing.assert_allclose(np.linalg.inv(scene_camera.T_world_cam)[:3], image.cam_from_world().matrix(),
