@@ -107,9 +107,12 @@ def test_bad_cameras_json_names_the_file_and_the_camera(tmp_path, field, value, 
         load_scene(tmp_path)
 
 
-def test_hold_out_of_one_would_leave_out_every_photo():
+def test_hold_out_of_one_would_leave_out_every_photo(tmp_path, capsys):
     with pytest.raises(ValueError, match="hold-out must be 0 .off. or K >= 2"):
         ReconOptions(hold_out=1)
+    assert recon_main(["--photos", str(tmp_path), "--out", str(tmp_path / "scene"), "--hold-out", "1"]) == 2
+    assert "hold-out must be 0 (off) or K >= 2 (every K-th photo), got 1" in capsys.readouterr().err
+    assert not (tmp_path / "scene").exists()
 
 
 @pytest.mark.slow
