@@ -120,7 +120,7 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     """brighton_beach (18 DJI photos) with --hold-out 6: photos 6, 12, 18 are in cameras.json as held out, with
     their SfM pose, but not in the depth/texture workspace nor in the exposure gains; cameras.json's full-size
     lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
-    photos by name. ~70 s."""
+    photos by name. ~40 s of CPU (90 s on the shared 2-core machine)."""
     photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
                        "--hold-out", "6"]) == 0
@@ -151,7 +151,7 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     for name in held_out:
         result = results[name.rsplit(".", 1)[0]]
         assert result.gain_error_percent == result.error_percent  # no texture gain for a photo it never saw
-        assert 0.05 < result.covered < 1 and result.covered_error_percent < result.error_percent
+        assert 0.02 < result.covered < 1 and result.covered_error_percent < result.error_percent  # 5-30 % here
     frame = json.loads((replay / "sequences/00/frame_meta/000005.json").read_text())
     assert frame["sampler"]["image_name"] == names[5] and frame["sampler"]["held_out"] is True
     assert np.isfinite(read_exr(replay / "sequences/00/depth_2/000005.exr")).mean() == pytest.approx(
