@@ -1,6 +1,7 @@
 """Scenes: a triangle mesh with its texture in local ENU metres, recentred and built into embree once.
 
-A scene folder holds ``scene.json`` and the mesh it names (see docs/interfaces.md). Vertices are converted
+A scene folder holds ``scene.json``, the mesh it names and, for a reconstruction, the ``cameras.json`` it names
+(its registered photos, sim/scene_cameras.py; see docs/interfaces.md). Vertices are converted
 in float64 (``ENU = stored - vertex_offset_m``, glTF y-up rotated to z-up), then *recentred* on the
 mesh's bounding-box centre and only then cast to float32 for embree: float32 has ~0.5 m spacing at
 UTM northings, a few micrometres near the origin.
