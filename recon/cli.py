@@ -4,7 +4,7 @@
                      [--image-size PX] [--max-features N] [--neighbors K] [--sequential N] [--every K]
                      [--mapper incremental|global] [--focal auto|fixed|refine]
                      [--dense-size PX] [--depth-spacing DEG] [--mesh 2.5d|poisson] [--grid M] [--decimate-error M]
-                     [--texel M] [--no-texture] [--workers J] [--verbose]
+                     [--texel M] [--no-texture] [--hold-out K] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
 Bad input -> one line on stderr, exit code 2.
@@ -64,6 +64,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
     parser.add_argument("--texel", type=float, help="orthophoto texel, m (default: one ground pixel of the photos)")
     parser.add_argument("--no-texture", action="store_true", help="vertex colours only (no orthophoto texture)")
+    parser.add_argument("--hold-out", type=positive_int, default=0, metavar="K",
+                        help="register every photo but leave every K-th (name order, K >= 2) out of depth maps, "
+                             "fusion and texture, to measure photorealism on photos the texture never saw "
+                             "(cameras.json marks them held_out)")
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
     return parser
 
@@ -112,7 +116,7 @@ def run_recon(argv) -> int:
         dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
                            num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
-        texture=not args.no_texture, texture_options=TextureOptions(texel_m=args.texel),
+        texture=not args.no_texture, texture_options=TextureOptions(texel_m=args.texel), hold_out=args.hold_out,
     )
     scene = Recon(args.photos, args.geotags, args.out, options).run()
     print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],

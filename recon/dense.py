@@ -13,6 +13,8 @@ Units: metres (model units after geo-registration); depth = z along the optical 
 
 from __future__ import annotations
 
+import tempfile
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -282,12 +284,25 @@ def write_colmap_maps(workspace: Path, name: str, depth: np.ndarray, normals: np
             data.write(str(tmp))
 
 
-def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: DenseOptions) -> None:
-    """``pycolmap.undistort_images`` into ``workspace`` at the dense image size (pinhole cameras)."""
+def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: DenseOptions,
+              leave_out: Collection[str] = ()) -> None:
+    """``pycolmap.undistort_images`` into ``workspace`` at the dense image size (pinhole cameras).
+
+    ``leave_out``: names of registered photos deregistered first, so that no later stage (depth maps, fusion,
+    texture) sees them (held-out photos, for measuring photorealism on photos the texture never used).
+    """
     undistort_options = pycolmap.UndistortCameraOptions()
     undistort_options.max_image_size = options.max_image_size
-    pycolmap.undistort_images(workspace, sparse_dir, photo_dir, undistort_options=undistort_options,
-                              num_threads=options.num_threads)
+    with tempfile.TemporaryDirectory(dir=workspace.parent) as kept:
+        if leave_out:
+            model = pycolmap.Reconstruction(sparse_dir)
+            for image in list(model.images.values()):
+                if image.name in leave_out and image.has_pose:
+                    model.deregister_frame(image.frame_id)
+            model.write(kept)
+            sparse_dir = Path(kept)
+        pycolmap.undistort_images(workspace, sparse_dir, photo_dir, undistort_options=undistort_options,
+                                  num_threads=options.num_threads)
 
 
 def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda it: it) -> dict[str, float]:

@@ -19,9 +19,7 @@ from sim.camera import Rig
 from sim.metrics import photorealism_error_percent
 from sim.render import render
 from sim.scene import Scene, load_scene
-from sim.shade import Lighting, Sun
-
-UNLIT = {"sun": Sun(0.0, -90.0, 0.0), "lighting": Lighting(ambient=1.0, shadows=False)}
+from sim.shade import UNLIT
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ Each stage leaves a marker under ``SCENE_DIR/work``; a stage whose marker exists
 | fusion | ``work/fused.ply`` |
 | mesh | ``work/mesh.ply`` (decimated: ``work/mesh_decimated.ply``) |
 | texture | ``work/texture_report.json`` (textured mesh ``work/terrain.glb``; skipped with ``texture=False``) |
-| scene | ``SCENE_DIR/scene.json`` (``terrain.glb``, or ``terrain.ply`` with vertex colours as the fallback) |
+| scene | ``SCENE_DIR/scene.json`` (``terrain.glb`` or the ``terrain.ply`` fallback, and ``cameras.json``) |
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
                           read_geotags)
-from recon.scene_out import write_scene
+from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 
 STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
@@ -51,7 +51,8 @@ HEIGHT_DATUM = {
 @dataclass(frozen=True)
 class ReconOptions:
     """All knobs: SfM, dense, surface (``mesh`` "2.5d" or "poisson"), grid cell (None = 2 GSD), decimation,
-    texture (False: vertex colours only)."""
+    texture (False: vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
+    but left out of depth maps, fusion and texture; 0 = none)."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
@@ -61,8 +62,11 @@ class ReconOptions:
     decimate_error_m: float = 0.02
     texture: bool = True
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
+    hold_out: int = 0
 
     def __post_init__(self) -> None:
+        if self.hold_out == 1 or self.hold_out < 0:
+            raise ValueError(f"hold-out must be 0 (off) or K >= 2 (every K-th photo), got {self.hold_out}")
         if self.grid_m is not None and not (np.isfinite(self.grid_m) and self.grid_m > 0):
             raise ValueError(f"grid cell must be a positive number of metres, got {self.grid_m}")
         if not (np.isfinite(self.decimate_error_m) and self.decimate_error_m >= 0):
@@ -133,6 +137,8 @@ class Recon:
             self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
                      f"{', '.join(self.priors.untagged[:10])}")
         self.seconds: dict[str, float] = {}
+        k = self.options.hold_out
+        self.held_out = frozenset(self.names[k - 1::k] if k else ())
 
     def run(self) -> dict:
         self.work.mkdir(parents=True, exist_ok=True)
@@ -168,7 +174,7 @@ class Recon:
         if (workspace / "stereo" / "fusion.cfg").exists():
             return False
         shutil.rmtree(workspace, ignore_errors=True)
-        dense.undistort(self.work / "sparse", self.photo_dir, workspace, self.options.dense)
+        dense.undistort(self.work / "sparse", self.photo_dir, workspace, self.options.dense, self.held_out)
 
     def stage_depth(self):
         marker = self.work / "dense" / "depth_report.json"
@@ -254,10 +260,10 @@ class Recon:
                                                 "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
         }
         textured = self.work / "terrain.glb"
-        if self.options.texture and textured.exists():
-            provenance["texture"] = json.loads((self.work / "texture_report.json").read_text(encoding="utf-8"))
-            write_scene(self.scene_dir, surface, self.priors.origin, provenance, "terrain.glb",
-                        encoded=textured.read_bytes())
-        else:
-            provenance["texture"] = "vertex colours (texturing switched off)"
-            write_scene(self.scene_dir, surface, self.priors.origin, provenance)
+        textured_now = self.options.texture and textured.exists()
+        provenance["texture"] = (json.loads((self.work / "texture_report.json").read_text(encoding="utf-8"))
+                                 if textured_now else "vertex colours (texturing switched off)")
+        gains = provenance["texture"]["gains"] if textured_now else {}
+        cameras = scene_cameras(pycolmap.Reconstruction(self.work / "sparse"), gains, self.held_out)
+        mesh_name, encoded = ("terrain.glb", textured.read_bytes()) if textured_now else ("terrain.ply", None)
+        write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras)

@@ -1,7 +1,8 @@
-"""Write the scene folder of INTERFACES.md: a mesh in local ENU metres plus ``scene.json``.
+"""Write the scene folder of INTERFACES.md: a mesh in local ENU metres, ``cameras.json`` and ``scene.json``.
 
 The normal case is a textured GLB from ``recon/texture.py`` (``encoded`` bytes); the fallback is the mesh with
-vertex colours exported by trimesh (PLY).
+vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/scene_cameras.py) holds the registered photos of
+the final SfM model with their exposure gains.
 """
 
 from __future__ import annotations
@@ -9,13 +10,29 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from collections.abc import Collection, Mapping, Sequence
+
 import numpy as np
+import pycolmap
 import trimesh
 
 from flightplan.geodesy import LocalFrame
 from flightplan.atomic import atomic_path, write_text_atomic
+from recon.sfm import camera_from_colmap, camera_poses
+from sim.scene_cameras import SceneCamera, write_cameras
 
 SCENE_FORMAT = "aerostereo-scene/1"
+CAMERAS_FILE = "cameras.json"
+
+
+def scene_cameras(model: pycolmap.Reconstruction, gains: Mapping[str, float],
+                  held_out: Collection[str]) -> list[SceneCamera]:
+    """The registered photos of an SfM ``model`` (full-resolution cameras, ENU metres) in name order, with their
+    texture exposure gain (1.0 where ``gains`` has none) and whether they were ``held_out``."""
+    poses = camera_poses(model)
+    images = sorted((image for image in model.images.values() if image.name in poses), key=lambda i: i.name)
+    return [SceneCamera(image.name, camera_from_colmap(image.camera), poses[image.name],
+                        float(gains.get(image.name, 1.0)), image.name in held_out) for image in images]
 
 
 def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, provenance: dict) -> dict:
@@ -37,9 +54,10 @@ def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, pr
 
 
 def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, provenance: dict,
-                mesh_name: str = "terrain.ply", encoded: bytes | None = None) -> Path:
-    """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh) and
-    ``scene.json`` (last, so its presence means the scene is complete)."""
+                mesh_name: str = "terrain.ply", encoded: bytes | None = None,
+                cameras: Sequence[SceneCamera] = ()) -> Path:
+    """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh), ``cameras.json``
+    when there are ``cameras``, and ``scene.json`` (last, so its presence means the scene is complete)."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
         if encoded is None:
@@ -47,5 +65,8 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
         else:
             tmp.write_bytes(encoded)
     meta = scene_metadata(mesh, mesh_name, origin, provenance)
+    if cameras:
+        write_cameras(scene_dir / CAMERAS_FILE, cameras)
+        meta["cameras"] = CAMERAS_FILE
     write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
     return scene_dir / "scene.json"

@@ -25,6 +25,7 @@ from tqdm import tqdm
 from flightplan.atomic import write_text_atomic
 from recon.priors import FocalSeed, PosePriors, PriorsError
 from recon.similarity import Similarity, umeyama
+from sim.camera import PinholeCamera
 
 MIN_PHOTOS = 3
 LOOP_MIN_INLIERS = 15
@@ -320,6 +321,25 @@ def camera_poses(rec: pycolmap.Reconstruction) -> dict[str, np.ndarray]:
             pose[:3, :4] = image.cam_from_world().inverse().matrix()
             poses[image.name] = pose
     return poses
+
+
+#: Where each COLMAP model's extra parameters go in OpenCV's (k1, k2, p1, p2, k3); all act on normalised
+#: coordinates exactly as OpenCV's radial-tangential model does (COLMAP's src/colmap/sensor/models.h).
+_OPENCV_SLOTS = {"SIMPLE_PINHOLE": (), "PINHOLE": (), "SIMPLE_RADIAL": (0,), "RADIAL": (0, 1),
+                 "OPENCV": (0, 1, 2, 3)}
+
+
+def camera_from_colmap(camera: pycolmap.Camera) -> PinholeCamera:
+    """sim camera (OpenCV lens, our pixel convention: COLMAP's principal point minus 0.5 px) of a COLMAP camera
+    of model SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV; ``ValueError`` for any other model."""
+    slots = _OPENCV_SLOTS.get(camera.model.name)
+    if slots is None:
+        raise ValueError(f"camera {camera.camera_id}: COLMAP model {camera.model.name} has no OpenCV equivalent "
+                         f"here (supported: {', '.join(_OPENCV_SLOTS)})")
+    distortion = np.zeros(5)
+    distortion[list(slots)] = np.asarray(camera.params)[camera.extra_params_idxs()]
+    return PinholeCamera(camera.focal_length_x, camera.focal_length_y, camera.principal_point_x - 0.5,
+                         camera.principal_point_y - 0.5, int(camera.width), int(camera.height), tuple(distortion))
 
 
 def compose(outer: Similarity, inner: Similarity) -> Similarity:

@@ -31,7 +31,7 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
-from recon.sfm import camera_poses
+from recon.sfm import camera_from_colmap, camera_poses
 from sim.camera import PinholeCamera, project_world_points
 from sim.raycast import default_workers, intersect, occluded
 from sim.scene import Scene, Surface
@@ -312,17 +312,11 @@ def textured_glb(mesh: trimesh.Trimesh, ortho: Orthophoto, generator: str = "rec
                                buffer.getvalue(), generator)
 
 
-def pinhole_from_colmap(camera) -> PinholeCamera:
-    """sim camera of an undistorted COLMAP PINHOLE/SIMPLE_PINHOLE camera (COLMAP's pixel centres are at +0.5)."""
-    K = camera.calibration_matrix()
-    return PinholeCamera(K[0, 0], K[1, 1], K[0, 2] - 0.5, K[1, 2] - 0.5, int(camera.width), int(camera.height))
-
-
 def load_photos(model, image_dir, read_rgb) -> list[Photo]:
     """Photos of every registered image of an undistorted pycolmap model; ``read_rgb(path)`` decodes one."""
     registered = sorted((img for img in model.images.values() if img.has_pose), key=lambda img: img.name)
     with ThreadPoolExecutor(default_workers()) as pool:
         images = list(pool.map(lambda img: read_rgb(image_dir / img.name), registered))
     poses = camera_poses(model)
-    return [Photo(img.name, rgb, pinhole_from_colmap(img.camera), poses[img.name])
+    return [Photo(img.name, rgb, camera_from_colmap(img.camera), poses[img.name])
             for img, rgb in zip(registered, images)]

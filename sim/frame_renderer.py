@@ -20,7 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from sim.camera import PinholeCamera, Rig
-from sim.dataset import DEFAULT_FORMATS, FrameRecord
+from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
+from sim.dataset.writer import camera_description
 from sim.raycast import default_workers
 from sim.render import miss_fraction, render
 from sim.sampling import (
@@ -35,12 +36,17 @@ from sim.sampling import (
     random_pose,
     random_sun,
     replay_poses,
+    scene_camera_poses,
 )
 from sim.scene import Scene, SceneError, load_scene
-from sim.shade import Sun
+from sim.shade import UNLIT, Sun
 
 MODES = ("random", "trajectory", "replay")
 TRAJECTORIES = ("orbit", "lawnmower", "loop")
+#: Image size (pixels) where none is given and none comes from a replayed photo.
+DEFAULT_SIZE = (1280, 720)
+#: Outputs of a replay at the scene's cameras unless asked otherwise: photos are not rectified (no disparity).
+SCENE_REPLAY_FORMATS = ("depth_exr",)
 #: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
@@ -58,14 +64,16 @@ class RenderOptions:
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes.
     ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`).
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
-    disparity can be written).
+    disparity can be written). ``width``/``height`` None: :data:`DEFAULT_SIZE`, except a replay of the scene's
+    cameras (replay without ``geotags``), which renders each photo's own lens at its own size, or at ``width``
+    (the lens scaled, ``height`` ignored) when given.
     """
 
     frames: int | None = None
     mode: str = "random"
     geotags: Path | None = None
-    width: int = 1280
-    height: int = 720
+    width: int | None = None
+    height: int | None = None
     fov_deg: float = 80.0
     baseline_m: float = 0.54
     cameras: int = 2
@@ -82,6 +90,11 @@ class RenderOptions:
     margin_m: float = 20.0
     max_sky_fraction: float = 0.02
 
+    @property
+    def replays_scene_cameras(self) -> bool:
+        """Replay at the scene's own cameras (``cameras.json``): replay mode without geotags."""
+        return self.mode == "replay" and self.geotags is None
+
     def random_settings(self) -> RandomPoseSettings:
         """The paper's ranges with this run's margin and sky limit."""
         return RandomPoseSettings(margin_m=self.margin_m, max_miss_fraction=self.max_sky_fraction)
@@ -95,6 +108,8 @@ class RenderOptions:
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
+        elif self.replays_scene_cameras:
+            description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
             description["geotags"] = Path(self.geotags).name
         return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
@@ -112,13 +127,37 @@ class SceneGround:
         return np.nan_to_num(self.scene.ground_height(x, y), nan=float(self.scene.bounds[0, 2]))
 
 
-def build_rig(options: RenderOptions) -> Rig:
-    """``cameras`` identical pinhole cameras in a row, camera k at ``k * baseline`` along camera x."""
-    camera = PinholeCamera.from_fov(options.width, options.height, options.fov_deg, dist=options.distortion)
+def build_rig(options: RenderOptions, camera: PinholeCamera | None = None) -> Rig:
+    """``cameras`` identical cameras in a row, camera k at ``k * baseline`` along camera x: ``camera``, or a
+    pinhole of the options' size, field of view and distortion."""
+    if camera is None:
+        width, height = options.width or DEFAULT_SIZE[0], options.height or DEFAULT_SIZE[1]
+        camera = PinholeCamera.from_fov(width, height, options.fov_deg, dist=options.distortion)
     offsets = [np.eye(4) for _ in range(options.cameras)]
     for k, T in enumerate(offsets):
         T[0, 3] = k * options.baseline_m
     return Rig(tuple([camera] * options.cameras), tuple(offsets))
+
+
+def replay_lenses(scene: Scene, options: RenderOptions) -> list[PinholeCamera]:
+    """The lens of each of the scene's cameras as replayed: its own, or scaled to ``options.width``.
+
+    :class:`RenderInputError` when the scene has no cameras, when they differ in image size (a dataset has one
+    size; give ``--width``) or when they have lens distortion and disparity is asked for.
+    """
+    if not scene.cameras:
+        raise RenderInputError(f"{scene.source}: replay needs --geotags FILE, or a reconstructed scene whose "
+                               "scene.json names its cameras.json")
+    lenses = [c.camera.scaled(options.width) if options.width else c.camera for c in scene.cameras]
+    sizes = {lens.shape: c.name for lens, c in zip(lenses, scene.cameras)}
+    if len(sizes) > 1:
+        shown = ", ".join(f"{name} {w}x{h}" for (h, w), name in sizes.items())
+        raise RenderInputError(f"{scene.source}: the scene's cameras differ in image size ({shown}); a dataset has "
+                               "one size: give --width, or replay photos of one camera")
+    if any(lens.dist for lens in lenses) and needs_disparity(options.formats):
+        raise RenderInputError("disparity needs rectified (undistorted) images and the scene's cameras have lens "
+                               "distortion: choose --formats without disparity_* (e.g. depth_exr)")
+    return lenses
 
 
 class PoseSource:
@@ -133,6 +172,8 @@ class PoseSource:
             self._probe = functools.partial(miss_fraction, scene, left_camera)
         elif options.mode == "trajectory":
             self.path = self._trajectory()
+        elif options.replays_scene_cameras:
+            self.replayed = scene_camera_poses(scene.cameras, self.ground)
         else:
             self.replayed = replay_poses(Path(options.geotags), scene.origin, self.ground)
         self.frame_count = self._frame_count()
@@ -153,8 +194,8 @@ class PoseSource:
         requested = self.options.frames
         if self.replayed is not None:
             if requested is not None and requested > len(self.replayed):
-                raise RenderInputError(f"{self.options.geotags}: {len(self.replayed)} photos, cannot replay "
-                                       f"{requested} frames")
+                source = self.options.geotags or "cameras.json"
+                raise RenderInputError(f"{source}: {len(self.replayed)} photos, cannot replay {requested} frames")
             return requested or len(self.replayed)
         count = 100 if requested is None else requested
         available = self.path.frames_available() if self.path is not None else None
@@ -210,7 +251,8 @@ class FrameRenderer:
             self.scene = load_scene(scene_dir)
         except SceneError as error:
             raise RenderInputError(str(error)) from None
-        self.rig = build_rig(options)
+        self.lenses = replay_lenses(self.scene, options) if options.replays_scene_cameras else None
+        self.rig = build_rig(options, self.lenses[0] if self.lenses else None)
         try:
             self.poses = PoseSource(self.scene, options, self.rig.cameras[0])
         except ValueError as error:
@@ -225,14 +267,22 @@ class FrameRenderer:
         """Render frame ``index`` (its pose, sun and jitter depend only on ``(seed, index)``)."""
         start = time.perf_counter()
         sample = self.poses.pose(index)
-        sun = random_sun(self.options.seed, index)
-        frame = render(self.scene, self.rig, sample.T_world_cam, frame_sun(sun), self.options.spp,
-                       rng=frame_rng(self.options.seed, index, RENDER_STREAM), pool=self.pool)
+        rng = frame_rng(self.options.seed, index, RENDER_STREAM)
+        extra = sample.record()
+        if self.lenses is None:
+            sun = random_sun(self.options.seed, index)
+            frame = render(self.scene, self.rig, sample.T_world_cam, frame_sun(sun), self.options.spp, rng=rng,
+                           pool=self.pool)
+        else:  # the photo's own lens, lit as the photo was (the texture's shading), see :data:`UNLIT`
+            sun, lens = None, self.lenses[index]
+            frame = render(self.scene, build_rig(self.options, lens), sample.T_world_cam,
+                           samples_per_pixel=self.options.spp, rng=rng, pool=self.pool, **UNLIT)
+            extra["camera"] = camera_description(lens)
         elapsed = time.perf_counter() - start
         views = [ViewImages(view.rgb, view.depth) for view in frame.views]
         record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
                              time_s=sample.time_s, seed=self.options.seed, sun=sun, render_time_s=elapsed,
-                             extra=sample.record())
+                             extra=extra)
         return record, FrameStats(index, sample.rejected, elapsed)
 
     def close(self) -> None:

@@ -10,6 +10,12 @@ the same pose, or any reference/test pair):
 * ``ssim``: structural similarity with the settings of Wang et al. (Gaussian window sigma 1.5,
   K1 = 0.01, K2 = 0.03, population covariance, data range 255), averaged over colour channels.
 
+Comparing folders of photos and renders (:func:`compare_folders`) pairs files by name stem. A photo larger than
+its render (same aspect ratio) is first resized to the render's size (area averaging). Renders from a replay
+dataset's ``replay_2`` folder (sim/dataset/replay.py) also give, per photo, the exposure gain g of the texture
+(render / g in linear light predicts the photo) and the depth map: formula 3 is then reported raw and with the
+gain applied, over the whole image and over the covered pixels only (where the render hit the mesh).
+
 Depth metrics compare a predicted depth map with the ground truth over pixels where both are
 finite and positive: absolute relative error ``mean(|pred - gt| / gt)``, RMSE in metres, and
 the fraction with ``max(pred/gt, gt/pred) < 1.25``.
@@ -24,6 +30,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 from skimage.metrics import structural_similarity
+
+from sim.dataset.images import read_exr
+from sim.dataset.replay import replay_frames
+from sim.shade import SRGB8_TO_LINEAR, to_srgb8
 
 FULL_SCALE = 255.0
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")
@@ -71,18 +81,45 @@ def ssim(reference: np.ndarray, test: np.ndarray) -> float:
 
 @dataclass(frozen=True)
 class ImageComparison:
-    """Metrics of one image pair (``name`` is the shared file stem)."""
+    """Metrics of one image pair (``name`` is the shared file stem): formula 3 (%) of the whole image, PSNR, SSIM;
+    with the exposure gain applied (``gain_error_percent``); over the ``covered`` fraction of pixels only
+    (``covered_error_percent``, ``covered_gain_error_percent``). NaN where unknown (no gain, no depth)."""
 
     name: str
     error_percent: float
     psnr_db: float
     ssim: float
+    gain_error_percent: float = float("nan")
+    covered_error_percent: float = float("nan")
+    covered_gain_error_percent: float = float("nan")
+    covered: float = float("nan")
 
 
-def compare_images(reference: np.ndarray, test: np.ndarray, name: str = "") -> ImageComparison:
-    """All image metrics of one pair."""
+def compare_images(reference: np.ndarray, test: np.ndarray, name: str = "", gain: float | None = None,
+                   covered: np.ndarray | None = None) -> ImageComparison:
+    """All image metrics of one pair; with the render's exposure ``gain`` and/or its ``covered`` (H, W) mask
+    (pixels that see the surface) also the gain-corrected and covered-only formula 3."""
+    corrected = apply_exposure_gain(test, gain) if gain is not None else None
+    extra = {}
+    if corrected is not None:
+        extra["gain_error_percent"] = photorealism_error_percent(reference, corrected)
+    if covered is not None:
+        extra["covered"] = float(covered.mean())
+        if covered.any():
+            extra["covered_error_percent"] = photorealism_error_percent(reference[covered], test[covered])
+            if corrected is not None:
+                extra["covered_gain_error_percent"] = photorealism_error_percent(reference[covered],
+                                                                                 corrected[covered])
     return ImageComparison(name, photorealism_error_percent(reference, test), psnr_db(reference, test),
-                           ssim(reference, test))
+                           ssim(reference, test), **extra)
+
+
+def apply_exposure_gain(render: np.ndarray, gain: float) -> np.ndarray:
+    """The photo a render predicts for exposure gain g (texture = g x photo in linear light): 8-bit sRGB
+    ``render / g`` in linear light."""
+    if not (np.isfinite(gain) and gain > 0):
+        raise ValueError(f"exposure gain must be a positive number, got {gain}")
+    return to_srgb8(SRGB8_TO_LINEAR[render] / np.float32(gain))
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -108,10 +145,25 @@ def _images_by_stem(folder: Path) -> dict[str, Path]:
     return images
 
 
+def fit_reference(reference: np.ndarray, shape: tuple[int, ...], name: str) -> np.ndarray:
+    """``reference`` resized (area averaging) to a smaller render's ``shape`` of the same aspect ratio (within the
+    rounding of one pixel); unchanged when the sizes agree; ``ValueError`` naming it otherwise."""
+    (height, width), (test_height, test_width) = reference.shape[:2], shape[:2]
+    if (height, width) == (test_height, test_width):
+        return reference
+    same_aspect = abs(height * test_width / width - test_height) <= 1.0
+    if not (same_aspect and test_width < width):
+        raise ValueError(f"{name}: {width}x{height} cannot be compared with a {test_width}x{test_height} render "
+                         "(sizes differ and the render is not a smaller image of the same aspect ratio)")
+    return cv2.resize(reference, (test_width, test_height), interpolation=cv2.INTER_AREA)
+
+
 def compare_folders(reference_dir: Path, test_dir: Path) -> list[ImageComparison]:
     """Compare images paired by file name without extension (``DJI_0001.JPG`` with ``DJI_0001.png``).
 
-    Every image must have a partner of the same size; otherwise the error names the files.
+    Every image must have a partner of the same size, or be a larger photo of the render's aspect ratio
+    (:func:`fit_reference`); otherwise the error names the files. Renders in a replay dataset's ``replay_2``
+    folder are also compared with their exposure gain applied and over their covered pixels.
     """
     references, tests = _images_by_stem(reference_dir), _images_by_stem(test_dir)
     unpaired = sorted(references.keys() ^ tests.keys())
@@ -120,22 +172,45 @@ def compare_folders(reference_dir: Path, test_dir: Path) -> list[ImageComparison
         only_test = [name for name in unpaired if name in tests]
         raise ValueError(f"images without a partner: only in {reference_dir}: {only_reference[:10]}; "
                          f"only in {test_dir}: {only_test[:10]}")
+    replayed = replay_frames(test_dir)
     results = []
     for stem in sorted(references):
-        reference, test = read_rgb(references[stem]), read_rgb(tests[stem])
+        test = read_rgb(tests[stem])
+        reference = fit_reference(read_rgb(references[stem]), test.shape, str(references[stem]))
         _check_pair(reference, test, (str(references[stem]), str(tests[stem])))
-        results.append(compare_images(reference, test, stem))
+        frame = replayed.get(stem)
+        covered = np.isfinite(read_exr(frame.depth)) if frame is not None and frame.depth is not None else None
+        results.append(compare_images(reference, test, stem, frame.exposure_gain if frame else None, covered))
     return results
 
 
+#: Columns of :func:`summary_table` after the image name: (header, ImageComparison field, format).
+SUMMARY_COLUMNS = (("error %", "error_percent", "8.2f"), ("gain err %", "gain_error_percent", "10.2f"),
+                   ("covered err %", "covered_error_percent", "13.2f"),
+                   ("cov. gain err %", "covered_gain_error_percent", "15.2f"), ("covered", "covered", "7.3f"),
+                   ("PSNR dB", "psnr_db", "8.2f"), ("SSIM", "ssim", "7.4f"))
+
+
+def mean_comparison(results: Sequence[ImageComparison]) -> dict[str, float]:
+    """Mean of each metric over the images where it is known (PSNR over finite values); NaN where none is."""
+    means = {}
+    for _, key, _ in SUMMARY_COLUMNS:
+        values = np.array([getattr(r, key) for r in results], dtype=np.float64)
+        known = values[np.isfinite(values)]
+        means[key] = float(known.mean()) if len(known) else float("nan")
+    return means
+
+
 def summary_table(results: Sequence[ImageComparison]) -> str:
-    """A plain-text table of per-image metrics and their mean (PSNR mean over finite values)."""
-    lines = [f"{'image':<24} {'error %':>8} {'PSNR dB':>8} {'SSIM':>7}"]
-    lines += [f"{r.name:<24} {r.error_percent:8.2f} {r.psnr_db:8.2f} {r.ssim:7.4f}" for r in results]
-    finite_psnr = [r.psnr_db for r in results if np.isfinite(r.psnr_db)]
-    mean_psnr = float(np.mean(finite_psnr)) if finite_psnr else float("inf")
-    lines.append(f"{'mean of ' + str(len(results)):<24} {np.mean([r.error_percent for r in results]):8.2f} "
-                 f"{mean_psnr:8.2f} {np.mean([r.ssim for r in results]):7.4f}")
+    """A plain-text table of per-image metrics and their mean (formula 3 raw and with the exposure gain, over
+    the whole image and over the covered pixels; ``nan`` where not known)."""
+    width = max([24] + [len(r.name) for r in results])
+    header = " ".join(f"{title:>{fmt.split('.')[0]}}" for title, _, fmt in SUMMARY_COLUMNS)
+    lines = [f"{'image':<{width}} {header}"]
+    rows = [(r.name, {key: getattr(r, key) for _, key, _ in SUMMARY_COLUMNS}) for r in results]
+    rows.append((f"mean of {len(results)}", mean_comparison(results)))
+    for name, values in rows:
+        lines.append(f"{name:<{width}} " + " ".join(format(values[key], fmt) for _, key, fmt in SUMMARY_COLUMNS))
     return "\n".join(lines)
 
 

@@ -15,7 +15,8 @@ from pathlib import Path
 from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, DatasetError, parse_shard
 from sim.metrics import compare_folders, summary_table
-from sim.frame_renderer import MODES, TRAJECTORIES, RenderInputError, RenderOptions
+from sim.frame_renderer import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderInputError,
+                                 RenderOptions)
 from sim.render_dataset import render_dataset
 from sim.scene import SceneError
 
@@ -63,8 +64,10 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one is resumed)")
     add("--frames", type=int, default=defaults.frames, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default=defaults.mode,
-        help="random poses (the paper), a trajectory, or replay geotags")
-    add("--geotags", type=Path, default=defaults.geotags, help="geotags.csv to replay (with geotags.json beside it)")
+        help="random poses (the paper), a trajectory, or replay: the reconstructed scene's own cameras "
+             "(cameras.json, unlit, each photo's lens), or with --geotags the geotagged poses")
+    add("--geotags", type=Path, default=defaults.geotags,
+        help="replay: geotags.csv (with geotags.json beside it) instead of the scene's cameras")
     add("--margin", type=float, default=defaults.margin_m,
         help="random mode: keep cameras this far inside the valid area, metres")
     add("--max-sky", type=float, default=defaults.max_sky_fraction,
@@ -73,8 +76,11 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--altitude", type=float, default=defaults.altitude_m, help="trajectory height above the ground, metres")
     add("--speed", type=float, default=defaults.speed_m_s, help="trajectory speed, m/s")
     add("--rate", type=float, default=defaults.frame_rate_hz, help="trajectory frame rate, Hz")
-    add("--width", type=int, default=defaults.width, help="image width, pixels")
-    add("--height", type=int, default=defaults.height, help="image height, pixels")
+    add("--width", type=int, default=defaults.width,
+        help=f"image width, pixels (default {DEFAULT_SIZE[0]}; replay of the scene's cameras: each photo's own, "
+             "or its lens scaled to this width)")
+    add("--height", type=int, default=defaults.height,
+        help=f"image height, pixels (default {DEFAULT_SIZE[1]}; ignored by a replay of the scene's cameras)")
     add("--fov", type=float, default=defaults.fov_deg, help="horizontal field of view, degrees")
     add("--baseline", type=float, default=defaults.baseline_m, help="distance between neighbouring cameras, metres")
     add("--cameras", type=int, default=defaults.cameras, help="cameras in the rig (a row along camera x)")
@@ -84,19 +90,24 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=defaults.workers, help="render processes (each builds the scene once)")
     add("--shard", type=_shard, default=defaults.shard, help="render only frames I, I+N, I+2N... (I/N)")
-    add("--formats", type=_formats, default=defaults.formats,
-        help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; known {','.join(FORMATS)})")
+    add("--formats", type=_formats, default=None,
+        help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; replay of the scene's cameras: "
+             f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")
     add("--contact-sheet", type=Path, default=None, help="also write a PNG of left, right and depth of a few frames")
     add("--quiet", action="store_true", help="no progress bar")
     return parser
 
 
 def options_from_args(args: argparse.Namespace) -> RenderOptions:
-    """:class:`RenderOptions` of parsed arguments."""
+    """:class:`RenderOptions` of parsed arguments (no ``--formats``: the mode's default formats)."""
+    formats = args.formats
+    if formats is None:
+        scene_replay = args.mode == "replay" and args.geotags is None
+        formats = SCENE_REPLAY_FORMATS if scene_replay else RenderOptions().formats
     return RenderOptions(frames=args.frames, mode=args.mode, geotags=args.geotags, width=args.width,
                          height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
-                         formats=args.formats, trajectory=args.trajectory, altitude_m=args.altitude,
+                         formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
                          margin_m=args.margin, max_sky_fraction=args.max_sky)
 
@@ -109,9 +120,10 @@ def _bad_input(message: str) -> int:
 def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> int:
     """Render the dataset described by ``args``; print a summary. Returns the exit code."""
     try:
+        options = options_from_args(args)
         if args.contact_sheet is not None:
-            check_depth_written(args.formats, f"{args.out} (--formats)")
-        summary = render_dataset(args.scene, args.out, options_from_args(args),
+            check_depth_written(options.formats, f"{args.out} (--formats)")
+        summary = render_dataset(args.scene, args.out, options,
                                  command_line=sys.argv if command_line is None else command_line,
                                  progress=not args.quiet)
         print(summary.text())

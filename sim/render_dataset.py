@@ -122,8 +122,6 @@ def _check_options(options: RenderOptions) -> None:
     problems = []
     if options.mode not in MODES:
         problems.append(f"mode must be one of {MODES}, got {options.mode!r}")
-    if options.mode == "replay" and options.geotags is None:
-        problems.append("replay mode needs --geotags FILE")
     if options.trajectory not in TRAJECTORIES:
         problems.append(f"trajectory must be one of {TRAJECTORIES}, got {options.trajectory!r}")
     if options.cameras < 2:
@@ -131,7 +129,7 @@ def _check_options(options: RenderOptions) -> None:
     if options.frames is not None and options.frames < 1:
         problems.append(f"frames must be >= 1, got {options.frames}")
     for name in ("width", "height", "spp", "workers"):
-        if getattr(options, name) < 1:
+        if getattr(options, name) is not None and getattr(options, name) < 1:
             problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
     for name, value in (("baseline", options.baseline_m), ("altitude", options.altitude_m),
                         ("speed", options.speed_m_s), ("rate", options.frame_rate_hz)):

@@ -21,7 +21,7 @@ from __future__ import annotations
 import functools
 import json
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
@@ -34,6 +34,7 @@ from capture.geotag_io import PosePrior, load_geotags, sidecar_path
 from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from sim.camera import pose_from_position
+from sim.scene_cameras import SceneCamera
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM = 0, 1, 2, 3  # RENDER_STREAM: anti-aliasing jitter
 #: The nadir camera at heading 0: x east, y south (image top = north), z down.
@@ -372,3 +373,13 @@ def replay_poses(geotags_csv: Path, scene_origin: LocalFrame, ground: GroundMode
             details["take_off_h0_ellipsoid_m"] = source.h0_m
         samples.append(PoseSample(index, T, photo.utc_time_s - photos[0].utc_time_s, height, 0, details))
     return samples
+
+
+def scene_camera_poses(cameras: Sequence[SceneCamera], ground: GroundModel) -> list[PoseSample]:
+    """A reconstructed scene's cameras (``cameras.json``, already in the scene's ENU frame) as replay samples, in
+    the file's order; ``time_s`` is the frame number (the file holds no capture times). Each record names the
+    photo, its exposure gain and whether it was held out of the texture."""
+    return [PoseSample(index, camera.T_world_cam, float(index), _height_above_ground(ground, camera.T_world_cam[:3, 3]),
+                       0, {"mode": "replay", "image_name": camera.name, "exposure_gain": camera.exposure_gain,
+                           "held_out": camera.held_out})
+            for index, camera in enumerate(cameras)]

@@ -1,6 +1,7 @@
 """Scenes: a triangle mesh with its texture in local ENU metres, recentred and built into embree once.
 
-A scene folder holds ``scene.json`` and the mesh it names (see docs/interfaces.md). Vertices are converted
+A scene folder holds ``scene.json``, the mesh it names and, for a reconstruction, the ``cameras.json`` it names
+(its registered photos, sim/scene_cameras.py; see docs/interfaces.md). Vertices are converted
 in float64 (``ENU = stored - vertex_offset_m``, glTF y-up rotated to z-up), then *recentred* on the
 mesh's bounding-box centre and only then cast to float32 for embree: float32 has ~0.5 m spacing at
 UTM northings, a few micrometres near the origin.
@@ -19,6 +20,7 @@ from embreex import mesh_construction, rtcore, rtcore_scene
 from PIL import Image
 
 from flightplan.geodesy import LocalFrame
+from sim.scene_cameras import CamerasError, SceneCamera, read_cameras
 from sim.shade import MAX_TEXTURE_SIDE, linear_texture
 
 SCENE_FORMAT = "aerostereo-scene/1"
@@ -58,7 +60,8 @@ class Scene:
     ``vertices`` are float64 ENU, ``faces`` int32 (degenerate triangles removed), ``centre_m`` the
     float64 ENU point subtracted before the float32 cast, ``bounds`` the ``(2, 3)`` ENU box
     ``[min, max]`` of the triangles; ``embree`` is the committed embree scene
-    in those recentred float32 coordinates. ``origin`` is the geodetic origin of the ENU frame.
+    in those recentred float32 coordinates. ``origin`` is the geodetic origin of the ENU frame. ``cameras``:
+    a reconstruction's registered photos (``cameras.json``; empty for other scenes).
     """
 
     vertices: np.ndarray
@@ -67,6 +70,7 @@ class Scene:
     origin: LocalFrame | None = None
     valid_area_m: dict | None = None
     source: str = "<memory>"
+    cameras: tuple[SceneCamera, ...] = ()
     centre_m: np.ndarray = field(init=False)
     bounds: np.ndarray = field(init=False)
     embree: rtcore_scene.EmbreeScene = field(init=False, repr=False)
@@ -170,6 +174,8 @@ def read_scene_json(scene_dir: Path) -> dict:
         raise SceneError(f"{path}: \"valid_area_m\" must be {{xmin, xmax, ymin, ymax}} numbers with min < max, got {area!r}")
     if not isinstance(meta.get("mesh"), str):
         raise SceneError(f"{path}: \"mesh\" must name the mesh file")
+    if not isinstance(meta.get("cameras", ""), str):
+        raise SceneError(f"{path}: \"cameras\" must name the cameras file (cameras.json)")
     try:
         meta["origin_frame"] = LocalFrame.from_dict(meta["origin"])
     except (KeyError, TypeError, ValueError) as exc:
@@ -194,7 +200,17 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     meta = read_scene_json(scene_dir)
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
-                 str(scene_dir / meta["mesh"]), device=device)
+                 str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device)
+
+
+def read_scene_cameras(scene_dir: Path, meta: dict) -> tuple[SceneCamera, ...]:
+    """The cameras of the ``cameras.json`` that ``scene.json`` (``meta``) names; none if it names none."""
+    if "cameras" not in meta:
+        return ()
+    try:
+        return read_cameras(Path(scene_dir) / meta["cameras"])
+    except CamerasError as error:
+        raise SceneError(str(error)) from None
 
 
 def read_scene_mesh_enu(scene_dir: Path, meta: dict) -> tuple[np.ndarray, np.ndarray, Surface]:

@@ -74,6 +74,11 @@ class Lighting:
     shadows: bool = True
 
 
+#: Render settings for comparing with photos: a photogrammetry texture already holds the photos' own lighting,
+#: so no sun, ambient 1 and no shadows make the radiance the texture itself (``render(..., **UNLIT)``).
+UNLIT = {"sun": Sun(0.0, -90.0, 0.0), "lighting": Lighting(ambient=1.0, shadows=False)}
+
+
 def sky_radiance(directions: np.ndarray, lighting: Lighting) -> np.ndarray:
     """Linear sky colour ``(N, 3)`` for ray directions (ENU): horizon colour blending to zenith colour."""
     up = np.clip(directions[:, 2], 0.0, 1.0)[:, None]

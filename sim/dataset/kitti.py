@@ -12,6 +12,7 @@ Layout of one dataset folder (one sequence)::
     OUT/sequences/NN/depth_C, disp_C, depth_cm_C   per colour camera number C (2, 3, 4...)
     OUT/sequences/NN/frame_meta/NNNNNN.json        per-frame record, written last (completion marker)
     OUT/sequences/NN/frames.jsonl         the per-frame records in frame order (written by finalize)
+    OUT/sequences/NN/replay_2/STEM.png    replay datasets: image_2 frames under their photo's name (replay.py)
 
 Rig camera ``v`` (0 = left, 1 = right, 2.. = extra) is KITTI colour camera ``C = v + 2``; the
 grey pair (cameras 0 and 1) repeats the left/right views, so P0 = P2 and P1 = P3 and one pose
@@ -105,6 +106,10 @@ class KittiLayout:
 
     def disparity_dir(self, view: int) -> Path:
         return self.sequence_dir / f"disp_{colour_camera_number(view)}"
+
+    def replay_dir(self, view: int) -> Path:
+        """Replayed photos' renders under the photos' names (links to the colour images)."""
+        return self.sequence_dir / f"replay_{colour_camera_number(view)}"
 
 
 def intrinsic_matrix(camera) -> np.ndarray:

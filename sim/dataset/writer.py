@@ -30,6 +30,7 @@ import numpy as np
 
 from flightplan.geodesy import LocalFrame
 from sim.dataset import images
+from sim.dataset.replay import write_photo_names
 from flightplan.atomic import remove_stale_temps, write_text_atomic
 from sim.dataset.kitti import (
     KittiLayout,
@@ -342,7 +343,8 @@ def _read_frame_lines(layout: KittiLayout, frame_count: int) -> list[str]:
 
 
 def finalize_dataset(out_dir: Path) -> int:
-    """(Re)write ``frames.jsonl``, ``poses/NN.txt``, ``times.txt`` and ``calib.txt`` from the frame records.
+    """(Re)write ``frames.jsonl``, ``poses/NN.txt``, ``times.txt``, ``calib.txt`` and (replays) the photo-named
+    ``replay_2`` links from the frame records.
 
     Deterministic: the same frames give the same bytes, whoever wrote them (any shard, any
     run). Raises :class:`DatasetError` naming the incomplete frames if any is missing.
@@ -363,5 +365,6 @@ def finalize_dataset(out_dir: Path) -> int:
     write_text_atomic(layout.times_txt, times_text([record["time_s"] for record in records]))
     write_text_atomic(layout.poses_txt, poses_text([np.array(record["T_world_cam"]) for record in records]))
     write_text_atomic(layout.frames_jsonl, "".join(lines))
+    write_photo_names(layout, records)
     return frame_count
 

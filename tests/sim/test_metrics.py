@@ -18,6 +18,7 @@ from sim.metrics import (
     ssim,
     summary_table,
 )
+from sim.shade import SRGB8_TO_LINEAR, to_srgb8
 
 RNG = np.random.default_rng(0)
 IMAGE = RNG.integers(0, 200, size=(40, 50, 3), dtype=np.uint8)
@@ -78,7 +79,9 @@ def test_folders_pair_images_by_name_without_extension(tmp_path):
     assert [(r.name, r.error_percent) for r in results] == [("a", 0.0), ("b", pytest.approx(20.0))]
     table = summary_table(results)
     mean_ssim = f"{np.mean([r.ssim for r in results]):.4f}"
-    assert table.splitlines()[-1].split() == ["mean", "of", "2", "10.00", "13.98", mean_ssim]
+    # plain folders: no exposure gain and no depth, so those columns are unknown
+    unknown = ["nan"] * 4
+    assert table.splitlines()[-1].split() == ["mean", "of", "2", "10.00", *unknown, "13.98", mean_ssim]
 
 
 def test_folders_with_unpaired_or_mismatched_images_are_clear_errors(tmp_path):
@@ -88,8 +91,37 @@ def test_folders_with_unpaired_or_mismatched_images_are_clear_errors(tmp_path):
         compare_folders(tmp_path / "real", tmp_path / "render")
     (tmp_path / "real/c.png").unlink()
     (tmp_path / "render/d.png").unlink()
-    with pytest.raises(ValueError, match=r"real/a.png is \(40, 50, 3\) but .*render/a.png is \(40, 30, 3\)"):
+    with pytest.raises(ValueError, match=r"real/a.png: 50x40 cannot be compared with a 30x40 render"):
         compare_folders(tmp_path / "real", tmp_path / "render")
+
+
+def test_a_larger_photo_of_the_same_aspect_is_averaged_down_to_the_render(tmp_path):
+    """A 2x photo whose 2x2 blocks all hold one render pixel's colour compares as identical."""
+    write_images(tmp_path / "real", [("a.png", np.repeat(np.repeat(IMAGE, 2, 0), 2, 1))])
+    write_images(tmp_path / "render", [("a.png", IMAGE)])
+    assert compare_folders(tmp_path / "real", tmp_path / "render")[0].error_percent == 0.0
+
+
+def test_the_exposure_gain_divides_the_render_in_linear_light():
+    """A render made from photo x g (linear light) matches the photo once divided by g; not before."""
+    gain = 1.6
+    photo = RNG.integers(20, 150, size=(40, 50, 3), dtype=np.uint8)
+    render = to_srgb8(SRGB8_TO_LINEAR[photo] * np.float32(gain))
+    result = compare_images(photo, render, gain=gain)
+    assert result.error_percent > 5.0
+    assert result.gain_error_percent < 0.2  # one 8-bit code of rounding at most
+    assert math.isnan(result.covered_error_percent) and math.isnan(result.covered)
+
+
+def test_covered_pixels_leave_out_what_the_render_missed():
+    """Half the render is sky (wrong everywhere): the covered error sees only the exact half."""
+    render = IMAGE.copy()
+    render[:, 25:] = 255 - render[:, 25:]
+    covered = np.zeros(IMAGE.shape[:2], bool)
+    covered[:, :25] = True
+    result = compare_images(IMAGE, render, gain=1.0, covered=covered)
+    assert result.covered == 0.5 and result.covered_error_percent == 0.0 and result.covered_gain_error_percent == 0.0
+    assert result.error_percent == pytest.approx(photorealism_error_percent(IMAGE[:, 25:], render[:, 25:]) / 2)
 
 
 def test_depth_errors_over_valid_pixels():

@@ -316,7 +316,8 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
     assert str(blocker / "out") in _error_of(capsys, _argv(scene_dir, blocker / "out", frames=1, width=16, height=8))
-    assert "replay mode needs --geotags" in _error_of(capsys, _argv(scene_dir, tmp_path / "d", mode="replay"))
+    assert "replay needs --geotags FILE, or a reconstructed scene" in _error_of(
+        capsys, _argv(scene_dir, tmp_path / "d", mode="replay"))  # a scene without cameras.json
     assert render_main(_argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8)) == 0
     assert "differs in sampling" in _error_of(capsys, _argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8,
                                                            seed=9))

@@ -1,0 +1,158 @@
+"""The scene's cameras: COLMAP lenses as OpenCV lenses (against pycolmap's own projection), cameras.json from a
+known SfM model read back by the sim scene loader, and (slow) held-out photos of a real reconstruction."""
+
+import json
+
+import numpy as np
+import pycolmap
+import pytest
+import trimesh
+
+from flightplan.geodesy import LocalFrame
+from recon.cli import main as recon_main
+from recon.pipeline import ReconOptions
+from recon.scene_out import scene_cameras, write_scene
+from recon.sfm import camera_from_colmap, camera_poses
+from sim.cli import main as render_main
+from sim.dataset.images import read_exr
+from sim.metrics import compare_folders
+from sim.scene import SceneError, load_scene
+
+RNG = np.random.default_rng(11)
+#: COLMAP model -> parameters (focal(s), principal point, extra), all used by sim's OpenCV lens.
+MODELS = {
+    "SIMPLE_PINHOLE": [1210.0, 811.3, 604.9],
+    "PINHOLE": [1210.0, 1195.5, 811.3, 604.9],
+    "SIMPLE_RADIAL": [1210.0, 811.3, 604.9, -0.08],
+    "RADIAL": [1210.0, 811.3, 604.9, -0.08, 0.03],
+    "OPENCV": [1210.0, 1195.5, 811.3, 604.9, -0.08, 0.03, 0.0012, -0.0007],
+}
+
+
+def colmap_camera(model: str, camera_id: int = 1) -> pycolmap.Camera:
+    camera = pycolmap.Camera.create_from_model_name(camera_id, model, 1000.0, 1600, 1200)
+    camera.params = MODELS[model]
+    return camera
+
+
+@pytest.mark.parametrize("model", sorted(MODELS))
+def test_colmap_lenses_project_like_pycolmap_in_our_pixel_convention(model):
+    """Random points in front of the camera (out to the image corners): our projection = pycolmap's - 0.5 px."""
+    camera = colmap_camera(model)
+    xy = RNG.uniform([-0.65, -0.5], [0.65, 0.5], size=(500, 2))
+    points = np.column_stack([xy, np.ones(len(xy))]) * RNG.uniform(2.0, 90.0, size=(len(xy), 1))
+    ours, depth = camera_from_colmap(camera).project(points)
+    np.testing.assert_allclose(ours, camera.img_from_cam(points) - 0.5, atol=1e-6)
+    np.testing.assert_allclose(depth, points[:, 2])
+
+
+def test_a_model_without_an_opencv_equivalent_is_named():
+    camera = pycolmap.Camera.create_from_model_name(7, "FULL_OPENCV", 1000.0, 1600, 1200)
+    with pytest.raises(ValueError, match="camera 7: COLMAP model FULL_OPENCV has no OpenCV equivalent"):
+        camera_from_colmap(camera)
+
+
+def known_model() -> pycolmap.Reconstruction:
+    """Two cameras (OPENCV, SIMPLE_RADIAL) and three registered images at known poses, one unregistered."""
+    model = pycolmap.Reconstruction()
+    model.add_camera_with_trivial_rig(colmap_camera("OPENCV", 1))
+    model.add_camera_with_trivial_rig(colmap_camera("SIMPLE_RADIAL", 2))
+    model.add_camera_with_trivial_rig(colmap_camera("PINHOLE", 3))
+    images = [("b.JPG", 2), ("a.JPG", 1), ("c.JPG", 1), ("unregistered.JPG", 3)]
+    for image_id, (name, camera_id) in enumerate(images, start=1):
+        quaternion = RNG.normal(size=4) / 2 + [0, 0, 0, 1]  # x, y, z, w
+        rotation = pycolmap.Rotation3d(quaternion / np.linalg.norm(quaternion))
+        pose = pycolmap.Rigid3d(rotation, RNG.uniform(-50, 50, 3))
+        model.add_image_with_trivial_frame(pycolmap.Image(name=name, camera_id=camera_id, image_id=image_id), pose)
+    model.deregister_frame(model.images[len(images)].frame_id)
+    return model
+
+
+def test_cameras_json_round_trip_from_an_sfm_model_to_the_sim_scene(tmp_path):
+    model = known_model()
+    cameras = scene_cameras(model, {"a.JPG": 1.25, "c.JPG": 0.8}, held_out={"c.JPG"})
+    mesh = trimesh.creation.box(extents=(10, 10, 1))
+    mesh.visual.vertex_colors = np.full((len(mesh.vertices), 4), 200, np.uint8)
+    write_scene(tmp_path, mesh, LocalFrame(46.0, 7.0, 500.0), {}, cameras=cameras)
+    assert json.loads((tmp_path / "scene.json").read_text())["cameras"] == "cameras.json"
+    loaded = load_scene(tmp_path).cameras
+    assert [c.name for c in loaded] == ["a.JPG", "b.JPG", "c.JPG"]  # registered only, in name order
+    assert [c.exposure_gain for c in loaded] == [1.25, 1.0, 0.8]
+    assert [c.held_out for c in loaded] == [False, False, True]
+    for scene_camera in loaded:
+        image = next(i for i in model.images.values() if i.name == scene_camera.name)
+        np.testing.assert_allclose(np.linalg.inv(scene_camera.T_world_cam)[:3], image.cam_from_world().matrix(),
+                                   atol=1e-12)
+        points_cam = RNG.uniform([-5, -4, 5], [5, 4, 40], size=(50, 3))
+        pixels, _ = scene_camera.camera.project(points_cam)
+        np.testing.assert_allclose(pixels, image.camera.img_from_cam(points_cam) - 0.5, atol=1e-6)
+        assert (scene_camera.camera.width, scene_camera.camera.height) == (1600, 1200)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("fx", -3.0, "camera a.JPG: \"fx\" must be a positive number, got -3.0"),
+    ("distortion", [0.1, 0.0], "camera a.JPG: \"distortion\" must be the 5 numbers"),
+    ("T_world_cam", np.diag([1.0, 1.0, -1.0, 1.0]).tolist(), "camera a.JPG: \"T_world_cam\" must be a rigid 4x4"),
+    ("exposure_gain", "1", "camera a.JPG: \"exposure_gain\" must be a positive number"),
+    ("width", 0, "camera a.JPG: \"width\" must be a positive integer"),
+])
+def test_bad_cameras_json_names_the_file_and_the_camera(tmp_path, field, value, message):
+    mesh = trimesh.creation.box(extents=(10, 10, 1))
+    mesh.visual.vertex_colors = np.full((len(mesh.vertices), 4), 200, np.uint8)
+    write_scene(tmp_path, mesh, LocalFrame(46.0, 7.0, 500.0), {}, cameras=scene_cameras(known_model(), {}, ()))
+    document = json.loads((tmp_path / "cameras.json").read_text())
+    document["cameras"][0][field] = value
+    (tmp_path / "cameras.json").write_text(json.dumps(document))
+    with pytest.raises(SceneError, match=f"{tmp_path / 'cameras.json'}: " + message.replace("(", r"\(")):
+        load_scene(tmp_path)
+
+
+def test_hold_out_of_one_would_leave_out_every_photo(tmp_path, capsys):
+    with pytest.raises(ValueError, match="hold-out must be 0 .off. or K >= 2"):
+        ReconOptions(hold_out=1)
+    assert recon_main(["--photos", str(tmp_path), "--out", str(tmp_path / "scene"), "--hold-out", "1"]) == 2
+    assert "hold-out must be 0 (off) or K >= 2 (every K-th photo), got 1" in capsys.readouterr().err
+    assert not (tmp_path / "scene").exists()
+
+
+@pytest.mark.slow
+def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_data, tmp_path, capsys):
+    """brighton_beach (18 DJI photos) with --hold-out 6: photos 6, 12, 18 are in cameras.json as held out, with
+    their SfM pose, but not in the depth/texture workspace nor in the exposure gains; cameras.json's full-size
+    lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
+    photos by name. ~40 s of CPU (90 s on the shared 2-core machine)."""
+    photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
+    assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
+                       "--hold-out", "6"]) == 0
+    names = sorted(p.name for p in photos.iterdir())
+    cameras = {c.name: c for c in load_scene(scene).cameras}
+    held_out = sorted(name for name, c in cameras.items() if c.held_out)
+    assert held_out == names[5::6] and len(cameras) == 18
+    assert sorted(p.name for p in (scene / "work" / "dense" / "images").iterdir()) == sorted(set(names) - set(held_out))
+    gains = json.loads((scene / "work" / "texture_report.json").read_text())["gains"]
+    assert sorted(gains) == sorted(set(names) - set(held_out))
+    assert all(cameras[name].exposure_gain == pytest.approx(gains.get(name, 1.0)) for name in names)
+    model = pycolmap.Reconstruction(scene / "work" / "sparse")
+    poses = camera_poses(model)
+    for image in model.images.values():
+        camera = cameras[image.name]
+        assert (camera.camera.width, camera.camera.height) == (4000, 2250)  # the photo's size, not SfM's 800 px
+        np.testing.assert_allclose(camera.T_world_cam, poses[image.name], atol=1e-9)
+        seen = [p for p in image.points2D if p.has_point3D()]
+        xyz = np.array([model.points3D[p.point3D_id].xyz for p in seen])
+        T_cam_world = np.linalg.inv(camera.T_world_cam)
+        pixels, _ = camera.camera.project(xyz @ T_cam_world[:3, :3].T + T_cam_world[:3, 3])
+        residual = np.linalg.norm(pixels - (np.array([p.xy for p in seen]) - 0.5), axis=1)
+        assert np.median(residual) < 4.0, image.name  # SfM's reprojection error (~1 px at 800 px) at 4000 px
+    assert render_main(["--scene", str(scene), "--out", str(replay), "--mode", "replay", "--width", "400",
+                        "--quiet"]) == 0
+    results = {r.name: r for r in compare_folders(photos, replay / "sequences" / "00" / "replay_2")}
+    assert sorted(results) == sorted(name.rsplit(".", 1)[0] for name in names)
+    for name in held_out:
+        result = results[name.rsplit(".", 1)[0]]
+        assert result.gain_error_percent == result.error_percent  # no texture gain for a photo it never saw
+        assert 0.02 < result.covered < 1 and result.covered_error_percent < result.error_percent  # 5-30 % here
+    frame = json.loads((replay / "sequences/00/frame_meta/000005.json").read_text())
+    assert frame["sampler"]["image_name"] == names[5] and frame["sampler"]["held_out"] is True
+    assert np.isfinite(read_exr(replay / "sequences/00/depth_2/000005.exr")).mean() == pytest.approx(
+        results[names[5].rsplit(".", 1)[0]].covered)

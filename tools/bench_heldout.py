@@ -1,0 +1,99 @@
+"""Held-out photorealism: how real the twin looks from photos its texture never saw, against the ones it used.
+
+    .venv/bin/python tools/bench_heldout.py PHOTO_DIR [PHOTO_DIR ...] [--hold-out 5] [--image-size 800]
+                                           [--dense-size 640] [--width 800] [--work DIR]
+
+For each photo folder, through the command-line tools as a user runs them:
+
+1. ``aerostereo-recon --photos PHOTO_DIR --hold-out K`` (EXIF GPS priors): every photo is registered by SfM,
+   every K-th (name order) is left out of depth maps, fusion and texture; ``cameras.json`` marks it held out.
+2. ``aerostereo-render --mode replay --scene SCENE`` renders every camera of ``cameras.json`` (the SfM pose and
+   the photo's own lens, distortion included; ``--width`` scales it), unlit: the texture's own shading.
+3. ``sim.metrics.compare_folders(PHOTO_DIR, replay_2)`` (what ``aerostereo-render compare`` prints): the paper's
+   formula 3 per photo, raw and with the photo's texture exposure gain (render / g in linear light), over the
+   whole image and over the covered pixels (where the render hit the mesh).
+
+Table: one row per group (held-out, used, all photos): mean formula 3 raw / with gain, whole image / covered
+pixels, mean coverage; then the seconds of each step. Held-out photos have no texture gain (1.0: the texture
+never saw them), so their "gain" columns equal the raw ones. A rerun with the same ``--work`` resumes both runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from sim.metrics import compare_folders, mean_comparison  # noqa: E402
+from sim.scene import load_scene  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+METRICS = ("error_percent", "gain_error_percent", "covered_error_percent", "covered_gain_error_percent", "covered")
+HEADERS = ("photos", "n", "err % whole", "err/g % whole", "err % covered", "err/g % covered", "coverage")
+
+
+def run_tool(module: str, argv: list[str]) -> float:
+    """Run ``python -m module argv`` from the repository (its stderr shown, stdout dropped); wall seconds."""
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-m", module, *argv], cwd=REPO, check=True, stdout=subprocess.DEVNULL)
+    return time.perf_counter() - start
+
+
+def bench_folder(photos: Path, work: Path, args) -> dict:
+    """Reconstruct ``photos`` with hold-out, replay its cameras, compare; per-group means and step times."""
+    scene, replay = work / "scene", work / "replay"
+    seconds = {"recon": run_tool("recon", ["--photos", str(photos), "--out", str(scene), "--hold-out",
+                                           str(args.hold_out), "--image-size", str(args.image_size),
+                                           "--dense-size", str(args.dense_size)])}
+    width = ["--width", str(args.width)] if args.width else []
+    seconds["replay"] = run_tool("sim", ["--scene", str(scene), "--out", str(replay), "--mode", "replay",
+                                         "--quiet", *width])
+    start = time.perf_counter()
+    results = compare_folders(photos, replay / "sequences" / "00" / "replay_2")
+    seconds["compare"] = time.perf_counter() - start
+    held_out = {Path(c.name).stem for c in load_scene(scene).cameras if c.held_out}
+    groups = {"held-out": [r for r in results if r.name in held_out],
+              "used": [r for r in results if r.name not in held_out], "all": results}
+    return {"folder": photos, "groups": {name: (len(rows), mean_comparison(rows)) for name, rows in groups.items()},
+            "seconds": seconds, "size": f"{args.image_size}/{args.dense_size}/{args.width or 'photo'}"}
+
+
+def print_table(rows: list[dict]) -> None:
+    print(f"| set | {' | '.join(HEADERS)} |")
+    print("|" + "---|" * (len(HEADERS) + 1))
+    for row in rows:
+        for group, (count, means) in row["groups"].items():
+            cells = [f"{means[key]:.2f}" if key != "covered" else f"{100 * means[key]:.1f} %" for key in METRICS]
+            print(f"| {row['folder'].parent.name} | {group} | {count} | {' | '.join(cells)} |")
+    print()
+    print("| set | SfM/dense/replay px | recon s | replay s | compare s |")
+    print("|---|---|---|---|---|")
+    for row in rows:
+        s = row["seconds"]
+        print(f"| {row['folder'].parent.name} | {row['size']} | {s['recon']:.0f} | {s['replay']:.0f} | "
+              f"{s['compare']:.1f} |")
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("photos", type=Path, nargs="+", help="photo folders (EXIF GPS)")
+    parser.add_argument("--hold-out", type=int, default=5, help="every K-th photo is held out (default 5)")
+    parser.add_argument("--image-size", type=int, default=800, help="SfM image size, px (default 800)")
+    parser.add_argument("--dense-size", type=int, default=640, help="depth-map image size, px (default 640)")
+    parser.add_argument("--width", type=int, default=None, help="replay width, px (default: the photos' own)")
+    parser.add_argument("--work", type=Path, default=Path("/tmp/bench_heldout"),
+                        help="scratch folder (one subfolder per photo folder; resumed)")
+    args = parser.parse_args(argv)
+    rows = [bench_folder(photos, args.work / photos.parent.name, args) for photos in args.photos]
+    print_table(rows)
+    return 0 if all(np.isfinite(row["groups"]["all"][1]["error_percent"]) for row in rows) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
