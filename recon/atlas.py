@@ -33,7 +33,7 @@ import xatlas
 from PIL import Image
 from scipy import ndimage, sparse
 
-from recon.texture import JPEG_QUALITY, Photo, ground_sample_distance, scene_from_mesh, solve_log_gains
+from recon.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
 from sim.camera import project_world_points, row_dots
 from sim.raycast import occluded
 from sim.scene import Scene
@@ -50,8 +50,8 @@ PACKING_EFFICIENCY = 0.7
 
 @dataclass(frozen=True)
 class AtlasOptions:
-    """``texel_m`` None = one ground pixel of the photos (the atlas shrinks uniformly when that would exceed
-    ``max_texture_px`` on a side); ``candidates`` best views kept per face; ``smoothness`` Potts penalty per
+    """``texel_m`` None = one pixel of the photos on the surface (:func:`photo_pixel_m`; the atlas shrinks
+    uniformly when that would exceed ``max_texture_px`` on a side); ``candidates`` best views kept per face; ``smoothness`` Potts penalty per
     neighbour on another photo (data costs are in [0, 1]); ``border_px`` how far inside the image a face's centroid
     must project; ``gain_faces`` faces sampled for the exposure gains, ``min_overlap`` of them shared for a photo
     pair to count; ``padding_px`` gutter between charts."""
@@ -143,6 +143,14 @@ def face_candidates(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], op
         quality[faces[better], weakest[better]] = q[better]
     order = np.argsort(-quality, axis=1, kind="stable")
     return FaceViews(np.take_along_axis(view, order, axis=1), np.take_along_axis(quality, order, axis=1))
+
+
+def photo_pixel_m(views: FaceViews) -> float:
+    """Median over the seen faces of the side (metres) of one pixel of their best photo on the surface."""
+    best = views.quality[:, 0]
+    if not (best > 0).any():
+        raise ValueError("no photo sees the mesh: wrong poses or frame?")
+    return float(np.median(1.0 / np.sqrt(best[best > 0])))
 
 
 # ---------------------------------------------------------------- 2. labelling
@@ -374,7 +382,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
              else np.ones(len(photos)))
     source, split_faces, uv = chart_uvs(mesh, labels, photos)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    texel_m = options.texel_m or ground_sample_distance(scene, photos)
+    texel_m = options.texel_m or photo_pixel_m(views)
     vmapping, faces, packed_uv, width, height, texels_per_m = pack(
         vertices[source], split_faces, uv, 1.0 / texel_m, options.max_texture_px, options.padding_px)
     packed_vertices = vertices[source[vmapping]]

@@ -3,8 +3,8 @@
     aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR
                      [--image-size PX] [--max-features N] [--neighbors K] [--sequential N] [--every K]
                      [--mapper incremental|global] [--focal auto|fixed|refine]
-                     [--dense-size PX] [--depth-spacing DEG] [--mesh 2.5d|poisson] [--grid M] [--decimate-error M]
-                     [--texel M] [--no-texture] [--hold-out K] [--workers J] [--verbose]
+                     [--dense-size PX] [--depth-spacing DEG] [--mesh 3d|2.5d|poisson] [--grid M] [--decimate-error M]
+                     [--texel M] [--texture atlas|ortho|none] [--hold-out K] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
 Bad input -> one line on stderr, exit code 2.
@@ -23,9 +23,10 @@ import trimesh
 from recon.dense import DenseError, DenseOptions
 from flightplan.atomic import atomic_path
 from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
-from recon.pipeline import ReconOptions, Recon
+from recon.pipeline import MESHES, TEXTURES, ReconOptions, Recon
 from recon.priors import PriorsError
 from recon.sfm import SfmError, SfmOptions
+from recon.atlas import AtlasOptions
 from recon.texture import TextureOptions
 
 
@@ -51,7 +52,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--depth-spacing", type=float, default=DenseOptions.view_spacing_deg,
                         help="depth maps only for photos at least this many degrees apart seen from the scene "
                              "(default %(default)s; 0: every photo)")
-    parser.add_argument("--mesh", choices=("2.5d", "poisson"), default="2.5d")
+    parser.add_argument("--mesh", choices=MESHES, default=ReconOptions.mesh,
+                        help="3d: Poisson surface of the observed area (walls, tree crowns); 2.5d: height field; "
+                             "poisson: Poisson of the whole cloud, uncropped (default %(default)s)")
     parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
     parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
     parser.add_argument("--every", type=positive_int, default=None,
@@ -62,8 +65,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
     parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto")
     parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
-    parser.add_argument("--texel", type=float, help="orthophoto texel, m (default: one ground pixel of the photos)")
-    parser.add_argument("--no-texture", action="store_true", help="vertex colours only (no orthophoto texture)")
+    parser.add_argument("--texture", choices=TEXTURES, default=ReconOptions.texture,
+                        help="atlas: each face from its best photo; ortho: a true orthophoto (for --mesh 2.5d); "
+                             "none: vertex colours only (default %(default)s)")
+    parser.add_argument("--texel", type=float, help="texel size, m (default: one pixel of the photos on the surface)")
     parser.add_argument("--hold-out", type=positive_int, default=0, metavar="K",
                         help="register every photo but leave every K-th (name order, K >= 2) out of depth maps, "
                              "fusion and texture, to measure photorealism on photos the texture never saw "
@@ -116,7 +121,8 @@ def run_recon(argv) -> int:
         dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
                            num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
-        texture=not args.no_texture, texture_options=TextureOptions(texel_m=args.texel), hold_out=args.hold_out,
+        texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
+        atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
     )
     scene = Recon(args.photos, args.geotags, args.out, options).run()
     print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],

@@ -30,14 +30,18 @@ from scipy.spatial import cKDTree
 from tqdm import tqdm
 
 from recon import dense, mesh as meshing, texture as texturing
+from recon.atlas import AtlasOptions, texture_atlas
+from recon.observed import observed_area
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
                           read_geotags)
 from recon.scene_out import scene_cameras, write_scene
-from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
+from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm
 
 STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
+MESHES = ("3d", "2.5d", "poisson")
+TEXTURES = ("atlas", "ortho", "none")
 
 #: What the origin's ``h0_ellipsoid_m`` (and so every absolute height of the scene) really is, by priors source.
 HEIGHT_DATUM = {
@@ -50,21 +54,32 @@ HEIGHT_DATUM = {
 
 @dataclass(frozen=True)
 class ReconOptions:
-    """All knobs: SfM, dense, surface (``mesh`` "2.5d" or "poisson"), grid cell (None = 2 GSD), decimation,
-    texture (False: vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
+    """All knobs: SfM, dense, surface (``mesh``: "3d" Poisson cropped to the observed area grown by
+    ``crop_margin`` x the median viewing distance and trimmed at ``poisson_trim``, "2.5d" height field, or "poisson"
+    of the whole cloud), grid cell (None = 2 GSD), decimation, ``texture`` ("atlas": a texture atlas, each face from
+    its best photo; "ortho": a true orthophoto, for 2.5-D fields; "none": vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
     but left out of depth maps, fusion and texture; 0 = none)."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
-    mesh: str = "2.5d"
+    mesh: str = "3d"
     grid_m: float | None = None
     poisson_depth: int = 10
+    poisson_trim: float = 5.0
+    crop_margin: float = 0.5
     decimate_error_m: float = 0.02
-    texture: bool = True
+    texture: str = "atlas"
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
+    atlas_options: AtlasOptions = field(default_factory=AtlasOptions)
     hold_out: int = 0
 
     def __post_init__(self) -> None:
+        if self.mesh not in MESHES:
+            raise ValueError(f"mesh must be one of {', '.join(MESHES)}, got {self.mesh!r}")
+        if self.texture not in TEXTURES:
+            raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
+        if not (np.isfinite(self.crop_margin) and self.crop_margin >= 0):
+            raise ValueError(f"crop margin must be a non-negative multiple of the viewing distance, got {self.crop_margin}")
         if self.hold_out == 1 or self.hold_out < 0:
             raise ValueError(f"hold-out must be 0 (off) or K >= 2 (every K-th photo), got {self.hold_out}")
         if self.grid_m is not None and not (np.isfinite(self.grid_m) and self.grid_m > 0):
@@ -196,21 +211,29 @@ class Recon:
         focal = float(np.mean([cam.mean_focal_length() for cam in rec.cameras.values()]))
         return meshing.cell_size_from_gsd(median_view_depth(rec), focal)
 
+    def observed_area(self) -> np.ndarray:
+        """(K, 2) ENU polygon the registered cameras stand over (:func:`recon.observed.observed_area`)."""
+        rec = pycolmap.Reconstruction(self.work / "dense" / "sparse")
+        return observed_area(np.array([pose[:3, 3] for pose in camera_poses(rec).values()]))
+
     def stage_mesh(self):
         full, small = self.work / "mesh.ply", self.work / "mesh_decimated.ply"
         if full.exists() and (small.exists() or not self.options.decimate_error_m):
             return False
-        if self.options.mesh == "poisson":
+        if self.options.mesh == "3d":
+            margin = self.options.crop_margin * median_view_depth(pycolmap.Reconstruction(self.work / "dense" / "sparse"))
+            surface = meshing.surface_3d(self.work / "fused.ply", full, self.observed_area(), margin,
+                                         self.options.poisson_depth, self.options.poisson_trim)
+            self.log(f"[mesh] 3-D surface over the observed area + {margin:.1f} m, {len(surface.faces)} faces")
+        elif self.options.mesh == "poisson":
             meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)
-        elif self.options.mesh == "2.5d":
+        else:
             points, colors = meshing.read_point_cloud(self.work / "fused.ply")
             cell = self.options.grid_m or meshing.cell_size_for_density(points, self.cell_size())
             self.log(f"[mesh] height field, cell {cell:.3f} m, {len(points)} points")
             surface = meshing.height_field_mesh(meshing.height_field(points, colors, cell))
             with atomic_path(full) as tmp:
                 surface.export(tmp)
-        else:
-            raise ValueError(f"mesh must be '2.5d' or 'poisson', got {self.options.mesh!r}")
         if self.options.decimate_error_m:
             meshing.decimate(full, small, self.options.decimate_error_m)
 
@@ -228,21 +251,28 @@ class Recon:
 
     def stage_texture(self):
         marker = self.work / "texture_report.json"
-        if marker.exists() or not self.options.texture:
+        if marker.exists() or self.options.texture == "none":
             return False
         model = pycolmap.Reconstruction(self.work / "dense" / "sparse")
         photos = texturing.load_photos(model, self.work / "dense" / "images", read_rgb)
         surface = self.surface_mesh()
-        ortho = texturing.orthophoto(surface, photos, self.options.texture_options,
-                                     progress=lambda it: tqdm(it, desc="texture", unit="photo"))
+        progress = lambda it: tqdm(it, desc="texture", unit="photo")
+        if self.options.texture == "atlas":
+            textured = texture_atlas(surface, photos, self.options.atlas_options, progress,
+                                     log=lambda message: self.log(f"[texture] {message}"))
+            encoded, texel_m, coverage = textured.glb(), textured.texel_m, textured.coverage
+        else:
+            textured = texturing.orthophoto(surface, photos, self.options.texture_options, progress)
+            encoded, texel_m, coverage = texturing.textured_glb(surface, textured), textured.texels.texel_m, \
+                textured.coverage
         with atomic_path(self.work / "terrain.glb") as tmp:
-            tmp.write_bytes(texturing.textured_glb(surface, ortho))
-        height, width = ortho.image.shape[:2]
-        self.log(f"[texture] {width}x{height} texels of {ortho.texels.texel_m:.3f} m, coverage "
-                 f"{100 * ortho.coverage:.1f} %, exposure gains {min(ortho.gains.values()):.3f}.."
-                 f"{max(ortho.gains.values()):.3f}")
-        report = {"texel_m": ortho.texels.texel_m, "size_px": [width, height], "coverage": ortho.coverage,
-                  "gains": ortho.gains}
+            tmp.write_bytes(encoded)
+        height, width = textured.image.shape[:2]
+        self.log(f"[texture] {self.options.texture}: {width}x{height} texels of {texel_m:.3f} m, coverage "
+                 f"{100 * coverage:.1f} %, exposure gains {min(textured.gains.values()):.3f}.."
+                 f"{max(textured.gains.values()):.3f}")
+        report = {"kind": self.options.texture, "texel_m": texel_m, "size_px": [width, height],
+                  "coverage": coverage, "gains": textured.gains}
         write_text_atomic(marker, json.dumps(report, indent=2))
 
     def stage_scene(self):
@@ -260,7 +290,7 @@ class Recon:
                                                 "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
         }
         textured = self.work / "terrain.glb"
-        textured_now = self.options.texture and textured.exists()
+        textured_now = self.options.texture != "none" and textured.exists()
         provenance["texture"] = (json.loads((self.work / "texture_report.json").read_text(encoding="utf-8"))
                                  if textured_now else "vertex colours (texturing switched off)")
         gains = provenance["texture"]["gains"] if textured_now else {}

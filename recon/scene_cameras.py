@@ -9,7 +9,6 @@ frame of its ``origin`` (the true home).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
@@ -17,8 +16,8 @@ import numpy as np
 from flightplan.geodesy import LocalFrame
 from recon.accuracy import pose_alignment, pose_matrix, transform_poses
 from sim.scene import read_scene_json
+from sim.scene_cameras import CamerasError, read_cameras
 
-CAMERAS_FORMAT = "aerostereo-cameras/1"
 
 
 def truth_poses(truth: dict) -> dict[str, np.ndarray]:
@@ -31,19 +30,6 @@ def truth_poses(truth: dict) -> dict[str, np.ndarray]:
     return poses
 
 
-def read_cameras_json(path: Path) -> dict[str, np.ndarray]:
-    """``T_world_cam`` by image name from an ``aerostereo-cameras/1`` file; ValueError naming the file otherwise."""
-    path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-        if data.get("format") != CAMERAS_FORMAT:
-            raise ValueError(f"expected \"format\": \"{CAMERAS_FORMAT}\", got {data.get('format')!r}")
-        return {camera["name"]: np.asarray(camera["T_world_cam"], dtype=np.float64).reshape(4, 4)
-                for camera in data["cameras"]}
-    except (UnicodeDecodeError, json.JSONDecodeError, AttributeError, KeyError, TypeError, ValueError) as error:
-        raise ValueError(f"{path}: not an {CAMERAS_FORMAT} cameras file ({error})") from None
-
-
 def scene_camera_poses(scene_dir: Path) -> dict[str, np.ndarray]:
     """The registered cameras of a reconstructed scene folder, ``T_world_cam`` by name in the scene's ENU frame:
     from its ``cameras.json`` if present, else from its SfM model ``work/sparse``."""
@@ -54,7 +40,10 @@ def scene_camera_poses(scene_dir: Path) -> dict[str, np.ndarray]:
     scene_dir = Path(scene_dir)
     cameras = scene_dir / read_scene_json(scene_dir).get("cameras", "cameras.json")
     if cameras.is_file():
-        return read_cameras_json(cameras)
+        try:
+            return {camera.name: camera.T_world_cam for camera in read_cameras(cameras)}
+        except CamerasError as error:
+            raise ValueError(str(error)) from None
     sparse = scene_dir / "work" / "sparse"
     if not sparse.is_dir():
         raise FileNotFoundError(f"{scene_dir}: neither {cameras.name} nor an SfM model work/sparse")

@@ -85,7 +85,7 @@ class LoopConfig:
     seed: int = 0
     sfm_image_size: int = 800
     dense_size: int = 640
-    mesh: str = "2.5d"
+    mesh: str = "3d"
     grid_m: float | None = None
     decimate_error_m: float | None = None
     spp: int = 1
@@ -118,7 +118,7 @@ KNOBS = {
     "photo_interval": Knob("photo_interval_s", float, None, "seconds between photos"),
     "sfm_image_size": Knob("sfm_image_size", int, None, "recon --image-size, px"),
     "dense_size": Knob("dense_size", int, None, "recon --dense-size, px"),
-    "mesh": Knob("mesh", str, ("2.5d", "poisson"), "recon --mesh"),
+    "mesh": Knob("mesh", str, ("3d", "2.5d", "poisson"), "recon --mesh"),
     "decimate_error": Knob("decimate_error_m", float, None, "recon --decimate-error, m"),
     "grid": Knob("grid_m", float, None, "recon --grid, m"),
     "spp": Knob("spp", int, None, "render samples per pixel"),

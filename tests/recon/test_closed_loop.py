@@ -60,6 +60,6 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     plain = tmp_path / "plain"
     shutil.copytree(scene_dir / "work", plain / "work", ignore=shutil.ignore_patterns("texture_report.json", "*.glb"))
     assert main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", plain,
-                                  "--no-texture")]) == 0
+                                  "--texture", "none")]) == 0
     fallback = load_scene(plain)
     assert fallback.surface.texture is None and fallback.surface.vertex_colors.std() > 10

@@ -19,6 +19,7 @@ from recon.oblique import (TwinFrame, render_view, sample_views, score_view, sum
                            true_camera_area, twin_frame, wall_mask)
 from sim.camera import PinholeCamera, look_at
 from sim.scene import Scene, Surface, load_scene, read_scene_json, read_scene_mesh_enu
+from sim.scene_cameras import SceneCamera, write_cameras
 from sim.shade import Sun
 from sim.synthetic import grid_mesh
 from tests.sim.render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, write_scene
@@ -146,8 +147,8 @@ def write_moved_twin(world_dir, twin_dir, S_twin_world: np.ndarray, truth: dict)
     for row in truth["photos"]:
         T = S_twin_world @ look_at((row["east_m"], row["north_m"], row["up_m"]), (0.0, 0.0, 0.0))
         T[:3, :3] /= scale
-        cameras.append({"name": row["image_name"], "T_world_cam": T.tolist()})
-    (twin_dir / "cameras.json").write_text(json.dumps({"format": "aerostereo-cameras/1", "cameras": cameras}))
+        cameras.append(SceneCamera(row["image_name"], PinholeCamera.from_fov(800, 600, 80.0), T))
+    write_cameras(twin_dir / "cameras.json", cameras)
     meta = json.loads((world_dir / "scene.json").read_text())
     meta.update(cameras="cameras.json", valid_area_m=None)
     (twin_dir / "scene.json").write_text(json.dumps(meta))

@@ -93,7 +93,7 @@ def test_sweep_knobs_are_checked():
         parse_sweep("colour=1,2")
     with pytest.raises(ValueError, match="must be int"):
         parse_sweep("spp=one")
-    with pytest.raises(ValueError, match="values of mesh must be among 2.5d, poisson"):
+    with pytest.raises(ValueError, match="values of mesh must be among 3d, 2.5d, poisson"):
         parse_sweep("mesh=2.5d,marching")
 
 
