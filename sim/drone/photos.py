@@ -69,10 +69,11 @@ def camera_truth(camera: PinholeCamera) -> dict:
             "cy": camera.cy, "distortion": list(camera.dist or (0.0,) * 5), "model": "OpenCV k1, k2, p1, p2, k3"}
 
 
-def metered_view(scene: Scene, camera: PinholeCamera, T_world_cam: np.ndarray, sun: Sun, pool) -> float:
-    """What the camera's meter reads for a view: :func:`~sim.drone.exposure.metered_luminance` of a
-    :data:`METERING_WIDTH`-pixel render at unit exposure."""
-    rgb = render(scene, Rig((camera.scaled(METERING_WIDTH),)), T_world_cam, sun, pool=pool).views[0].rgb
+def metered_view(scene: Scene, meter: Rig, T_world_cam: np.ndarray, sun: Sun, pool) -> float:
+    """What the camera's meter reads for a view: :func:`~sim.drone.exposure.metered_luminance` of a render at
+    unit exposure by ``meter``, the photo camera at :data:`METERING_WIDTH` pixels (one rig for all photos: its
+    rays are computed once)."""
+    rgb = render(scene, meter, T_world_cam, sun, pool=pool).views[0].rgb
     return metered_luminance(SRGB8_TO_LINEAR[rgb])
 
 
@@ -162,8 +163,8 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
     result = RenderedPhotos(np.full((len(photos.t_s), 3), np.nan))
     with ThreadPoolExecutor(default_workers()) as pool:
         started = time.perf_counter()
-        metering = flight.imperfections.exposure_metering > 0
-        metered = [metered_view(scene, camera, T, sun, pool) if metering else 1.0 for T in poses]
+        meter = Rig((camera.scaled(METERING_WIDTH),)) if flight.imperfections.exposure_metering > 0 else None
+        metered = [metered_view(scene, meter, T, sun, pool) if meter else 1.0 for T in poses]
         result.gains[taken] = auto_exposure_gains(photos.t_s[taken], metered, photos.gain_noise[taken],
                                                   flight.imperfections)
         result.meter_s = time.perf_counter() - started
