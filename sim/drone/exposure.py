@@ -1,10 +1,10 @@
 """The virtual camera's auto-exposure: one linear-light gain per photo and channel, as a DJI camera drifts.
 
-Model (``docs/virtual-drone.md``, "Auto-exposure"): the camera meters each view (centre-weighted mean linear
+Model (``docs/virtual-drone.md``, "The camera"): the camera meters each view (centre-weighted mean linear
 luminance of a small render at unit exposure, :func:`metered_luminance`) and aims for the flight's median metered
 brightness, compensating ``exposure_metering`` of the deviation in log space (a view of the shaded walls facing
 the sun meters darker, so its gain rises). The aim is followed with a first-order lag of ``exposure_lag_s`` in time
-(the first photo after a turn still carries part of the gain before it), plus white noise in log gain
+(a photo taken soon after the view changed still carries part of the gain before it), plus white noise in log gain
 (``exposure_noise_std``) and a per-channel white-balance jitter (``white_balance_std``); the common gain is held
 inside :data:`GAIN_RANGE`. A gain multiplies the photo's linear radiance before 8-bit encoding: photo = gain x the
 unit-exposure render, per channel.
