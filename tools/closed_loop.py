@@ -282,7 +282,7 @@ def photo_lens_options(truth_json: Path) -> list[str]:
     distortion = camera.get("distortion", [0.0] * 5)
     if not any(distortion):
         return []
-    return ["--distortion", ",".join(f"{k:.12g}" for k in distortion), "--formats", "depth_exr"]
+    return ["--distortion=" + ",".join(f"{k:.12g}" for k in distortion), "--formats", "depth_exr"]  # "=": k1 < 0
 
 
 def skipped(name: str, needs: str) -> StageResult:

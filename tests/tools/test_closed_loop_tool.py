@@ -10,6 +10,7 @@ import pytest
 
 from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.drone.photos import camera_truth, photo_camera
+from sim.render_cli import build_parser
 from sim.scene import read_scene_json
 from tools.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_sweep, photo_lens_options, plan_mission,
                                run_loop, world_folder)
@@ -161,7 +162,9 @@ def test_renders_take_the_photo_cameras_lens_from_the_truth(tmp_path):
     truth = tmp_path / "truth.json"
     truth.write_text(json.dumps({"camera": camera_truth(photo_camera(480, 360))}))
     options = photo_lens_options(truth)
-    assert options[0] == "--distortion" and options[2:] == ["--formats", "depth_exr"]
-    np.testing.assert_allclose([float(k) for k in options[1].split(",")], photo_camera(480, 360).dist, rtol=1e-11)
+    assert options[0].startswith("--distortion=") and options[1:] == ["--formats", "depth_exr"]
+    coefficients = [float(k) for k in options[0].removeprefix("--distortion=").split(",")]
+    np.testing.assert_allclose(coefficients, photo_camera(480, 360).dist, rtol=1e-11)
+    assert build_parser().parse_args(["--out", str(tmp_path), *options]).distortion == pytest.approx(coefficients)
     truth.write_text(json.dumps({"camera": camera_truth(photo_camera(480, 360, lens=0.0))}))
     assert photo_lens_options(truth) == []
