@@ -12,6 +12,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from xml.sax.saxutils import quoteattr
 
 import numpy as np
 from PIL import ExifTags, Image, JpegImagePlugin
@@ -127,17 +128,40 @@ def write_colmap_reference(priors: list[PosePrior], path) -> None:
     write_text_atomic(path, colmap_reference_text(priors))
 
 
-def dji_xmp_packet(tag: Geotag) -> bytes:
-    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style)."""
+def dji_xmp_packet(tag: Geotag, extra: dict[str, str] | None = None) -> bytes:
+    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style), plus
+    the ``extra`` ``drone-dji:`` attributes given as text (e.g. :func:`dji_calibration_attributes`); every
+    value is XML-escaped."""
     values = {"GpsLatitude": tag.lat_deg, "GpsLongitude": tag.lon_deg,
               "AbsoluteAltitude": tag.absolute_height_m, "RelativeAltitude": tag.height_above_takeoff_m}
     for prefix, angles in (("Gimbal", tag.gimbal_ypr_deg), ("Flight", tag.aircraft_ypr_deg)):
         values.update({f"{prefix}YawDegree": angles[0], f"{prefix}PitchDegree": angles[1], f"{prefix}RollDegree": angles[2]})
-    attributes = "".join(f'\n   drone-dji:{k}="{v:+.8f}"' for k, v in values.items() if math.isfinite(v))
+    texts = {k: f"{v:+.8f}" for k, v in values.items() if math.isfinite(v)} | (extra or {})
+    attributes = "".join(f"\n   drone-dji:{k}={quoteattr(v)}" for k, v in texts.items())
     return ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'
             ' <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
-            f'  <rdf:Description rdf:about="" xmlns:drone-dji="{DRONE_DJI_NS}"{attributes}/>\n'
+            f'  <rdf:Description rdf:about="" xmlns:drone-dji={quoteattr(DRONE_DJI_NS)}{attributes}/>\n'
             ' </rdf:RDF>\n</x:xmpmeta>\n<?xpacket end="w"?>').encode("utf-8")
+
+
+def dji_calibration_attributes(fx: float, fy: float, cx: float, cy: float, width: int, height: int,
+                               distortion, date: str) -> dict[str, str]:
+    """A camera's calibration as DJI writes it into XMP (``drone-dji:`` attribute name -> text).
+
+    Input: focal lengths and principal point in pixels of a ``width`` x ``height`` image, OUR convention (pixel
+    (0, 0) is the centre of the top-left pixel), OpenCV ``distortion`` (k1, k2, p1, p2, k3) on normalised
+    coordinates, the calibration ``date`` (text). Output, DJI's convention (pixel corners, so the image centre is
+    ``width / 2``): ``CalibratedFocalLength`` fx, ``CalibratedOpticalCenterX/Y`` the image centre,
+    ``DewarpData`` ``"date;fx,fy,dcx,dcy,k1,k2,p1,p2,k3"`` with ``dcx, dcy`` the principal point's offset from
+    that centre, and ``DewarpFlag`` 0 (the image is not dewarped).
+    """
+    centre_x, centre_y = width / 2.0, height / 2.0
+    numbers = (fx, fy, cx + 0.5 - centre_x, cy + 0.5 - centre_y, *distortion)
+    if len(numbers) != 9:
+        raise ValueError(f"DewarpData needs 5 distortion coefficients (k1, k2, p1, p2, k3), got {len(numbers) - 4}")
+    return {"CalibratedFocalLength": f"{fx:.6f}", "CalibratedOpticalCenterX": f"{centre_x:.6f}",
+            "CalibratedOpticalCenterY": f"{centre_y:.6f}",
+            "DewarpData": f"{date};" + ",".join(f"{float(v):.12f}" for v in numbers), "DewarpFlag": "0"}
 
 
 def deg_to_dms(value: float) -> tuple[float, float, float]:

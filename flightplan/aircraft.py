@@ -13,10 +13,13 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class CameraProfile:
-    """A pinhole camera described by its native image size and diagonal field of view.
+    """A camera described by its native image size and diagonal field of view, and its lens calibration.
 
     The diagonal FOV is the one number DJI publishes; the horizontal/vertical FOVs and the focal length in
-    pixels follow from it for a centred, distortion-free pinhole with square pixels.
+    pixels follow from it for a centred, distortion-free pinhole with square pixels. The lens calibration is
+    what a DJI camera's factory calibration (XMP ``DewarpData``) adds: ``distortion`` OpenCV's radial-tangential
+    ``(k1, k2, p1, p2, k3)`` on normalised coordinates, ``principal_point_offset_px`` the principal point's
+    offset ``(dx, dy)`` from the image centre in native pixels. Zeros: an ideal lens.
     """
 
     name: str
@@ -25,6 +28,8 @@ class CameraProfile:
     diagonal_fov_deg: float
     sensor_width_mm: float
     unverified: tuple[str, ...] = ()
+    distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    principal_point_offset_px: tuple[float, float] = (0.0, 0.0)
 
     def focal_length_px(self, image_width_px: int | None = None) -> float:
         """Focal length in pixels for an image of ``image_width_px`` columns (default: the native width).
@@ -91,13 +96,19 @@ class AircraftProfile:
 
 #: The DJI Mini SE's 12 MP 1/2.3" camera in 4:3 mode. 4000x3000 is confirmed by an owner's write-up; the
 #: 83 deg diagonal FOV and the 6.17 mm sensor width (1/2.3") are from memory of DJI's spec sheet (UNVERIFIED).
+#: Lens calibration (UNVERIFIED for this camera: no Mini SE DewarpData is public): the coefficients of a DJI
+#: Mavic 3 Enterprise DewarpData (5280x3956, 2025-02-26; quoted in a public repository's XMP test fixture),
+#: k1 -0.108 (barrel: the image corner 9 % towards the centre), and its principal-point offset (20.7, -16.7) px
+#: scaled to 4000 px wide. The real P4 Multispectral set (/work/shared/data/p4m_rtk) has a stronger k1 -0.42.
 MINI_SE_CAMERA = CameraProfile(
     name="DJI Mini SE FC7103 (4:3)",
     image_width_px=4000,
     image_height_px=3000,
     diagonal_fov_deg=83.0,
     sensor_width_mm=6.17,
-    unverified=("diagonal_fov_deg", "sensor_width_mm"),
+    unverified=("diagonal_fov_deg", "sensor_width_mm", "distortion", "principal_point_offset_px"),
+    distortion=(-0.107756512758, -0.000878853880, 0.000130474491, -0.000011293710, -0.015723478938),
+    principal_point_offset_px=(20.720882112011 * 4000 / 5280, -16.733345702852 * 4000 / 5280),
 )
 
 #: DJI Mini SE (2021). Max speed 13 m/s (S mode), the 2 s minimum interval of DJI's timed shots, the -90..0 deg

@@ -100,6 +100,6 @@ def run_fly(args) -> int:
     flight, photos = report.mission.flight, report.mission.photos
     print(f"flew {args.mission} over {scene.source}: {flight.duration_s:.1f} s from {report.start_utc.isoformat()}")
     print(f"telemetry: {report.frames} DUML frames, {report.bytes_sent} bytes -> {args.out / 'flight.duml'} (+ .idx)")
-    print(f"photos: {report.photo_times.photos} of {int(photos.taken.sum())} taken ({len(photos.t_s)} scheduled) "
+    print(f"photos: {report.rendered.photos} of {int(photos.taken.sum())} taken ({len(photos.t_s)} scheduled) "
           f"-> {args.out / 'photos'}; truth -> {args.out / 'truth.json'}, {args.out / 'truth.csv'}")
     return 0

@@ -191,7 +191,7 @@ def _radiance(scene, origin32, rays: Rays, hits: Hits, sun: Sun, lighting: Light
             albedo = surface_albedo(scene, hits.tri, hits.u, hits.v)
             return lambert(albedo, hits.normal, sun, lit, lighting, out=albedo)
         radiance = np.empty((len(hits.t), 3), np.float32)
-        radiance[~hit] = sky_radiance(rays.directions[~hit], lighting) * np.float32(lighting.exposure)
+        radiance[~hit] = sky_radiance(rays.directions[~hit], lighting) * lighting.channel_exposure
         albedo = surface_albedo(scene, hits.tri[hit], hits.u[hit], hits.v[hit])
         radiance[hit] = lambert(albedo, hits.normal[hit], sun, lit[hit], lighting)
     return radiance

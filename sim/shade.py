@@ -65,13 +65,22 @@ class Sun:
 
 @dataclass(frozen=True)
 class Lighting:
-    """Everything but the sun: sky ambient irradiance, sky colours seen by missed rays, exposure multiplier."""
+    """Everything but the sun: sky ambient irradiance, sky colours seen by missed rays, exposure multiplier.
+
+    ``exposure`` multiplies the linear radiance before the film: one number, or one per channel (R, G, B), as
+    a camera's exposure times its white balance.
+    """
 
     ambient: float = 0.3
     sky_zenith: tuple[float, float, float] = (0.20, 0.38, 0.80)
     sky_horizon: tuple[float, float, float] = (0.70, 0.78, 0.90)
-    exposure: float = 1.0
+    exposure: float | tuple[float, float, float] = 1.0
     shadows: bool = True
+
+    @property
+    def channel_exposure(self) -> np.ndarray:
+        """The exposure multiplier per channel, float32 ``(3,)``."""
+        return np.broadcast_to(np.asarray(self.exposure, np.float32), (3,))
 
 
 #: Render settings for comparing with photos: a photogrammetry texture already holds the photos' own lighting,
@@ -156,14 +165,14 @@ def lambert(
     out: np.ndarray | None = None,
 ) -> np.ndarray:
     """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals, float32
-    ``(N, 3)``, written into ``out`` when given."""
+    ``(N, 3)``, written into ``out`` when given; ``exposure`` per channel (:attr:`Lighting.channel_exposure`)."""
     irradiance = row_dots(normals, sun.direction_enu.astype(np.float32))
     np.maximum(irradiance, 0.0, out=irradiance)
     irradiance *= lit
     irradiance *= np.float32(sun.intensity)
     irradiance += np.float32(lighting.ambient)
-    irradiance *= np.float32(lighting.exposure)
     radiance = np.empty(albedo.shape, np.float32) if out is None else out
-    for channel in range(3):  # by columns: faster than broadcasting (N, 1) against (N, 3)
+    for channel, exposure in enumerate(lighting.channel_exposure):  # by columns: faster than broadcasting
         np.multiply(albedo[:, channel], irradiance, out=radiance[:, channel])
+        radiance[:, channel] *= exposure
     return radiance

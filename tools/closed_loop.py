@@ -274,6 +274,17 @@ def photo_hfov_deg(truth_json: Path) -> float:
     return math.degrees(2 * math.atan(truth["photo_size_px"][0] / 2 / truth["camera_K"][0][0]))
 
 
+def photo_lens_options(truth_json: Path) -> list[str]:
+    """``aerostereo-render`` options that give its views the drone camera's lens distortion (from ``truth.json``),
+    so that renders compare with the photos pixel for pixel; with distortion, depth only (disparity needs
+    rectified images). The principal point's offset (a few pixels) is not passed: the renderer has no option."""
+    camera = json.loads(truth_json.read_text(encoding="utf-8")).get("camera", {})
+    distortion = camera.get("distortion", [0.0] * 5)
+    if not any(distortion):
+        return []
+    return ["--distortion=" + ",".join(f"{k:.12g}" for k in distortion), "--formats", "depth_exr"]  # "=": k1 < 0
+
+
 def skipped(name: str, needs: str) -> StageResult:
     return StageResult(name, "skipped", detail=f"not run: {needs} did not succeed")
 
@@ -347,8 +358,8 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
             add(run(f"render_{label}", cli("aerostereo-render") + [
                 "--scene", str(scene), "--out", str(out / "render" / label), "--mode", "replay", "--geotags",
                 str(geotags), "--width", str(width), "--height", str(height),
-                "--fov", f"{photo_hfov_deg(fly_dir / 'truth.json'):.6f}", "--spp", str(config.spp),
-                "--seed", str(config.seed), "--workers", "1", "--quiet"], log_dir))
+                "--fov", f"{photo_hfov_deg(fly_dir / 'truth.json'):.6f}", *photo_lens_options(fly_dir / "truth.json"),
+                "--spp", str(config.spp), "--seed", str(config.seed), "--workers", "1", "--quiet"], log_dir))
         else:
             add(skipped(f"render_{label}", " and ".join(sorted(needs - ok))))
     return evaluate_run(dataclasses.asdict(config), [dataclasses.asdict(s) for s in stages], world, out)

@@ -21,6 +21,10 @@ class Imperfections:
     ``gps_bias_time_s``); the vertical GPS error (used only for the home point's height) is twice as large.
     Height above take-off is barometric: zero at take-off, then a Gauss-Markov drift + white noise.
     Wind: a steady wind the aircraft leans into, plus gusts that push the flown path off the plan.
+    Camera: ``lens_distortion`` is the fraction of the camera profile's lens calibration (distortion and
+    principal-point offset) the photos are taken through (0 an ideal pinhole); auto-exposure compensates
+    ``exposure_metering`` of each view's metered brightness, lags by ``exposure_lag_s`` and adds log-gain noise
+    and a per-channel white-balance jitter (:mod:`sim.drone.exposure`).
     """
 
     gps_noise_std_m: float = 0.0
@@ -43,6 +47,11 @@ class Imperfections:
     dropout_mean_s: float = 1.0
     byte_corruption_rate: float = 0.0
     byte_drop_rate: float = 0.0
+    lens_distortion: float = 0.0
+    exposure_metering: float = 0.0
+    exposure_lag_s: float = 0.0
+    exposure_noise_std: float = 0.0
+    white_balance_std: float = 0.0
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -50,9 +59,10 @@ class Imperfections:
                 raise ValueError(f"imperfection {name} must be finite, got {value}")
             if value < 0 and name not in ("camera_clock_offset_s", "wind_from_deg"):
                 raise ValueError(f"imperfection {name} must be >= 0, got {value}")
-        for name in ("photo_drop_probability", "byte_corruption_rate", "byte_drop_rate"):
+        for name in ("photo_drop_probability", "byte_corruption_rate", "byte_drop_rate", "lens_distortion",
+                     "exposure_metering"):
             if getattr(self, name) > 1:
-                raise ValueError(f"imperfection {name} is a probability, got {getattr(self, name)}")
+                raise ValueError(f"imperfection {name} is a probability or fraction, got {getattr(self, name)}")
         for name in ("gps_bias_time_s", "baro_bias_time_s", "gust_time_s", "dropout_mean_s"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"imperfection {name} must be > 0, got {getattr(self, name)}")
@@ -82,6 +92,11 @@ class Imperfections:
             dropout_rate_per_min=0.5,
             byte_corruption_rate=1e-4,
             byte_drop_rate=2e-5,
+            lens_distortion=1.0,
+            exposure_metering=1.0,
+            exposure_lag_s=1.5,
+            exposure_noise_std=0.03,
+            white_balance_std=0.01,
         )
 
     def to_dict(self) -> dict:

@@ -1,13 +1,17 @@
 """The virtual drone's camera: render each photo taken from its TRUE pose and write it as a DJI-style JPEG.
 
 Intrinsics: the DJI Mini SE camera profile (``flightplan.aircraft.MINI_SE_CAMERA``: 4000x3000, its diagonal
-field of view) scaled to the chosen render size (square pixels, principal point at the centre).
+field of view, its lens distortion and principal-point offset) scaled to the chosen render size (square pixels);
+``Imperfections.lens_distortion`` says how much of the lens calibration the photos get (0: an ideal pinhole).
+Exposure: each photo is rendered with its auto-exposure gain per channel in linear light
+(:mod:`sim.drone.exposure`, one small metering render per photo first).
 
 Metadata, as a DJI camera writes it, from what the aircraft MEASURED at the exposure (``Photos.measured_*``):
 EXIF ``DateTimeOriginal`` + ``SubSecTimeOriginal`` (milliseconds) from the camera clock (``start_utc +
 camera_time_s``, which includes the camera clock's offset; written without a time zone, as DJI does), the
 GPS IFD (measured latitude/longitude; altitude = measured home height + barometric height), Make/Model/focal
-length, and the XMP ``drone-dji:`` packet of :func:`capture.geotag_io.dji_xmp_packet`.
+length, and the XMP ``drone-dji:`` packet of :func:`capture.geotag_io.dji_xmp_packet` with the camera's
+calibration as DJI writes it (:func:`capture.geotag_io.dji_calibration_attributes`, at the photo's size).
 """
 
 from __future__ import annotations
@@ -25,23 +29,52 @@ from tqdm import tqdm
 
 from flightplan.atomic import atomic_path
 from capture.geotag import Geotag
-from capture.geotag_io import dji_xmp_packet, set_exif_gps
+from capture.geotag_io import dji_calibration_attributes, dji_xmp_packet, set_exif_gps
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM, MINI_SE_CAMERA, CameraProfile
 from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera, Rig
+from sim.drone.exposure import auto_exposure_gains, metered_luminance
 from sim.raycast import default_workers
-from sim.render import Sun, render
+from sim.render import Lighting, Sun, render
 from sim.scene import Scene
+from sim.shade import SRGB8_TO_LINEAR
 
 MAKE, MODEL = "DJI", "FC7103"
 JPEG_QUALITY = 92
 DEFAULT_SUN = Sun(azimuth_deg=150.0, elevation_deg=50.0)
+#: Date written at the head of the virtual camera's XMP ``DewarpData`` (a factory calibration's date).
+CALIBRATION_DATE = "2021-01-01"
+#: Width (px) of the small render each photo's auto-exposure meters (the camera's low-resolution metering).
+METERING_WIDTH = 80
 
 
-def photo_camera(width: int, height: int, profile: CameraProfile = MINI_SE_CAMERA) -> PinholeCamera:
-    """The profile's camera rendered at ``width`` x ``height`` pixels (its field of view across the width)."""
+def photo_camera(width: int, height: int, profile: CameraProfile = MINI_SE_CAMERA, lens: float = 1.0) -> PinholeCamera:
+    """The profile's camera rendered at ``width`` x ``height`` pixels (its field of view across the width), with
+    the fraction ``lens`` of its lens distortion and principal-point offset (0: an ideal centred pinhole)."""
     f = profile.focal_length_px(width)
-    return PinholeCamera(f, f, (width - 1) / 2.0, (height - 1) / 2.0, int(width), int(height))
+    dx, dy = (lens * offset * width / profile.image_width_px for offset in profile.principal_point_offset_px)
+    return PinholeCamera(f, f, (width - 1) / 2.0 + dx, (height - 1) / 2.0 + dy, int(width), int(height),
+                         dist=tuple(lens * k for k in profile.distortion))
+
+
+def camera_xmp(camera: PinholeCamera) -> dict[str, str]:
+    """The camera's calibration as DJI's XMP attributes (at the camera's image size)."""
+    return dji_calibration_attributes(camera.fx, camera.fy, camera.cx, camera.cy, camera.width, camera.height,
+                                      camera.dist or (0.0,) * 5, CALIBRATION_DATE)
+
+
+def camera_truth(camera: PinholeCamera) -> dict:
+    """The camera's exact intrinsics for ``truth.json`` (our pixel convention: (0, 0) is the top-left pixel's centre)."""
+    return {"width": camera.width, "height": camera.height, "fx": camera.fx, "fy": camera.fy, "cx": camera.cx,
+            "cy": camera.cy, "distortion": list(camera.dist or (0.0,) * 5), "model": "OpenCV k1, k2, p1, p2, k3"}
+
+
+def metered_view(scene: Scene, meter: Rig, T_world_cam: np.ndarray, sun: Sun, pool) -> float:
+    """What the camera's meter reads for a view: :func:`~sim.drone.exposure.metered_luminance` of a render at
+    unit exposure by ``meter``, the photo camera at :data:`METERING_WIDTH` pixels (one rig for all photos: its
+    rays are computed once)."""
+    rgb = render(scene, meter, T_world_cam, sun, pool=pool).views[0].rgb
+    return metered_luminance(SRGB8_TO_LINEAR[rgb])
 
 
 def ground_height_ellipsoid_m(scene: Scene, lat_deg: float, lon_deg: float) -> float:
@@ -92,26 +125,31 @@ def dji_exif(tag: Geotag, camera_time: dt.datetime, profile: CameraProfile) -> I
     return exif
 
 
-def write_dji_jpeg(path, rgb: np.ndarray, tag: Geotag, camera_time: dt.datetime,
+def write_dji_jpeg(path, rgb: np.ndarray, tag: Geotag, camera_time: dt.datetime, camera: PinholeCamera,
                    profile: CameraProfile = MINI_SE_CAMERA) -> None:
-    """Write ``rgb`` (H,W,3 uint8) as a JPEG with DJI EXIF and XMP (atomically)."""
+    """Write ``rgb`` (H,W,3 uint8) taken by ``camera`` as a JPEG with DJI EXIF and XMP (atomically)."""
     with atomic_path(path) as tmp:
         Image.fromarray(rgb).save(tmp, format="JPEG", quality=JPEG_QUALITY, exif=dji_exif(tag, camera_time, profile),
-                                  xmp=dji_xmp_packet(tag))
+                                  xmp=dji_xmp_packet(tag, camera_xmp(camera)))
 
 
 @dataclass
-class PhotoTimes:
-    """Wall-clock seconds spent rendering and encoding/writing the photos."""
+class RenderedPhotos:
+    """What :func:`render_photos` did: wall-clock seconds spent metering (auto-exposure), rendering and
+    encoding/writing, the photo count, and ``gains`` (N,3): each scheduled photo's linear gain per channel
+    (photo = gain x unit-exposure render; NaN for photos not rendered)."""
 
+    gains: np.ndarray
+    meter_s: float = 0.0
     render_s: float = 0.0
     write_s: float = 0.0
     photos: int = 0
 
 
 def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_utc: dt.datetime,
-                sun: Sun = DEFAULT_SUN, limit: int | None = None, progress: bool = True) -> PhotoTimes:
-    """Render every photo the camera took (the first ``limit`` if given) from its true pose into ``out_dir``.
+                  sun: Sun = DEFAULT_SUN, limit: int | None = None, progress: bool = True) -> RenderedPhotos:
+    """Render every photo the camera took (the first ``limit`` if given) from its true pose into ``out_dir``,
+    each at its auto-exposure gains (metered first, for the whole set: the gains lag from photo to photo).
 
     Names are ``Photos.names`` (DJI_0001.JPG ...); EXIF/XMP carry the measured values (module docstring).
     """
@@ -121,15 +159,24 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
     taken = np.flatnonzero(photos.taken)[:limit]
     poses = poses_in_scene(flight.frame, scene.origin, photos.position_enu_m[taken], photos.R_world_cam[taken])
     home_h = mission.sensors.measured_home()[2]
-    rig, names, times = Rig((camera,)), photos.names, PhotoTimes()
+    rig, names = Rig((camera,)), photos.names
+    result = RenderedPhotos(np.full((len(photos.t_s), 3), np.nan))
     with ThreadPoolExecutor(default_workers()) as pool:
+        started = time.perf_counter()
+        meter = Rig((camera.scaled(METERING_WIDTH),)) if flight.imperfections.exposure_metering > 0 else None
+        metered = [metered_view(scene, meter, T, sun, pool) if meter else 1.0 for T in poses]
+        result.gains[taken] = auto_exposure_gains(photos.t_s[taken], metered, photos.gain_noise[taken],
+                                                  flight.imperfections)
+        result.meter_s = time.perf_counter() - started
         for index, T_world_cam in zip(tqdm(taken, desc="photos", unit="photo", disable=not progress), poses):
             started = time.perf_counter()
-            rgb = render(scene, rig, T_world_cam, sun, pool=pool).views[0].rgb
+            lighting = Lighting(exposure=tuple(result.gains[index]))
+            rgb = render(scene, rig, T_world_cam, sun, lighting=lighting, pool=pool).views[0].rgb
             rendered = time.perf_counter()
             camera_time = start_utc.replace(tzinfo=None) + dt.timedelta(seconds=float(photos.camera_time_s[index]))
-            write_dji_jpeg(out_dir / names[index], rgb, photo_geotag(photos, index, home_h, names[index]), camera_time)
-            times.render_s += rendered - started
-            times.write_s += time.perf_counter() - rendered
-            times.photos += 1
-    return times
+            write_dji_jpeg(out_dir / names[index], rgb, photo_geotag(photos, index, home_h, names[index]), camera_time,
+                           camera)
+            result.render_s += rendered - started
+            result.write_s += time.perf_counter() - rendered
+            result.photos += 1
+    return result

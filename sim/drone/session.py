@@ -31,7 +31,8 @@ from sim.drone import FlownMission, Imperfections, fly, write_truth
 from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
-from sim.drone.photos import PhotoTimes, ground_height_ellipsoid_m, photo_camera, render_photos
+from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
+                              render_photos)
 from sim.scene import Scene
 
 LINKS = ("file", "loop", "tcp")
@@ -71,7 +72,7 @@ class FlyReport:
     start_utc: dt.datetime
     frames: int
     bytes_sent: int
-    photo_times: PhotoTimes
+    rendered: RenderedPhotos
 
 
 def fly_litchi_mission(mission_csv, scene: Scene, seed: int, imperfections: Imperfections) -> FlownMission:
@@ -137,11 +138,11 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
         sent = sum(len(frame.data) for frame in frames)
     if options.logs:
         write_flight_logs(mission, clock.start_utc, out_dir)
-    camera = photo_camera(*options.photo_size)
-    times = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
-                        progress=options.progress)
-    write_truth(out_dir, mission.flight, mission.photos, options.seed, extra={
+    camera = photo_camera(*options.photo_size, lens=options.imperfections.lens_distortion)
+    rendered = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
+                             progress=options.progress)
+    write_truth(out_dir, mission.flight, mission.photos, options.seed, gains=rendered.gains, extra={
         "start_utc": clock.start_utc.isoformat(), "telemetry_clock_note": "UTC = start_utc + t_s",
         "mission_csv": str(mission_csv), "scene": scene.source, "link": options.link,
-        "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist()})
-    return FlyReport(mission, clock.start_utc, len(frames), sent, times)
+        "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist(), "camera": camera_truth(camera)})
+    return FlyReport(mission, clock.start_utc, len(frames), sent, rendered)

@@ -34,6 +34,8 @@ class Photos:
     ``t_s``: exposure on the telemetry clock; ``camera_time_s``: the same instant on the camera clock
     (``t_s + clock_offset_s``). ``taken`` is False for photos the camera dropped. ``R_world_cam``: (N,3,3).
     ``measured_*``: what the aircraft knew at the exposure (what a DJI camera writes into EXIF/XMP).
+    ``gain_noise``: (N,4) standard normal draws behind each photo's random exposure and white balance
+    (:func:`sim.drone.exposure.auto_exposure_gains`).
     """
 
     t_s: np.ndarray
@@ -52,6 +54,7 @@ class Photos:
     measured_height_above_takeoff_m: np.ndarray
     measured_aircraft_ypr_deg: np.ndarray
     measured_gimbal_ypr_deg: np.ndarray
+    gain_noise: np.ndarray
 
     @property
     def names(self) -> list[str]:
@@ -77,6 +80,7 @@ def take_photos(flight: Flight, sensors: Sensors, rng: np.random.Generator) -> P
         camera_time_s=t + imp.camera_clock_offset_s,
         clock_offset_s=imp.camera_clock_offset_s,
         taken=rng.random(len(t)) >= imp.photo_drop_probability,
+        gain_noise=rng.standard_normal((len(t), 4)),
         position_enu_m=truth.position_enu_m,
         latitude_deg=lat, longitude_deg=lon, height_ellipsoid_m=h,
         aircraft_ypr_deg=truth.aircraft_ypr_deg,
@@ -93,11 +97,11 @@ def take_photos(flight: Flight, sensors: Sensors, rng: np.random.Generator) -> P
 TRUTH_CSV_COLUMNS = (
     "image_name", "taken", "t_s", "camera_time_s", "east_m", "north_m", "up_m", "lat_deg", "lon_deg",
     "h_ellipsoid_m", "aircraft_yaw_deg", "aircraft_pitch_deg", "aircraft_roll_deg", "gimbal_yaw_deg",
-    "gimbal_pitch_deg", "gimbal_roll_deg", "qw", "qx", "qy", "qz",
+    "gimbal_pitch_deg", "gimbal_roll_deg", "qw", "qx", "qy", "qz", "gain_r", "gain_g", "gain_b",
 )
 
 
-def _truth_rows(photos: Photos) -> list[dict]:
+def _truth_rows(photos: Photos, gains: np.ndarray) -> list[dict]:
     quat_xyzw = Rotation.from_matrix(photos.R_world_cam).as_quat() if len(photos.t_s) else np.zeros((0, 4))
     rows = []
     for i, name in enumerate(photos.names):
@@ -105,15 +109,19 @@ def _truth_rows(photos: Photos) -> list[dict]:
                   photos.longitude_deg[i], photos.height_ellipsoid_m[i], *photos.aircraft_ypr_deg[i],
                   *photos.gimbal_ypr_deg[i], quat_xyzw[i, 3], *quat_xyzw[i, :3]]
         rows.append({"image_name": name, "taken": bool(photos.taken[i]),
-                     **dict(zip(TRUTH_CSV_COLUMNS[2:], (float(v) for v in values)))})
+                     **dict(zip(TRUTH_CSV_COLUMNS[2:], (float(v) for v in values))),
+                     **{f"gain_{c}": float(g) if np.isfinite(g) else None for c, g in zip("rgb", gains[i])}})
     return rows
 
 
-def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None, extra: dict | None = None) -> None:
+def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None, extra: dict | None = None,
+                gains: np.ndarray | None = None) -> None:
     """Write ``truth.json`` and ``truth.csv`` into ``out_dir``: the true pose of every photo (ENU with the
-    home point as origin, and geodetic), the true camera clock offset and the imperfection parameters."""
+    home point as origin, and geodetic), its exposure ``gains`` (N,3) per channel if rendered (photo = gain x the
+    unit-exposure render, in linear light; empty/null where NaN or not given), the true camera clock offset and
+    the imperfection parameters."""
     out_dir = Path(out_dir)
-    rows = _truth_rows(photos)
+    rows = _truth_rows(photos, np.full((len(photos.t_s), 3), np.nan) if gains is None else gains)
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=TRUTH_CSV_COLUMNS, lineterminator="\n")
     writer.writeheader()
@@ -123,6 +131,7 @@ def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None,
         "origin": flight.frame.to_dict(),
         "clock_offset_s": photos.clock_offset_s,
         "clock_note": "camera_time_s = t_s + clock_offset_s; t_s is the telemetry clock (s since motors on)",
+        "gain_note": "gain_r/g/b: the photo's linear-light colour = gain x the unit-exposure render's, per channel",
         "duration_s": flight.duration_s,
         "seed": seed,
         "imperfections": flight.imperfections.to_dict(),

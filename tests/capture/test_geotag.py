@@ -2,16 +2,20 @@
 
 import dataclasses
 import json
+import math
 import re
 
 import numpy as np
 import pytest
+from defusedxml import ElementTree as SafeET
+from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from capture.geotag import HEIGHT_UNKNOWN, MEAN_SEA_LEVEL, geotag_photos
-from capture.geotag_io import GEOTAG_COLUMNS, colmap_reference_text, load_geotags, write_geotags
+from capture.geotag import HEIGHT_UNKNOWN, MEAN_SEA_LEVEL, Geotag, geotag_photos
+from capture.geotag_io import (GEOTAG_COLUMNS, colmap_reference_text, dji_calibration_attributes, dji_xmp_packet,
+                               load_geotags, write_geotags)
 from capture.logs import read_track
-from capture.logs.photos import PhotoInfo
+from capture.logs.photos import DRONE_DJI_NS, PhotoInfo
 from capture.logs.writers import write_airdata_csv, write_litchi_csv, write_srt
 from capture.synthetic import NOISE_FREE, Noise, Orbit, photos_for, shutter_times, telemetry
 from capture.track import ReadReport, Track
@@ -184,3 +188,40 @@ def test_origin_height_datum_says_where_h0_came_from(tmp_path):
     unknown = geotag_photos(photos, [without])
     assert unknown.origin_height_datum == HEIGHT_UNKNOWN and not unknown.origin_height_known
     assert "take-off absolute height unknown: origin h0 = 0" in unknown.notes
+
+
+def drone_dji_attributes(packet: bytes) -> dict[str, str]:
+    """The ``drone-dji:`` attributes of an XMP packet, parsed with defusedxml."""
+    root = SafeET.fromstring(packet[packet.find(b"<x:xmpmeta"):packet.rfind(b"</x:xmpmeta>") + len(b"</x:xmpmeta>")])
+    prefix = "{" + DRONE_DJI_NS + "}"
+    return {k[len(prefix):]: v for e in root.iter() for k, v in e.attrib.items() if k.startswith(prefix)}
+
+
+def test_dji_xmp_packet_escapes_odd_values():
+    tag = Geotag(image_name="DJI_0001.JPG", time_s=0.0, time_source="camera", source="drone", lat_deg=40.1,
+                 lon_deg=44.5, height_above_takeoff_m=30.0, absolute_height_m=math.nan,
+                 aircraft_ypr_deg=np.array([10.0, -2.0, 1.0]), gimbal_ypr_deg=np.array([10.0, -30.0, 0.0]),
+                 enu_m=np.full(3, np.nan), R_world_cam=None)
+    odd = {"DewarpData": 'a&b<c>"d\'e\n\tf;1,2', "Note": "]]></x:xmpmeta>"}
+    values = drone_dji_attributes(dji_xmp_packet(tag, odd))
+    assert {k: values[k] for k in odd} == odd
+    assert float(values["GpsLatitude"]) == 40.1 and "AbsoluteAltitude" not in values  # NaN: left out
+
+
+def test_dji_calibration_attributes_rebuild_a_real_p4m_photos_calibration(shared_data):
+    with Image.open(shared_data / "p4m_rtk" / "images" / "DJI_0010.JPG") as image:  # factory calibration in XMP
+        real, (width, height) = drone_dji_attributes(image.info["xmp"]), image.size
+    date, numbers = real["DewarpData"].split(";")
+    fx, fy, dcx, dcy, *distortion = (float(v) for v in numbers.split(","))
+    # DJI's principal point is an offset from the image centre W/2, H/2 in pixel-corner coordinates; ours is
+    # pixel-centre based (0.5 px less)
+    rebuilt = dji_calibration_attributes(fx, fy, width / 2 + dcx - 0.5, height / 2 + dcy - 0.5, width, height,
+                                         distortion, date)
+    for key in ("CalibratedOpticalCenterX", "CalibratedOpticalCenterY", "DewarpFlag"):
+        assert rebuilt[key] == real[key]
+    rebuilt_date, rebuilt_numbers = rebuilt["DewarpData"].split(";")
+    assert rebuilt_date == date
+    np.testing.assert_allclose([float(v) for v in rebuilt_numbers.split(",")], [fx, fy, dcx, dcy, *distortion],
+                               rtol=0, atol=1e-9)
+    with pytest.raises(ValueError, match="5 distortion coefficients"):
+        dji_calibration_attributes(fx, fy, 800, 650, width, height, distortion[:4], date)

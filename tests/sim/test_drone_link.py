@@ -27,7 +27,7 @@ from sim.drone import Imperfections, fly
 from sim.drone.link import MissionClock, duml_frames, stream, telemetry_messages, write_raw_capture
 from sim.drone.logs import write_flight_logs
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
-from sim.drone.photos import photo_geotag, poses_in_scene, write_dji_jpeg
+from sim.drone.photos import photo_camera, photo_geotag, poses_in_scene, write_dji_jpeg
 from sim.drone.session import record_loopback, stream_to_port
 from sim.worlds.demo import build_demo_world
 from tests.sim.drone_helpers import short_orbit_csv
@@ -191,7 +191,7 @@ def test_photo_metadata_reads_back_as_written(mission_csv, tmp_path):
     tag = photo_geotag(photos, index, HOME_H, "DJI_0006.JPG")
     camera_time = dt.datetime(2024, 5, 1, 10, 1, 2, 345000)
     rgb = np.random.default_rng(0).integers(0, 255, (30, 40, 3), dtype=np.uint8)
-    write_dji_jpeg(tmp_path / tag.image_name, rgb, tag, camera_time)
+    write_dji_jpeg(tmp_path / tag.image_name, rgb, tag, camera_time, photo_camera(40, 30))
     info = read_photo(tmp_path / tag.image_name)
     assert info.problems == []
     assert info.exif_time_s == pytest.approx(camera_time.replace(tzinfo=dt.timezone.utc).timestamp(), abs=1e-6)

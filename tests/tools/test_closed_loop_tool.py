@@ -9,8 +9,11 @@ import numpy as np
 import pytest
 
 from sim.drone.link import PHOTO_EVENT_ERROR_S
+from sim.drone.photos import camera_truth, photo_camera
+from sim.render_cli import build_parser
 from sim.scene import read_scene_json
-from tools.closed_loop import LoopConfig, cli, fly_over_tcp, main, parse_sweep, plan_mission, run_loop, world_folder
+from tools.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_sweep, photo_lens_options, plan_mission,
+                               run_loop, world_folder)
 from tools.geotag_csv import geotag_row, write_geotags
 from tools.closed_loop_eval import geotag_poses, markdown, sweep_table, total_wall_s
 
@@ -153,3 +156,15 @@ def test_geotag_poses_count_rows_without_attitude(tmp_path):
     expected[:3, :3] = [[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]  # 90 deg about up
     expected[:3, 3] = [1.0, 2.0, 30.0]
     assert np.allclose(poses["a.jpg"], expected)
+
+
+def test_renders_take_the_photo_cameras_lens_from_the_truth(tmp_path):
+    truth = tmp_path / "truth.json"
+    truth.write_text(json.dumps({"camera": camera_truth(photo_camera(480, 360))}))
+    options = photo_lens_options(truth)
+    assert options[0].startswith("--distortion=") and options[1:] == ["--formats", "depth_exr"]
+    coefficients = [float(k) for k in options[0].removeprefix("--distortion=").split(",")]
+    np.testing.assert_allclose(coefficients, photo_camera(480, 360).dist, rtol=1e-11)
+    assert build_parser().parse_args(["--out", str(tmp_path), *options]).distortion == pytest.approx(coefficients)
+    truth.write_text(json.dumps({"camera": camera_truth(photo_camera(480, 360, lens=0.0))}))
+    assert photo_lens_options(truth) == []
