@@ -1,0 +1,151 @@
+"""recon.atlas against known truth: a textured terrain with a tower whose walls carry their own texture,
+photographed by sim from known oblique poses; the true mesh and poses are the model (no SfM)."""
+
+import numpy as np
+import pytest
+import trimesh
+
+from flightplan.geodesy import LocalFrame
+from recon.atlas import AtlasOptions, FaceViews, face_neighbours, label_faces, texture_atlas
+from recon.evaluate import render_unlit
+from recon.scene_out import write_scene
+from recon.texture import Photo, orthophoto, textured_glb
+from sim.camera import Rig, look_at
+from sim.metrics import photorealism_error_percent
+from sim.render import render
+from sim.scene import Scene, Surface, load_scene
+from sim.synthetic import grid_mesh, noise_texture
+from tests.recon.test_texture import SUN, hills, take_photos
+
+TOWER = (4.0, 8.0, 6.0, 14.0)  # x, y, half width, height (m)
+
+
+def tower_walls(texture_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Four vertical walls (outward normals) of 3 x 3 quads each, UV-mapped into the left half of the texture."""
+    x, y, half, height = TOWER
+    corners = [(x - half, y - half), (x + half, y - half), (x + half, y + half), (x - half, y + half)]
+    vertices, faces, uv = [], [], []
+    for side in range(4):
+        (x0, y0), (x1, y1) = corners[side], corners[(side + 1) % 4]
+        wall_v, wall_f, wall_uv = grid_mesh(3, 3, (0.0, 1.0, 0.0, 1.0))
+        along, up = wall_v[:, 0], wall_v[:, 1]
+        points = np.column_stack([x0 + along * (x1 - x0), y0 + along * (y1 - y0), up * height])
+        faces.append(wall_f + sum(len(v) for v in vertices))
+        vertices.append(points)
+        uv.append(np.column_stack([0.25 * side / 2 + 0.125 * wall_uv[:, 0], 0.5 + 0.5 * wall_uv[:, 1]]))
+    return np.concatenate(vertices), np.concatenate(faces), np.concatenate(uv)
+
+
+def town() -> tuple[trimesh.Trimesh, Scene]:
+    """Hilly ground (right half of the texture) and the tower (left half): the true mesh and its scene."""
+    size = 512
+    texture = noise_texture(size, seed=5)
+    ground_v, ground_f, ground_uv = grid_mesh(40, 40, (-30.0, 30.0, -30.0, 30.0))
+    ground_v[:, 2] = hills(ground_v) - 2.0
+    ground_uv = np.column_stack([0.5 + 0.5 * ground_uv[:, 0], ground_uv[:, 1]])
+    wall_v, wall_f, wall_uv = tower_walls(size)
+    vertices = np.concatenate([ground_v, wall_v])
+    faces = np.concatenate([ground_f, wall_f + len(ground_v)])
+    uv = np.concatenate([ground_uv, wall_uv])
+    return trimesh.Trimesh(vertices, faces, process=False), Scene(vertices, faces, Surface(texture=texture, uv=uv))
+
+
+def oblique_poses(count: int, radius: float, height: float, phase_deg: float = 0.0) -> list[np.ndarray]:
+    """Cameras on a ring around the tower, looking at its middle (oblique, like an orbit's)."""
+    x, y, _, tower_height = TOWER
+    azimuths = np.radians(phase_deg + 360.0 * np.arange(count) / count)
+    return [look_at((x + radius * np.cos(a), y + radius * np.sin(a), height), (x, y, 0.4 * tower_height))
+            for a in azimuths]
+
+
+@pytest.fixture(scope="module")
+def world():
+    mesh, scene = town()
+    return mesh, scene, take_photos(scene, oblique_poses(8, 30.0, 28.0))
+
+
+def write_textured(folder, mesh, glb: bytes):
+    write_scene(folder, mesh, LocalFrame(47.0, 8.0, 400.0), {"generator": "test"}, "terrain.glb", encoded=glb)
+    return load_scene(folder)
+
+
+def wall_pixel_errors(textured: Scene, truth: Scene, poses) -> list[float]:
+    """Formula 3 of the unlit twin against the (lit) truth photo, over the pixels that see a wall."""
+    errors = []
+    for photo in take_photos(truth, poses):
+        rgb, valid = render_unlit(textured, photo)
+        walls = wall_mask(truth, photo) & valid
+        errors.append(photorealism_error_percent(photo.image[walls], rgb[walls]))
+    return errors
+
+
+def wall_mask(scene: Scene, photo: Photo) -> np.ndarray:
+    """Pixels whose true surface is vertical (normal within 17 deg of horizontal)."""
+    view = render(scene, Rig((photo.camera,), (np.eye(4),)), photo.T_world_cam, SUN).views[0]
+    return view.valid & (np.abs(view.normal[..., 2]) < 0.3)
+
+
+def test_walls_get_their_own_texels_from_the_oblique_photos(world, tmp_path):
+    mesh, truth, photos = world
+    atlas = texture_atlas(mesh, photos)
+    assert atlas.coverage > 0.9
+    twin = write_textured(tmp_path / "atlas", mesh, atlas.glb())
+    ortho = write_textured(tmp_path / "ortho", mesh, textured_glb(mesh, orthophoto(mesh, photos)))
+    new_views = oblique_poses(3, 26.0, 22.0, phase_deg=20.0)  # between the photos' azimuths, lower
+    atlas_errors = wall_pixel_errors(twin, truth, new_views)
+    ortho_errors = wall_pixel_errors(ortho, truth, new_views)
+    # the orthophoto stretches one texel column down each wall; the atlas samples the walls from the side
+    assert max(atlas_errors) < 6.0, atlas_errors
+    assert max(atlas_errors) < 0.5 * min(ortho_errors), (atlas_errors, ortho_errors)
+
+
+def test_each_wall_face_is_coloured_from_a_photo_in_front_of_it(world):
+    mesh, _, photos = world
+    atlas = texture_atlas(mesh, photos)
+    normals, centroids = mesh.face_normals, mesh.triangles_center
+    walls = np.flatnonzero(np.abs(normals[:, 2]) < 0.1)
+    centres = np.array([p.T_world_cam[:3, 3] for p in photos])
+    to_camera = centres[atlas.labels[walls]] - centroids[walls]
+    cosine = np.einsum("ij,ij->i", to_camera / np.linalg.norm(to_camera, axis=1)[:, None], normals[walls])
+    assert (atlas.labels[walls] >= 0).all()
+    assert np.median(cosine) > 0.5 and (cosine > 0.1).all()
+
+
+def test_exposure_gains_undo_a_known_exposure(world):
+    mesh, truth, _ = world
+    true_gains = np.array([1.0, 1.2, 1.0, 0.85, 1.0, 1.0, 1.1, 1.0])
+    photos = take_photos(truth, oblique_poses(8, 30.0, 28.0), gains=true_gains)
+    atlas = texture_atlas(mesh, photos, AtlasOptions(gain_faces=5000, min_overlap=10))
+    product = np.array([atlas.gains[p.name] for p in photos]) * true_gains
+    assert product / product.mean() == pytest.approx(np.ones(8), abs=0.03)
+
+
+def test_the_atlas_fits_the_size_asked_for(world):
+    mesh, _, photos = world
+    atlas = texture_atlas(mesh, photos, AtlasOptions(texel_m=0.01, max_texture_px=512))
+    assert max(atlas.image.shape[:2]) <= 512 and atlas.texel_m > 0.01
+    assert ((atlas.uv >= 0) & (atlas.uv <= 1)).all()
+    assert len(atlas.faces) == len(mesh.faces)
+    # every corner keeps its 3-D position: split vertices map back onto the mesh's own
+    assert np.allclose(atlas.vertices[atlas.faces], mesh.vertices[mesh.faces])
+
+
+def test_labelling_keeps_neighbours_on_one_photo_where_quality_allows():
+    grid = trimesh.Trimesh(*grid_mesh(12, 12, (0.0, 12.0, 0.0, 12.0))[:2], process=False)
+    neighbours = face_neighbours(grid)
+    # photo 1 wins by a hair on isolated interior faces (three neighbours, none of them another such face)
+    isolated = np.zeros(len(grid.faces), bool)
+    for face in range(len(grid.faces)):
+        if (neighbours[face] >= 0).all() and not isolated[neighbours[face]].any():
+            isolated[face] = face % 7 == 0
+    quality = np.column_stack([np.full(len(isolated), 1.0), np.where(isolated, 1.02, 0.98)])
+    view = np.tile([0, 1], (len(isolated), 1))
+    order = np.argsort(-quality, axis=1)
+    views = FaceViews(np.take_along_axis(view, order, 1), np.take_along_axis(quality, order, 1))
+    assert isolated.sum() > 10
+    assert (label_faces(views, neighbours, smoothness=0.0, iterations=5) == isolated).all()
+    assert (label_faces(views, neighbours, smoothness=0.3, iterations=5) == 0).all()
+    # a face no photo sees stays unlabelled
+    views.view[5] = -1
+    views.quality[5] = 0.0
+    assert label_faces(views, neighbours, 0.3, 5)[5] == -1
