@@ -281,7 +281,8 @@ def row_dots(rows: np.ndarray, other: np.ndarray) -> np.ndarray:
 
 
 def project_world_points(camera: PinholeCamera, T_world_cam: np.ndarray, points_world: np.ndarray):
-    """World points ``(N, 3)`` -> ``(pixels (N, 2), planar depth z (N,))`` for a camera at ``T_world_cam``."""
+    """World points ``(N, 3)`` -> ``(pixels (N, 2), planar depth z (N,))`` for a camera at ``T_world_cam``
+    (the rotation applied in chunks: :func:`rows_times_matrix`)."""
     T_cam_world = np.linalg.inv(check_pose(T_world_cam))
     points = np.asarray(points_world, dtype=np.float64).reshape(-1, 3)
-    return camera.project(points @ T_cam_world[:3, :3].T + T_cam_world[:3, 3])
+    return camera.project(rows_times_matrix(points, T_cam_world[:3, :3].T) + T_cam_world[:3, 3])
