@@ -1,16 +1,23 @@
 """The whole recon run, stage by stage, resumable: photos + priors -> scene folder.
 
-Each stage leaves a marker under ``SCENE_DIR/work``; a stage whose marker exists is not redone:
+Each stage records what made it in a stamp, ``work/stages/<stage>.json`` (see :mod:`recon.stages`): the options
+it reads, its inputs and the fingerprint of the stage before it. A rerun skips the stages whose stamp is finished
+with the same fingerprint, and redoes the first other one and every stage after it, saying why on stderr
+(``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene``):
 
-| stage | marker |
-|---|---|
-| sfm | ``work/sfm_report.json`` (model in ``work/sparse``, ENU metres) |
-| undistort | ``work/dense/stereo/fusion.cfg`` |
-| depth | ``work/dense/depth_report.json`` (per-image maps are also skipped when present) |
-| fusion | ``work/fused.ply`` |
-| mesh | ``work/mesh.ply`` (decimated: ``work/mesh_decimated.ply``) |
-| texture | ``work/texture_report.json`` (textured mesh ``work/terrain.glb``; skipped with ``texture=False``) |
-| scene | ``SCENE_DIR/scene.json`` (``terrain.glb``, or ``terrain.ply`` with vertex colours as the fallback) |
+| stage | options it reads (``ReconOptions``) | inputs | outputs |
+|---|---|---|---|
+| sfm | ``sfm.*`` but threads | photos (name, size, mtime), geotags files (SHA-256) | ``work/sfm_report.json``, model ``work/sparse`` (ENU m) |
+| undistort | ``dense.max_image_size`` | | ``work/dense`` (images, ``sparse``, ``stereo/fusion.cfg``) |
+| depth | ``dense`` pair choice, SGBM, consistency | | ``work/dense/depth_report.json``, per-image maps (below) |
+| fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
+| mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
+| texture | ``texture``, ``texture_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture=False``) |
+| scene | ``texture`` | | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) |
+
+The exact table is :data:`recon.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
+maps when rerun with the same fingerprint; redone for another one, it deletes them first (:data:`STALE_OUTPUTS`).
+Outputs of stages done before stamps existed (:data:`OLD_MARKERS`) are redone, with a message.
 """
 
 from __future__ import annotations
@@ -19,6 +26,7 @@ import json
 import os
 import shutil
 import time
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -29,15 +37,25 @@ import trimesh
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
+from capture.geotag_io import sidecar_path
 from recon import dense, mesh as meshing, texture as texturing
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
                           read_geotags)
+from recon.progress import StepProgress, log_stderr
 from recon.scene_out import write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
+from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 
-STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
+#: What each stage wrote before stages were stamped (relative to the scene folder): such a stage is redone.
+OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fusion.cfg",
+               "depth": "work/dense/depth_report.json", "fusion": "work/fused.ply", "mesh": "work/mesh.ply",
+               "texture": "work/texture_report.json", "scene": "scene.json"}
+
+#: Partial outputs (relative to ``work``) that a stage reuses when it resumes its own interrupted run, and that are
+#: deleted before it is redone for another fingerprint.
+STALE_OUTPUTS = {"depth": ("dense/stereo/depth_maps", "dense/stereo/normal_maps")}
 
 #: What the origin's ``h0_ellipsoid_m`` (and so every absolute height of the scene) really is, by priors source.
 HEIGHT_DATUM = {
@@ -122,9 +140,12 @@ class Recon:
     """One run into ``scene_dir``; ``run()`` executes the stages not yet done and returns a summary dict."""
 
     def __init__(self, photo_dir: Path, geotags_csv: Path | None, scene_dir: Path, options: ReconOptions,
-                 log=tqdm.write):
+                 log=log_stderr, progress=None):
+        """``log``: one line at a time (default stderr); ``progress``: ``(stage, step, done, total)`` counts from
+        inside a stage (default: :class:`recon.progress.StepProgress` bars or lines on stderr)."""
         self.photo_dir, self.geotags_csv = Path(photo_dir), geotags_csv and Path(geotags_csv)
         self.scene_dir, self.options, self.log = Path(scene_dir), options, log
+        self.progress = progress
         if self.scene_dir.exists() and not self.scene_dir.is_dir():
             raise ValueError(f"{self.scene_dir}: is a file; the output must be a (new or resumable) scene folder")
         self.work = self.scene_dir / "work"
@@ -134,24 +155,46 @@ class Recon:
                      f"{', '.join(self.priors.untagged[:10])}")
         self.seconds: dict[str, float] = {}
 
+    def inputs(self) -> dict[str, dict]:
+        """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags)."""
+        geotags = "exif" if self.geotags_csv is None else {
+            path.name: file_sha256(path) for path in (self.geotags_csv, sidecar_path(self.geotags_csv))}
+        return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags}}
+
     def run(self) -> dict:
+        """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict."""
         self.work.mkdir(parents=True, exist_ok=True)
-        for stage in tqdm(STAGES, desc="recon", unit="stage"):
+        records = stage_records(self.options, self.inputs())
+        stamps = StageStamps(self.work / "stages")
+        plan = stamps.plan(records, lambda stage: (self.scene_dir / OLD_MARKERS[stage]).exists())
+        for stage in STAGES[:len(STAGES) - len(plan.todo)]:
+            self.log(f"[{stage}] already done")
+        if plan.reason:
+            self.log(f"[{plan.todo[0]}] {plan.reason}: redoing {', '.join(plan.todo)}")
+        for stage in plan.todo:
+            if not (plan.resume and stage == plan.todo[0]):
+                for stale in STALE_OUTPUTS.get(stage, ()):
+                    shutil.rmtree(self.work / stale, ignore_errors=True)
+            self.log(f"[{stage}] running (stage {STAGES.index(stage) + 1}/{len(STAGES)})")
+            stamps.write(stage, *records[stage], finished=False)
             t0 = time.perf_counter()
-            done = getattr(self, f"stage_{stage}")()
+            getattr(self, f"stage_{stage}")()
+            stamps.write(stage, *records[stage], finished=True)
             self.seconds[stage] = round(time.perf_counter() - t0, 2)
-            self.log(f"[{stage}] {'already done' if done is False else 'done'} ({self.seconds[stage]} s)")
+            self.log(f"[{stage}] done ({self.seconds[stage]} s)")
         return json.loads((self.scene_dir / "scene.json").read_text(encoding="utf-8"))
 
-    # Each stage returns False when its marker says it was done already.
+    def step_progress(self, stage: str):
+        """The progress callback ``(step, done, total)`` for counts from inside ``stage``."""
+        if self.progress is None:
+            return StepProgress(stage, self.log)
+        return nullcontext(lambda step, done, total: self.progress(stage, step, done, total))
 
     def stage_sfm(self):
-        report_path = self.work / "sfm_report.json"
-        if report_path.exists():
-            return False
         seed = focal_seed(self.photo_dir / self.names[0])
-        rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
-                              self.options.sfm, progress=lambda s: self.log(f"[sfm] {s}"))
+        with self.step_progress("sfm") as progress:
+            rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
+                                  self.options.sfm, log=lambda s: self.log(f"[sfm] {s}"), progress=progress)
         if report.unregistered:
             self.log(f"[sfm] WARNING: {len(report.unregistered)} photo(s) not registered: "
                      f"{', '.join(report.unregistered)}")
@@ -161,26 +204,20 @@ class Recon:
                  f"reprojection {report.mean_reprojection_error_px:.2f} px, residual RMS vs priors "
                  f"{report.residual_rms_enu_m} m (E/N/U)")
         write_model_atomic(rec, self.work / "sparse")
-        report.write(report_path)
+        report.write(self.work / "sfm_report.json")
 
     def stage_undistort(self):
         workspace = self.work / "dense"
-        if (workspace / "stereo" / "fusion.cfg").exists():
-            return False
         shutil.rmtree(workspace, ignore_errors=True)
         dense.undistort(self.work / "sparse", self.photo_dir, workspace, self.options.dense)
 
     def stage_depth(self):
         marker = self.work / "dense" / "depth_report.json"
-        if marker.exists():
-            return False
         coverage = dense.compute_depth_maps(self.work / "dense", self.options.dense,
                                             progress=lambda it: tqdm(it, desc="depth maps", unit="view"))
         write_text_atomic(marker, json.dumps({"valid_fraction": coverage}, indent=2))
 
     def stage_fusion(self):
-        if (self.work / "fused.ply").exists():
-            return False
         count = dense.fuse(self.work / "dense", self.work / "fused.ply", self.options.dense)
         self.log(f"[fusion] {count} points")
 
@@ -192,8 +229,6 @@ class Recon:
 
     def stage_mesh(self):
         full, small = self.work / "mesh.ply", self.work / "mesh_decimated.ply"
-        if full.exists() and (small.exists() or not self.options.decimate_error_m):
-            return False
         if self.options.mesh == "poisson":
             meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)
         elif self.options.mesh == "2.5d":
@@ -222,8 +257,8 @@ class Recon:
 
     def stage_texture(self):
         marker = self.work / "texture_report.json"
-        if marker.exists() or not self.options.texture:
-            return False
+        if not self.options.texture:
+            return
         model = pycolmap.Reconstruction(self.work / "dense" / "sparse")
         photos = texturing.load_photos(model, self.work / "dense" / "images", read_rgb)
         surface = self.surface_mesh()
@@ -240,8 +275,6 @@ class Recon:
         write_text_atomic(marker, json.dumps(report, indent=2))
 
     def stage_scene(self):
-        if (self.scene_dir / "scene.json").exists():
-            return False
         surface = self.surface_mesh()
         sfm_report = json.loads((self.work / "sfm_report.json").read_text(encoding="utf-8"))
         provenance = {
