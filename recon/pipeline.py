@@ -28,6 +28,7 @@ import shutil
 import time
 from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -35,7 +36,6 @@ import numpy as np
 import pycolmap
 import trimesh
 from scipy.spatial import cKDTree
-from tqdm import tqdm
 
 from capture.geotag_io import sidecar_path
 from recon import dense, mesh as meshing, texture as texturing
@@ -43,7 +43,7 @@ from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
                           read_geotags)
-from recon.progress import StepProgress, log_stderr
+from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
@@ -188,7 +188,7 @@ class Recon:
         """The progress callback ``(step, done, total)`` for counts from inside ``stage``."""
         if self.progress is None:
             return StepProgress(stage, self.log)
-        return nullcontext(lambda step, done, total: self.progress(stage, step, done, total))
+        return nullcontext(partial(self.progress, stage))
 
     def stage_sfm(self):
         seed = focal_seed(self.photo_dir / self.names[0])
@@ -213,8 +213,9 @@ class Recon:
 
     def stage_depth(self):
         marker = self.work / "dense" / "depth_report.json"
-        coverage = dense.compute_depth_maps(self.work / "dense", self.options.dense,
-                                            progress=lambda it: tqdm(it, desc="depth maps", unit="view"))
+        with self.step_progress("depth") as progress:
+            coverage = dense.compute_depth_maps(self.work / "dense", self.options.dense,
+                                                progress=lambda views: counted(views, "depth maps", progress))
         write_text_atomic(marker, json.dumps({"valid_fraction": coverage}, indent=2))
 
     def stage_fusion(self):
@@ -262,8 +263,9 @@ class Recon:
         model = pycolmap.Reconstruction(self.work / "dense" / "sparse")
         photos = texturing.load_photos(model, self.work / "dense" / "images", read_rgb)
         surface = self.surface_mesh()
-        ortho = texturing.orthophoto(surface, photos, self.options.texture_options,
-                                     progress=lambda it: tqdm(it, desc="texture", unit="photo"))
+        with self.step_progress("texture") as progress:
+            ortho = texturing.orthophoto(surface, photos, self.options.texture_options,
+                                         progress=lambda items: counted(items, "photos", progress))
         with atomic_path(self.work / "terrain.glb") as tmp:
             tmp.write_bytes(texturing.textured_glb(surface, ortho))
         height, width = ortho.image.shape[:2]

@@ -12,16 +12,25 @@ def log_stderr(message: str) -> None:
     tqdm.write(message, file=sys.stderr)
 
 
-class StepProgress:
-    """A ``progress(step, done, total)`` callback for one stage (counts from inside it, e.g. SfM's "extract").
+def counted(items, step: str, progress):
+    """Yield ``items``, calling ``progress(step, n, N)`` before the first and after each one is dealt with."""
+    items = list(items)
+    progress(step, 0, len(items))
+    for done, item in enumerate(items, 1):
+        yield item
+        progress(step, done, len(items))
 
-    On a terminal each step gets a tqdm bar ``[stage] step``; otherwise ``log`` gets ``[stage] step n/N`` at
-    every tenth of the way and at the end. Use as a context manager (closes the last bar).
+
+class StepProgress:
+    """A ``progress(step, done, total)`` callback for one stage (counts from inside it: SfM's "extract", ...).
+
+    On a terminal (``stream``, default stderr) each step gets a tqdm bar ``[stage] step``; otherwise ``log`` gets
+    ``[stage] step n/N`` at every tenth of the way and at the end. Use as a context manager (closes the last bar).
     """
 
-    def __init__(self, stage: str, log=log_stderr, stream=sys.stderr):
-        self.stage, self.log, self.stream = stage, log, stream
-        self.terminal = stream.isatty()
+    def __init__(self, stage: str, log=log_stderr, stream=None):
+        self.stage, self.log, self.stream = stage, log, stream or sys.stderr
+        self.terminal = self.stream.isatty()
         self.step, self.bar, self.tenths = None, None, -1
 
     def __call__(self, step: str, done: int, total: int) -> None:

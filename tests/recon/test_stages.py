@@ -76,13 +76,17 @@ def test_first_run_runs_every_stage_and_reports_sfm_progress(flight):
     matched (12 neighbours > 3), the 2 others each matched with its 4 mapped neighbours and registered."""
     first = flight["first"]
     assert first.ran == list(STAGES)
-    expected = {"extract": 4, "match": 6, "map": 4, "extract rest": 2, "match rest": 8, "register": 2}
+    # then a depth map for each of the 6 views (4 m apart from 30 m: 7.6 deg > the 1.5 deg spacing), each
+    # textures the orthophoto
+    expected = {("sfm", "extract"): 4, ("sfm", "match"): 6, ("sfm", "map"): 4, ("sfm", "extract rest"): 2,
+                ("sfm", "match rest"): 8, ("sfm", "register"): 2, ("depth", "depth maps"): 6,
+                ("texture", "photos"): 6}
     for step, total in expected.items():
-        counts = [done for stage, name, done, n in first.progress if name == step and stage == "sfm" and n == total]
-        assert len(counts) == sum(name == step for _, name, _, _ in first.progress), step  # one total per step
+        reports = [(done, n) for *name, done, n in first.progress if tuple(name) == step]
+        counts = [done for done, _ in reports]
+        assert {n for _, n in reports} == {total}, (step, reports)
         assert counts[0] == 0 and counts[-1] == total and counts == sorted(counts), (step, counts)
-    steps = list(dict.fromkeys(name for _, name, _, _ in first.progress))
-    assert steps == list(expected)
+    assert list(dict.fromkeys(tuple(name) for *name, _, _ in first.progress)) == list(expected)
     report = json.loads((flight["scene"] / "work" / "sfm_report.json").read_text())
     assert report["registered"] == [f"view_{i}.png" for i in range(6)]
     assert "[depth] running (stage 3/7)" in first.logs
@@ -199,3 +203,16 @@ def test_progress_lines_when_stderr_is_not_a_terminal():
         progress("match", 0, 3)
         progress("match", 3, 3)
     assert lines == [f"[sfm] extract {n}/20" for n in range(0, 21, 2)] + ["[sfm] match 0/3", "[sfm] match 3/3"]
+
+
+def test_progress_bars_on_a_terminal():
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    lines, terminal = [], Terminal()
+    with StepProgress("sfm", lines.append, stream=terminal) as progress:
+        for done in range(25):
+            progress("map", done, 24)
+        assert (progress.bar.n, progress.bar.total) == (24, 24)  # tqdm draws at most every 0.1 s
+    assert lines == [] and "[sfm] map:   0%" in terminal.getvalue()
