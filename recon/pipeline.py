@@ -162,12 +162,14 @@ class Recon:
         return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags}}
 
     def run(self) -> dict:
-        """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict."""
+        """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.
+        ``self.seconds``: wall time per stage in this run (0 for a stage already done)."""
         self.work.mkdir(parents=True, exist_ok=True)
         records = stage_records(self.options, self.inputs())
         stamps = StageStamps(self.work / "stages")
         plan = stamps.plan(records, lambda stage: (self.scene_dir / OLD_MARKERS[stage]).exists())
         for stage in STAGES[:len(STAGES) - len(plan.todo)]:
+            self.seconds[stage] = 0.0
             self.log(f"[{stage}] already done")
         if plan.reason:
             self.log(f"[{plan.todo[0]}] {plan.reason}: redoing {', '.join(plan.todo)}")

@@ -67,11 +67,11 @@ def test_photos_without_overlap(tmp_path, capsys):
 def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     """18 real DJI photos (nadir, ~40 m): all register, positions agree with EXIF GPS, focal stays at the
     profile value, and the surface lies ~37-40 m under the cameras (DJI XMP RelativeAltitude is 40 m; the
-    self-calibrated focal would have put it at ~46 m). Rerunning resumes without redoing any stage."""
+    self-calibrated focal would have put it at ~46 m). Rerunning with the same options redoes no stage."""
     photos = shared_data / "brighton_beach" / "images"
     scene = tmp_path / "scene"
-    code, err = run_cli(["--photos", photos, "--out", scene, "--image-size", 1000, "--max-features", 4096,
-                         "--dense-size", 640], capsys)
+    argv = ["--photos", photos, "--out", scene, "--image-size", 1000, "--max-features", 4096, "--dense-size", 640]
+    code, err = run_cli(argv, capsys)
     assert code == 0, err
     report = json.loads((scene / "work" / "sfm_report.json").read_text())
     assert len(report["registered"]) == 18 and report["unregistered"] == []
@@ -95,7 +95,7 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     assert max(r.covered for r in realism) > 0.5
     mtime = (scene / "scene.json").stat().st_mtime
     shutil.rmtree(scene / "work" / "dense" / "images")  # a resumed run must not need it again
-    assert main(["--photos", str(photos), "--out", str(scene)]) == 0
+    assert main([str(a) for a in argv]) == 0  # the same options (other ones redo the stages they shape)
     assert capsys.readouterr().err.count("already done") == 7
     assert (scene / "scene.json").stat().st_mtime == mtime
 

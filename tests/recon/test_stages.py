@@ -106,6 +106,7 @@ def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
     before = snapshot(scene)
     rerun = Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
     assert rerun.ran == ["mesh", "texture", "scene"]
+    assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 3
     assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene" in rerun.logs
     differ = changed(before, snapshot(scene))
     assert {"work/mesh.ply", "work/terrain.glb", "scene.json"} <= differ
