@@ -362,7 +362,10 @@ def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
     fusion.max_normal_error = options.fusion_max_normal_error_deg
     fusion.num_threads = options.num_threads
     with atomic_path(output_ply) as tmp:
-        fused = pycolmap.stereo_fusion(tmp, workspace, input_type="geometric", options=fusion, output_type="ply")
+        try:
+            fused = pycolmap.stereo_fusion(tmp, workspace, input_type="geometric", options=fusion, output_type="ply")
+        finally:  # pycolmap also writes the points' visibility beside the PLY; nothing here reads it
+            Path(f"{tmp}.vis").unlink(missing_ok=True)
         if fused.num_points3D() == 0:
             raise DenseError(f"fusion found no point seen consistently in {options.fusion_min_pixels} depth maps: "
                              f"the photos overlap too little")

@@ -1,16 +1,23 @@
 """The whole recon run, stage by stage, resumable: photos + priors -> scene folder.
 
-Each stage leaves a marker under ``SCENE_DIR/work``; a stage whose marker exists is not redone:
+Each stage records what made it in a stamp, ``work/stages/<stage>.json`` (see :mod:`recon.stages`): the options
+it reads, its inputs and the fingerprint of the stage before it. A rerun skips the stages whose stamp is finished
+with the same fingerprint, and redoes the first other one and every stage after it, saying why on stderr
+(``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene``):
 
-| stage | marker |
-|---|---|
-| sfm | ``work/sfm_report.json`` (model in ``work/sparse``, ENU metres) |
-| undistort | ``work/dense/stereo/fusion.cfg`` |
-| depth | ``work/dense/depth_report.json`` (per-image maps are also skipped when present) |
-| fusion | ``work/fused.ply`` |
-| mesh | ``work/mesh.ply`` (decimated: ``work/mesh_decimated.ply``) |
-| texture | ``work/texture_report.json`` (textured mesh ``work/terrain.glb``; skipped with ``texture=False``) |
-| scene | ``SCENE_DIR/scene.json`` (``terrain.glb`` or the ``terrain.ply`` fallback, and ``cameras.json``) |
+| stage | options it reads (``ReconOptions``) | inputs | outputs |
+|---|---|---|---|
+| sfm | ``sfm.*`` but threads | photos (name, size, mtime), geotags files (SHA-256) | ``work/sfm_report.json``, model ``work/sparse`` (ENU m) |
+| undistort | ``dense.max_image_size`` | | ``work/dense`` (images, ``sparse``, ``stereo/fusion.cfg``) |
+| depth | ``dense`` pair choice, SGBM, consistency | | ``work/dense/depth_report.json``, per-image maps (below) |
+| fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
+| mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
+| texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture="none"``) |
+| scene | ``texture`` | | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` |
+
+The exact table is :data:`recon.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
+maps when rerun with the same fingerprint; redone for another one, it deletes them first (:data:`STALE_OUTPUTS`).
+Outputs of stages done before stamps existed (:data:`OLD_MARKERS`) are redone, with a message.
 """
 
 from __future__ import annotations
@@ -19,7 +26,9 @@ import json
 import os
 import shutil
 import time
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 
 import cv2
@@ -27,8 +36,8 @@ import numpy as np
 import pycolmap
 import trimesh
 from scipy.spatial import cKDTree
-from tqdm import tqdm
 
+from capture.geotag_io import sidecar_path
 from recon import dense, mesh as meshing, texture as texturing
 from recon.atlas import AtlasOptions, texture_atlas
 from recon.observed import observed_area
@@ -36,12 +45,22 @@ from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
                           read_geotags)
+from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm
+from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 
-STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
+
+#: What each stage wrote before stages were stamped (relative to the scene folder): such a stage is redone.
+OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fusion.cfg",
+               "depth": "work/dense/depth_report.json", "fusion": "work/fused.ply", "mesh": "work/mesh.ply",
+               "texture": "work/texture_report.json", "scene": "scene.json"}
+
+#: Partial outputs (relative to ``work``) that a stage reuses when it resumes its own interrupted run, and that are
+#: deleted before it is redone for another fingerprint.
+STALE_OUTPUTS = {"depth": ("dense/stereo/depth_maps", "dense/stereo/normal_maps")}
 
 #: What the origin's ``h0_ellipsoid_m`` (and so every absolute height of the scene) really is, by priors source.
 HEIGHT_DATUM = {
@@ -141,9 +160,12 @@ class Recon:
     """One run into ``scene_dir``; ``run()`` executes the stages not yet done and returns a summary dict."""
 
     def __init__(self, photo_dir: Path, geotags_csv: Path | None, scene_dir: Path, options: ReconOptions,
-                 log=tqdm.write):
+                 log=log_stderr, progress=None):
+        """``log``: one line at a time (default stderr); ``progress``: ``(stage, step, done, total)`` counts from
+        inside a stage (default: :class:`recon.progress.StepProgress` bars or lines on stderr)."""
         self.photo_dir, self.geotags_csv = Path(photo_dir), geotags_csv and Path(geotags_csv)
         self.scene_dir, self.options, self.log = Path(scene_dir), options, log
+        self.progress = progress
         if self.scene_dir.exists() and not self.scene_dir.is_dir():
             raise ValueError(f"{self.scene_dir}: is a file; the output must be a (new or resumable) scene folder")
         self.work = self.scene_dir / "work"
@@ -155,24 +177,48 @@ class Recon:
         k = self.options.hold_out
         self.held_out = frozenset(self.names[k - 1::k] if k else ())
 
+    def inputs(self) -> dict[str, dict]:
+        """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags)."""
+        geotags = "exif" if self.geotags_csv is None else {
+            path.name: file_sha256(path) for path in (self.geotags_csv, sidecar_path(self.geotags_csv))}
+        return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags}}
+
     def run(self) -> dict:
+        """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.
+        ``self.seconds``: wall time per stage in this run (0 for a stage already done)."""
         self.work.mkdir(parents=True, exist_ok=True)
-        for stage in tqdm(STAGES, desc="recon", unit="stage"):
+        records = stage_records(self.options, self.inputs())
+        stamps = StageStamps(self.work / "stages")
+        plan = stamps.plan(records, lambda stage: (self.scene_dir / OLD_MARKERS[stage]).exists())
+        for stage in STAGES[:len(STAGES) - len(plan.todo)]:
+            self.seconds[stage] = 0.0
+            self.log(f"[{stage}] already done")
+        if plan.reason:
+            self.log(f"[{plan.todo[0]}] {plan.reason}: redoing {', '.join(plan.todo)}")
+        for stage in plan.todo:
+            if not (plan.resume and stage == plan.todo[0]):
+                for stale in STALE_OUTPUTS.get(stage, ()):
+                    shutil.rmtree(self.work / stale, ignore_errors=True)
+            self.log(f"[{stage}] running (stage {STAGES.index(stage) + 1}/{len(STAGES)})")
+            stamps.write(stage, *records[stage], finished=False)
             t0 = time.perf_counter()
-            done = getattr(self, f"stage_{stage}")()
+            getattr(self, f"stage_{stage}")()
+            stamps.write(stage, *records[stage], finished=True)
             self.seconds[stage] = round(time.perf_counter() - t0, 2)
-            self.log(f"[{stage}] {'already done' if done is False else 'done'} ({self.seconds[stage]} s)")
+            self.log(f"[{stage}] done ({self.seconds[stage]} s)")
         return json.loads((self.scene_dir / "scene.json").read_text(encoding="utf-8"))
 
-    # Each stage returns False when its marker says it was done already.
+    def step_progress(self, stage: str):
+        """The progress callback ``(step, done, total)`` for counts from inside ``stage``."""
+        if self.progress is None:
+            return StepProgress(stage, self.log)
+        return nullcontext(partial(self.progress, stage))
 
     def stage_sfm(self):
-        report_path = self.work / "sfm_report.json"
-        if report_path.exists():
-            return False
         seed = focal_seed(self.photo_dir / self.names[0])
-        rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
-                              self.options.sfm, progress=lambda s: self.log(f"[sfm] {s}"))
+        with self.step_progress("sfm") as progress:
+            rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
+                                  self.options.sfm, log=lambda s: self.log(f"[sfm] {s}"), progress=progress)
         if report.unregistered:
             self.log(f"[sfm] WARNING: {len(report.unregistered)} photo(s) not registered: "
                      f"{', '.join(report.unregistered)}")
@@ -182,26 +228,21 @@ class Recon:
                  f"reprojection {report.mean_reprojection_error_px:.2f} px, residual RMS vs priors "
                  f"{report.residual_rms_enu_m} m (E/N/U)")
         write_model_atomic(rec, self.work / "sparse")
-        report.write(report_path)
+        report.write(self.work / "sfm_report.json")
 
     def stage_undistort(self):
         workspace = self.work / "dense"
-        if (workspace / "stereo" / "fusion.cfg").exists():
-            return False
         shutil.rmtree(workspace, ignore_errors=True)
         dense.undistort(self.work / "sparse", self.photo_dir, workspace, self.options.dense, self.held_out)
 
     def stage_depth(self):
         marker = self.work / "dense" / "depth_report.json"
-        if marker.exists():
-            return False
-        coverage = dense.compute_depth_maps(self.work / "dense", self.options.dense,
-                                            progress=lambda it: tqdm(it, desc="depth maps", unit="view"))
+        with self.step_progress("depth") as progress:
+            coverage = dense.compute_depth_maps(self.work / "dense", self.options.dense,
+                                                progress=lambda views: counted(views, "depth maps", progress))
         write_text_atomic(marker, json.dumps({"valid_fraction": coverage}, indent=2))
 
     def stage_fusion(self):
-        if (self.work / "fused.ply").exists():
-            return False
         count = dense.fuse(self.work / "dense", self.work / "fused.ply", self.options.dense)
         self.log(f"[fusion] {count} points")
 
@@ -218,8 +259,6 @@ class Recon:
 
     def stage_mesh(self):
         full, small = self.work / "mesh.ply", self.work / "mesh_decimated.ply"
-        if full.exists() and (small.exists() or not self.options.decimate_error_m):
-            return False
         if self.options.mesh == "3d":
             margin = self.options.crop_margin * median_view_depth(pycolmap.Reconstruction(self.work / "dense" / "sparse"))
             surface = meshing.surface_3d(self.work / "fused.ply", full, self.observed_area(), margin,
@@ -251,20 +290,21 @@ class Recon:
 
     def stage_texture(self):
         marker = self.work / "texture_report.json"
-        if marker.exists() or self.options.texture == "none":
-            return False
+        if self.options.texture == "none":
+            return
         model = pycolmap.Reconstruction(self.work / "dense" / "sparse")
         photos = texturing.load_photos(model, self.work / "dense" / "images", read_rgb)
         surface = self.surface_mesh()
-        progress = lambda it: tqdm(it, desc="texture", unit="photo")
-        if self.options.texture == "atlas":
-            textured = texture_atlas(surface, photos, self.options.atlas_options, progress,
-                                     log=lambda message: self.log(f"[texture] {message}"))
-            encoded, texel_m, coverage = textured.glb(), textured.texel_m, textured.coverage
-        else:
-            textured = texturing.orthophoto(surface, photos, self.options.texture_options, progress)
-            encoded, texel_m, coverage = texturing.textured_glb(surface, textured), textured.texels.texel_m, \
-                textured.coverage
+        with self.step_progress("texture") as progress:
+            count = lambda items: counted(items, "photos", progress)
+            if self.options.texture == "atlas":
+                textured = texture_atlas(surface, photos, self.options.atlas_options, count,
+                                         log=lambda message: self.log(f"[texture] {message}"))
+                encoded, texel_m, coverage = textured.glb(), textured.texel_m, textured.coverage
+            else:
+                textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
+                encoded, texel_m, coverage = texturing.textured_glb(surface, textured), textured.texels.texel_m, \
+                    textured.coverage
         with atomic_path(self.work / "terrain.glb") as tmp:
             tmp.write_bytes(encoded)
         height, width = textured.image.shape[:2]
@@ -276,8 +316,6 @@ class Recon:
         write_text_atomic(marker, json.dumps(report, indent=2))
 
     def stage_scene(self):
-        if (self.scene_dir / "scene.json").exists():
-            return False
         surface = self.surface_mesh()
         sfm_report = json.loads((self.work / "sfm_report.json").read_text(encoding="utf-8"))
         provenance = {

@@ -13,6 +13,7 @@ ENU metres, OpenCV camera axes), converted here only.
 from __future__ import annotations
 
 import json
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -20,7 +21,6 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 from scipy.spatial import cKDTree
-from tqdm import tqdm
 
 from flightplan.atomic import write_text_atomic
 from recon.priors import FocalSeed, PosePriors, PriorsError
@@ -90,8 +90,74 @@ class SfmReport:
 # ---------------------------------------------------------------- database, features, priors, matching
 
 
-def create_database(database_path: Path, photo_dir: Path, names, seed: FocalSeed, options: SfmOptions) -> None:
-    """Import ``names`` with one shared SIMPLE_RADIAL camera seeded at ``seed`` and extract CPU SIFT."""
+def no_progress(step: str, done: int, total: int) -> None:
+    """The default progress callback: ``done`` of ``total`` items of ``step`` finished (ignored)."""
+
+
+def renamed(progress, step: str):
+    """``progress`` reporting under another step name (the photos left out of mapping repeat extraction and
+    matching)."""
+    return lambda _, done, total: progress(step, done, total)
+
+
+#: Seconds between two looks at the database while pycolmap extracts or matches (it has no callbacks for those).
+POLL_S = 0.5
+
+
+def images_with_keypoints(db: pycolmap.Database) -> int:
+    """How many of the database's images have their features extracted."""
+    return sum(db.exists_keypoints(image.image_id) for image in db.read_all_images())
+
+
+class DatabaseProgress:
+    """While a pycolmap call that has no callbacks fills the database (extraction, matching), counts what it has
+    written, ``count(db)`` minus the count before it started, from a thread every :data:`POLL_S` seconds and
+    reports ``progress(step, n, total)`` when the count grows, and once more when the call is over (nothing runs
+    when ``progress`` is :func:`no_progress`).
+
+    COLMAP's database is in SQLite's WAL mode, so this second (reading) connection never blocks its writer.
+    """
+
+    def __init__(self, database_path: Path, step: str, total: int, count, progress=no_progress):
+        self.database_path, self.step, self.total = database_path, step, total
+        self.count, self.progress = count, progress
+        self.stop = threading.Event()
+        self.db = None
+
+    def __enter__(self) -> "DatabaseProgress":
+        if self.progress is no_progress:
+            return self
+        self.db = pycolmap.Database.open(self.database_path)
+        self.start, self.last = self.count(self.db), 0
+        self.progress(self.step, 0, self.total)
+        self.thread = threading.Thread(target=self.poll, daemon=True)
+        self.thread.start()
+        return self
+
+    def report(self) -> None:
+        done = self.count(self.db) - self.start
+        if done > self.last:
+            self.last = done
+            self.progress(self.step, done, self.total)
+
+    def poll(self) -> None:
+        while not self.stop.wait(POLL_S):
+            self.report()
+
+    def __exit__(self, *exc) -> None:
+        if self.db is None:
+            return
+        self.stop.set()
+        self.thread.join()
+        if exc[0] is None:
+            self.report()
+        self.db.close()
+
+
+def create_database(database_path: Path, photo_dir: Path, names, seed: FocalSeed, options: SfmOptions,
+                    progress=no_progress) -> None:
+    """Import ``names`` with one shared SIMPLE_RADIAL camera seeded at ``seed`` and extract CPU SIFT;
+    ``progress("extract", n, N)`` counts the photos done."""
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = "SIMPLE_RADIAL"
     reader.camera_params = f"{seed.focal_px},{seed.width / 2},{seed.height / 2},0"
@@ -99,15 +165,16 @@ def create_database(database_path: Path, photo_dir: Path, names, seed: FocalSeed
     extraction.max_image_size = options.max_image_size
     extraction.num_threads = options.num_threads
     extraction.sift.max_num_features = options.max_num_features
-    pycolmap.extract_features(
-        database_path,
-        photo_dir,
-        image_names=list(names),
-        camera_mode=pycolmap.CameraMode.SINGLE,
-        reader_options=reader,
-        extraction_options=extraction,
-        device=pycolmap.Device.cpu,
-    )
+    with DatabaseProgress(database_path, "extract", len(names), images_with_keypoints, progress):
+        pycolmap.extract_features(
+            database_path,
+            photo_dir,
+            image_names=list(names),
+            camera_mode=pycolmap.CameraMode.SINGLE,
+            reader_options=reader,
+            extraction_options=extraction,
+            device=pycolmap.Device.cpu,
+        )
 
 
 def write_pose_priors(database_path: Path, priors: PosePriors) -> None:
@@ -134,17 +201,40 @@ def _matching_options(options: SfmOptions) -> pycolmap.FeatureMatchingOptions:
     return matching
 
 
-def match_photos(database_path: Path, options: SfmOptions) -> None:
-    """Spatial matching from the priors (k nearest, no distance cap), optionally plus sequential."""
+def _spatial_pairing(options: SfmOptions) -> pycolmap.SpatialPairingOptions:
+    """Spatial pairing from the priors: k nearest, no distance cap."""
     pairing = pycolmap.SpatialPairingOptions()
     pairing.max_num_neighbors = options.spatial_neighbors
     pairing.min_num_neighbors = min(options.spatial_neighbors, 5)
     pairing.max_distance = 1e9
-    pycolmap.match_spatial(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
-    if options.sequential_overlap > 0:
-        seq = pycolmap.SequentialPairingOptions()
-        seq.overlap = options.sequential_overlap
-        pycolmap.match_sequential(database_path, _matching_options(options), seq, device=pycolmap.Device.cpu)
+    return pairing
+
+
+def _sequential_pairing(options: SfmOptions) -> pycolmap.SequentialPairingOptions:
+    pairing = pycolmap.SequentialPairingOptions()
+    pairing.overlap = options.sequential_overlap
+    return pairing
+
+
+def count_candidate_pairs(database_path: Path, options: SfmOptions) -> int:
+    """How many image pairs :func:`match_photos` will match: those COLMAP's own pair generators pick, each once."""
+    with pycolmap.Database.open(database_path) as db:
+        pairs = pycolmap.SpatialPairGenerator(_spatial_pairing(options), db).all_pairs()
+        if options.sequential_overlap > 0:
+            pairs += pycolmap.SequentialPairGenerator(_sequential_pairing(options), db).all_pairs()
+    return len({tuple(sorted(pair)) for pair in pairs})
+
+
+def match_photos(database_path: Path, options: SfmOptions, progress=no_progress) -> None:
+    """Spatial matching from the priors, optionally plus sequential; ``progress("match", n, N)`` counts the
+    image pairs matched."""
+    total = count_candidate_pairs(database_path, options)
+    with DatabaseProgress(database_path, "match", total, pycolmap.Database.num_matched_image_pairs, progress):
+        pycolmap.match_spatial(database_path, _matching_options(options), _spatial_pairing(options),
+                               device=pycolmap.Device.cpu)
+        if options.sequential_overlap > 0:
+            pycolmap.match_sequential(database_path, _matching_options(options), _sequential_pairing(options),
+                                      device=pycolmap.Device.cpu)
 
 
 def loop_pair(priors: PosePriors, names) -> tuple[str, str] | None:
@@ -169,13 +259,15 @@ def verified_inliers(database_path: Path, name_a: str, name_b: str) -> int:
     return int(dict(zip(pair_ids, counts)).get(wanted, 0))
 
 
-def match_pairs(database_path: Path, pairs, options: SfmOptions) -> None:
-    """Match and verify exactly the photo ``pairs`` (names), e.g. an orbit's closing pair."""
+def match_pairs(database_path: Path, pairs, options: SfmOptions, progress=no_progress) -> None:
+    """Match and verify exactly the photo ``pairs`` (names), e.g. an orbit's closing pair;
+    ``progress("match", n, N)`` counts the pairs matched."""
     pairs_file = Path(database_path).with_name("match_pairs.txt")
     pairs_file.write_text("".join(f"{a} {b}\n" for a, b in pairs), encoding="utf-8")
     pairing = pycolmap.ImportedPairingOptions()
     pairing.match_list_path = str(pairs_file)
-    pycolmap.match_image_pairs(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
+    with DatabaseProgress(database_path, "match", len(pairs), pycolmap.Database.num_matched_image_pairs, progress):
+        pycolmap.match_image_pairs(database_path, _matching_options(options), pairing, device=pycolmap.Device.cpu)
 
 
 def ensure_loop_matched(database_path: Path, pair: tuple[str, str], options: SfmOptions) -> int:
@@ -231,18 +323,40 @@ def largest_model(models: dict) -> pycolmap.Reconstruction:
     return max(models.values(), key=lambda rec: rec.num_reg_images())
 
 
-def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: SfmOptions) -> pycolmap.Reconstruction:
-    """Incremental mapping with position priors (or GLOMAP global mapping) -> the largest model."""
+class RegistrationCounter:
+    """Counts the images the incremental mapper registers (its callbacks carry no data: 2 at the initial pair, 1
+    per next image) and reports ``progress("map", n, total)``, never above ``total``."""
+
+    def __init__(self, total: int, progress=no_progress):
+        self.total, self.progress, self.count = total, progress, 0
+        progress("map", 0, total)
+
+    def add(self, images: int) -> None:
+        self.count = min(self.count + images, self.total)
+        self.progress("map", self.count, self.total)
+
+
+def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: SfmOptions,
+               progress=no_progress) -> pycolmap.Reconstruction:
+    """Incremental mapping with position priors (or GLOMAP global mapping) -> the largest model.
+
+    ``progress("map", n, N)`` counts the registered images (N: the images in the database); the global mapper
+    has no callbacks and reports once, at the end."""
     out_dir.mkdir(parents=True, exist_ok=True)
     refine = options.focal == "refine"
+    with pycolmap.Database.open(database_path) as db:
+        counter = RegistrationCounter(db.num_images(), progress)
     if options.mapper == "global":
         mapping = pycolmap.GlobalPipelineOptions()
         mapping.mapper.bundle_adjustment.refine_focal_length = refine
         mapping.num_threads = options.num_threads
         mapping.random_seed = options.seed
         models = pycolmap.global_mapping(database_path, photo_dir, out_dir, mapping)
+        counter.add(largest_model(models).num_reg_images())
     elif options.mapper == "incremental":
-        models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, _mapping_options(options, refine))
+        models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, _mapping_options(options, refine),
+                                              initial_image_pair_callback=lambda: counter.add(2),
+                                              next_image_callback=lambda: counter.add(1))
     else:
         raise ValueError(f"mapper must be 'incremental' or 'global', got {options.mapper!r}")
     return largest_model(models)
@@ -252,13 +366,14 @@ def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: Sfm
 REGISTER_NEIGHBOURS = 4
 
 
-def register_remaining(database_path: Path, rec: pycolmap.Reconstruction, names, progress=lambda it: it) -> list[str]:
+def register_remaining(database_path: Path, rec: pycolmap.Reconstruction, names, progress=no_progress) -> list[str]:
     """Register ``names`` (in the database, not in ``rec``) into ``rec`` in place, without bundle adjustment.
 
     Each photo gets an absolute pose (RANSAC P3P + refinement) from its 2-D matches to the model's 3-D points,
     and then triangulates new points with the registered photos it matches, so that its own observations can
     pick dense stereo neighbours. The model's cameras stay where mapping put them. Photos that fail are tried
-    once more after the others; returns the names that still failed.
+    once more after the others; returns the names that still failed. ``progress("register", n, N)`` counts the
+    photos tried in the first pass.
     """
     with pycolmap.Database.open(database_path) as db:
         cache = pycolmap.DatabaseCache.create(db, pycolmap.DatabaseCacheOptions())
@@ -270,13 +385,16 @@ def register_remaining(database_path: Path, rec: pycolmap.Reconstruction, names,
     pose_options.abs_pose_refine_extra_params = False
     triangulation = pycolmap.IncrementalTriangulatorOptions()
     pending = list(names)
+    progress("register", 0, len(pending))
     for attempt in range(2):
         failed = []
-        for name in progress(pending) if attempt == 0 else pending:
+        for tried, name in enumerate(pending, 1):
             if mapper.register_next_image(pose_options, ids[name]):
                 mapper.triangulate_image(triangulation, ids[name])
             else:
                 failed.append(name)
+            if attempt == 0:
+                progress("register", tried, len(pending))
         pending = failed
     mapper.end_reconstruction(False)
     return pending
@@ -485,12 +603,14 @@ def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
 
 
 def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, work_dir: Path,
-            options: SfmOptions = SfmOptions(), progress=None):
+            options: SfmOptions = SfmOptions(), log=None, progress=no_progress):
     """Run the SfM stage; returns (model in ENU, report). Writes ``work_dir/database.db`` and models.
 
-    ``progress`` (optional) is called with a stage name before each stage.
+    ``log`` (optional) is called with a step's name before each step; ``progress(step, n, N)`` with counts from
+    inside the steps: "extract" (photos), "match" (image pairs), "map" (images registered by the mapper), then
+    for the photos left out of mapping "extract rest", "match rest" and "register" (photos tried).
     """
-    step = progress or (lambda name: None)
+    step = log or (lambda name: None)
     photo_names = list(photo_names)
     check_inputs(photo_names, priors)
     work_dir.mkdir(parents=True, exist_ok=True)
@@ -509,26 +629,26 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
         seconds[name] = round(time.perf_counter() - t0, 2)
         return result
 
-    timed("extract", create_database, database, photo_dir, core, seed, options)
+    timed("extract", create_database, database, photo_dir, core, seed, options, progress)
     write_pose_priors(database, priors)
-    timed("match", match_photos, database, options)
+    timed("match", match_photos, database, options, progress)
     pair = loop_pair(priors, core)
     loop_inliers = ensure_loop_matched(database, pair, options) if pair else None
     if pair and loop_inliers < LOOP_MIN_INLIERS:
         warnings.append(f"orbit loop pair {pair} has only {loop_inliers} verified matches")
-    rec = timed("map", map_photos, database, photo_dir, work_dir / "mapped", options)
+    rec = timed("map", map_photos, database, photo_dir, work_dir / "mapped", options, progress)
     new = [n for n in photo_names if n not in core]
     if new:
         def register_rest():
-            create_database(database, photo_dir, new, seed, options)
+            create_database(database, photo_dir, new, seed, options, renamed(progress, "extract rest"))
             write_pose_priors(database, priors)
             posed = camera_poses(rec)
             mapped = [n for n in core if n in posed]
-            match_pairs(database, nearest_mapped_pairs(priors, mapped, new, REGISTER_NEIGHBOURS), options)
+            match_pairs(database, nearest_mapped_pairs(priors, mapped, new, REGISTER_NEIGHBOURS), options,
+                        renamed(progress, "match rest"))
             georegister_model(rec, core, priors)  # so that the model's frame is the priors' one throughout
             unposed = [n for n in photo_names if n not in posed]
-            return register_remaining(database, rec, unposed,
-                                      progress=lambda it: tqdm(it, desc="register", unit="photo", leave=False))
+            return register_remaining(database, rec, unposed, progress)
 
         failed = timed("register_rest", register_rest)
         if failed:

@@ -179,9 +179,10 @@ def bench_closed_loop() -> list[dict]:
             if first is not None:
                 same_dense = dense_px == CLOSED_LOOP_ROWS[0][1]
                 same_mesh = same_dense and mesh == CLOSED_LOOP_ROWS[0][2]
-                reuse_stages(first, scene_dir, ("sfm_report.json", "sparse")
-                             + (("dense", "fused.ply") if same_dense else ())
-                             + (("mesh.ply", "mesh_decimated.ply") if same_mesh else ()))
+                reuse_stages(first, scene_dir, ("sfm_report.json", "sparse", "stages/sfm.json")
+                             + (("dense", "fused.ply", "stages/undistort.json", "stages/depth.json",
+                                 "stages/fusion.json") if same_dense else ())
+                             + (("mesh.ply", "mesh_decimated.ply", "stages/mesh.json") if same_mesh else ()))
             options = ReconOptions(sfm=SfmOptions(max_image_size=800, max_num_features=4096),
                                    dense=DenseOptions(max_image_size=dense_px), mesh=mesh,
                                    texture=texture is not None, texture_options=texture or TextureOptions())

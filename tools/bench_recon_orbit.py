@@ -149,7 +149,7 @@ def main(argv=None) -> int:
         scene_dir = args.out / f"scene-{sfm.max_image_size}-{sfm.every_kth or 'auto'}-{options.view_spacing_deg:g}"
         shutil.rmtree(scene_dir, ignore_errors=True)
         if runs:
-            reuse_stages(runs[0]["scene_dir"], scene_dir, ("sfm_report.json", "sparse"))
+            reuse_stages(runs[0]["scene_dir"], scene_dir, ("sfm_report.json", "sparse", "stages/sfm.json"))
         run = Recon(flight.photo_dir, flight.geotags_csv, scene_dir, ReconOptions(sfm=sfm, dense=options))
         run.run()
         runs.append({"spacing": options.view_spacing_deg, "scene_dir": scene_dir, "seconds": run.seconds,

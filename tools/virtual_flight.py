@@ -132,8 +132,9 @@ def height_errors(reconstructed: Scene, truth: Scene, radius_m: float, step_m: f
 
 
 def reuse_stages(source: Path, target: Path, keep: tuple[str, ...]) -> None:
-    """Copy the finished-stage files ``keep`` (paths under ``work``) of one recon run into a fresh one, so that
-    a benchmark compares later-stage options without redoing (and re-timing) the stages they share."""
+    """Copy the finished-stage files ``keep`` (paths under ``work``, with each stage's stamp
+    ``stages/<stage>.json``: without it the stage is redone) of one recon run into a fresh one, so that a benchmark
+    compares later-stage options without redoing (and re-timing) the stages they share."""
     for name in keep:
         src, dst = source / "work" / name, target / "work" / name
         dst.parent.mkdir(parents=True, exist_ok=True)

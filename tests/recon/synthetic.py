@@ -2,8 +2,10 @@
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from recon.dense import View
+from tools.geotag_csv import geotag_row
 
 WIDTH, HEIGHT, FOCAL = 640, 480, 600.0
 TEXTURE_M_PER_PX = 0.02
@@ -47,3 +49,15 @@ def make_texture(seed: int = 7) -> np.ndarray:
     big = cv2.resize(noise, (TEXTURE_SIZE, TEXTURE_SIZE), interpolation=cv2.INTER_CUBIC)
     fine = rng.uniform(-40, 40, (TEXTURE_SIZE, TEXTURE_SIZE)).astype(np.float32)
     return np.clip(big + cv2.GaussianBlur(fine, (0, 0), 1.5), 0, 255).astype(np.uint8)
+
+
+def write_nadir_photos(photos, centres, texture: np.ndarray) -> list[str]:
+    """Nadir photos ``view_<i>.png`` of the textured plane from ``centres`` (ENU m, yaw 0) into the folder
+    ``photos``; returns their geotags.csv rows (exact positions and attitudes)."""
+    photos.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for i, centre in enumerate(centres):
+        view = look_down_view(centre, yaw_deg=0.0)
+        cv2.imwrite(str(photos / f"view_{i}.png"), render_plane(texture, view))
+        rows.append(geotag_row(f"view_{i}.png", centre, Rotation.from_matrix(view.R.T).as_quat(scalar_first=True)))
+    return rows

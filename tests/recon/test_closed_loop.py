@@ -24,8 +24,9 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     world = load_scene(demo_scene_dir("small"))
     flight = fly(world, ORBIT, tmp_path)
     scene_dir = tmp_path / "scene"
+    sizes = ("--image-size", 800, "--max-features", 4096, "--dense-size", 800)
     code = main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", scene_dir,
-                                  "--image-size", 800, "--max-features", 4096, "--dense-size", 800)])
+                                  *sizes)])
     assert code == 0, capsys.readouterr().err
     report = json.loads((scene_dir / "work" / "sfm_report.json").read_text())
     assert report["unregistered"] == []
@@ -56,10 +57,12 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     assert np.median([r.error_percent for r in realism]) < 7.0  # measured ~4 % (JPEG photos, 2.5-D walls)
 
     # the fallback: the same run without texture gives a vertex-coloured scene that sim loads (decimation drops
-    # the colours; the pipeline carries them over), resumed from the finished stages
+    # the colours; the pipeline carries them over), resumed from the finished stages: only texture and scene rerun
     plain = tmp_path / "plain"
     shutil.copytree(scene_dir / "work", plain / "work", ignore=shutil.ignore_patterns("texture_report.json", "*.glb"))
+    capsys.readouterr()
     assert main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", plain,
-                                  "--texture", "none")]) == 0
+                                  *sizes, "--texture", "none")]) == 0
+    assert capsys.readouterr().err.count("already done") == 5
     fallback = load_scene(plain)
     assert fallback.surface.texture is None and fallback.surface.vertex_colors.std() > 10

@@ -1,0 +1,219 @@
+"""Recon stages that know what made them: reruns redo exactly the stages whose options or inputs changed, and SfM
+reports its progress from inside (six nadir views of a textured plane, the whole pipeline at small sizes)."""
+
+import dataclasses
+import io
+import json
+import os
+import shutil
+
+import pycolmap
+import pytest
+
+from recon.dense import DenseOptions
+from recon.pipeline import Recon, ReconOptions
+from recon.progress import StepProgress
+from recon.sfm import SfmOptions
+from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
+from tests.recon.synthetic import make_texture, write_nadir_photos
+from tools.geotag_csv import write_geotags
+
+CENTRES = [(x, y, 30.0) for y in (0.0, 4.0) for x in (0.0, 4.0, 8.0)]
+# every 2nd photo mapped (view_0, view_2, view_4 and the last, view_5), view_1 and view_3 registered afterwards
+OPTIONS = ReconOptions(sfm=SfmOptions(max_num_features=2048, every_kth=2, num_threads=2),
+                       dense=DenseOptions(max_image_size=320, num_threads=2))
+
+
+class Run:
+    """A Recon run into ``scene`` that records which stage functions ran, the log and the progress reports."""
+
+    def __init__(self, flight, scene, options=OPTIONS):
+        self.ran, self.logs, self.progress = [], [], []
+        self.recon = Recon(flight["photos"], flight["geotags"], scene, options, log=self.logs.append,
+                           progress=lambda *report: self.progress.append(report))
+        for stage in STAGES:
+            body = getattr(self.recon, f"stage_{stage}")
+            setattr(self.recon, f"stage_{stage}", self.spy(stage, body))
+        self.recon.run()
+
+    def spy(self, stage, body):
+        def run():
+            self.ran.append(stage)
+            body()
+        return run
+
+
+@pytest.fixture(scope="module")
+def flight(tmp_path_factory):
+    """The photos, geotags and a finished scene (with the first run's record)."""
+    folder = tmp_path_factory.mktemp("flight")
+    rows = write_nadir_photos(folder / "photos", CENTRES, make_texture())
+    pycolmap.logging.minloglevel = 2
+    flight = {"photos": folder / "photos", "geotags": write_geotags(folder, rows), "scene": folder / "scene"}
+    flight["first"] = Run(flight, flight["scene"])
+    return flight
+
+
+@pytest.fixture
+def scene(flight, tmp_path):
+    """A copy of the finished scene (modification times kept)."""
+    return shutil.copytree(flight["scene"], tmp_path / "scene")
+
+
+def snapshot(scene):
+    """``relative path -> (mtime_ns, bytes)`` of every file of the scene folder (stamps left out)."""
+    return {str(p.relative_to(scene)): (p.stat().st_mtime_ns, p.read_bytes()) for p in sorted(scene.rglob("*"))
+            if p.is_file() and "stages" not in p.parts}
+
+
+def changed(before, after):
+    return {path for path in before.keys() | after.keys() if before.get(path) != after.get(path)}
+
+
+@pytest.mark.slow
+def test_first_run_runs_every_stage_and_reports_sfm_progress(flight):
+    """Counts reach the callback in order and end at the known totals: 4 photos mapped, all 6 pairs of them
+    matched (12 neighbours > 3), the 2 others each matched with its 4 mapped neighbours and registered."""
+    first = flight["first"]
+    assert first.ran == list(STAGES)
+    # then a depth map for each of the 6 views (4 m apart from 30 m: 7.6 deg > the 1.5 deg spacing), each
+    # textures the orthophoto
+    expected = {("sfm", "extract"): 4, ("sfm", "match"): 6, ("sfm", "map"): 4, ("sfm", "extract rest"): 2,
+                ("sfm", "match rest"): 8, ("sfm", "register"): 2, ("depth", "depth maps"): 6,
+                ("texture", "photos"): 6}
+    for step, total in expected.items():
+        reports = [(done, n) for *name, done, n in first.progress if tuple(name) == step]
+        counts = [done for done, _ in reports]
+        assert {n for _, n in reports} == {total}, (step, reports)
+        assert counts[0] == 0 and counts[-1] == total and counts == sorted(counts), (step, counts)
+    assert list(dict.fromkeys(tuple(name) for *name, _, _ in first.progress)) == list(expected)
+    report = json.loads((flight["scene"] / "work" / "sfm_report.json").read_text())
+    assert report["registered"] == [f"view_{i}.png" for i in range(6)]
+    assert "[depth] running (stage 3/7)" in first.logs
+
+
+@pytest.mark.slow
+def test_unchanged_rerun_does_nothing(flight, scene):
+    before = snapshot(scene)
+    rerun = Run(flight, scene)
+    assert rerun.ran == [] and rerun.progress == []
+    assert [line for line in rerun.logs if "already done" in line] == [f"[{s}] already done" for s in STAGES]
+    assert changed(before, snapshot(scene)) == set()
+
+
+@pytest.mark.slow
+def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
+    before = snapshot(scene)
+    rerun = Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
+    assert rerun.ran == ["mesh", "texture", "scene"]
+    assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 3
+    assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene" in rerun.logs
+    differ = changed(before, snapshot(scene))
+    assert {"work/mesh.ply", "work/terrain.glb", "scene.json"} <= differ
+    assert not {"work/sfm_report.json", "work/fused.ply", "work/dense/depth_report.json"} & differ
+    assert json.loads((scene / "scene.json").read_text())["provenance"]["options"]["grid_m"] == 1.0
+    assert Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0)).ran == []  # and now it is done
+
+
+@pytest.mark.slow
+def test_changed_depth_option_recomputes_every_depth_map(flight, scene):
+    """Maps of the old fingerprint are not reused (compute_depth_maps skips maps that exist)."""
+    maps = sorted((scene / "work" / "dense" / "stereo" / "depth_maps").glob("*.bin"))
+    assert maps
+    before = snapshot(scene)
+    options = dataclasses.replace(OPTIONS, dense=dataclasses.replace(OPTIONS.dense, consistency=0.05))
+    rerun = Run(flight, scene, options)
+    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene"]
+    assert ("[depth] options changed (dense.consistency: 0.02 -> 0.05): redoing depth, fusion, mesh, texture, "
+            "scene") in rerun.logs
+    differ = changed(before, snapshot(scene))
+    assert {str(p.relative_to(scene)) for p in maps} <= differ
+    assert not {"work/sfm_report.json", "work/sparse/images.bin", "work/dense/sparse/images.bin"} & differ
+
+
+@pytest.mark.slow
+def test_interrupted_depth_stage_resumes_its_finished_maps(flight, scene):
+    stamp_path = scene / "work" / "stages" / "depth.json"
+    stamp = json.loads(stamp_path.read_text())
+    stamp_path.write_text(json.dumps({**stamp, "finished": False}))
+    maps = sorted((scene / "work" / "dense" / "stereo").glob("*_maps/*.bin"))
+    lost = {p for p in maps if p.name.startswith("view_0.")}  # its depth and normal maps were never written
+    for path in lost:
+        path.unlink()
+    before = snapshot(scene)
+    rerun = Run(flight, scene)
+    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene"]
+    assert "[depth] interrupted before it finished: redoing depth, fusion, mesh, texture, scene" in rerun.logs
+    assert {str(p.relative_to(scene)) for p in maps} & changed(before, snapshot(scene)) == {
+        str(p.relative_to(scene)) for p in lost}
+
+
+@pytest.mark.slow
+def test_changed_photo_redoes_from_sfm(flight, tmp_path):
+    photos = shutil.copytree(flight["photos"], tmp_path / "photos")
+    scene = shutil.copytree(flight["scene"], tmp_path / "scene")
+    photo = photos / "view_3.png"
+    os.utime(photo, ns=(photo.stat().st_atime_ns, photo.stat().st_mtime_ns + 10**9))
+    rerun = Run({**flight, "photos": photos}, scene)
+    assert rerun.ran == list(STAGES)
+    assert "[sfm] photos changed (1 modified: view_3.png): redoing " + ", ".join(STAGES) in rerun.logs
+
+
+@pytest.mark.slow
+def test_outputs_from_before_stamps_are_redone(flight, scene):
+    shutil.rmtree(scene / "work" / "stages")
+    rerun = Run(flight, scene)
+    assert rerun.ran == list(STAGES)
+    assert ("[sfm] output without a fingerprint (written before stages recorded their options and inputs): "
+            "redoing " + ", ".join(STAGES)) in rerun.logs
+
+
+def test_every_option_field_is_claimed_by_a_stage():
+    fields = option_fields(ReconOptions())
+    assert unclaimed_options(ReconOptions()) == []
+    claimed = [c for stage in STAGES for c in STAGE_OPTIONS[stage]]
+    for path in claimed + list(NOT_SHAPING):  # no claim is a typo: each names a field or a group of fields
+        assert any(f == path or f.startswith(f"{path}.") for f in fields), path
+    assert not set(NOT_SHAPING) & set(claimed)
+
+
+def test_a_new_option_nobody_claims_stops_the_run():
+    @dataclasses.dataclass(frozen=True)
+    class Extended(ReconOptions):
+        atlas_px: int = 2048
+
+    assert unclaimed_options(Extended()) == ["atlas_px"]
+    with pytest.raises(RuntimeError, match="atlas_px claimed by no stage"):
+        stage_records(Extended(), {})
+
+
+def test_fingerprints_chain_from_the_changed_stage_on():
+    base = stage_records(OPTIONS, {"sfm": {"photos": {"a.jpg": [1, 2]}}})
+    faster = stage_records(dataclasses.replace(OPTIONS, sfm=dataclasses.replace(OPTIONS.sfm, num_threads=8)),
+                           {"sfm": {"photos": {"a.jpg": [1, 2]}}})
+    mesh = stage_records(dataclasses.replace(OPTIONS, mesh="poisson"), {"sfm": {"photos": {"a.jpg": [1, 2]}}})
+    assert [base[s][1] == faster[s][1] for s in STAGES] == [True] * 7  # threads shape nothing
+    assert [base[s][1] == mesh[s][1] for s in STAGES] == [True] * 4 + [False] * 3
+
+
+def test_progress_lines_when_stderr_is_not_a_terminal():
+    lines = []
+    with StepProgress("sfm", lines.append, stream=io.StringIO()) as progress:
+        for done in range(21):
+            progress("extract", done, 20)
+        progress("match", 0, 3)
+        progress("match", 3, 3)
+    assert lines == [f"[sfm] extract {n}/20" for n in range(0, 21, 2)] + ["[sfm] match 0/3", "[sfm] match 3/3"]
+
+
+def test_progress_bars_on_a_terminal():
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    lines, terminal = [], Terminal()
+    with StepProgress("sfm", lines.append, stream=terminal) as progress:
+        for done in range(25):
+            progress("map", done, 24)
+        assert (progress.bar.n, progress.bar.total) == (24, 24)  # tqdm draws at most every 0.1 s
+    assert lines == [] and "[sfm] map:   0%" in terminal.getvalue()
