@@ -18,9 +18,7 @@ in the same frame).
    shared face centroids (:func:`recon.texture.solve_log_gains`) and applied to every sample.
 5. **Texels**: each texel inside a face (or in the gutter beside it) gets that face's 3-D point (barycentric,
    clamped to the triangle), projected into the face's photo and sampled bilinearly in linear light, times the
-   photo's gain, plus the seam-levelling offset interpolated from its face's corners (colour offsets per chart
-   vertex that make neighbouring patches agree along their seams, varying smoothly inside each patch). Texels of
-   faces no photo sees take the nearest coloured texel.
+   photo's gain. Texels of faces no photo sees take the nearest coloured texel.
 """
 
 from __future__ import annotations
@@ -46,8 +44,6 @@ from sim.worlds.glb import encode_textured_glb
 RASTER_SHIFT = 4
 #: Texels per chunk when turning texels into surface points (bounds the memory of the barycentric step).
 TEXEL_CHUNK = 1 << 20
-#: Standard deviation (photo pixels) of the blur applied before comparing colours across a seam.
-SEAM_BLUR_PX = 3.0
 #: Packing efficiency assumed when sizing the atlas before xatlas packs it.
 PACKING_EFFICIENCY = 0.7
 
@@ -58,8 +54,7 @@ class AtlasOptions:
     uniformly when that would exceed ``max_texture_px`` on a side); ``candidates`` best views kept per face; ``smoothness`` Potts penalty per
     neighbour on another photo (data costs are in [0, 1]); ``border_px`` how far inside the image a face's centroid
     must project; ``gain_faces`` faces sampled for the exposure gains, ``min_overlap`` of them shared for a photo
-    pair to count; ``level_seams`` with ``seam_smoothness`` (:func:`seam_offsets`); ``padding_px`` gutter between
-    charts."""
+    pair to count; ``padding_px`` gutter between charts."""
 
     texel_m: float | None = None
     max_texture_px: int = 8192
@@ -68,8 +63,6 @@ class AtlasOptions:
     iterations: int = 30
     border_px: float = 4.0
     balance_exposure: bool = True
-    level_seams: bool = True
-    seam_smoothness: float = 0.1
     gain_faces: int = 20000
     min_overlap: int = 30
     padding_px: int = 2
@@ -234,20 +227,8 @@ def in_plane_uv(triangles: np.ndarray) -> np.ndarray:
     return uv
 
 
-@dataclass(frozen=True)
-class Charts:
-    """The mesh split into charts before packing: per split vertex its ``source`` vertex (M,) of the mesh, its
-    chart ``uv`` (M, 2) and the photo ``label`` of its patch (-1: unseen); ``faces`` (F, 3) into the split
-    vertices, in the mesh's face order."""
-
-    source: np.ndarray
-    faces: np.ndarray
-    uv: np.ndarray
-    label: np.ndarray
-
-
-def chart_uvs(mesh: trimesh.Trimesh, labels: np.ndarray, photos: list[Photo]) -> Charts:
-    """Split vertices and chart UVs (:class:`Charts`), one chart per patch of faces on one photo.
+def chart_uvs(mesh: trimesh.Trimesh, labels: np.ndarray, photos: list[Photo]):
+    """Split vertices, faces and chart UVs before packing: (source vertex (M,), faces (F, 3), uv (M, 2)).
 
     A patch's UVs are its vertices' pixel positions in its photo (divided by the image's larger side); an unseen
     face's are its corners in its own plane, shifted so that no two such charts share a UV (xatlas welds vertices
@@ -269,7 +250,7 @@ def chart_uvs(mesh: trimesh.Trimesh, labels: np.ndarray, photos: list[Photo]) ->
         flat = in_plane_uv(vertices[faces[unseen]])
         shift = np.column_stack([(unseen * 0.6180339887) % 1.0, (unseen * 0.4142135624) % 1.0]) * 10.0
         uv[split_faces[unseen].ravel()] = (flat + shift[:, None, :]).reshape(-1, 2)
-    return Charts(source, split_faces, uv, vertex_label)
+    return source, split_faces, uv
 
 
 def pack(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, texels_per_m: float, max_texture_px: int,
@@ -311,62 +292,6 @@ def atlas_gains(views: FaceViews, centroids: np.ndarray, photos: list[Photo], li
     return np.exp(solve_log_gains(log_luminance, options.min_overlap))
 
 
-def seen_colours(scene: Scene, vertices: np.ndarray, charts: Charts, which: np.ndarray, photos: list[Photo],
-                 linear: list[np.ndarray], gains: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Colour (photo x gain, low-passed by a Gaussian of ``SEAM_BLUR_PX`` so that texture detail is not fitted)
-    of the split vertices ``which`` in their own patch's photo, and whether that photo sees the point (inside the
-    image and not occluded: a patch's border vertex is often outside or hidden in its photo, which is why the
-    label changes there)."""
-    colour, seen = np.zeros((len(which), 3)), np.zeros(len(which), bool)
-    for k in np.unique(charts.label[which]):
-        own = np.flatnonzero(charts.label[which] == k)
-        points = vertices[charts.source[which[own]]]
-        centre = np.asarray(photos[k].T_world_cam, dtype=np.float64)[:3, 3]
-        to_point = points - centre
-        distance = np.sqrt(row_dots(to_point, to_point))
-        tolerance = np.maximum(0.05, 2e-3 * distance)
-        cam = photos[k].camera
-        pixels, depth = project_world_points(cam, photos[k].T_world_cam, points)
-        in_image = (depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] <= cam.width - 1) & (pixels[:, 1] >= 0) \
-            & (pixels[:, 1] <= cam.height - 1)
-        seen[own] = in_image & ~occluded(scene, centre[None], to_point / distance[:, None], distance - tolerance)
-        colour[own] = gains[k] * sample_photo(photos[k], cv2.GaussianBlur(linear[k], (0, 0), SEAM_BLUR_PX), points)
-    return colour, seen
-
-
-def seam_offsets(scene: Scene, vertices: np.ndarray, charts: Charts, photos: list[Photo], linear: list[np.ndarray],
-                 gains: np.ndarray, smoothness: float) -> np.ndarray:
-    """Linear-light colour offsets (M, 3) per split vertex that level the seams between patches (Waechter et
-    al.'s global seam levelling, small): where one mesh vertex lies on patches of different photos that both see
-    it, their colours there (:func:`seen_colours`) should agree after the offsets; along every edge inside a patch
-    the offsets should vary little (weight ``smoothness``); a tiny ridge keeps unconstrained offsets at 0. Least
-    squares by conjugate gradients, one solve per channel."""
-    order = np.argsort(charts.source, kind="stable")
-    a, b = order[:-1], order[1:]
-    seam = (charts.source[a] == charts.source[b]) & (charts.label[a] >= 0) & (charts.label[b] >= 0) \
-        & (charts.label[a] != charts.label[b])
-    a, b = a[seam], b[seam]
-    colour_a, seen_a = seen_colours(scene, vertices, charts, a, photos, linear, gains)
-    colour_b, seen_b = seen_colours(scene, vertices, charts, b, photos, linear, gains)
-    both = seen_a & seen_b
-    a, b, difference = a[both], b[both], (colour_b - colour_a)[both]
-    edges = charts.faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    count, unknowns = len(a), len(charts.source)
-    rows = np.concatenate([np.arange(count), np.arange(count), count + np.arange(len(edges)),
-                           count + np.arange(len(edges)), count + len(edges) + np.arange(unknowns)])
-    columns = np.concatenate([a, b, edges[:, 0], edges[:, 1], np.arange(unknowns)])
-    values = np.concatenate([np.ones(count), -np.ones(count), np.full(len(edges), smoothness),
-                             np.full(len(edges), -smoothness), np.full(unknowns, 1e-3)])
-    design = sparse.csr_matrix((values, (rows, columns)), shape=(count + len(edges) + unknowns, unknowns))
-    normal = (design.T @ design).tocsr()
-    offsets = np.zeros((unknowns, 3))
-    for channel in range(3):
-        target = np.zeros(design.shape[0])
-        target[:count] = difference[:, channel]
-        offsets[:, channel] = sparse.linalg.cg(normal, design.T @ target, maxiter=300)[0]
-    return offsets
-
-
 # ---------------------------------------------------------------- 5. texels
 
 
@@ -398,9 +323,9 @@ def dot2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
 
 
-def texel_weights(uv_px: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
-    """Barycentric weights (N, 3) of texel centres ``texel_xy`` (N, 2) in triangles given by their texel corners
-    ``uv_px`` (N, 3, 2), clamped to the triangle (gutter texels take the nearest point on it)."""
+def texel_points(uv_px: np.ndarray, corners_3d: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
+    """3-D points (N, 3) of texel centres ``texel_xy`` (N, 2) inside triangles given by their texel corners
+    ``uv_px`` (N, 3, 2) and 3-D corners (N, 3, 3): barycentric coordinates, clamped to the triangle."""
     v0, v1 = uv_px[:, 1] - uv_px[:, 0], uv_px[:, 2] - uv_px[:, 0]
     v2 = texel_xy - uv_px[:, 0]
     d00, d01, d11 = dot2(v0, v0), dot2(v0, v1), dot2(v1, v1)
@@ -412,14 +337,13 @@ def texel_weights(uv_px: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
     b2 = np.where(degenerate, 1.0 / 3.0, (d00 * d21 - d01 * d20) / denominator)
     weights = np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, None)
     weights /= np.maximum(weights.sum(axis=1), 1e-12)[:, None]
-    return weights
+    return np.einsum("nk,nkj->nj", weights, corners_3d)
 
 
-def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, offsets: np.ndarray,
-          labels: np.ndarray, photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray) -> np.ndarray:
+def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
+          photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray) -> np.ndarray:
     """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face sampled from the face's photo times its
-    gain, plus the seam-levelling ``offsets`` of its face's corners (M', 3) interpolated; the rest take the
-    nearest painted texel (grey if none)."""
+    gain; the rest take the nearest painted texel (grey if none)."""
     height, width = ids.shape
     colour = np.zeros((height * width, 3), np.float32)
     painted = np.zeros(height * width, bool)
@@ -429,16 +353,13 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
         chunk = texels[start:start + TEXEL_CHUNK]
         face = flat[chunk]
         rows, cols = np.divmod(chunk, width)
-        corners = faces[face]
-        weights = texel_weights(uv_px[corners], np.column_stack([cols, rows]).astype(float))
-        points = np.einsum("nk,nkj->nj", weights, vertices[corners])
+        points = texel_points(uv_px[faces[face]], vertices[faces[face]], np.column_stack([cols, rows]).astype(float))
         label = labels[face]
         for k in np.unique(label):
             own = label == k
             colour[chunk[own]] = gains[k] * sample_photo(photos[k], linear[k], points[own])
-        colour[chunk] += np.einsum("nk,nkj->nj", weights, offsets[corners])
         painted[chunk] = True
-    image = to_srgb8(np.maximum(colour, 0.0)).reshape(height, width, 3)
+    image = to_srgb8(colour).reshape(height, width, 3)
     if not painted.any():
         return np.full_like(image, 128)
     nearest = ndimage.distance_transform_edt(~painted.reshape(height, width), return_distances=False,
@@ -461,17 +382,15 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     centroids = np.asarray(mesh.triangles_center)
     gains = (atlas_gains(views, centroids, photos, linear, options) if options.balance_exposure
              else np.ones(len(photos)))
-    charts = chart_uvs(mesh, labels, photos)
+    source, split_faces, uv = chart_uvs(mesh, labels, photos)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
-    offsets = (seam_offsets(scene, vertices, charts, photos, linear, gains, options.seam_smoothness)
-               if options.level_seams else np.zeros((len(charts.source), 3)))
     texel_m = options.texel_m or photo_pixel_m(views)
     vmapping, faces, packed_uv, width, height, texels_per_m = pack(
-        vertices[charts.source], charts.faces, charts.uv, 1.0 / texel_m, options.max_texture_px, options.padding_px)
-    packed_vertices = vertices[charts.source[vmapping]]
+        vertices[source], split_faces, uv, 1.0 / texel_m, options.max_texture_px, options.padding_px)
+    packed_vertices = vertices[source[vmapping]]
     uv_px = packed_uv * np.array([width, height]) - 0.5
     ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
-    image = paint(ids, uv_px, faces, packed_vertices, offsets[vmapping], labels, photos, linear, gains)
+    image = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains)
     area = np.asarray(mesh.area_faces)
     coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
