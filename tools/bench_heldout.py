@@ -2,6 +2,7 @@
 
     .venv/bin/python tools/bench_heldout.py PHOTO_DIR [PHOTO_DIR ...] [--hold-out 5] [--image-size 800]
                                            [--dense-size 640] [--width 800] [--work DIR]
+                                           [--variant LABEL=MESH:TEXTURE ...]
 
 For each photo folder, through the command-line tools as a user runs them:
 
@@ -13,7 +14,12 @@ For each photo folder, through the command-line tools as a user runs them:
    formula 3 per photo, raw and with the photo's texture exposure gain (render / g in linear light), over the
    whole image and over the covered pixels (where the render hit the mesh).
 
-Table: one row per group (held-out, used, all photos): mean formula 3 raw / with gain, whole image / covered
+Each ``--variant`` (default ``3d-atlas=3d:atlas``; e.g. add ``2.5d-ortho=2.5d:ortho``) is a scene of its own:
+the first is reconstructed from scratch, the others start from a copy of its ``work/`` so that only the stages
+their ``--mesh``/``--texture`` change are redone (the stage stamps say which), and their recon time is that of
+those stages.
+
+Table: one row per variant and group (held-out, used, all photos): mean formula 3 raw / with gain, whole image / covered
 pixels, mean coverage; then the seconds of each step. Held-out photos have no texture gain (1.0: the texture
 never saw them), so their "gain" columns equal the raw ones. A rerun with the same ``--work`` resumes both runs.
 """
@@ -21,6 +27,7 @@ never saw them), so their "gain" columns equal the raw ones. A rerun with the sa
 from __future__ import annotations
 
 import argparse
+import shutil
 import subprocess
 import sys
 import time
@@ -45,12 +52,25 @@ def run_tool(module: str, argv: list[str]) -> float:
     return time.perf_counter() - start
 
 
-def bench_folder(photos: Path, work: Path, args) -> dict:
-    """Reconstruct ``photos`` with hold-out, replay its cameras, compare; per-group means and step times."""
-    scene, replay = work / "scene", work / "replay"
+def variant(text: str) -> tuple[str, str, str]:
+    """``LABEL=MESH:TEXTURE`` (``--variant``) -> (label, mesh, texture)."""
+    label, _, kinds = text.partition("=")
+    mesh, _, texture = kinds.partition(":")
+    if not (label and mesh and texture):
+        raise argparse.ArgumentTypeError(f"{text!r}: expected LABEL=MESH:TEXTURE, e.g. 2.5d-ortho=2.5d:ortho")
+    return label, mesh, texture
+
+
+def bench_folder(photos: Path, work: Path, args, label: str, mesh: str, texture: str, first: Path | None) -> dict:
+    """Reconstruct ``photos`` with hold-out (starting from the ``first`` variant's stages when given), replay its
+    cameras, compare; per-group means and step times."""
+    scene, replay = work / label / "scene", work / label / "replay"
+    if first is not None and not scene.exists():
+        shutil.copytree(first / "work", scene / "work")
     seconds = {"recon": run_tool("recon", ["--photos", str(photos), "--out", str(scene), "--hold-out",
                                            str(args.hold_out), "--image-size", str(args.image_size),
-                                           "--dense-size", str(args.dense_size)])}
+                                           "--dense-size", str(args.dense_size), "--mesh", mesh,
+                                           "--texture", texture])}
     width = ["--width", str(args.width)] if args.width else []
     seconds["replay"] = run_tool("sim", ["--scene", str(scene), "--out", str(replay), "--mode", "replay",
                                          "--quiet", *width])
@@ -60,24 +80,24 @@ def bench_folder(photos: Path, work: Path, args) -> dict:
     held_out = {Path(c.name).stem for c in load_scene(scene).cameras if c.held_out}
     groups = {"held-out": [r for r in results if r.name in held_out],
               "used": [r for r in results if r.name not in held_out], "all": results}
-    return {"folder": photos, "groups": {name: (len(rows), mean_comparison(rows)) for name, rows in groups.items()},
+    return {"folder": photos, "label": label, "scene": scene, "groups": {name: (len(rows), mean_comparison(rows)) for name, rows in groups.items()},
             "seconds": seconds, "size": f"{args.image_size}/{args.dense_size}/{args.width or 'photo'}"}
 
 
 def print_table(rows: list[dict]) -> None:
-    print(f"| set | {' | '.join(HEADERS)} |")
-    print("|" + "---|" * (len(HEADERS) + 1))
+    print(f"| set | variant | {' | '.join(HEADERS)} |")
+    print("|" + "---|" * (len(HEADERS) + 2))
     for row in rows:
         for group, (count, means) in row["groups"].items():
             cells = [f"{means[key]:.2f}" if key != "covered" else f"{100 * means[key]:.1f} %" for key in METRICS]
-            print(f"| {row['folder'].parent.name} | {group} | {count} | {' | '.join(cells)} |")
+            print(f"| {row['folder'].parent.name} | {row['label']} | {group} | {count} | {' | '.join(cells)} |")
     print()
-    print("| set | SfM/dense/replay px | recon s | replay s | compare s |")
-    print("|---|---|---|---|---|")
+    print("| set | variant | SfM/dense/replay px | recon s | replay s | compare s |")
+    print("|---|---|---|---|---|---|")
     for row in rows:
         s = row["seconds"]
-        print(f"| {row['folder'].parent.name} | {row['size']} | {s['recon']:.0f} | {s['replay']:.0f} | "
-              f"{s['compare']:.1f} |")
+        print(f"| {row['folder'].parent.name} | {row['label']} | {row['size']} | {s['recon']:.0f} | "
+              f"{s['replay']:.0f} | {s['compare']:.1f} |")
 
 
 def main(argv=None) -> int:
@@ -88,9 +108,16 @@ def main(argv=None) -> int:
     parser.add_argument("--dense-size", type=int, default=640, help="depth-map image size, px (default 640)")
     parser.add_argument("--width", type=int, default=None, help="replay width, px (default: the photos' own)")
     parser.add_argument("--work", type=Path, default=Path("/tmp/bench_heldout"),
-                        help="scratch folder (one subfolder per photo folder; resumed)")
+                        help="scratch folder (one subfolder per photo folder and variant; resumed)")
+    parser.add_argument("--variant", type=variant, action="append", metavar="LABEL=MESH:TEXTURE",
+                        help="a recon variant to measure (repeat; default 3d-atlas=3d:atlas)")
     args = parser.parse_args(argv)
-    rows = [bench_folder(photos, args.work / photos.parent.name, args) for photos in args.photos]
+    rows = []
+    for photos in args.photos:
+        first = None
+        for label, mesh, texture in args.variant or [("3d-atlas", "3d", "atlas")]:
+            rows.append(bench_folder(photos, args.work / photos.parent.name, args, label, mesh, texture, first))
+            first = first or rows[-1]["scene"]
     print_table(rows)
     return 0 if all(np.isfinite(row["groups"]["all"][1]["error_percent"]) for row in rows) else 1
 
