@@ -32,8 +32,8 @@ from tqdm import tqdm
 from recon import dense, mesh as meshing, texture as texturing
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
-from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
-                          read_geotags)
+from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
+                          read_geotags, with_receiver_sigmas)
 from recon.scene_out import write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, run_sfm
 
@@ -41,8 +41,9 @@ STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
 
 #: What the origin's ``h0_ellipsoid_m`` (and so every absolute height of the scene) really is, by priors source.
 HEIGHT_DATUM = {
-    "exif": "mean sea level: the first photo's EXIF GPS altitude, stored as h0_ellipsoid_m without a geoid "
-            "correction (off from the ellipsoid by the local geoid undulation)",
+    "exif": "the receiver's: the first photo's GPS altitude (DJI XMP AbsoluteAltitude, else EXIF; mean sea level "
+            "for a consumer GPS), stored as h0_ellipsoid_m without a geoid correction (off from the ellipsoid by "
+            "the local geoid undulation where it is MSL)",
     "geotags": "as geotags.json's origin (the drone's absolute take-off height; its origin_height_known says "
                "whether there was one)",
 }
@@ -71,7 +72,8 @@ class ReconOptions:
 
 
 def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
-    """Photo names to use and their priors (geotags.csv, or EXIF GPS when no geotags are given).
+    """Photo names to use and their priors (geotags.csv, or the photos' own GPS when no geotags are given), each
+    photo's sigma from its own receiver (RTK fixed in its XMP, else consumer GPS).
 
     Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out; a photo
     that is not a readable image is a :class:`PriorsError` naming it.
@@ -80,11 +82,11 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
     if len(names) < MIN_PHOTOS:
         raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
     if geotags_csv is None:
-        return names, priors_from_exif(photo_dir, names)  # reads every photo's EXIF
+        return names, priors_from_exif(photo_dir, names)  # reads every photo's EXIF and XMP
     priors = read_geotags(geotags_csv)
     names = [n for n in names if n not in set(priors.untagged)]
     check_readable(photo_dir, names)
-    return names, priors
+    return names, with_receiver_sigmas(priors, photo_dir)
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -149,7 +151,7 @@ class Recon:
         report_path = self.work / "sfm_report.json"
         if report_path.exists():
             return False
-        seed = focal_seed(self.photo_dir / self.names[0])
+        seed = camera_seed(self.photo_dir / self.names[0])
         rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
                               self.options.sfm, progress=lambda s: self.log(f"[sfm] {s}"))
         if report.unregistered:
