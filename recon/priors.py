@@ -175,7 +175,7 @@ def priors_from_exif(photo_dir: Path, names) -> PosePriors:
         fix = photo_gps(Path(photo_dir) / name)
         (missing.append(name) if fix is None else fixes.append(fix))
     if missing:
-        raise PriorsError(f"{photo_dir}: no GPS in {len(missing)} photo(s): {', '.join(missing[:10])}")
+        raise PriorsError(f"{photo_dir}: no GPS (EXIF or DJI XMP) in {len(missing)} photo(s): {', '.join(missing[:10])}")
     fixes = np.array(fixes)
     origin = LocalFrame(*fixes[0])
     sigmas = np.array([receiver_sigma(Path(photo_dir) / name) for name in names])
@@ -242,7 +242,11 @@ def factory_seed(calibration: FactoryCalibration) -> CameraSeed:
     """COLMAP camera from a DJI factory calibration.
 
     With ``DewarpData``: ``FULL_OPENCV`` (fx, fy, cx, cy, k1, k2, p1, p2, k3, k4 = k5 = k6 = 0: OpenCV's
-    5-coefficient model exactly), principal point = ``CalibratedOpticalCenter`` + DewarpData's offsets. A JPEG
+    5-coefficient model), principal point = ``CalibratedOpticalCenter`` + DewarpData's offsets, **tangential
+    p1 = p2 = 0**: measured on p4m_rtk (P4 Multispectral, whose DewarpData has p1 = p2 = 0.0040638 on every
+    photo), DJI's tangential terms pull the camera centres 0.19/0.16 m (RMS east/north) off the RTK positions in
+    a pattern fixed to the camera (it flips with the flight direction), without them 0.08/0.03 m, and with
+    either sign flipped it is worse (``tools/bench_recon.py`` table 4, docs/recon.md). A JPEG
     DJI has dewarped already (``DewarpFlag`` 1): ``PINHOLE`` at ``CalibratedFocalLength``. Without DewarpData
     only the focal length is known: ``SIMPLE_RADIAL`` at it, distortion left to SfM (not a factory seed).
     """
@@ -253,9 +257,9 @@ def factory_seed(calibration: FactoryCalibration) -> CameraSeed:
                           "DJI XMP CalibratedFocalLength (dewarped JPEG)", factory=True)
     if cal.dewarp is None:
         return CameraSeed("SIMPLE_RADIAL", (cal.focal_px, *cal.centre_px, 0.0), *size, "DJI XMP CalibratedFocalLength")
-    fx, fy, dcx, dcy, k1, k2, p1, p2, k3 = cal.dewarp
-    params = (fx, fy, cal.centre_px[0] + dcx, cal.centre_px[1] + dcy, k1, k2, p1, p2, k3, 0.0, 0.0, 0.0)
-    return CameraSeed("FULL_OPENCV", params, *size, "DJI XMP DewarpData", factory=True)
+    fx, fy, dcx, dcy, k1, k2, _, _, k3 = cal.dewarp
+    params = (fx, fy, cal.centre_px[0] + dcx, cal.centre_px[1] + dcy, k1, k2, 0.0, 0.0, k3, 0.0, 0.0, 0.0)
+    return CameraSeed("FULL_OPENCV", params, *size, "DJI XMP DewarpData (radial only)", factory=True)
 
 
 def camera_seed(photo: Path) -> CameraSeed:

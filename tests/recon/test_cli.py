@@ -37,7 +37,7 @@ def test_too_few_photos(tmp_path, capsys):
 def test_photos_without_gps_and_no_geotags(tmp_path, capsys):
     blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
     code, err = run_cli(["--photos", tmp_path / "photos", "--out", tmp_path / "scene"], capsys)
-    assert code == 2 and "no EXIF GPS in 3 photo(s): a.jpg, b.jpg, c.jpg" in err
+    assert code == 2 and "no GPS (EXIF or DJI XMP) in 3 photo(s): a.jpg, b.jpg, c.jpg" in err
 
 
 def test_geotags_for_other_photos(tmp_path, capsys):
