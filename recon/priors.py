@@ -175,7 +175,8 @@ def priors_from_exif(photo_dir: Path, names) -> PosePriors:
         fix = photo_gps(Path(photo_dir) / name)
         (missing.append(name) if fix is None else fixes.append(fix))
     if missing:
-        raise PriorsError(f"{photo_dir}: no GPS (EXIF or DJI XMP) in {len(missing)} photo(s): {', '.join(missing[:10])}")
+        raise PriorsError(f"{photo_dir}: no GPS (EXIF or DJI XMP) in {len(missing)} photo(s): "
+                          f"{', '.join(missing[:10])}")
     fixes = np.array(fixes)
     origin = LocalFrame(*fixes[0])
     sigmas = np.array([receiver_sigma(Path(photo_dir) / name) for name in names])
