@@ -43,8 +43,8 @@ from recon.atlas import AtlasOptions, texture_atlas
 from recon.observed import observed_area
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
-from recon.priors import (PosePriors, PriorsError, check_readable, focal_seed, list_photos, priors_from_exif,
-                          read_geotags)
+from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
+                          read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm
@@ -64,8 +64,9 @@ STALE_OUTPUTS = {"depth": ("dense/stereo/depth_maps", "dense/stereo/normal_maps"
 
 #: What the origin's ``h0_ellipsoid_m`` (and so every absolute height of the scene) really is, by priors source.
 HEIGHT_DATUM = {
-    "exif": "mean sea level: the first photo's EXIF GPS altitude, stored as h0_ellipsoid_m without a geoid "
-            "correction (off from the ellipsoid by the local geoid undulation)",
+    "exif": "the receiver's: the first photo's GPS altitude (DJI XMP AbsoluteAltitude, else EXIF; mean sea level "
+            "for a consumer GPS), stored as h0_ellipsoid_m without a geoid correction (off from the ellipsoid by "
+            "the local geoid undulation where it is MSL)",
     "geotags": "as geotags.json's origin (the drone's absolute take-off height; its origin_height_known says "
                "whether there was one)",
 }
@@ -109,7 +110,8 @@ class ReconOptions:
 
 
 def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], PosePriors]:
-    """Photo names to use and their priors (geotags.csv, or EXIF GPS when no geotags are given).
+    """Photo names to use and their priors (geotags.csv, or the photos' own GPS when no geotags are given), each
+    photo's sigma from its own receiver (RTK fixed in its XMP, else consumer GPS).
 
     Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out; a photo
     that is not a readable image is a :class:`PriorsError` naming it.
@@ -118,11 +120,11 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
     if len(names) < MIN_PHOTOS:
         raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
     if geotags_csv is None:
-        return names, priors_from_exif(photo_dir, names)  # reads every photo's EXIF
+        return names, priors_from_exif(photo_dir, names)  # reads every photo's EXIF and XMP
     priors = read_geotags(geotags_csv)
     names = [n for n in names if n not in set(priors.untagged)]
     check_readable(photo_dir, names)
-    return names, priors
+    return names, with_receiver_sigmas(priors, photo_dir)
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -215,7 +217,7 @@ class Recon:
         return nullcontext(partial(self.progress, stage))
 
     def stage_sfm(self):
-        seed = focal_seed(self.photo_dir / self.names[0])
+        seed = camera_seed(self.photo_dir / self.names[0])
         with self.step_progress("sfm") as progress:
             rec, report = run_sfm(self.photo_dir, self.names, self.priors, seed, self.work / "sfm",
                                   self.options.sfm, log=lambda s: self.log(f"[sfm] {s}"), progress=progress)

@@ -1,10 +1,12 @@
 """Structure from motion with pycolmap on the CPU, registered into the geotags' local ENU frame.
 
 Pipeline (each step a function; :func:`run_sfm` chains them):
-database + SIFT at a chosen image size (camera seeded from the profile/EXIF) -> CARTESIAN ENU pose priors ->
+database + SIFT at a chosen image size (camera seeded from the DJI factory calibration, else the profile/EXIF)
+-> CARTESIAN ENU pose priors, each with its receiver's covariance ->
 spatial matching from the priors (plus the loop-closing pair of an orbit) -> incremental (or global) mapping
 -> optional registration of the photos left out (every k-th photo enters SfM) -> geo-registration
-(similarity to the prior positions) -> levelling with the geotag attitudes -> report.
+(similarity to the prior positions, weighted by their sigmas) -> levelling with the geotag attitudes where
+the positions cannot level the block better -> report.
 
 Frames: COLMAP stores ``cam_from_world``; everything leaving this module is ``T_world_cam`` (camera-to-world,
 ENU metres, OpenCV camera axes), converted here only.
@@ -23,7 +25,7 @@ import pycolmap
 from scipy.spatial import cKDTree
 
 from flightplan.atomic import write_text_atomic
-from recon.priors import FocalSeed, PosePriors, PriorsError
+from recon.priors import CameraSeed, PosePriors, PriorsError
 from recon.similarity import Similarity, umeyama
 from sim.camera import PinholeCamera
 
@@ -43,7 +45,9 @@ class SfmOptions:
 
     ``focal``: "fixed" keeps the seeded focal length, "refine" lets bundle adjustment move it, "auto" maps
     with it fixed and refines it afterwards only when the viewing directions spread by more than
-    ``STRONG_GEOMETRY_DEG`` (converging oblique orbit); a flat nadir block cannot determine it.
+    ``STRONG_GEOMETRY_DEG`` (converging oblique orbit); a flat nadir block cannot determine it. A factory
+    calibration (``CameraSeed.factory``) is kept whole (focal, principal point, distortion) unless "refine";
+    other seeds always refine their radial distortion.
     ``every_kth``: only every k-th photo enters mapping; the rest are registered into the finished model
     (None: :func:`auto_every_kth` picks k from the photo spacing and the flight height).
     """
@@ -154,13 +158,13 @@ class DatabaseProgress:
         self.db.close()
 
 
-def create_database(database_path: Path, photo_dir: Path, names, seed: FocalSeed, options: SfmOptions,
+def create_database(database_path: Path, photo_dir: Path, names, seed: CameraSeed, options: SfmOptions,
                     progress=no_progress) -> None:
-    """Import ``names`` with one shared SIMPLE_RADIAL camera seeded at ``seed`` and extract CPU SIFT;
+    """Import ``names`` with one shared camera seeded at ``seed`` (its model and parameters) and extract CPU SIFT;
     ``progress("extract", n, N)`` counts the photos done."""
     reader = pycolmap.ImageReaderOptions()
-    reader.camera_model = "SIMPLE_RADIAL"
-    reader.camera_params = f"{seed.focal_px},{seed.width / 2},{seed.height / 2},0"
+    reader.camera_model = seed.model
+    reader.camera_params = ",".join(repr(float(p)) for p in seed.params)
     extraction = pycolmap.FeatureExtractionOptions()
     extraction.max_image_size = options.max_image_size
     extraction.num_threads = options.num_threads
@@ -178,8 +182,14 @@ def create_database(database_path: Path, photo_dir: Path, names, seed: FocalSeed
 
 
 def write_pose_priors(database_path: Path, priors: PosePriors) -> None:
-    """Replace the database's pose priors (EXIF WGS84 ones included) by CARTESIAN ENU priors."""
-    covariance = np.diag(np.square(priors.sigma_m))
+    """Replace the database's pose priors (EXIF WGS84 ones included) by CARTESIAN ENU priors, each with its own
+    diagonal covariance (``priors.sigma_m`` squared, m^2).
+
+    pycolmap 4.2's incremental mapper (``use_prior_position``) adds, in each global bundle adjustment, one
+    residual per prior whitened by this covariance (its inverse square root), under a Cauchy loss of scale
+    ``prior_position_loss_scale`` (chi-square 95 % of 3 DoF) when ``use_robust_loss_on_prior_position``: a 2 cm
+    RTK prior holds its camera ~150x harder than a 3 m GPS one.
+    """
     index = priors.index()
     with pycolmap.Database.open(database_path) as db:
         db.clear_pose_priors()
@@ -189,7 +199,7 @@ def write_pose_priors(database_path: Path, priors: PosePriors) -> None:
             prior = pycolmap.PosePrior(
                 corr_data_id=image.data_id,
                 position=priors.positions_enu[index[image.name]],
-                position_covariance=covariance,
+                position_covariance=np.diag(np.square(priors.sigma_m[index[image.name]])),
                 coordinate_system=pycolmap.PosePriorCoordinateSystem.CARTESIAN,
             )
             db.write_pose_prior(prior)
@@ -290,12 +300,23 @@ def nearest_mapped_pairs(priors: PosePriors, mapped, rest, count: int) -> list[t
 # ---------------------------------------------------------------- mapping
 
 
+#: Priors whose median sigma is at most this (m) are RTK fixes: held by plain least squares, not a robust loss.
+RTK_GRADE_SIGMA_M = 0.1
+
+
+def robust_prior_loss(priors: PosePriors) -> bool:
+    """Whether mapping puts a robust (Cauchy) loss on the position priors: yes for GPS-grade priors, whose
+    errors include multipath jumps of metres; no for RTK fixes (median sigma <= :data:`RTK_GRADE_SIGMA_M`),
+    which a robust loss would give up as outliers wherever the block pulls them a few sigma away."""
+    return float(np.median(priors.sigma_m)) > RTK_GRADE_SIGMA_M
+
+
 #: Global bundle adjustment after the model grows by this factor (COLMAP's default 1.1 runs ~65 global
 #: adjustments on a 452-photo orbit; 1.3 runs ~23).
 GLOBAL_BA_GROWTH = 1.3
 
 
-def _mapping_options(options: SfmOptions, refine_focal: bool, fix_existing: bool = False):
+def _mapping_options(options: SfmOptions, refine_focal: bool, refine_extra: bool, robust_priors: bool):
     """Incremental mapping with position priors; global bundle adjustment lighter than COLMAP's defaults: less
     often (:data:`GLOBAL_BA_GROWTH`) and without the redundant points (COLMAP's
     ``ba_global_ignore_redundant_points3D``: its authors measured ~2x faster mapping at unchanged accuracy). The
@@ -305,14 +326,14 @@ def _mapping_options(options: SfmOptions, refine_focal: bool, fix_existing: bool
     mapping.ba_global_points_ratio = GLOBAL_BA_GROWTH
     mapping.mapper.ba_global_ignore_redundant_points3D = True
     mapping.use_prior_position = True
-    mapping.use_robust_loss_on_prior_position = True
+    mapping.use_robust_loss_on_prior_position = robust_priors
     mapping.ba_refine_focal_length = refine_focal
     mapping.ba_refine_principal_point = False
-    mapping.ba_refine_extra_params = True
+    mapping.ba_refine_extra_params = refine_extra
     mapping.mapper.abs_pose_refine_focal_length = refine_focal
+    mapping.mapper.abs_pose_refine_extra_params = refine_extra
     mapping.num_threads = options.num_threads
     mapping.random_seed = options.seed
-    mapping.fix_existing_frames = fix_existing
     return mapping
 
 
@@ -337,8 +358,10 @@ class RegistrationCounter:
 
 
 def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: SfmOptions,
-               progress=no_progress) -> pycolmap.Reconstruction:
-    """Incremental mapping with position priors (or GLOMAP global mapping) -> the largest model.
+               factory: bool = False, robust_priors: bool = True, progress=no_progress) -> pycolmap.Reconstruction:
+    """Incremental mapping with position priors (or GLOMAP global mapping) -> the largest model. ``factory``:
+    the seeded camera is a factory calibration, kept whole unless ``options.focal`` is "refine";
+    ``robust_priors``: a Cauchy loss on the priors (for GPS jumps), else plain least squares (RTK).
 
     ``progress("map", n, N)`` counts the registered images (N: the images in the database); the global mapper
     has no callbacks and reports once, at the end."""
@@ -354,7 +377,8 @@ def map_photos(database_path: Path, photo_dir: Path, out_dir: Path, options: Sfm
         models = pycolmap.global_mapping(database_path, photo_dir, out_dir, mapping)
         counter.add(largest_model(models).num_reg_images())
     elif options.mapper == "incremental":
-        models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir, _mapping_options(options, refine),
+        models = pycolmap.incremental_mapping(database_path, photo_dir, out_dir,
+                                              _mapping_options(options, refine, refine or not factory, robust_priors),
                                               initial_image_pair_callback=lambda: counter.add(2),
                                               next_image_callback=lambda: counter.add(1))
     else:
@@ -444,18 +468,23 @@ def camera_poses(rec: pycolmap.Reconstruction) -> dict[str, np.ndarray]:
 #: Where each COLMAP model's extra parameters go in OpenCV's (k1, k2, p1, p2, k3); all act on normalised
 #: coordinates exactly as OpenCV's radial-tangential model does (COLMAP's src/colmap/sensor/models.h).
 _OPENCV_SLOTS = {"SIMPLE_PINHOLE": (), "PINHOLE": (), "SIMPLE_RADIAL": (0,), "RADIAL": (0, 1),
-                 "OPENCV": (0, 1, 2, 3)}
+                 "OPENCV": (0, 1, 2, 3), "FULL_OPENCV": (0, 1, 2, 3, 4)}
 
 
 def camera_from_colmap(camera: pycolmap.Camera) -> PinholeCamera:
     """sim camera (OpenCV lens, our pixel convention: COLMAP's principal point minus 0.5 px) of a COLMAP camera
-    of model SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL or OPENCV; ``ValueError`` for any other model."""
+    of model SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV or FULL_OPENCV without its rational terms
+    (k4 = k5 = k6 = 0: the factory seed of :func:`recon.priors.factory_seed`); ``ValueError`` otherwise."""
     slots = _OPENCV_SLOTS.get(camera.model.name)
     if slots is None:
         raise ValueError(f"camera {camera.camera_id}: COLMAP model {camera.model.name} has no OpenCV equivalent "
                          f"here (supported: {', '.join(_OPENCV_SLOTS)})")
+    extra = np.asarray(camera.params)[camera.extra_params_idxs()]
+    if np.any(extra[len(slots):]):
+        raise ValueError(f"camera {camera.camera_id}: {camera.model.name} with rational terms "
+                         f"{extra[len(slots):].tolist()} has no 5-coefficient OpenCV equivalent")
     distortion = np.zeros(5)
-    distortion[list(slots)] = np.asarray(camera.params)[camera.extra_params_idxs()]
+    distortion[list(slots)] = extra[:len(slots)]
     return PinholeCamera(camera.focal_length_x, camera.focal_length_y, camera.principal_point_x - 0.5,
                          camera.principal_point_y - 0.5, int(camera.width), int(camera.height), tuple(distortion))
 
@@ -495,34 +524,50 @@ def levelling_rotation(r_world_cam_sfm: np.ndarray, r_world_cam_attitude: np.nda
     return rotation_between(model_up, np.array([0.0, 0.0, 1.0]))
 
 
-def fit_level_similarity(centres: np.ndarray, targets: np.ndarray) -> Similarity:
+def fit_level_similarity(centres: np.ndarray, targets: np.ndarray, sigma_m: np.ndarray) -> Similarity:
     """Similarity with rotation about z only (plus scale and translation) taking centres to targets.
 
-    Used after levelling: horizontal Umeyama for yaw and scale, then the vertical offset as the mean.
+    Used after levelling: horizontal Umeyama for yaw and scale (weights 1 / horizontal variance), then the
+    vertical offset as the mean weighted by 1 / vertical variance. ``sigma_m``: (N, 3) target sigmas east/north/up.
     """
-    horizontal = umeyama(centres[:, :2], targets[:, :2])
+    horizontal = umeyama(centres[:, :2], targets[:, :2], weights=1.0 / np.mean(np.square(sigma_m[:, :2]), axis=1))
     rotation = np.eye(3)
     rotation[:2, :2] = horizontal.rotation
     scaled = horizontal.scale * centres @ rotation.T
-    dz = float(np.mean(targets[:, 2] - scaled[:, 2]))
+    dz = float(np.average(targets[:, 2] - scaled[:, 2], weights=1.0 / np.square(sigma_m[:, 2])))
     return Similarity(horizontal.scale, rotation, np.array([*horizontal.translation, dz]))
+
+
+#: Level the model with the attitudes only when the prior positions fix its tilt worse than this (1 sigma).
+LEVEL_ABOVE_TILT_DEG = 0.1
+
+
+def position_tilt_sigma_deg(priors: PosePriors) -> float:
+    """How well the prior positions alone fix the block's tilt (degrees, 1 sigma): the vertical sigma over the
+    photos' horizontal spread, as a weighted plane fit would: ``1 / sqrt(sum_i d_i^2 / sigma_up_i^2)`` with
+    ``d_i`` the horizontal distance of photo i from the centroid."""
+    horizontal = priors.positions_enu[:, :2] - priors.positions_enu[:, :2].mean(axis=0)
+    information = np.sum(np.sum(horizontal**2, axis=1) / np.square(priors.sigma_m[:, 2]))
+    return float(np.degrees(1.0 / np.sqrt(information))) if information > 0 else np.inf
 
 
 def georegister(centres: np.ndarray, rotations: np.ndarray, priors: PosePriors) -> tuple[Similarity, float | None]:
     """Similarity taking SfM camera centres/rotations into the priors' ENU frame, and the tilt removed (deg).
 
-    Without attitude: a 3-D Umeyama fit to the prior positions. With attitude: that fit, then the
-    levelling rotation about the centroid, then a yaw/scale/translation-only refit to the positions.
+    A 3-D Umeyama fit to the prior positions, each weighted by 1 / its mean variance (an RTK camera outweighs
+    a GPS one ~10^4 times). When attitudes exist and the positions fix the tilt worse than
+    :data:`LEVEL_ABOVE_TILT_DEG` (:func:`position_tilt_sigma_deg`: a consumer GPS, not RTK), the levelling
+    rotation about the centroid follows, then a yaw/scale/translation-only refit to the positions.
     """
-    first = umeyama(centres, priors.positions_enu)
-    if priors.rotations_world_cam is None:
+    first = umeyama(centres, priors.positions_enu, weights=1.0 / np.mean(np.square(priors.sigma_m), axis=1))
+    if priors.rotations_world_cam is None or position_tilt_sigma_deg(priors) <= LEVEL_ABOVE_TILT_DEG:
         return first, None
     centres1 = first.apply(centres)
     rotations1 = np.einsum("ij,njk->nik", first.rotation, rotations)
     level = levelling_rotation(rotations1, priors.rotations_world_cam)
     centroid = centres1.mean(axis=0)
     about_centroid = Similarity(1.0, level, centroid - level @ centroid)
-    refit = fit_level_similarity(about_centroid.apply(centres1), priors.positions_enu)
+    refit = fit_level_similarity(about_centroid.apply(centres1), priors.positions_enu, priors.sigma_m)
     tilt = Similarity(1.0, level, np.zeros(3)).rotation_angle_deg()
     return compose(refit, compose(about_centroid, first)), tilt
 
@@ -602,7 +647,7 @@ def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
     return registered, sim, tilt
 
 
-def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, work_dir: Path,
+def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, work_dir: Path,
             options: SfmOptions = SfmOptions(), log=None, progress=no_progress):
     """Run the SfM stage; returns (model in ENU, report). Writes ``work_dir/database.db`` and models.
 
@@ -636,7 +681,8 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
     loop_inliers = ensure_loop_matched(database, pair, options) if pair else None
     if pair and loop_inliers < LOOP_MIN_INLIERS:
         warnings.append(f"orbit loop pair {pair} has only {loop_inliers} verified matches")
-    rec = timed("map", map_photos, database, photo_dir, work_dir / "mapped", options, progress)
+    rec = timed("map", map_photos, database, photo_dir, work_dir / "mapped", options, seed.factory,
+                robust_prior_loss(priors), progress)
     new = [n for n in photo_names if n not in core]
     if new:
         def register_rest():
@@ -655,7 +701,8 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: FocalSeed, w
             warnings.append(f"{len(failed)} photo(s) could not be registered into the mapped model: "
                             f"{', '.join(failed[:10])}")
     spread = viewing_spread_deg(rec)
-    refined = options.focal == "refine" or (options.focal == "auto" and spread > STRONG_GEOMETRY_DEG)
+    refined = options.focal == "refine" or (options.focal == "auto" and not seed.factory
+                                            and spread > STRONG_GEOMETRY_DEG)
     if refined and options.focal == "auto":
         timed("refine_focal", refine_focal, rec)
     focal_final = float(next(iter(rec.cameras.values())).mean_focal_length())

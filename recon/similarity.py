@@ -35,10 +35,11 @@ class Similarity:
         return float(np.degrees(np.arccos(cos)))
 
 
-def umeyama(source: np.ndarray, target: np.ndarray, with_scale: bool = True) -> Similarity:
-    """Least-squares similarity taking ``source`` onto ``target`` (both ``(N, d)``, N >= d).
+def umeyama(source: np.ndarray, target: np.ndarray, with_scale: bool = True, weights=None) -> Similarity:
+    """Least-squares similarity taking ``source`` onto ``target`` (both ``(N, d)``, N >= d), each pair weighted
+    by ``weights`` (``(N,)``, e.g. 1 / sigma^2 of the target; None: all equal).
 
-    Closed form of Umeyama (1991): SVD of the cross-covariance, with the reflection fix.
+    Closed form of Umeyama (1991) on weighted means and cross-covariance: SVD, with the reflection fix.
     Works in any dimension d (2 for horizontal fits, 3 in general). Raises ``ValueError`` for
     mismatched shapes, too few points or degenerate (collinear / coincident) configurations.
     """
@@ -49,12 +50,15 @@ def umeyama(source: np.ndarray, target: np.ndarray, with_scale: bool = True) -> 
     n, dim = src.shape
     if n < dim:
         raise ValueError(f"need at least {dim} point pairs for a {dim}-D similarity, got {n}")
-    mu_src, mu_dst = src.mean(axis=0), dst.mean(axis=0)
+    w = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=np.float64) / np.sum(weights)
+    if w.shape != (n,) or not np.all(np.isfinite(w) & (w >= 0)):
+        raise ValueError(f"need {n} finite non-negative weights with a positive sum")
+    mu_src, mu_dst = w @ src, w @ dst
     src_c, dst_c = src - mu_src, dst - mu_dst
-    var_src = float(np.sum(src_c**2)) / n
+    var_src = float(w @ np.sum(src_c**2, axis=1))
     if var_src <= 1e-18:
         raise ValueError("source points are all at one place: the similarity is undetermined")
-    covariance = dst_c.T @ src_c / n
+    covariance = (dst_c * w[:, None]).T @ src_c
     u, singular, vt = np.linalg.svd(covariance)
     if singular[dim - 2] <= 1e-12 * max(singular[0], 1e-300):
         raise ValueError("points are collinear: the rotation about their line is undetermined")

@@ -2,7 +2,7 @@
 virtual flights over the small demo world (known poses and surface).
 
     .venv/bin/python tools/bench_recon.py [--sizes 800 1600] [--with-3200] [--dense-sizes 640 1000]
-                                          [--no-synthetic]
+                                          [--no-synthetic] [--p4m-only [LABEL]] [--data SHARED_DATA]
 
 Table 1, SfM image size on brighton_beach: time per stage, registered photos, 3-D points, mean reprojection
 error, camera-centre residual RMS against EXIF GPS (east/north/up), time ratio to the first row. There is no
@@ -15,6 +15,11 @@ fused cloud and of the 2.5-D mesh vertices to ODM's reference cloud ``model.laz`
 yaw + translation ICP (our ENU frame and ODM's UTM grid differ by the meridian convergence, ~0.7 deg here,
 and by their GPS/datum offsets), texture time and the photorealism error (formula 3, over the pixels the mesh
 covers) of unlit renders from the recovered poses against the undistorted photos (the paper: 12.49 %).
+Table 4, p4m_rtk (32 nadir DJI FC6360 photos 1600x1300, RTK fixed, factory calibration in XMP), SfM before
+(main: focal seeded from EXIF, consumer-GPS prior sigmas) and after (factory camera, the receivers' own
+sigmas), and the choices behind the default (fixed vs refined factory intrinsics, k3, which focal): time
+against the camera positions' RMS per axis to the RTK positions, the rotation to the XMP gimbal attitude and
+the final focal length.
 Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
 The 30-minute target (one full default orbit, 452 photos) is measured by tools/bench_recon_orbit.py.
@@ -23,6 +28,7 @@ The 30-minute target (one full default orbit, 452 photos) is measured by tools/b
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import os
 import sys
 import tempfile
@@ -42,8 +48,11 @@ from recon.evaluate import scene_photorealism  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.texture import TextureOptions  # noqa: E402
 
-from recon.priors import focal_seed, list_photos, priors_from_exif, read_geotags  # noqa: E402
-from recon.sfm import SfmOptions, camera_poses, run_sfm  # noqa: E402
+from capture.attitude import camera_matrix_world  # noqa: E402
+from capture.logs.photos import read_camera_xmp, read_photo  # noqa: E402
+from recon.priors import (CameraSeed, camera_seed, focal_seed, list_photos, priors_from_exif,  # noqa: E402
+                          read_geotags)
+from recon.sfm import SfmError, SfmOptions, camera_poses, run_sfm  # noqa: E402
 from recon.similarity import umeyama  # noqa: E402
 from sim.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
@@ -52,14 +61,14 @@ from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reus
 DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 
 
-def timed_sfm(photo_dir: Path, names, priors, size: int, features: int) -> dict:
-    """One SfM run at ``size`` px (focal seeded from the first photo) in a scratch folder: the size, the wall
-    time, the report and the camera poses (``T_world_cam`` by name)."""
-    seed = focal_seed(photo_dir / names[0])
+def timed_sfm(photo_dir: Path, names, priors, size: int, features: int, seed=None, focal: str = "auto") -> dict:
+    """One SfM run at ``size`` px (camera ``seed``, default: the focal seeded from the first photo) in a scratch
+    folder: the size, the wall time, the report and the camera poses (``T_world_cam`` by name)."""
+    seed = seed or focal_seed(photo_dir / names[0])
     with tempfile.TemporaryDirectory() as work:
         t0 = time.perf_counter()
         rec, report = run_sfm(photo_dir, names, priors, seed, Path(work),
-                              SfmOptions(max_image_size=size, max_num_features=features))
+                              SfmOptions(max_image_size=size, max_num_features=features, focal=focal))
         total = time.perf_counter() - t0
     return {"size": size, "total": total, "report": report, "poses": camera_poses(rec)}
 
@@ -100,6 +109,86 @@ def bench_sizes_virtual(sizes, features: int) -> tuple[list[dict], Orbit]:
         row["errors"] = flight.pose_errors(row["poses"])
         row["focal_error_pct"] = 100 * (row["report"].focal_final_px / flight.camera.fx - 1)
     return rows, orbit
+
+
+def p4m_rtk_variants(photo_dir: Path, names):
+    """Table 4's rows: (label, camera seed, priors, ``SfmOptions.focal``). The priors' positions are the RTK
+    positions (XMP) either way; "GPS sigmas" gives every photo main's consumer-GPS sigma instead of its own. The
+    factory variants change one thing of the default seed (:func:`recon.priors.camera_seed`) each."""
+    priors = priors_from_exif(photo_dir, names)
+    gps = dataclasses.replace(priors, sigma_m=None)
+    factory = camera_seed(photo_dir / names[0])
+    calibration = read_camera_xmp(photo_dir / names[0]).calibration
+    p1, p2 = calibration.dewarp[6:8]
+
+    def variant(source: str, **params) -> CameraSeed:
+        """The default factory seed with some FULL_OPENCV parameters replaced (by name)."""
+        values = dict(zip(FULL_OPENCV_PARAMS, factory.params)) | params
+        return dataclasses.replace(factory, params=tuple(values[name] for name in FULL_OPENCV_PARAMS), source=source)
+
+    opencv = dataclasses.replace(factory, model="OPENCV", params=factory.params[:8], source="DewarpData, no k3")
+    exif = focal_seed(photo_dir / names[0])
+    return [("main: EXIF focal, GPS sigmas", exif, gps, "auto"),
+            ("main, focal refined", exif, gps, "refine"),
+            ("EXIF focal, RTK sigmas", exif, priors, "auto"),
+            ("factory fixed, RTK sigmas (default)", factory, priors, "auto"),
+            ("factory refined (focal, distortion)", factory, priors, "refine"),
+            ("factory with DewarpData's tangential p1, p2", variant("with p1, p2", p1=p1, p2=p2), priors, "auto"),
+            ("factory with p1, p2 sign-flipped", variant("flipped p1, p2", p1=-p1, p2=-p2), priors, "auto"),
+            ("factory OPENCV (no k3)", opencv, priors, "auto"),
+            ("factory, principal point at the optical centre",
+             variant("centred", cx=calibration.centre_px[0], cy=calibration.centre_px[1]), priors, "auto"),
+            ("factory at CalibratedFocalLength",
+             variant("CalibratedFocalLength", fx=calibration.focal_px, fy=calibration.focal_px), priors, "auto")]
+
+
+#: COLMAP FULL_OPENCV's parameter names, in order.
+FULL_OPENCV_PARAMS = ("fx", "fy", "cx", "cy", "k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6")
+
+
+def bench_p4m_rtk(photo_dir: Path, size: int, features: int, only=None):
+    """SfM on p4m_rtk for each of :func:`p4m_rtk_variants` (those whose label contains ``only``, if given),
+    yielding rows as they finish: camera centres against the RTK positions (RMS per axis E/N/U, m) and rotations
+    against the XMP gimbal attitude (degrees); a variant whose mapping fails yields its error instead."""
+    names = list_photos(photo_dir)
+    xmp = [read_photo(photo_dir / name).values for name in names]
+    attitude = camera_matrix_world(*(np.array([v[f"gimbal_{a}_deg"] for v in xmp]) for a in ("yaw", "pitch", "roll")))
+    for label, seed, priors, focal in p4m_rtk_variants(photo_dir, names):
+        if only and only not in label:
+            continue
+        t0 = time.perf_counter()
+        try:
+            row = timed_sfm(photo_dir, names, priors, size, features, seed, focal)
+        except SfmError as error:
+            yield {"label": label, "seed": seed, "total": time.perf_counter() - t0, "error": str(error)}
+            continue
+        done = [i for i, name in enumerate(names) if name in row["poses"]]
+        centres = np.array([row["poses"][names[i]][:3, 3] for i in done])
+        rotations = np.array([row["poses"][names[i]][:3, :3] for i in done])
+        cos = (np.einsum("nij,nij->n", rotations, attitude[done]) - 1.0) / 2.0
+        row.update(label=label, seed=seed,
+                   rms_enu=np.sqrt(np.mean((centres - priors.positions_enu[done]) ** 2, axis=0)),
+                   rotation_deg=np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+        yield row
+
+
+def print_p4m_rtk_table(rows, size: int, factory_focal: tuple[float, float]) -> None:
+    """Table 4, a line per row as it comes (``rows`` may be a generator)."""
+    print(f"\np4m_rtk, 32 photos 1600x1300, SfM {size} px; truth: RTK positions (sigma ~1/1/2 cm) and "
+          f"the XMP gimbal attitude; factory focal: DewarpData {factory_focal[0]:.1f} px (mean fx, fy), "
+          f"CalibratedFocalLength {factory_focal[1]:.1f} px")
+    print("| SfM | camera seed | total s | registered | reproj px | position RMS E/N/U m | "
+          "rotation to XMP min / median / max deg | focal px |")
+    print("|---|---|---|---|---|---|---|---|", flush=True)
+    for row in rows:
+        start = f"| {row['label']} | {row['seed'].model} {row['seed'].focal_px:.0f} px | {row['total']:.1f} |"
+        if "error" in row:
+            print(f"{start} failed: {row['error']} | | | | |", flush=True)
+            continue
+        r, rot = row["report"], row["rotation_deg"]
+        print(f"{start} {len(r.registered)}/{r.num_photos} | {r.mean_reprojection_error_px:.2f} | "
+              f"{' / '.join(f'{v:.3f}' for v in row['rms_enu'])} | "
+              f"{rot.min():.2f} / {np.median(rot):.2f} / {rot.max():.2f} | {r.focal_final_px:.1f} |", flush=True)
 
 
 def yaw_rotation(yaw: float) -> np.ndarray:
@@ -220,8 +309,17 @@ def main(argv=None) -> int:
     parser.add_argument("--features", type=int, default=8192)
     parser.add_argument("--dense-sizes", type=int, nargs="*", default=[640, 1000])
     parser.add_argument("--no-synthetic", action="store_true", help="skip the virtual-flight tables (1b and 3)")
+    parser.add_argument("--p4m-only", nargs="?", const="", default=None, metavar="LABEL",
+                        help="only table 4 (p4m_rtk before/after), optionally only rows whose label contains LABEL")
     args = parser.parse_args(argv)
     pycolmap.logging.minloglevel = 2
+    p4m_dir = args.data / "p4m_rtk" / "images"
+    p4m_calibration = read_camera_xmp(p4m_dir / "DJI_0010.JPG").calibration
+    p4m_focal = (float(np.mean(p4m_calibration.dewarp[:2])), p4m_calibration.focal_px)
+    if args.p4m_only is not None:
+        print_p4m_rtk_table(bench_p4m_rtk(p4m_dir, args.sizes[0], args.features, args.p4m_only), args.sizes[0],
+                            p4m_focal)
+        return 0
     photo_dir = args.data / "brighton_beach" / "images"
     sizes = args.sizes + ([3200] if args.with_3200 else [])
     rows = [bench_size(photo_dir, size, args.features) for size in sizes]
@@ -244,6 +342,7 @@ def main(argv=None) -> int:
         print_dense_table(dense_rows)
     if not args.no_synthetic:
         print_closed_loop_table(bench_closed_loop())
+    print_p4m_rtk_table(bench_p4m_rtk(p4m_dir, args.sizes[0], args.features), args.sizes[0], p4m_focal)
     return 0
 
 

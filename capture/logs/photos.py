@@ -1,4 +1,5 @@
-"""Photo metadata: EXIF times and GPS, DJI XMP ``drone-dji:`` attitude and heights -> ``PhotoInfo``/``Track``.
+"""Photo metadata: EXIF times and GPS, DJI XMP ``drone-dji:`` attitude and heights -> ``PhotoInfo``/``Track``;
+DJI factory calibration and RTK status -> :class:`CameraXmp`.
 
 Pillow reads the EXIF IFDs and the raw XMP packet; the packet is parsed with defusedxml (DTDs and entities
 refused), accepting both attribute (``drone-dji:GimbalYawDegree="+45.00"``) and element forms, and both
@@ -134,10 +135,10 @@ def dms_to_deg(dms, ref, letters: str) -> float | None:
     return -value if ref == letters[1] else value
 
 
-def parse_dji_xmp(packet: bytes | str) -> dict[str, float]:
-    """``drone-dji:`` values of an XMP packet (attribute and element forms) -> track fields.
+def dji_xmp_text(packet: bytes | str) -> dict[str, str]:
+    """Every ``drone-dji:`` value of an XMP packet as text, by tag name (attribute and element forms).
 
-    Raises ValueError on malformed XML, on DTDs/entities (refused, never expanded) and on non-numeric values.
+    Raises ValueError on malformed XML and on DTDs/entities (refused, never expanded).
     """
     if isinstance(packet, bytes):
         packet = packet.decode("utf-8", errors="replace")
@@ -153,18 +154,150 @@ def parse_dji_xmp(packet: bytes | str) -> dict[str, float]:
     for element in root.iter():
         for key, value in element.attrib.items():
             if key.startswith(prefix):
-                raw[key[len(prefix):]] = value
+                raw[key[len(prefix):]] = value.strip()
         if isinstance(element.tag, str) and element.tag.startswith(prefix) and element.text:
-            raw[element.tag[len(prefix):]] = element.text
+            raw[element.tag[len(prefix):]] = element.text.strip()
+    return raw
+
+
+def xmp_number(raw: dict[str, str], tag: str) -> float:
+    """``drone-dji:<tag>`` of :func:`dji_xmp_text`'s result as a float; ValueError naming the tag if not a number."""
+    try:
+        return float(raw[tag])
+    except ValueError:
+        raise ValueError(f"drone-dji:{tag} = {raw[tag][:40]!r} is not a number") from None
+
+
+def parse_dji_xmp(packet: bytes | str) -> dict[str, float]:
+    """``drone-dji:`` values of an XMP packet (attribute and element forms) -> track fields.
+
+    Raises ValueError on malformed XML, on DTDs/entities (refused, never expanded) and on non-numeric values.
+    """
+    raw = dji_xmp_text(packet)
     values = {}
     for tag, name in XMP_FIELDS.items():
         if tag in raw:
-            try:
-                value = float(raw[tag].strip())
-            except ValueError:
-                raise ValueError(f"drone-dji:{tag} = {raw[tag][:40]!r} is not a number") from None
+            value = xmp_number(raw, tag)
             values[name] = float(wrap_deg(value)) if name.endswith("yaw_deg") else value
     return values
+
+
+#: DJI ``RtkFlag`` of a fixed RTK solution (0 none, 16 single point, 32-49 float, 50 fixed).
+RTK_FIXED = 50
+#: Sanity bounds on factory calibration: focal length (and DewarpData fx, fy) in multiples of the photo's longer
+#: side (a 170 deg fisheye to a 1000 mm lens on a 35 mm frame), and the size of any distortion coefficient.
+FOCAL_RANGE_SIDES = (0.1, 30.0)
+MAX_DISTORTION_COEFFICIENT = 10.0
+MAX_RTK_STD_M = 1000.0
+
+
+@dataclass(frozen=True)
+class FactoryCalibration:
+    """A DJI camera's factory calibration (XMP), in pixels of the full-resolution ``width`` x ``height`` photo.
+
+    DJI puts the image centre at (W/2, H/2) (``CalibratedOpticalCenterX/Y`` 800/650 on a 1600x1300 photo), as
+    COLMAP does; ours is 0.5 px less (pixel (0,0) is the centre of the top-left pixel). ``focal_px``:
+    ``CalibratedFocalLength``; ``centre_px``: ``CalibratedOpticalCenterX/Y`` (the image centre when absent);
+    ``dewarp``: ``DewarpData``'s fx, fy (px), cx, cy (px offsets from ``centre_px``), k1, k2, p1, p2, k3 (OpenCV
+    radial-tangential, on normalised coordinates), or None; ``dewarped``: ``DewarpFlag`` 1, the JPEG is
+    already undistorted.
+    """
+
+    width: int
+    height: int
+    focal_px: float
+    centre_px: tuple[float, float]
+    dewarp: tuple[float, ...] | None
+    dewarped: bool
+
+
+@dataclass(frozen=True)
+class RtkStatus:
+    """DJI ``RtkFlag`` and ``RtkStdLon/Lat/Hgt`` as east/north/up standard deviations (m, 1 sigma; None if absent)."""
+
+    flag: int
+    std_enu_m: tuple[float, float, float] | None
+
+    @property
+    def fixed(self) -> bool:
+        return self.flag == RTK_FIXED
+
+
+@dataclass(frozen=True)
+class CameraXmp:
+    """What a photo's ``drone-dji:`` XMP says about its camera and its position fix (None where absent)."""
+
+    calibration: FactoryCalibration | None
+    rtk: RtkStatus | None
+
+
+def checked(raw: dict[str, str], tag: str, low: float, high: float) -> float:
+    """``drone-dji:<tag>`` as a float within [low, high]; ValueError naming the tag and the bounds otherwise."""
+    value = xmp_number(raw, tag)
+    if not low <= value <= high:  # also refuses NaN
+        raise ValueError(f"drone-dji:{tag} = {raw[tag][:40]!r} is not within [{low:g}, {high:g}]")
+    return value
+
+
+def factory_calibration(raw: dict[str, str], width: int, height: int) -> FactoryCalibration | None:
+    """:class:`FactoryCalibration` from :func:`dji_xmp_text`'s values, or None without ``CalibratedFocalLength``."""
+    if "CalibratedFocalLength" not in raw:
+        return None
+    focal_range = tuple(bound * max(width, height) for bound in FOCAL_RANGE_SIDES)
+    focal = checked(raw, "CalibratedFocalLength", *focal_range)
+    centre = tuple(checked(raw, f"CalibratedOpticalCenter{axis}", 0.0, size) if f"CalibratedOpticalCenter{axis}" in raw
+                   else size / 2.0 for axis, size in (("X", width), ("Y", height)))
+    dewarp = dewarp_data(raw["DewarpData"], focal_range, (width, height)) if "DewarpData" in raw else None
+    flag = checked(raw, "DewarpFlag", 0, 1) if "DewarpFlag" in raw else 0
+    return FactoryCalibration(width, height, focal, centre, dewarp, flag == 1)
+
+
+def dewarp_data(text: str, focal_range, size) -> tuple[float, ...]:
+    """``DewarpData`` ("date;fx,fy,cx,cy,k1,k2,p1,p2,k3") -> the 9 numbers, each checked against sane bounds."""
+    fields = text.rsplit(";", 1)[-1].split(",")
+    try:
+        values = tuple(float(field) for field in fields)
+    except ValueError:
+        values = ()
+    if len(values) != 9:
+        raise ValueError(f"drone-dji:DewarpData = {text[:80]!r} is not 'date;fx,fy,cx,cy,k1,k2,p1,p2,k3'")
+    bounds = [focal_range] * 2 + [(-size[0] / 2, size[0] / 2), (-size[1] / 2, size[1] / 2)] \
+        + [(-MAX_DISTORTION_COEFFICIENT, MAX_DISTORTION_COEFFICIENT)] * 5
+    for name, value, (low, high) in zip("fx fy cx cy k1 k2 p1 p2 k3".split(), values, bounds):
+        if not low <= value <= high:
+            raise ValueError(f"drone-dji:DewarpData {name} = {value} is not within [{low:g}, {high:g}]")
+    return values
+
+
+def rtk_status(raw: dict[str, str]) -> RtkStatus | None:
+    """:class:`RtkStatus` from :func:`dji_xmp_text`'s values, or None when the photo has no ``RtkFlag``."""
+    if "RtkFlag" not in raw:
+        return None
+    flag = checked(raw, "RtkFlag", 0, 255)
+    if flag != int(flag):
+        raise ValueError(f"drone-dji:RtkFlag = {raw['RtkFlag'][:40]!r} is not an integer")
+    tags = ("RtkStdLon", "RtkStdLat", "RtkStdHgt")
+    std = tuple(checked(raw, tag, 0.0, MAX_RTK_STD_M) for tag in tags) if all(t in raw for t in tags) else None
+    return RtkStatus(int(flag), std)
+
+
+def read_camera_xmp(path) -> CameraXmp:
+    """Factory calibration and RTK status of one photo; :class:`LogFormatError` naming the photo if a value is
+    not a finite number within sane bounds (or the file is not an image)."""
+    path = Path(path)
+    try:
+        with Image.open(path) as image:
+            width, height = image.size
+            xmp = image.info.get("xmp")
+    except (UnidentifiedImageError, OSError) as error:
+        raise LogFormatError(f"{path}: not a readable image ({error})") from None
+    if not xmp:
+        return CameraXmp(None, None)
+    try:
+        raw = dji_xmp_text(xmp)
+        return CameraXmp(factory_calibration(raw, width, height), rtk_status(raw))
+    except ValueError as error:
+        raise LogFormatError(f"{path}: XMP {error}") from None
 
 
 def read_photos(folder) -> tuple[list[PhotoInfo], ReadReport]:

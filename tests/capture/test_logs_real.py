@@ -3,10 +3,12 @@
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from capture.logs import detect_kind, read_track
-from capture.logs.photos import parse_dji_xmp, read_photo
-from capture.track import format_utc
+from capture.logs.photos import (CameraXmp, FactoryCalibration, RtkStatus, parse_dji_xmp, read_camera_xmp,
+                                 read_photo)
+from capture.track import LogFormatError, format_utc
 
 SRT_SAMPLES = {
     # file: (rows, clock, first lat, first lon, fields that must be present)
@@ -128,3 +130,64 @@ def test_xmp_entities_are_refused_not_expanded():
         parse_dji_xmp(bomb)
     with pytest.raises(ValueError, match="GimbalPitchDegree"):
         parse_dji_xmp(XMP_ELEMENT_FORM.replace('drone-dji:GpsLatitude="+34.03250565"', 'drone-dji:GimbalPitchDegree="abc"'))
+
+
+P4M_DEWARP = (1973.0899658, 1955.6500244, -19.0419922, -11.4249878, -0.4227500, 0.3691010, 0.0040638, 0.0040638,
+              -0.2643060)
+
+
+def test_p4m_rtk_factory_calibration_and_rtk_from_xmp(shared_data):
+    """Values as DJI_0010.JPG's XMP packet says (read by eye), and every photo of the set RTK fixed."""
+    first = read_camera_xmp(shared_data / "p4m_rtk" / "images" / "DJI_0010.JPG")
+    assert first.calibration == FactoryCalibration(1600, 1300, 1913.333374, (800.0, 650.0), P4M_DEWARP, False)
+    assert first.rtk == RtkStatus(50, (0.01053, 0.01380, 0.02050)) and first.rtk.fixed
+    photos = sorted((shared_data / "p4m_rtk" / "images").glob("*.JPG"))
+    every = [read_camera_xmp(photo) for photo in photos]
+    assert len(every) == 32 and {xmp.calibration for xmp in every} == {first.calibration}
+    stds = np.array([xmp.rtk.std_enu_m for xmp in every])
+    assert all(xmp.rtk.fixed for xmp in every) and np.all((stds > 0.005) & (stds < 0.03))
+
+
+def with_xmp(tmp_path, description: str, name="IMG_0001.JPG"):
+    """A 160x130 JPEG whose XMP holds ``description`` inside a drone-dji rdf:Description."""
+    packet = ('<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">'
+              f'<rdf:Description xmlns:drone-dji="http://www.dji.com/drone-dji/1.0/" {description}</rdf:Description>'
+              '</rdf:RDF></x:xmpmeta>')
+    path = tmp_path / name
+    Image.new("RGB", (160, 130)).save(path, xmp=packet.encode())
+    return path
+
+
+CALIBRATION_ELEMENTS = ('drone-dji:CalibratedFocalLength="191.3">'
+                        '<drone-dji:CalibratedOpticalCenterX>80.0</drone-dji:CalibratedOpticalCenterX>'
+                        '<drone-dji:CalibratedOpticalCenterY>65.0</drone-dji:CalibratedOpticalCenterY>'
+                        '<drone-dji:DewarpData>2022-03-02;197.3,195.5,-1.9,-1.1,-0.42,0.37,0.004,0.004,-0.26'
+                        '</drone-dji:DewarpData><drone-dji:DewarpFlag>1</drone-dji:DewarpFlag>'
+                        '<drone-dji:RtkFlag>34</drone-dji:RtkFlag>')
+
+
+def test_calibration_in_element_form_and_without_rtk_std(tmp_path):
+    xmp = read_camera_xmp(with_xmp(tmp_path, CALIBRATION_ELEMENTS))
+    assert xmp.calibration == FactoryCalibration(160, 130, 191.3, (80.0, 65.0),
+                                                 (197.3, 195.5, -1.9, -1.1, -0.42, 0.37, 0.004, 0.004, -0.26), True)
+    assert xmp.rtk == RtkStatus(34, None) and not xmp.rtk.fixed  # float solution, no std given
+    assert read_camera_xmp(with_xmp(tmp_path, 'drone-dji:GimbalYawDegree="1.0">')) == CameraXmp(None, None)
+
+
+@pytest.mark.parametrize("bad, tag", [
+    ('drone-dji:CalibratedFocalLength="nan">', "CalibratedFocalLength"),
+    ('drone-dji:CalibratedFocalLength="1e9">', "CalibratedFocalLength"),
+    ('drone-dji:CalibratedFocalLength="191" drone-dji:CalibratedOpticalCenterX="-3">', "CalibratedOpticalCenterX"),
+    ('drone-dji:CalibratedFocalLength="191" drone-dji:DewarpData="2022-03-02;197,195,-1,-1,-0.4,0.3,0,0">',
+     "DewarpData"),
+    ('drone-dji:CalibratedFocalLength="191" drone-dji:DewarpData="2022-03-02;197,inf,-1,-1,-0.4,0.3,0,0,0">',
+     "DewarpData fy"),
+    ('drone-dji:CalibratedFocalLength="191" drone-dji:DewarpData="x;197,195,-1,-1,-40,0.3,0,0,0">', "DewarpData k1"),
+    ('drone-dji:RtkFlag="50" drone-dji:RtkStdLon="0.01" drone-dji:RtkStdLat="-0.01" drone-dji:RtkStdHgt="0.02">',
+     "RtkStdLat"),
+    ('drone-dji:RtkFlag="fixed">', "RtkFlag"),
+    ('drone-dji:RtkFlag="50.5">', "RtkFlag"),
+])
+def test_absurd_calibration_or_rtk_values_are_refused_naming_the_photo(tmp_path, bad, tag):
+    with pytest.raises(LogFormatError, match=rf"IMG_0001\.JPG: XMP drone-dji:{tag}"):
+        read_camera_xmp(with_xmp(tmp_path, bad))

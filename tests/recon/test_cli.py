@@ -36,7 +36,7 @@ def test_too_few_photos(tmp_path, capsys):
 def test_photos_without_gps_and_no_geotags(tmp_path, capsys):
     blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
     code, err = run_cli(["--photos", tmp_path / "photos", "--out", tmp_path / "scene"], capsys)
-    assert code == 2 and "no EXIF GPS in 3 photo(s): a.jpg, b.jpg, c.jpg" in err
+    assert code == 2 and "no GPS (EXIF or DJI XMP) in 3 photo(s): a.jpg, b.jpg, c.jpg" in err
 
 
 def test_geotags_for_other_photos(tmp_path, capsys):
@@ -82,7 +82,7 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     meta = json.loads((scene / "scene.json").read_text())
     assert meta["format"] == "aerostereo-scene/1" and meta["frame"] == "enu"
     assert meta["origin"]["lat0_deg"] == pytest.approx(46.8428, abs=1e-3)
-    assert meta["provenance"]["height_datum"].startswith("mean sea level: the first photo's EXIF GPS altitude")
+    assert meta["provenance"]["height_datum"].startswith("the receiver's: the first photo's GPS altitude")
     surface = trimesh.load(scene / meta["mesh"], force="mesh", process=False)
     assert len(surface.faces) > 1000
     assert -41.0 < np.median(surface.vertices[:, 2]) < -36.0  # the ground, relative to the first photo

@@ -26,6 +26,8 @@ MODELS = {
     "SIMPLE_RADIAL": [1210.0, 811.3, 604.9, -0.08],
     "RADIAL": [1210.0, 811.3, 604.9, -0.08, 0.03],
     "OPENCV": [1210.0, 1195.5, 811.3, 604.9, -0.08, 0.03, 0.0012, -0.0007],
+    # the factory seed (DJI DewarpData without p1, p2): k3 but no rational terms
+    "FULL_OPENCV": [1210.0, 1195.5, 811.3, 604.9, -0.08, 0.03, 0.0, 0.0, -0.02, 0.0, 0.0, 0.0],
 }
 
 
@@ -47,9 +49,13 @@ def test_colmap_lenses_project_like_pycolmap_in_our_pixel_convention(model):
 
 
 def test_a_model_without_an_opencv_equivalent_is_named():
-    camera = pycolmap.Camera.create_from_model_name(7, "FULL_OPENCV", 1000.0, 1600, 1200)
-    with pytest.raises(ValueError, match="camera 7: COLMAP model FULL_OPENCV has no OpenCV equivalent"):
+    camera = pycolmap.Camera.create_from_model_name(7, "OPENCV_FISHEYE", 1000.0, 1600, 1200)
+    with pytest.raises(ValueError, match="camera 7: COLMAP model OPENCV_FISHEYE has no OpenCV equivalent"):
         camera_from_colmap(camera)
+    rational = colmap_camera("FULL_OPENCV", camera_id=8)
+    rational.params = [*MODELS["FULL_OPENCV"][:9], 0.01, 0.0, 0.0]
+    with pytest.raises(ValueError, match="camera 8: FULL_OPENCV with rational terms"):
+        camera_from_colmap(rational)
 
 
 def known_model() -> pycolmap.Reconstruction:

@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from recon.dense import View
-from recon.priors import FocalSeed, read_geotags
+from recon.priors import CameraSeed, read_geotags
 from recon.sfm import SfmOptions, camera_poses, run_sfm
 from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import FOCAL, HEIGHT, WIDTH, make_texture, render_plane
@@ -56,7 +56,7 @@ def orbit(tmp_path_factory):
 def test_orbit_registers_closes_the_loop_and_is_levelled(orbit, tmp_path):
     photos, priors, centres, rotations = orbit
     pycolmap.logging.minloglevel = 2
-    seed = FocalSeed(1.03 * FOCAL, WIDTH, HEIGHT, "test: 3 % too long")
+    seed = CameraSeed.simple_radial(1.03 * FOCAL, WIDTH, HEIGHT, "test: 3 % too long")
     rec, report = run_sfm(photos, priors.names, priors, seed, tmp_path,
                           SfmOptions(max_num_features=2048, spatial_neighbors=8, focal="auto"))
     assert len(report.registered) == NUM_PHOTOS
@@ -88,7 +88,7 @@ def test_photos_left_out_of_mapping_register_by_absolute_pose(orbit, tmp_path):
     of their own: all 24 land as close to the truth as when every photo is mapped."""
     photos, priors, centres, rotations = orbit
     pycolmap.logging.minloglevel = 2
-    seed = FocalSeed(FOCAL, WIDTH, HEIGHT, "test: exact")
+    seed = CameraSeed.simple_radial(FOCAL, WIDTH, HEIGHT, "test: exact")
     rec, report = run_sfm(photos, priors.names, priors, seed, tmp_path,
                           SfmOptions(max_num_features=2048, spatial_neighbors=8, focal="fixed", every_kth=3))
     assert len(report.registered) == NUM_PHOTOS and not report.warnings
