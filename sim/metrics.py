@@ -83,7 +83,9 @@ def ssim(reference: np.ndarray, test: np.ndarray) -> float:
 class ImageComparison:
     """Metrics of one image pair (``name`` is the shared file stem): formula 3 (%) of the whole image, PSNR, SSIM;
     with the exposure gain applied (``gain_error_percent``); over the ``covered`` fraction of pixels only
-    (``covered_error_percent``, ``covered_gain_error_percent``). NaN where unknown (no gain, no depth)."""
+    (``covered_error_percent``, ``covered_gain_error_percent``), and there with one gain per colour channel
+    fitted to the photo (``covered_fit_error_percent``: what is left when the photo's own exposure and white
+    balance, which no twin can know for a new photo, are taken out). NaN where unknown (no gain, no depth)."""
 
     name: str
     error_percent: float
@@ -92,6 +94,7 @@ class ImageComparison:
     gain_error_percent: float = float("nan")
     covered_error_percent: float = float("nan")
     covered_gain_error_percent: float = float("nan")
+    covered_fit_error_percent: float = float("nan")
     covered: float = float("nan")
 
 
@@ -107,6 +110,8 @@ def compare_images(reference: np.ndarray, test: np.ndarray, name: str = "", gain
         extra["covered"] = float(covered.mean())
         if covered.any():
             extra["covered_error_percent"] = photorealism_error_percent(reference[covered], test[covered])
+            fitted = fit_channel_gains(reference[covered], test[covered])
+            extra["covered_fit_error_percent"] = photorealism_error_percent(reference[covered], fitted)
             if corrected is not None:
                 extra["covered_gain_error_percent"] = photorealism_error_percent(reference[covered],
                                                                                  corrected[covered])
@@ -120,6 +125,15 @@ def apply_exposure_gain(render: np.ndarray, gain: float) -> np.ndarray:
     if not (np.isfinite(gain) and gain > 0):
         raise ValueError(f"exposure gain must be a positive number, got {gain}")
     return to_srgb8(SRGB8_TO_LINEAR[render] / np.float32(gain))
+
+
+def fit_channel_gains(reference: np.ndarray, test: np.ndarray) -> np.ndarray:
+    """``test`` (8-bit sRGB, (..., 3)) times the per-channel gain that best fits ``reference`` in linear light
+    (least squares through the origin), as 8-bit sRGB."""
+    ref = SRGB8_TO_LINEAR[reference].reshape(-1, 3).astype(np.float64)
+    lin = SRGB8_TO_LINEAR[test].reshape(-1, 3).astype(np.float64)
+    gains = (ref * lin).sum(axis=0) / np.maximum((lin * lin).sum(axis=0), 1e-12)
+    return to_srgb8((lin * gains).astype(np.float32)).reshape(test.shape)
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -187,7 +201,8 @@ def compare_folders(reference_dir: Path, test_dir: Path) -> list[ImageComparison
 #: Columns of :func:`summary_table` after the image name: (header, ImageComparison field, format).
 SUMMARY_COLUMNS = (("error %", "error_percent", "8.2f"), ("gain err %", "gain_error_percent", "10.2f"),
                    ("covered err %", "covered_error_percent", "13.2f"),
-                   ("cov. gain err %", "covered_gain_error_percent", "15.2f"), ("covered", "covered", "7.3f"),
+                   ("cov. gain err %", "covered_gain_error_percent", "15.2f"),
+                   ("cov. fit err %", "covered_fit_error_percent", "14.2f"), ("covered", "covered", "7.3f"),
                    ("PSNR dB", "psnr_db", "8.2f"), ("SSIM", "ssim", "7.4f"))
 
 

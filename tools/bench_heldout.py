@@ -12,7 +12,9 @@ For each photo folder, through the command-line tools as a user runs them:
    the photo's own lens, distortion included; ``--width`` scales it), unlit: the texture's own shading.
 3. ``sim.metrics.compare_folders(PHOTO_DIR, replay_2)`` (what ``aerostereo-render compare`` prints): the paper's
    formula 3 per photo, raw and with the photo's texture exposure gain (render / g in linear light), over the
-   whole image and over the covered pixels (where the render hit the mesh).
+   whole image and over the covered pixels (where the render hit the mesh), and there with one gain per channel
+   fitted to the photo ("err/fit": the photo's own exposure and white balance taken out, which a held-out photo's
+   texture gain cannot do).
 
 Each ``--variant`` (default ``3d-atlas=3d:atlas``; e.g. add ``2.5d-ortho=2.5d:ortho``) is a scene of its own:
 the first is reconstructed from scratch, the others start from a copy of its ``work/`` so that only the stages
@@ -41,8 +43,10 @@ from sim.metrics import compare_folders, mean_comparison  # noqa: E402
 from sim.scene import load_scene  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
-METRICS = ("error_percent", "gain_error_percent", "covered_error_percent", "covered_gain_error_percent", "covered")
-HEADERS = ("photos", "n", "err % whole", "err/g % whole", "err % covered", "err/g % covered", "coverage")
+METRICS = ("error_percent", "gain_error_percent", "covered_error_percent", "covered_gain_error_percent",
+           "covered_fit_error_percent", "covered")
+HEADERS = ("photos", "n", "err % whole", "err/g % whole", "err % covered", "err/g % covered", "err/fit % covered",
+           "coverage")
 
 
 def run_tool(module: str, argv: list[str]) -> float:

@@ -80,7 +80,7 @@ def test_folders_pair_images_by_name_without_extension(tmp_path):
     table = summary_table(results)
     mean_ssim = f"{np.mean([r.ssim for r in results]):.4f}"
     # plain folders: no exposure gain and no depth, so those columns are unknown
-    unknown = ["nan"] * 4
+    unknown = ["nan"] * 5
     assert table.splitlines()[-1].split() == ["mean", "of", "2", "10.00", *unknown, "13.98", mean_ssim]
 
 
@@ -134,3 +134,16 @@ def test_depth_errors_over_valid_pixels():
     assert errors.delta_1_25 == pytest.approx(2 / 3)
     with pytest.raises(ValueError, match="no pixel has a finite positive depth"):
         depth_errors(np.full((2, 2), np.inf), truth[:, :2])
+
+
+def test_a_fitted_gain_per_channel_takes_out_exposure_and_white_balance():
+    """A render off by a different linear gain per channel: the covered error with fitted gains is rounding only;
+    a render with wrong content stays wrong after the fit."""
+    photo = RNG.integers(20, 150, size=(40, 50, 3), dtype=np.uint8)
+    render = to_srgb8(SRGB8_TO_LINEAR[photo] * np.array([1.3, 0.9, 1.1], np.float32))
+    covered = np.ones(photo.shape[:2], bool)
+    result = compare_images(photo, render, covered=covered)
+    assert result.covered_error_percent > 2.0
+    assert result.covered_fit_error_percent < 0.1
+    shuffled = compare_images(photo, render[::-1], covered=covered)
+    assert shuffled.covered_fit_error_percent > 5.0
