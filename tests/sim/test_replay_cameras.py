@@ -88,9 +88,9 @@ def test_compare_undoes_the_exposure_gain_of_each_photo(replay, tmp_path, capsys
     assert cli_main(["compare", str(photos), str(replay / "sequences/00/replay_2")]) == 0
     rows = [line.split() for line in capsys.readouterr().out.splitlines()[1:3]]
     for row in rows:
-        error, gain_error, covered_error, covered_gain_error, covered = map(float, row[1:6])
+        error, gain_error, covered_error, covered_gain_error, fitted_error, covered = map(float, row[1:7])
         assert error > 2.0 and covered_error == error and covered == 1.0
-        assert gain_error < 0.3 and covered_gain_error == gain_error
+        assert gain_error < 0.3 and covered_gain_error == gain_error and fitted_error < 0.3
 
 
 def test_width_scales_every_lens(tmp_path):
