@@ -150,7 +150,7 @@ def _images_by_stem(folder: Path) -> dict[str, Path]:
         raise ValueError(f"{folder}: not a folder")
     images = {}
     for path in sorted(folder.iterdir()):
-        if path.suffix.lower() in IMAGE_SUFFIXES:
+        if path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith("."):  # hidden: temporaries
             if path.stem in images:
                 raise ValueError(f"{folder}: two images named {path.stem} ({images[path.stem].name}, {path.name})")
             images[path.stem] = path

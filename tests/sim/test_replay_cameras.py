@@ -79,6 +79,14 @@ def test_replayed_images_keep_the_photo_names(replay):
         assert named.read_bytes() == numbered.read_bytes()
 
 
+def test_a_resumed_replay_leaves_only_the_photo_names(replay, tmp_path):
+    """Rerunning a finished replay into its folder relinks nothing and leaves no temporary beside the names (a
+    rename of a hard link onto the file it already names does nothing, so the temporary would stay)."""
+    scene = replay.parent / "scene"
+    assert cli_main(["--scene", str(scene), "--out", str(replay), "--mode", "replay", "--quiet"]) == 0
+    assert sorted(p.name for p in (replay / "sequences/00/replay_2").iterdir()) == ["DJI_0001.png", "DJI_0002.png"]
+
+
 def test_compare_undoes_the_exposure_gain_of_each_photo(replay, tmp_path, capsys):
     """Photos that are the renders divided by their gain: raw formula 3 is off, the gain column is ~0."""
     photos = tmp_path / "photos"
