@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from capture.geotag_io import sidecar_path
 from recon import dense, mesh as meshing, texture as texturing
 from recon.atlas import AtlasOptions, texture_atlas
-from recon.observed import observed_area
+from recon.observed import viewed_area
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
@@ -255,9 +255,11 @@ class Recon:
         return meshing.cell_size_from_gsd(median_view_depth(rec), focal)
 
     def observed_area(self) -> np.ndarray:
-        """(K, 2) ENU polygon the registered cameras stand over (:func:`recon.observed.observed_area`)."""
+        """(K, 2) ENU polygon the registered cameras stand over and look at (:func:`recon.observed.viewed_area`,
+        the ground at the sparse points' median height)."""
         rec = pycolmap.Reconstruction(self.work / "dense" / "sparse")
-        return observed_area(np.array([pose[:3, 3] for pose in camera_poses(rec).values()]))
+        ground_z = float(np.median([point.xyz[2] for point in rec.points3D.values()]))
+        return viewed_area(np.array(list(camera_poses(rec).values())), ground_z)
 
     def stage_mesh(self):
         full, small = self.work / "mesh.ply", self.work / "mesh_decimated.ply"

@@ -3,7 +3,7 @@
 The normal case is a textured GLB from ``recon/texture.py`` (``encoded`` bytes); the fallback is the mesh with
 vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/scene_cameras.py) holds the registered photos of
 the final SfM model with their exposure gains; ``scene.json``'s ``observed_area_m`` is the ground polygon (ENU
-x, y metres) they stand over (:func:`recon.observed.observed_area`), where the twin is expected to hold.
+x, y metres) they stand over and look at (:func:`recon.observed.viewed_area`), where the twin is expected to hold.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ import trimesh
 
 from flightplan.geodesy import LocalFrame
 from flightplan.atomic import atomic_path, write_text_atomic
-from recon.observed import observed_area
+from recon.observed import viewed_area
 from recon.sfm import camera_from_colmap, camera_poses
 from sim.scene_cameras import SceneCamera, write_cameras
 
@@ -71,7 +71,8 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
         write_cameras(scene_dir / CAMERAS_FILE, cameras)
         meta["cameras"] = CAMERAS_FILE
         if len(cameras) >= 3:
-            area = observed_area(np.array([np.asarray(camera.T_world_cam)[:3, 3] for camera in cameras]))
+            ground_z = float(np.median(np.asarray(mesh.vertices)[:, 2]))
+            area = viewed_area(np.array([camera.T_world_cam for camera in cameras]), ground_z)
             meta["observed_area_m"] = area.round(3).tolist()
     write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
     return scene_dir / "scene.json"

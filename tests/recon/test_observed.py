@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from recon.observed import inside, observed_area
+from recon.observed import inside, observed_area, viewed_area
 
 
 def test_a_circle_of_cameras_observes_its_disc():
@@ -39,3 +39,20 @@ def test_inside_a_square_on_a_grid_with_heights():
 def test_cameras_on_a_line_observe_no_area(centres):
     with pytest.raises(ValueError, match="span no area"):
         observed_area(centres)
+
+
+def test_a_short_arc_looking_at_the_centre_views_the_centre():
+    """Three cameras on a 50 m circle, 30 m up, looking at its centre on the ground: the cameras alone span a
+    sliver at the rim; with their optical axes' ground points the area reaches the centre (and no further)."""
+    from sim.camera import look_at
+
+    angles = np.radians([0.0, 10.0, 20.0])
+    poses = np.array([look_at((50.0 * math.cos(a), 50.0 * math.sin(a), 30.0), (0.0, 0.0, 0.0)) for a in angles])
+    assert not inside(observed_area(poses[:, :3, 3]), np.array([[1.0, 1.0]]))[0]
+    area = viewed_area(poses, ground_z=0.0)
+    assert inside(area, np.array([[25.0, 4.0], [0.5, 0.05]])).all()
+    assert np.abs(area).max() <= 50.0 + 1e-9 and area[:, 0].min() == pytest.approx(0.0, abs=1e-9)
+    # a camera looking above the horizon adds its own position only (its axis never meets the ground)
+    looking_up = look_at((0.0, -40.0, 30.0), (0.0, 0.0, 60.0))
+    with_it = viewed_area(np.concatenate([poses, looking_up[None]]), ground_z=0.0)
+    assert with_it[:, 1].min() == pytest.approx(-40.0)
