@@ -394,6 +394,6 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     area = np.asarray(mesh.area_faces)
     coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
-        f"patches, {width}x{height} texels of {1.0 / texels_per_m:.3f} m, coverage {100 * coverage:.1f} %")
+        f"patches")
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
                  {photo.name: float(g) for photo, g in zip(photos, gains)}, coverage, 1.0 / texels_per_m)
