@@ -44,8 +44,6 @@ from sim.worlds.glb import encode_textured_glb
 RASTER_SHIFT = 4
 #: Texels per chunk when turning texels into surface points (bounds the memory of the barycentric step).
 TEXEL_CHUNK = 1 << 20
-#: Packing efficiency assumed when sizing the atlas before xatlas packs it.
-PACKING_EFFICIENCY = 0.7
 
 
 @dataclass(frozen=True)

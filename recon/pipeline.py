@@ -254,18 +254,19 @@ class Recon:
         focal = float(np.mean([cam.mean_focal_length() for cam in rec.cameras.values()]))
         return meshing.cell_size_from_gsd(median_view_depth(rec), focal)
 
-    def observed_area(self) -> np.ndarray:
-        """(K, 2) ENU polygon the registered cameras stand over and look at (:func:`recon.observed.viewed_area`,
-        the ground at the sparse points' median height)."""
-        rec = pycolmap.Reconstruction(self.work / "dense" / "sparse")
+    @staticmethod
+    def observed_area(rec: pycolmap.Reconstruction) -> np.ndarray:
+        """(K, 2) ENU polygon the registered cameras of ``rec`` stand over and look at
+        (:func:`recon.observed.viewed_area`, the ground at the sparse points' median height)."""
         ground_z = float(np.median([point.xyz[2] for point in rec.points3D.values()]))
         return viewed_area(np.array(list(camera_poses(rec).values())), ground_z)
 
     def stage_mesh(self):
         full, small = self.work / "mesh.ply", self.work / "mesh_decimated.ply"
         if self.options.mesh == "3d":
-            margin = self.options.crop_margin * median_view_depth(pycolmap.Reconstruction(self.work / "dense" / "sparse"))
-            surface = meshing.surface_3d(self.work / "fused.ply", full, self.observed_area(), margin,
+            rec = pycolmap.Reconstruction(self.work / "dense" / "sparse")
+            margin = self.options.crop_margin * median_view_depth(rec)
+            surface = meshing.surface_3d(self.work / "fused.ply", full, self.observed_area(rec), margin,
                                          self.options.poisson_depth, self.options.poisson_trim)
             self.log(f"[mesh] 3-D surface over the observed area + {margin:.1f} m, {len(surface.faces)} faces")
         elif self.options.mesh == "poisson":
