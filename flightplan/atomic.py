@@ -38,6 +38,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     try:
         yield Path(temporary)
         os.replace(temporary, target)
+        # POSIX: renaming a hard link onto a name of the same file does nothing and leaves the temporary behind
+        Path(temporary).unlink(missing_ok=True)
     except BaseException as error:
         Path(temporary).unlink(missing_ok=True)
         if isinstance(error, OSError):

@@ -43,10 +43,7 @@ def write_photo_names(layout: KittiLayout, records: Sequence[Mapping]) -> None:
         if name is None:
             continue
         source = layout.colour_dir(LEFT_VIEW) / frame_file_name(int(record["frame"]), ".png")
-        target = layout.replay_dir(LEFT_VIEW) / f"{Path(name).stem}.png"
-        if target.exists() and os.path.samefile(source, target):
-            continue  # linked by an earlier run (renaming a link onto the same file would do nothing, POSIX)
-        with atomic_path(target) as tmp:
+        with atomic_path(layout.replay_dir(LEFT_VIEW) / f"{Path(name).stem}.png") as tmp:
             tmp.unlink()
             try:
                 os.link(source, tmp)
