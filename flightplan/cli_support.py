@@ -1,0 +1,179 @@
+"""What every aerostereo command line shares: one-line errors with exit code 2, ``--version``, outputs that never
+name an input, and size checks before any work starts.
+
+- :class:`Parser` is an ``argparse.ArgumentParser`` whose errors are one line (``PROG: error: MESSAGE``) instead
+  of the usage block, and which shows defaults in ``--help``; its subparsers are :class:`Parser` too.
+- :func:`run_cli` runs a command's body and turns bad input (:class:`BadInput`, ``ValueError``), file-system
+  errors (``OSError``: missing, unwritable, full or read-only disk), ``MemoryError``, ``RecursionError`` and Ctrl-C
+  into one line on stderr and an exit code, never a traceback.
+- :func:`refuse_clobbering` refuses an output path that names an input or another output.
+- :func:`require_memory` and :func:`require_disk` compare what a run would need with what the machine has.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import sys
+from collections.abc import Callable, Iterable, Mapping
+from importlib import metadata
+from pathlib import Path
+
+EXIT_OK = 0
+EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report Ctrl-C
+
+GIB = 1024 ** 3
+
+
+class BadInput(ValueError):
+    """Bad user input or an impossible request: printed as one line, exit code 2.
+
+    The message names the file (with line or byte offset where known) or the argument, and what was expected.
+    """
+
+
+class Parser(argparse.ArgumentParser):
+    """An argument parser with one-line errors and defaults shown in ``--help``."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", argparse.ArgumentDefaultsHelpFormatter)
+        super().__init__(*args, **kwargs)
+
+    def error(self, message: str):
+        """Print ``PROG: error: MESSAGE`` (one line, no usage block) and exit with code 2."""
+        self.exit(EXIT_BAD_INPUT, f"{self.prog}: error: {one_line(message)}\n")
+
+
+def add_version(parser: argparse.ArgumentParser) -> None:
+    """Add ``--version``: prints ``PROG VERSION`` (the installed aerostereo distribution's version)."""
+    parser.add_argument("--version", action="version", version=f"%(prog)s {package_version()}")
+
+
+def package_version() -> str:
+    """The installed ``aerostereo`` version (``unknown`` when run from a source tree that was never installed)."""
+    try:
+        return metadata.version("aerostereo")
+    except metadata.PackageNotFoundError:
+        return "unknown"
+
+
+def one_line(text: str) -> str:
+    """``text`` with line breaks and runs of spaces collapsed, so an error is always one line."""
+    return " ".join(str(text).split())
+
+
+def describe_os_error(error: OSError) -> str:
+    """``PATH: REASON`` for a file-system error (ENOSPC reads ``...: No space left on device``)."""
+    reason = error.strerror or str(error) or type(error).__name__
+    names = [name for name in (error.filename, getattr(error, "filename2", None)) if name]
+    return f"{' -> '.join(str(name) for name in names)}: {reason}" if names else reason
+
+
+def run_cli(prog: str, body: Callable[[], int], bad_input: tuple[type[BaseException], ...] = ()) -> int:
+    """Run ``body()`` and return its exit code; report failures as one line ``PROG: error: ...`` on stderr.
+
+    ``bad_input`` adds the command's own exception types (beyond :class:`BadInput` and ``ValueError``) whose
+    message is meant for the user. ``OSError``, ``MemoryError`` and ``RecursionError`` also give exit code 2;
+    Ctrl-C gives 130. Other exceptions are bugs and keep their traceback.
+    """
+    try:
+        return body()
+    except (BadInput, ValueError, *bad_input) as error:
+        return _report(prog, str(error) or type(error).__name__)
+    except OSError as error:
+        return _report(prog, describe_os_error(error))
+    except MemoryError:
+        return _report(prog, "out of memory (ask for less: a smaller size, fewer frames or fewer workers)")
+    except RecursionError:
+        return _report(prog, "input nested too deeply to read")
+    except KeyboardInterrupt:
+        print(f"{prog}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _report(prog: str, message: str) -> int:
+    print(f"{prog}: error: {one_line(message)}", file=sys.stderr)
+    return EXIT_BAD_INPUT
+
+
+def refuse_clobbering(inputs: Mapping[str, Path | Iterable[Path] | None],
+                      outputs: Mapping[str, Path | None]) -> None:
+    """Raise :class:`BadInput` if an output path names an input or another output.
+
+    ``inputs`` and ``outputs`` map an argument name (``--out``, ``--photos``) to its path(s); ``None`` entries are
+    skipped. Paths are compared after resolving symlinks and ``..``, and by inode where both exist (hard links).
+    """
+    seen: dict[Path, str] = {}
+    for name, value in inputs.items():
+        for path in _paths(value):
+            seen.setdefault(_key(path), name)
+    for name, path in outputs.items():
+        if path is None:
+            continue
+        key = _key(path)
+        if key in seen:
+            raise BadInput(f"{name} {path}: is also {seen[key]}; choose an output that names no input or other output")
+        for other, other_name in list(seen.items()):
+            if _same_file(path, other):
+                raise BadInput(f"{name} {path}: is the same file as {other_name}; choose another output")
+        seen[key] = name
+
+
+def _paths(value: Path | Iterable[Path] | None) -> list[Path]:
+    if value is None:
+        return []
+    if isinstance(value, (str, os.PathLike)):
+        return [Path(value)]
+    return [Path(v) for v in value]
+
+
+def _key(path: Path) -> Path:
+    return Path(os.path.realpath(path))
+
+
+def _same_file(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def available_memory_bytes() -> int:
+    """Memory this machine can give a new allocation now: ``MemAvailable`` (Linux), else physical memory."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+
+
+def require_memory(bytes_needed: float, what: str) -> None:
+    """Raise :class:`BadInput` if ``what`` (e.g. ``--width 1000000 --height 600``) needs more memory than is free."""
+    available = available_memory_bytes()
+    if bytes_needed > available:
+        raise BadInput(f"{what} needs about {format_bytes(bytes_needed)} of memory; "
+                       f"this machine has {format_bytes(available)} available")
+
+
+def require_disk(folder: Path, bytes_needed: float, what: str) -> None:
+    """Raise :class:`BadInput` if writing ``bytes_needed`` under ``folder`` (or its nearest existing parent)
+    would not fit on that disk."""
+    existing = Path(folder).absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    free = shutil.disk_usage(existing).free
+    if bytes_needed > free:
+        raise BadInput(f"{what} needs about {format_bytes(bytes_needed)} on disk; {existing} has {format_bytes(free)} free")
+
+
+def format_bytes(count: float) -> str:
+    """``1.5 GiB``, ``730 MiB``, ``12 KiB``, ``3 B`` (binary units; ``inf`` stays ``inf B``)."""
+    for unit, size in (("PiB", 1024 ** 5), ("TiB", 1024 ** 4), ("GiB", GIB), ("MiB", 1024 ** 2), ("KiB", 1024)):
+        if count >= size:
+            return f"{count / size:.3g} {unit}"
+    return f"{count:.0f} B"
