@@ -30,7 +30,7 @@ from flightplan.atomic import atomic_path, write_bytes_atomic
 EXR_CHANNEL = "Y"
 KITTI_DISPARITY_SCALE = 256.0
 KITTI_DEPTH_SCALE = 256.0
-#: JPEG quality of Virtual KITTI 2-style colour images (that layout names them ``.jpg``): visually lossless.
+#: JPEG quality of Virtual KITTI 2-style colour images (that layout names them ``.jpg``).
 JPEG_QUALITY = 95
 VKITTI_DEPTH_SCALE = 100.0
 UINT16_MAX = 65535
@@ -75,9 +75,11 @@ def read_png(path: Path) -> np.ndarray:
 
 
 def write_jpeg(path: Path, rgb: np.ndarray, quality: int = JPEG_QUALITY) -> None:
-    """Encode an (H, W, 3) uint8 **RGB** image as JPEG (OpenCV, deterministic) and write it atomically."""
+    """Encode an (H, W, 3) uint8 **RGB** image as JPEG (OpenCV, deterministic; full-resolution colour, no 4:2:0
+    chroma subsampling, which blurs colour edges) and write it atomically."""
     rgb = _check_image(rgb, "JPEG image")
-    ok, buffer = cv2.imencode(".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, quality])
+    params = [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
+    ok, buffer = cv2.imencode(".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), params)
     if not ok:
         raise RuntimeError(f"OpenCV could not encode a {rgb.dtype} {rgb.shape} image as JPEG")
     write_bytes_atomic(path, buffer.tobytes())

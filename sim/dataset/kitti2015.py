@@ -25,8 +25,8 @@ from sim.dataset.kitti import format_numbers, projection_matrices
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame
 
 #: A left point counts as visible in the right view when its depth exceeds the right view's depth there by at most
-#: this fraction. The right depth is compared at the two pixel centres around the point's right-view column, and
-#: the larger is taken: on any surface whose depth is monotone across that pixel the point's depth lies between
+#: this fraction. The right depth is compared at the pixel centres on either side of the point's right-view
+#: column (the one pixel when the column falls on a centre) and the larger is taken: on any surface whose depth is monotone across that pixel the point's depth lies between
 #: them, so the tolerance only has to absorb float32 depth (1e-7 relative) and creases inside one pixel, where
 #: depth changes by at most tan(incidence) / (2 fx) of itself over half a pixel: 0.37 % at 80 deg incidence for
 #: the default camera (1280 px, 80 deg field of view, fx = 763 px). An occluder at least 0.5 % of the distance in
@@ -41,15 +41,16 @@ def visible_in_right(depth_left: np.ndarray, depth_right: np.ndarray, disparity_
 
     The left pixel ``(u, v)`` with planar depth ``z`` (metres; the same in both cameras of a rectified pair) and
     disparity ``d`` projects to the right pixel ``(u - d, v)``. It is visible when that column lies inside the
-    image and ``z <= (1 + tolerance) * max(z_right[v, floor(u - d)], z_right[v, floor(u - d) + 1])``; pixels that
-    hit nothing are not visible.
+    image and ``z <= (1 + tolerance) * max(z_right[v, floor(u - d)], z_right[v, ceil(u - d)])``; pixels that hit
+    nothing are not visible.
     """
     height, width = depth_left.shape
     column = np.arange(width, dtype=np.float64) - np.asarray(disparity_left, dtype=np.float64)
     hit = np.isfinite(depth_left) & np.isfinite(column)
     inside = hit & (column >= 0) & (column <= width - 1)
-    left_column = np.clip(np.floor(np.where(inside, column, 0)), 0, width - 1).astype(np.intp)
-    right_column = np.minimum(left_column + 1, width - 1)
+    column = np.where(inside, column, 0.0)
+    left_column = np.floor(column).astype(np.intp)
+    right_column = np.where(column > left_column, np.minimum(left_column + 1, width - 1), left_column)
     rows = np.arange(height)[:, None]
     seen_depth = np.maximum(depth_right[rows, left_column], depth_right[rows, right_column]).astype(np.float64)
     return inside & (depth_left <= seen_depth * (1.0 + tolerance))
