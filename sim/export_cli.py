@@ -26,7 +26,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                     "(OUT/aerostereo/..._sync: proj_depth/groundtruth), vkitti2 (OUT/SceneNN/clone), tum "
                     "(OUT/tum/NN.txt). Refuses an OUT that overlaps DATASET, and layouts the dataset cannot fill "
                     "(no depth EXRs, lens distortion, no rectified pair).")
-    parser.add_argument("dataset", type=Path, help="dataset folder (dataset.json, sequences/NN/...)")
+    parser.add_argument("dataset", type=Path, metavar="DATASET", help="dataset folder (dataset.json, sequences/NN/...)")
     parser.add_argument("--layout", required=True, type=_layouts,
                         help=f"comma-separated layouts: {', '.join(LAYOUTS)}")
     parser.add_argument("--out", required=True, type=Path, help="output folder (outside the dataset)")

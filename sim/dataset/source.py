@@ -38,7 +38,8 @@ class DatasetSource:
         if not path.is_file():
             raise DatasetError(f"{path}: not found; the dataset is not finalized (rerun the render until every frame "
                                "is written)")
-        records = [json.loads(line) for line in path.read_text(encoding="utf-8").splitlines()]
+        records = [_record(path, number, line)
+                   for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)]
         if [record.get("frame") for record in records] != list(range(frame_count)):
             raise DatasetError(f"{path}: expected the records of frames 0..{frame_count - 1} in order; "
                                "rerun the render to finalize the dataset")
@@ -80,6 +81,18 @@ class DatasetSource:
         """The frames in order."""
         for record in self.records:
             yield SourceFrame(self, int(record["frame"]), record)
+
+
+def _record(path: Path, number: int, line: str) -> dict:
+    """Line ``number`` of ``frames.jsonl`` as a JSON object, or an error naming the file and line."""
+    try:
+        record = json.loads(line)
+    except json.JSONDecodeError as error:
+        raise DatasetError(f"{path}: line {number} is not JSON ({error.msg}); rerun the render to finalize the "
+                           "dataset again") from None
+    if not isinstance(record, dict):
+        raise DatasetError(f"{path}: line {number} is not a JSON object")
+    return record
 
 
 @dataclass

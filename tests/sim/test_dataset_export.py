@@ -262,6 +262,32 @@ def test_cli_refuses_with_one_line_and_writes_nothing(tmp_path, capsys, case):
     assert not out.exists()
 
 
+def test_layouts_that_need_pinhole_images_refuse_a_distorted_lens_and_tum_does_not(tmp_path):
+    distorted = PinholeCamera(CAMERA.fx, CAMERA.fy, CAMERA.cx, CAMERA.cy, CAMERA.width, CAMERA.height,
+                              dist=(-0.1, 0.01, 0.0, 0.0, 0.0))
+    dataset_spec = DatasetSpec(cameras=[distorted] * 2, T_rig_cams=spec(1).T_rig_cams, origin=ORIGIN, frame_count=1,
+                               formats=("depth_exr",), command_line=["test"])
+    source = write_dataset(tmp_path / "dataset", [frame_record(0)], dataset_spec)
+    for layout in ("kitti2015", "kitti_depth", "vkitti2"):
+        with pytest.raises(ValueError, match=f"the {layout} layout needs undistorted pinhole images"):
+            export_dataset(source, tmp_path / "out", [layout])
+    assert not (tmp_path / "out").exists()
+    assert export_dataset(source, tmp_path / "out", ["tum"])[0].startswith("tum: 1 poses")
+
+
+def test_a_damaged_frames_jsonl_is_named_with_its_line(plane, tmp_path):
+    source = tmp_path / "dataset"
+    source.mkdir()
+    for name in ("dataset.json", "sequences/00/frames.jsonl"):
+        (source / name).parent.mkdir(parents=True, exist_ok=True)
+        (source / name).write_bytes((plane[0] / name).read_bytes())
+    frames_jsonl = source / "sequences/00/frames.jsonl"
+    lines = frames_jsonl.read_text().splitlines()
+    frames_jsonl.write_text("\n".join([lines[0], lines[1][:20], *lines[2:]]) + "\n")
+    with pytest.raises(ValueError, match=r"frames.jsonl: line 2 is not JSON"):
+        export_dataset(source, tmp_path / "out", ["tum"])
+
+
 def test_unknown_layout_is_refused_naming_the_known_ones(plane, tmp_path):
     source, _, _ = plane
     with pytest.raises(ValueError, match="unknown layouts \\['vkitti'\\]; choose from kitti2015, kitti_depth, vkitti2, tum"):
