@@ -69,8 +69,6 @@ class DatasetSource:
 
     def baseline_m(self, layout: str) -> float:
         """Baseline of rig cameras 0 and 1 (metres); refuses a pair that is not rectified."""
-        if self.view_count < 2:
-            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs a stereo pair")
         try:
             return stereo_baseline_m(self.T_rig_cams[LEFT], self.T_rig_cams[RIGHT])
         except ValueError:

@@ -275,6 +275,18 @@ def test_layouts_that_need_pinhole_images_refuse_a_distorted_lens_and_tum_does_n
     assert export_dataset(source, tmp_path / "out", ["tum"])[0].startswith("tum: 1 poses")
 
 
+def test_kitti2015_refuses_a_pair_that_is_not_rectified_and_the_depth_layouts_do_not(tmp_path):
+    T_right = spec(1).T_rig_cams[1].copy()
+    T_right[1, 3] = 0.2  # the right camera also 0.2 m below the left: epipolar lines are no longer rows
+    dataset_spec = DatasetSpec(cameras=[CAMERA] * 2, T_rig_cams=[np.eye(4), T_right], origin=ORIGIN, frame_count=1,
+                               formats=("depth_exr",), command_line=["test"])
+    source = write_dataset(tmp_path / "dataset", [frame_record(0)], dataset_spec)
+    with pytest.raises(ValueError, match="the kitti2015 layout needs a rectified stereo pair"):
+        export_dataset(source, tmp_path / "out", ["kitti_depth", "kitti2015"])
+    assert not (tmp_path / "out").exists()
+    assert len(export_dataset(source, tmp_path / "out", ["kitti_depth", "vkitti2"])) == 2
+
+
 def test_a_damaged_frames_jsonl_is_named_with_its_line(plane, tmp_path):
     source = tmp_path / "dataset"
     source.mkdir()
