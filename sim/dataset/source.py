@@ -114,7 +114,8 @@ class SourceFrame:
     def depth(self, view: int) -> np.ndarray:
         """Planar depth of rig camera ``view`` (H, W) float32 metres, +inf on miss (read once per frame)."""
         if view not in self._depth:
-            self._depth[view] = images.read_exr(self.source.layout.depth_dir(view) / frame_file_name(self.index, ".exr"))
+            path = self.source.layout.depth_dir(view) / frame_file_name(self.index, ".exr")
+            self._depth[view] = images.read_exr(path)
         return self._depth[view]
 
     def camera(self, view: int) -> dict:

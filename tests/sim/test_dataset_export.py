@@ -66,7 +66,8 @@ def test_kitti2015_names_and_byte_level_encodings(plane):
     for folder in ("image_2", "image_3", "disp_occ_0", "disp_noc_0"):
         assert sorted(path.name for path in (training / folder).iterdir()) == names
     assert png_header(training / "image_2/000001_10.png") == (CAMERA.width, CAMERA.height, 8, 2)  # 8-bit RGB
-    assert (training / "image_3/000001_10.png").read_bytes() == (source / "sequences/00/image_3/000001.png").read_bytes()
+    source_png = source / "sequences/00/image_3/000001.png"
+    assert (training / "image_3/000001_10.png").read_bytes() == source_png.read_bytes()
     for folder in ("disp_occ_0", "disp_noc_0"):
         assert png_header(training / folder / "000001_10.png") == (CAMERA.width, CAMERA.height, 16, 0)  # 16-bit grey
     occ = np.asarray(Image.open(training / "disp_occ_0/000001_10.png")).astype(np.int64)
@@ -125,8 +126,9 @@ def box(tmp_path_factory):
                                frame_count=1, command_line=["test"])
     source = write_dataset(root / "dataset", [record], dataset_spec)
     export_dataset(source, root / "out", ["kitti2015"])
-    read = lambda folder: np.asarray(Image.open(root / "out/training" / folder / "000000_10.png")).astype(np.int64)  # noqa: E731
-    return frame, read("disp_occ_0"), read("disp_noc_0")
+    occ, noc = (np.asarray(Image.open(root / "out/training" / folder / "000000_10.png")).astype(np.int64)
+                for folder in ("disp_occ_0", "disp_noc_0"))
+    return frame, occ, noc
 
 
 def test_ground_hidden_behind_the_box_is_valid_in_occ_and_zero_in_noc(box):
@@ -220,7 +222,8 @@ def test_vkitti2_names_depth_and_camera_files(plane):
     # JPEG, as VKITTI2 ships its images; full-resolution colour keeps this tiny sharp checkerboard at a mean error of
     # 3.1 levels (4:2:0 chroma subsampling: 21)
     assert np.abs(rgb.astype(float) - truth.views[1].rgb).mean() < 4.0
-    depth_png = cv2.imread(str(clone / "frames/depth/Camera_1/depth_00001.png"), cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
+    depth_png = cv2.imread(str(clone / "frames/depth/Camera_1/depth_00001.png"),
+                           cv2.IMREAD_ANYCOLOR | cv2.IMREAD_ANYDEPTH)
     assert depth_png.dtype == np.uint16
     depth = truth.views[1].depth.astype(np.float64)
     near = np.isfinite(depth) & (depth < 600.0)
@@ -302,6 +305,7 @@ def test_a_damaged_frames_jsonl_is_named_with_its_line(plane, tmp_path):
 
 def test_unknown_layout_is_refused_naming_the_known_ones(plane, tmp_path):
     source, _, _ = plane
-    with pytest.raises(ValueError, match="unknown layouts \\['vkitti'\\]; choose from kitti2015, kitti_depth, vkitti2, tum"):
+    known = "kitti2015, kitti_depth, vkitti2, tum"
+    with pytest.raises(ValueError, match=f"unknown layouts \\['vkitti'\\]; choose from {known}"):
         export_dataset(source, tmp_path / "out", ["vkitti"])
     assert not (tmp_path / "out").exists()
