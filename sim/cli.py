@@ -1,7 +1,8 @@
 """``aerostereo-render``: render stereo datasets from a scene, compare renders with photos, fly the virtual drone.
 
 ``aerostereo-render [options]`` renders a dataset (the default command, :mod:`sim.render_cli`);
-``aerostereo-render compare ...`` and ``aerostereo-render fly ...`` are subcommands. Their parser is assembled
+``aerostereo-render compare ...``, ``aerostereo-render fly ...`` and ``aerostereo-render export ...`` are
+subcommands. Their parser is assembled
 from small ``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where
 subcommands are named); each sets ``handler(args) -> int``. Bad input ends with a one-line message on stderr
 and exit code 2.
@@ -17,6 +18,7 @@ from pathlib import Path
 from capture.track import parse_utc
 from flightplan.litchi import LitchiFormatError
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
+from sim.export_cli import add_export_parser
 from sim.render_cli import add_compare_parser, render_main
 from sim.render_dataset import resolve_scene_dir
 from sim.scene import SceneError, load_scene
@@ -59,7 +61,7 @@ def add_fly_parser(subparsers) -> None:
 
 
 #: Subcommands; anything else on the command line goes to the dataset renderer (the default command).
-SUBCOMMANDS = (add_fly_parser, add_compare_parser)
+SUBCOMMANDS = (add_fly_parser, add_compare_parser, add_export_parser)
 
 
 def build_parser() -> tuple[argparse.ArgumentParser, set[str]]:

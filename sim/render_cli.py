@@ -56,7 +56,9 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         prog=PROG, description="Render a stereo dataset (KITTI odometry layout + depth, disparity, poses) from a "
                                "scene folder or the built-in demo world.",
         epilog="Other commands: 'aerostereo-render fly --help' (fly a Litchi mission with the virtual drone), "
-               "'aerostereo-render compare --help' (photorealism of renders against photos).")
+               "'aerostereo-render compare --help' (photorealism of renders against photos), "
+               "'aerostereo-render export --help' (a rendered dataset in KITTI 2015, KITTI depth, VKITTI2 or TUM "
+               "layouts).")
     add = parser.add_argument
     defaults = RenderOptions()
     add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
