@@ -102,7 +102,8 @@ class PinholeCamera:
         if self.model == "fisheye":
             out = cv2.fisheye.undistortPoints(src, self.K, dist, criteria=_UNDISTORT_CRITERIA)
         else:
-            out = cv2.undistortPoints(src, self.K, dist, criteria=_UNDISTORT_CRITERIA)
+            # undistortPointsIter: OpenCV 4.x's undistortPoints takes no criteria (5 iterations only)
+            out = cv2.undistortPointsIter(src, self.K, dist, None, None, _UNDISTORT_CRITERIA)
         return out.reshape(-1, 2)
 
     def normalized_to_pixels(self, xy: np.ndarray) -> np.ndarray:
