@@ -12,11 +12,12 @@ import sys
 from pathlib import Path
 
 from flightplan.argtypes import finite_number, positive_number
+from flightplan.cli_support import refuse_clobbering
 
 from .geotag import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, geotag_photos
 from .geotag_io import geotag_paths, load_geotags, write_colmap_reference, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
-from .logs.photos import read_photos
+from .logs.photos import list_photos, read_photos
 from .track import LogFormatError, ReadReport, parse_utc
 
 EXIT_BAD_INPUT = 2
@@ -91,7 +92,9 @@ def read_logs(args) -> list:
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset."""
     try:
-        geotag_paths(args.out)  # a bad --out fails before the logs are read
+        csv_out, json_out = geotag_paths(args.out)  # a bad --out fails before the logs are read
+        refuse_clobbering({"--photos": list_photos(args.photos), "--log": args.log},
+                          {"--out": csv_out, "--out's sidecar": json_out, "--colmap-ref": args.colmap_ref})
         tracks = read_logs(args)
         photos, photo_report = read_photos(args.photos)
         if not photos:
