@@ -13,7 +13,8 @@ sequence ends and timing irregularities tell them apart); if the photos carry th
 whose matched events put the track far from the photos are dropped; without GPS near-ties are reported
 as ambiguous. The fine offset is the middle of the region most matched pairs allow
 (``exif <= event - offset < exif + resolution``, +- the event-time tolerance; Marzullo's algorithm); its
-standard deviation is that region's width / sqrt(12).
+standard deviation is that region's width / sqrt(12). Only photo/event pairs within ``max_offset_s`` vote; with
+none that close, :func:`check_offset_bound` refuses, saying how far apart the two clocks' times are.
 """
 
 from __future__ import annotations

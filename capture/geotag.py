@@ -7,6 +7,12 @@ the take-off (home) point, attitude by slerp (``capture/attitude.py``). A photo 
 positions, or between two position samples further apart than ``max_gap_s``, is left untagged with the
 reason -- never extrapolated. Attitude is interpolated the same way from its own samples and left empty
 (NaN) where those are missing or too far apart.
+
+Such a photo falls back to its own EXIF GPS, XMP heights and XMP attitude (``source`` :data:`PHOTO_SOURCE`,
+listed in ``GeotagResult.from_photos``) where it has them. Photos and logs from different flights are refused
+(:class:`~flightplan.cli_support.BadInput`), never matched: an automatic clock offset beyond
+:data:`MAX_AUTO_CLOCK_OFFSET_S`, or photos whose own GPS is a median of more than ``max_misfit_m`` from their
+geotags.
 """
 
 from __future__ import annotations

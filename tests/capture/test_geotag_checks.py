@@ -12,6 +12,7 @@ import csv
 import dataclasses
 import datetime as dt
 import io
+import json
 import re
 import shutil
 
@@ -21,6 +22,7 @@ from scipy.spatial.transform import Rotation
 
 from capture.cli import main
 from capture.geotag import MAX_AUTO_CLOCK_OFFSET_S, PHOTO_SOURCE, geotag_photos
+from capture.geotag_io import write_geotags
 from capture.logs import read_track
 from capture.logs.photos import read_photo, read_photos
 from capture.logs.writers import write_litchi_csv
@@ -262,3 +264,7 @@ def test_virtual_drone_photos_in_a_telemetry_gap_fall_back_to_their_own_exif_and
         assert angle < 0.5
         assert tag.lat_deg == pytest.approx(truth.measured_latitude_deg[i], abs=1e-8)  # the photo's own GPS
     assert any(f"{len(in_gap)} photos the logs could not tag" in note for note in result.notes)
+    _, sidecar = write_geotags(result, tmp_path / "geotags.csv")
+    written = json.loads(sidecar.read_text(encoding="utf-8"))["from_photos"]
+    assert {image["image_name"] for image in written["images"]} == in_gap and "consumer GPS" in written["accuracy"]
+    assert {row["source"] for row in rows(tmp_path / "geotags.csv") if row["image_name"] in in_gap} == {"photo_exif"}
