@@ -324,7 +324,8 @@ def photo_tag(photo: PhotoInfo, t: float, frame: LocalFrame, height_datum: str, 
 def check_misfit(tags: list[Geotag], photos: list[PhotoInfo], max_misfit_m: float) -> str | None:
     """A note on how far (m, geodesic) the photos' own GPS lies from their geotags from the logs; None without
     GPS. :class:`BadInput` when the median is beyond ``max_misfit_m``: photos and logs from different places."""
-    own = {p.name: (p.values["lat_deg"], p.values["lon_deg"]) for p in photos if {"lat_deg", "lon_deg"} <= set(p.values)}
+    own = {p.name: (p.values["lat_deg"], p.values["lon_deg"])
+           for p in photos if {"lat_deg", "lon_deg"} <= set(p.values)}
     distances = np.array([geodesic_inverse(tag.lat_deg, tag.lon_deg, *own[tag.image_name]).distance_m
                           for tag in tags if tag.source != PHOTO_SOURCE and tag.image_name in own])
     if len(distances) == 0:

@@ -125,7 +125,8 @@ def test_photo_gps_far_from_the_track_at_the_same_time_is_refused(shift_m, refus
     else:
         accepted = geotag_photos(photos, [track])
     assert len(accepted.tags) == len(photos)
-    medians = [float(m.group(1)) for note in accepted.notes if (m := re.search(r"GPS vs geotags.*median ([\d.]+) m", note))]
+    medians = [float(m.group(1)) for note in accepted.notes
+               if (m := re.search(r"GPS vs geotags.*median ([\d.]+) m", note))]
     assert medians == [pytest.approx(shift_m, abs=0.1)]  # geodesic vs a north shift in the tangent plane: ~5 cm
 
 
@@ -240,7 +241,8 @@ def test_virtual_drone_photos_in_a_telemetry_gap_fall_back_to_their_own_exif_and
     result = geotag_photos(read_photos(photos_dir)[0], [gapped])
 
     def within(margin_s):
-        return {truth.names[i] for i in taken if gap[0] + margin_s < start.timestamp() + truth.t_s[i] < gap[1] - margin_s}
+        return {truth.names[i] for i in taken
+                if gap[0] + margin_s < start.timestamp() + truth.t_s[i] < gap[1] - margin_s}
 
     in_gap = {name for name, _ in result.from_photos}
     by_name = {tag.image_name: tag for tag in result.tags}

@@ -11,15 +11,12 @@ import shutil
 import numpy as np
 import pytest
 
-from capture.logs.writers import write_litchi_csv
-from capture.synthetic import Noise, Orbit, shutter_times, telemetry
-from flightplan.demo_location import DEMO_ORIGIN
 from tests.bad_input.harness import Case, assert_refused, run_case
 from tests.capture.test_cli_logs import write_jpeg
+from tests.capture.test_geotag_checks import yerevan_log
 from tests.conftest import SHARED_DATA
 
 MINNESOTA_PHOTOS = SHARED_DATA / "brighton_beach" / "images"
-YEREVAN_2024_S = 1_714_557_600.0  # 2024-05-01T10:00:00Z
 SEVEN_YEARS_S = 7.85 * 365.25 * 86400
 
 
@@ -27,10 +24,8 @@ def flight(tmp, *, camera_shift_s=0.0, north_shift_m=0.0, photos=8):
     """A Litchi log of the synthetic orbit around the demo origin (Yerevan, 2024) in ``tmp/flight.csv`` and
     ``photos`` JPEGs in ``tmp/photos`` whose EXIF time is moved by ``camera_shift_s`` and whose GPS is moved
     ``north_shift_m`` north of the track."""
-    rng = np.random.default_rng(2)
-    orbit, noise = Orbit(DEMO_ORIGIN, start_s=YEREVAN_2024_S), Noise(interval_jitter_s=0.05)
-    shutter = shutter_times(orbit, 30.0, 1.0, noise, rng)[:photos]
-    write_litchi_csv(telemetry(orbit, 30.0, 10.0, noise, rng, shutter), tmp / "flight.csv")
+    orbit, shutter = yerevan_log(tmp / "flight.csv", duration_s=30.0)
+    shutter = shutter[:photos]
     (tmp / "photos").mkdir()
     east, north, _ = orbit.enu(shutter).T
     lat, lon, _ = orbit.frame.to_geodetic(east, north + north_shift_m, np.zeros(len(shutter)))
