@@ -134,7 +134,8 @@ def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: flo
             found.setdefault(round(fit[0], 3), fit)
     found = {key: fit for key, fit in found.items() if abs(fit[0]) <= max_offset_s}
     if not found:
-        raise ValueError("no photo time lines up with any shutter event; give the clock offset manually")
+        within = f" within +-{format_duration(max_offset_s)}" if math.isfinite(max_offset_s) else ""
+        raise ValueError(f"no photo time lines up with any shutter event{within}; give the clock offset manually")
     results = []
     for offset, std, agree, matches in found.values():
         misfit = math.inf

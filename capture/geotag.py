@@ -29,7 +29,7 @@ from flightplan.geodesy import LocalFrame, geodesic_inverse
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
 from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
 from .logs.photos import PhotoInfo
-from .track import ReadReport, Track, format_utc
+from .track import ReadReport, Track, format_utc, name_list
 
 DEFAULT_MAX_GAP_S = 2.0
 # Where the origin's height h0 comes from (``GeotagResult.origin_height_datum``, the sidecar's field):
@@ -350,4 +350,4 @@ def fallback_note(from_photos: list[tuple[str, str]]) -> str | None:
         return None
     names = [name for name, _ in from_photos]
     return (f"{len(names)} photos the logs could not tag were tagged from their own EXIF GPS and XMP attitude "
-            f"(source {PHOTO_SOURCE}: consumer GPS): {', '.join(names[:10])}{' ...' if len(names) > 10 else ''}")
+            f"(source {PHOTO_SOURCE}: consumer GPS): {name_list(names)}")

@@ -20,7 +20,7 @@ from defusedxml import ElementTree as SafeET
 from PIL import ExifTags, Image, UnidentifiedImageError
 
 from ..attitude import wrap_deg
-from ..track import LogFormatError, ReadReport, Track, position_problem
+from ..track import LogFormatError, ReadReport, Track, name_list, position_problem
 
 DRONE_DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 PHOTO_SUFFIXES = (".jpg", ".jpeg")
@@ -375,7 +375,7 @@ def read_photos(folder) -> tuple[list[PhotoInfo], ReadReport]:
     flawed = [photo.name for photo in photos if photo.problems]
     if flawed:
         report.notes.append(f"{len(flawed)} of {len(photos)} photos have unusable metadata, those fields treated as "
-                            f"missing: {', '.join(flawed[:10])}{' ...' if len(flawed) > 10 else ''}")
+                            f"missing: {name_list(flawed)}")
     return photos, report
 
 
