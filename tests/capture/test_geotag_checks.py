@@ -32,13 +32,15 @@ from flightplan import litchi
 from flightplan.cli_support import BadInput
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import geodesic_inverse
+from flightplan.orbit import OrbitRequest, plan_orbit
 from sim.drone import Imperfections, fly
 from sim.drone.link import duml_frames, write_raw_capture
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import photo_camera, photo_geotag, write_dji_jpeg
 from tests.sim.drone_helpers import short_orbit_csv
 
-YEREVAN_2024 = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc).timestamp()
+START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)  # the synthetic logs' and virtual flights' start
+YEREVAN_2024 = START.timestamp()
 GPS_ALTITUDE_ENTRY = b"\x06\x00\x05\x00\x01\x00\x00\x00"  # little-endian GPS IFD entry: GPSAltitude, RATIONAL, 1
 
 
@@ -212,61 +214,86 @@ def run_cli(argv):
 
 # --- falling back to the photo's own metadata ------------------------------------------------------------------
 
-def test_virtual_drone_photos_in_a_telemetry_gap_fall_back_to_their_own_exif_and_xmp(tmp_path):
-    """A short virtual flight (realistic noise): its DUML capture loses 10 s of telemetry. The photos taken in the
-    gap are tagged from their own EXIF GPS / XMP attitude (source photo_exif), within the GPS/barometer noise
-    model of their true position and the attitude noise of their true rotation; the others from the log."""
-    waypoints = waypoints_from_litchi(litchi.read_mission_csv(short_orbit_csv(tmp_path / "mission.csv")))
-    imperfections = Imperfections.realistic()
-    mission = fly(waypoints, home_below_first_waypoint(waypoints, 1000.0), imperfections, seed=4)
-    start = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)
-    write_raw_capture(duml_frames(mission), tmp_path / "flight.duml", start)
-    track = read_track(tmp_path / "flight.duml")
-    gap = (start.timestamp() + 30.0, start.timestamp() + 40.0)
-    keep = (track.time_s < gap[0]) | (track.time_s > gap[1])
-    events = track.photo_times_s[(track.photo_times_s < gap[0]) | (track.photo_times_s > gap[1])]
-    gapped = dataclasses.replace(Track.from_rows(track.time_s[keep], {k: v[keep] for k, v in track.columns.items()},
-                                                 track.report, photo_times_s=events, home=track.home),
-                                 event_time_error_s=track.event_time_error_s)
-
-    photos_dir = tmp_path / "photos"
-    photos_dir.mkdir()
+def virtual_flight(mission_csv, folder, seed):
+    """Fly a Litchi mission with realistic noise; write its DUML capture (``folder/flight.duml``) and tiny photos
+    with the metadata the drone's camera writes (``folder/photos``). Returns the mission (truth) and the track."""
+    waypoints = waypoints_from_litchi(litchi.read_mission_csv(mission_csv))
+    mission = fly(waypoints, home_below_first_waypoint(waypoints, 1000.0), Imperfections.realistic(), seed=seed)
+    write_raw_capture(duml_frames(mission), folder / "flight.duml", START)
+    (folder / "photos").mkdir()
     truth, home_h = mission.photos, mission.sensors.measured_home()[2]
-    taken = np.flatnonzero(truth.taken)
     rgb = np.full((30, 40, 3), 128, np.uint8)
-    for index in taken:
-        camera_time = start.replace(tzinfo=None) + dt.timedelta(seconds=float(truth.camera_time_s[index]))
-        write_dji_jpeg(photos_dir / truth.names[index], rgb, photo_geotag(truth, index, home_h, truth.names[index]),
-                       camera_time, photo_camera(40, 30))
-    result = geotag_photos(read_photos(photos_dir)[0], [gapped])
+    for index in np.flatnonzero(truth.taken):
+        camera_time = START.replace(tzinfo=None) + dt.timedelta(seconds=float(truth.camera_time_s[index]))
+        write_dji_jpeg(folder / "photos" / truth.names[index], rgb,
+                       photo_geotag(truth, index, home_h, truth.names[index]), camera_time, photo_camera(40, 30))
+    return mission, read_track(folder / "flight.duml")
 
-    def within(margin_s):
-        return {truth.names[i] for i in taken
-                if gap[0] + margin_s < start.timestamp() + truth.t_s[i] < gap[1] - margin_s}
 
-    in_gap = {name for name, _ in result.from_photos}
-    by_name = {tag.image_name: tag for tag in result.tags}
-    assert len(within(0.5)) >= 4 and within(0.5) <= in_gap <= within(-0.5)  # the edges: shutter vs telemetry rows
-    assert result.untagged == [] and len(result.tags) == len(taken)
-    assert all("telemetry gap" in reason for _, reason in result.from_photos)
-    assert {by_name[n].source for n in in_gap} == {PHOTO_SOURCE}
-    # the others from the log (a damaged camera push may hide an event: that photo's time is its EXIF time)
-    assert {t.source for t in result.tags if t.image_name not in in_gap} <= {"duml/event", "duml/exif"}
-    frame = mission.flight.frame
-    index = {truth.names[i]: i for i in taken}
+def assert_within_the_noise_model(tags, mission):
+    """Each tag's position within 4 sigma of the GPS (horizontal) and barometer (vertical) models of its true
+    position, its camera rotation within 0.5 deg of the true one, its latitude the photo's own GPS."""
+    truth, imperfections, frame = mission.photos, mission.flight.imperfections, mission.flight.frame
+    index = {name: i for i, name in enumerate(truth.names)}
     gps_axis = np.hypot(imperfections.gps_noise_std_m, imperfections.gps_bias_std_m)
     baro = np.hypot(imperfections.baro_bias_std_m, imperfections.baro_noise_std_m)
-    for name in in_gap:
-        tag, i = by_name[name], index[name]
+    for tag in tags:
+        i = index[tag.image_name]
         error = frame.enu_points(tag.lat_deg, tag.lon_deg, frame.h0_m + tag.height_above_takeoff_m) \
             - truth.position_enu_m[i]
         assert np.all(np.abs(error[:2]) < 4 * gps_axis) and abs(error[2]) < 4 * baro
         angle = np.degrees((Rotation.from_matrix(tag.R_world_cam)
                             * Rotation.from_matrix(truth.R_world_cam[i]).inv()).magnitude())
         assert angle < 0.5
-        assert tag.lat_deg == pytest.approx(truth.measured_latitude_deg[i], abs=1e-8)  # the photo's own GPS
+        assert tag.lat_deg == pytest.approx(truth.measured_latitude_deg[i], abs=1e-8)
+
+
+def test_virtual_drone_photos_in_a_telemetry_gap_fall_back_to_their_own_exif_and_xmp(tmp_path):
+    """A short virtual flight (realistic noise): its DUML capture loses 10 s of telemetry. The photos taken in the
+    gap are tagged from their own EXIF GPS / XMP attitude (source photo_exif), within the GPS/barometer noise
+    model of their true position and the attitude noise of their true rotation; the others from the log."""
+    mission, track = virtual_flight(short_orbit_csv(tmp_path / "mission.csv"), tmp_path, seed=4)
+    gap = (START.timestamp() + 30.0, START.timestamp() + 40.0)
+    keep = (track.time_s < gap[0]) | (track.time_s > gap[1])
+    events = track.photo_times_s[(track.photo_times_s < gap[0]) | (track.photo_times_s > gap[1])]
+    gapped = dataclasses.replace(Track.from_rows(track.time_s[keep], {k: v[keep] for k, v in track.columns.items()},
+                                                 track.report, photo_times_s=events, home=track.home),
+                                 event_time_error_s=track.event_time_error_s)
+    result = geotag_photos(read_photos(tmp_path / "photos")[0], [gapped])
+
+    truth = mission.photos
+    taken = np.flatnonzero(truth.taken)
+
+    def within(margin_s):
+        return {truth.names[i] for i in taken
+                if gap[0] + margin_s < START.timestamp() + truth.t_s[i] < gap[1] - margin_s}
+
+    in_gap = {name for name, _ in result.from_photos}
+    assert len(within(0.5)) >= 4 and within(0.5) <= in_gap <= within(-0.5)  # the edges: shutter vs telemetry rows
+    assert result.untagged == [] and len(result.tags) == len(taken)
+    assert all("telemetry gap" in reason for _, reason in result.from_photos)
+    fallen = [tag for tag in result.tags if tag.image_name in in_gap]
+    assert {tag.source for tag in fallen} == {PHOTO_SOURCE}
+    # the others from the log (a damaged camera push may hide an event: that photo's time is its EXIF time)
+    assert {t.source for t in result.tags if t.image_name not in in_gap} <= {"duml/event", "duml/exif"}
+    assert_within_the_noise_model(fallen, mission)
     assert any(f"{len(in_gap)} photos the logs could not tag" in note for note in result.notes)
     _, sidecar = write_geotags(result, tmp_path / "geotags.csv")
     written = json.loads(sidecar.read_text(encoding="utf-8"))["from_photos"]
     assert {image["image_name"] for image in written["images"]} == in_gap and "consumer GPS" in written["accuracy"]
     assert {row["source"] for row in rows(tmp_path / "geotags.csv") if row["image_name"] in in_gap} == {"photo_exif"}
+
+
+def test_the_default_virtual_orbit_tags_every_photo(tmp_path):
+    """The default orbit (450 photos, realistic noise, seed 0; about 5 s), whose link dropouts left 2 photos in a
+    2.3 s telemetry gap untagged: every photo is tagged now, those 2 from their own EXIF/XMP, within the noise
+    model."""
+    plan = plan_orbit(OrbitRequest(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg))
+    litchi.write_mission_csv(plan.mission, tmp_path / "orbit.csv")
+    mission, track = virtual_flight(tmp_path / "orbit.csv", tmp_path, seed=0)
+    result = geotag_photos(read_photos(tmp_path / "photos")[0], [track])
+    assert len(result.tags) == int(mission.photos.taken.sum()) == 450 and result.untagged == []
+    assert [reason for _, reason in result.from_photos] == ["in a telemetry gap of 2.30 s (limit 2 s)"] * 2
+    fallen = [tag for tag in result.tags if tag.source == PHOTO_SOURCE]
+    assert len(fallen) == 2
+    assert_within_the_noise_model(fallen, mission)
