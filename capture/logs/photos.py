@@ -121,6 +121,8 @@ def read_exif_time(exif: Image.Exif, info: PhotoInfo) -> None:
     if subsec.isdigit():
         stamp += timedelta(seconds=int(subsec) / 10 ** len(subsec))
         info.time_resolution_s = 10.0 ** -len(subsec)
+    elif subsec:
+        info.problems.append(f"EXIF: SubSecTimeOriginal {subsec[:40]!r} is not digits, ignored (whole seconds)")
     offset = str(sub.get(ExifTags.Base.OffsetTimeOriginal, "")).strip("\x00 ")
     if offset:
         if not (len(offset) == 6 and offset[0] in "+-" and offset[3] == ":" and offset[1:3].isdigit()

@@ -18,6 +18,7 @@ import shutil
 
 import numpy as np
 import pytest
+from PIL import ExifTags, Image
 from scipy.spatial.transform import Rotation
 
 from capture.cli import main
@@ -202,6 +203,20 @@ def test_a_text_exif_number_names_the_photo_and_the_rest_go_on(shared_data, tmp_
     code, _, err = run_cli(["geotag", "--photos", photos, "--log", photos, "--out", tmp_path / "g.csv"])
     assert code == 0 and f"{images[0].name}: EXIF GPS: GPSAltitude 'abc' is not a number" in err
     assert len(rows(tmp_path / "g.csv")) == 3
+
+
+def test_unreadable_exif_time_parts_are_named_and_the_time_kept(tmp_path):
+    """A sub-second or time-zone field that is not what EXIF says it is: named, ignored, the whole-second
+    DateTimeOriginal kept (read as UTC, the clock offset then finds the zone)."""
+    exif = Image.Exif()
+    sub = exif.get_ifd(ExifTags.IFD.Exif)
+    sub[ExifTags.Base.DateTimeOriginal] = "2024:05:01 10:00:07"
+    sub[ExifTags.Base.SubsecTimeOriginal], sub[ExifTags.Base.OffsetTimeOriginal] = "4x", "+ab:cd"
+    Image.new("RGB", (8, 8)).save(tmp_path / "odd.jpg", exif=exif)
+    photo = read_photo(tmp_path / "odd.jpg")
+    assert photo.exif_time_s == START.timestamp() + 7.0 and photo.time_resolution_s == 1.0
+    assert photo.problems == ["EXIF: SubSecTimeOriginal '4x' is not digits, ignored (whole seconds)",
+                              "EXIF: OffsetTimeOriginal '+ab:cd' is not '+HH:MM', ignored"]
 
 
 def run_cli(argv):
