@@ -12,11 +12,12 @@ import sys
 from pathlib import Path
 
 from flightplan.argtypes import finite_number, positive_number
+from flightplan.cli_support import refuse_clobbering
 
-from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
+from .geotag import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, geotag_photos
 from .geotag_io import geotag_paths, load_geotags, write_colmap_reference, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
-from .logs.photos import read_photos
+from .logs.photos import list_photos, read_photos
 from .track import LogFormatError, ReadReport, parse_utc
 
 EXIT_BAD_INPUT = 2
@@ -33,6 +34,9 @@ def register(subparsers) -> None:
                         help="'auto' (default) or seconds to add to the camera clock to get telemetry UTC")
     geotag.add_argument("--max-gap", type=positive_number, default=DEFAULT_MAX_GAP_S,
                         help="longest telemetry gap (s) to interpolate across (default %(default)s)")
+    geotag.add_argument("--max-misfit", type=positive_number, default=DEFAULT_MAX_MISFIT_M,
+                        help="largest median distance (m) between the photos' own GPS and their geotags from the "
+                             "logs; a larger one is refused as photos from another place (default %(default)s)")
     add_time_options(geotag)
     geotag.add_argument("--out", required=True, help="geotags.csv to write (the .json sidecar goes beside it)")
     geotag.add_argument("--colmap-ref", help="also write a COLMAP reference file 'NAME X Y Z' (ENU metres)")
@@ -88,15 +92,18 @@ def read_logs(args) -> list:
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset."""
     try:
-        geotag_paths(args.out)  # a bad --out fails before the logs are read
+        csv_out, json_out = geotag_paths(args.out)  # a bad --out fails before the logs are read
+        refuse_clobbering({"--photos": list_photos(args.photos), "--log": args.log},
+                          {"--out": csv_out, "--out's sidecar": json_out, "--colmap-ref": args.colmap_ref})
         tracks = read_logs(args)
         photos, photo_report = read_photos(args.photos)
         if not photos:
             return report_error(args.command, f"{args.photos}: no readable JPEG photos")
-        result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap)
-        if not result.tags:
-            reasons = "; ".join(f"{name}: {reason}" for name, reason in result.untagged[:3])
-            return report_error(args.command, f"no photo could be geotagged ({reasons})")
+        result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap,
+                               max_misfit_m=args.max_misfit)
+        if len(result.from_photos) == len(result.tags):
+            reasons = "; ".join(f"{name}: {reason}" for name, reason in (result.untagged + result.from_photos)[:3])
+            return report_error(args.command, f"no photo could be geotagged from the logs ({reasons})")
         exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
         if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
             return report_error(args.command, f"{exif_dir}: refusing to overwrite the original photos; "
@@ -108,28 +115,31 @@ def run_geotag(args) -> int:
             write_exif_copies(result, args.photos, exif_dir)
     except (LogFormatError, ValueError, OSError) as error:
         return report_error(args.command, error)
-    for report in result.sources:
-        print_report(report, shown_rejects=0)  # counts per reason; `track` lists a log's rejects
+    for report in result.sources:  # the summary is a log: stderr; the result line goes to stdout
+        print_report(report, shown_rejects=0, file=sys.stderr)  # counts per reason; `track` lists a log's rejects
     if photo_report.source not in {report.source for report in result.sources}:
-        print_report(photo_report)  # which photos could not be read
-    print(result.clock.summary())
+        print_report(photo_report, file=sys.stderr)  # which photos could not be read or had unusable values
+    print(result.clock.summary(), file=sys.stderr)
     for note in result.notes:
-        print(f"note: {note}")
-    print(f"{len(result.tags)} photos geotagged, {len(result.untagged)} untagged -> {csv_path} (+ {json_path.name})")
+        print(f"note: {note}", file=sys.stderr)
     for name, reason in result.untagged:
-        print(f"  untagged {name}: {reason}")
+        print(f"  untagged {name}: {reason}", file=sys.stderr)
+    own = f" ({len(result.from_photos)} from their own EXIF/XMP)" if result.from_photos else ""
+    print(f"{len(result.tags)} photos geotagged{own}, {len(result.untagged)} untagged -> {csv_path} "
+          f"(+ {json_path.name})")
     return 0
 
 
-def print_report(report: ReadReport, shown_rejects: int = 20) -> None:
-    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line."""
-    print(report.summary())
+def print_report(report: ReadReport, shown_rejects: int = 20, file=None) -> None:
+    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line, on
+    ``file`` (default stdout)."""
+    print(report.summary(), file=file)
     for note in report.notes:
-        print(f"  note: {note}")
+        print(f"  note: {note}", file=file)
     for problem in report.rejected[:shown_rejects]:
-        print(f"  rejected {problem}")
+        print(f"  rejected {problem}", file=file)
     if len(report.rejected) > shown_rejects:
-        print(f"  ... and {len(report.rejected) - shown_rejects} more rejected")
+        print(f"  ... and {len(report.rejected) - shown_rejects} more rejected", file=file)
 
 
 def run_track(args) -> int:

@@ -13,7 +13,8 @@ sequence ends and timing irregularities tell them apart); if the photos carry th
 whose matched events put the track far from the photos are dropped; without GPS near-ties are reported
 as ambiguous. The fine offset is the middle of the region most matched pairs allow
 (``exif <= event - offset < exif + resolution``, +- the event-time tolerance; Marzullo's algorithm); its
-standard deviation is that region's width / sqrt(12).
+standard deviation is that region's width / sqrt(12). Only photo/event pairs within ``max_offset_s`` vote; with
+none that close, :func:`check_offset_bound` refuses, saying how far apart the two clocks' times are.
 """
 
 from __future__ import annotations
@@ -23,6 +24,10 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+
+from flightplan.cli_support import BadInput
+
+from .track import format_utc
 
 MAX_CANDIDATES = 40
 REFINE_ROUNDS = 3
@@ -100,18 +105,21 @@ def fine_offset(differences_s: np.ndarray, resolution_s: float, tolerance_s: flo
 
 def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: float = 0.15,
                           tolerance_s: float = 0.03,
-                          position_misfit: Callable[[np.ndarray], np.ndarray] | None = None) -> ClockOffset:
+                          position_misfit: Callable[[np.ndarray], np.ndarray] | None = None,
+                          max_offset_s: float = math.inf) -> ClockOffset:
     """Estimate the camera-clock offset from photo EXIF times and telemetry shutter events.
 
     ``tolerance_s``: expected shutter-event time error. ``position_misfit(times)`` (optional): per photo, the
     distance (m) between the photo's own GPS position and the track at telemetry time ``times[i]`` (NaN where
-    unknown or ``times[i]`` is NaN).
+    unknown or ``times[i]`` is NaN). ``max_offset_s``: only offsets within +-this are considered;
+    :class:`BadInput` (saying how far apart the two clocks' times are) when no photo/event pair is that close.
     """
     exif_s, events_s = np.asarray(exif_s, float), np.sort(np.asarray(events_s, float))
     if len(exif_s) == 0 or len(events_s) == 0:
         raise ValueError("need at least one photo time and one shutter event to estimate the clock offset")
+    check_offset_bound(exif_s, events_s, max_offset_s)
     window = max(resolution_s, 2.0 * tolerance_s)  # sub-second EXIF: the event-time error sets the scale
-    coarse = np.array(candidate_offsets(exif_s, window, events_s, slack_s))
+    coarse = np.array(candidate_offsets(exif_s, window, events_s, slack_s, max_offset_s))
     span = window + 2.0 * slack_s  # a vote window's width: the coarse offsets are known to within it
     grid = np.unique(np.concatenate([c + np.arange(-1.0, 1.0, GRID_STEP_FRACTION) * span for c in coarse]))
     scores = window_consistency(exif_s, window, events_s, grid - (window - resolution_s) / 2.0)
@@ -124,8 +132,10 @@ def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: flo
         fit = refine(exif_s, resolution_s, events_s, offset, tolerance_s)
         if fit is not None:
             found.setdefault(round(fit[0], 3), fit)
+    found = {key: fit for key, fit in found.items() if abs(fit[0]) <= max_offset_s}
     if not found:
-        raise ValueError("no photo time lines up with any shutter event; give the clock offset manually")
+        within = f" within +-{format_duration(max_offset_s)}" if math.isfinite(max_offset_s) else ""
+        raise ValueError(f"no photo time lines up with any shutter event{within}; give the clock offset manually")
     results = []
     for offset, std, agree, matches in found.values():
         misfit = math.inf
@@ -210,11 +220,14 @@ def choose_offset(results: list[tuple], photos: int, events: int) -> ClockOffset
     return ClockOffset(float(offset), float(std), "auto", matched, photos, events, note)
 
 
-def candidate_offsets(exif_s: np.ndarray, resolution_s: float, events_s: np.ndarray, slack_s: float) -> list[float]:
-    """Coarse offsets: vote maxima of ``event - exif`` (window of one resolution + slack), at least half a
-    resolution apart, down to half the best vote; they bound the fine search."""
-    d = np.sort((events_s[None, :] - exif_s[:, None]).ravel())
+def candidate_offsets(exif_s: np.ndarray, resolution_s: float, events_s: np.ndarray, slack_s: float,
+                      max_offset_s: float = math.inf) -> list[float]:
+    """Coarse offsets: vote maxima of ``event - exif`` (window of one resolution + slack; only pairs within
+    ``max_offset_s`` vote), at least half a resolution apart, down to half the best vote; they bound the fine
+    search."""
     window = resolution_s + 2.0 * slack_s
+    d = (events_s[None, :] - exif_s[:, None]).ravel()
+    d = np.sort(d[np.abs(d) <= max_offset_s + window])
     counts = np.searchsorted(d, d + window, side="left") - np.arange(len(d))
     chosen: list[float] = []
     threshold = 0.5 * counts.max()
@@ -227,3 +240,32 @@ def candidate_offsets(exif_s: np.ndarray, resolution_s: float, events_s: np.ndar
             if len(chosen) == MAX_CANDIDATES:
                 break
     return chosen
+
+
+def check_offset_bound(exif_s: np.ndarray, events_s: np.ndarray, max_offset_s: float) -> None:
+    """:class:`BadInput` when no photo EXIF time (camera clock) is within ``max_offset_s`` of a shutter event
+    (telemetry clock): the photos and the logs are then from different flights, not a mis-set camera clock."""
+    after = np.searchsorted(events_s, exif_s)
+    neighbours = [np.clip(after - 1, 0, len(events_s) - 1), np.clip(after, 0, len(events_s) - 1)]
+    gaps = np.min([np.abs(events_s[i] - exif_s) for i in neighbours], axis=0)
+    closest = float(gaps.min())
+    if closest > max_offset_s:
+        raise BadInput(f"the photos' EXIF times and the logs' shutter events are at least {format_duration(closest)} "
+                       f"apart (photos {span_text(exif_s)}, events {span_text(events_s)}), beyond the "
+                       f"+-{format_duration(max_offset_s)} a camera clock can be off (time zone plus drift): the "
+                       "photos are probably not from these logs; give --clock-offset SECONDS to match them anyway")
+
+
+def format_duration(seconds: float) -> str:
+    """``3.2 s``, ``14.5 h``, ``12.3 days``, ``7.85 years`` (the largest unit that keeps it >= 1)."""
+    seconds = abs(seconds)
+    for unit, size in (("years", 365.25 * 86400), ("days", 86400), ("h", 3600), ("min", 60)):
+        if seconds >= size:
+            return f"{seconds / size:.3g} {unit}"
+    return f"{seconds:.3g} s"
+
+
+def span_text(times_s: np.ndarray) -> str:
+    """``first .. last`` of times (seconds since the epoch) in ISO 8601 UTC."""
+    first, last = format_utc(np.min(times_s)), format_utc(np.max(times_s))
+    return first if first == last else f"{first} .. {last}"

@@ -7,6 +7,12 @@ the take-off (home) point, attitude by slerp (``capture/attitude.py``). A photo 
 positions, or between two position samples further apart than ``max_gap_s``, is left untagged with the
 reason -- never extrapolated. Attitude is interpolated the same way from its own samples and left empty
 (NaN) where those are missing or too far apart.
+
+Such a photo falls back to its own EXIF GPS, XMP heights and XMP attitude (``source`` :data:`PHOTO_SOURCE`,
+listed in ``GeotagResult.from_photos``) where it has them. Photos and logs from different flights are refused
+(:class:`~flightplan.cli_support.BadInput`), never matched: an automatic clock offset beyond
+:data:`MAX_AUTO_CLOCK_OFFSET_S`, or photos whose own GPS is a median of more than ``max_misfit_m`` from their
+geotags.
 """
 
 from __future__ import annotations
@@ -17,12 +23,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from flightplan.geodesy import LocalFrame
+from flightplan.cli_support import BadInput
+from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
 from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
 from .logs.photos import PhotoInfo
-from .track import ReadReport, Track, format_utc
+from .track import ReadReport, Track, format_utc, name_list
 
 DEFAULT_MAX_GAP_S = 2.0
 # Where the origin's height h0 comes from (``GeotagResult.origin_height_datum``, the sidecar's field):
@@ -31,6 +38,18 @@ MEAN_SEA_LEVEL = "mean_sea_level"  # the log's absolute heights (EXIF GPS altitu
 HEIGHT_UNKNOWN = "unknown"  # no absolute height in the logs: h0 = 0
 MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF second (manual offset)
 EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
+#: Largest camera-clock offset the automatic estimate may find (seconds): a camera set to local time is off UTC
+#: by at most 14 h (the zones span UTC-12 .. UTC+14, Line Islands), and a camera's quartz clock drifts by up to
+#: ~50 ppm, about 26 min in a year without a sync: 14.5 h. Beyond it the photos are from another flight.
+MAX_AUTO_CLOCK_OFFSET_S = 14.5 * 3600.0
+#: Default largest median distance (m) between the photos' own GPS and the geotags (the track at the matched
+#: times): a consumer GNSS fix is off by a few metres in open sky and tens in multipath, and a DJI photo's GPS and
+#: its flight log come from the same receiver; 100 m is beyond any of that and far below a wrong place.
+DEFAULT_MAX_MISFIT_M = 100.0
+#: ``source`` of a photo tagged from its own EXIF GPS and XMP attitude where the logs could not tag it.
+PHOTO_SOURCE = "photo_exif"
+PHOTO_ACCURACY = ("the photo's own EXIF/XMP: consumer GPS as the camera recorded it (metres), height and attitude "
+                  "as its XMP says; not interpolated from the logs")
 
 
 @dataclass
@@ -54,7 +73,8 @@ class Geotag:
 
 @dataclass
 class GeotagResult:
-    """The geotags, the photos left untagged (name, reason), the ENU origin and how its height was found."""
+    """The geotags, the photos left untagged (name, reason), the ENU origin and how its height was found, and the
+    photos the logs could not tag that were tagged from their own EXIF/XMP (name, why the logs could not)."""
 
     tags: list[Geotag]
     untagged: list[tuple[str, str]]
@@ -63,6 +83,7 @@ class GeotagResult:
     clock: ClockOffset
     sources: list[ReadReport]
     notes: list[str] = field(default_factory=list)
+    from_photos: list[tuple[str, str]] = field(default_factory=list)  # tagged from own EXIF/XMP: (name, why)
 
     @property
     def origin_height_known(self) -> bool:
@@ -197,7 +218,8 @@ def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
         return ClockOffset(0.0, math.nan, "assumed-zero", photos=len(exif), note=note + "; give --clock-offset"), resolution
     misfit = position_misfit(timed, interpolator)
     return estimate_clock_offset(exif, resolution, track.photo_times_s, slack_s=MATCH_SLACK_S,
-                                 tolerance_s=event_tolerance(track), position_misfit=misfit), resolution
+                                 tolerance_s=event_tolerance(track), position_misfit=misfit,
+                                 max_offset_s=MAX_AUTO_CLOCK_OFFSET_S), resolution
 
 
 def event_tolerance(track: Track) -> float:
@@ -222,9 +244,12 @@ def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
 
 
 def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset="auto",
-                  max_gap_s: float = DEFAULT_MAX_GAP_S) -> GeotagResult:
-    """Geotag ``photos`` from ``tracks`` (merged by time). ``clock_offset``: ``"auto"`` or seconds
-    (telemetry UTC - camera clock)."""
+                  max_gap_s: float = DEFAULT_MAX_GAP_S, max_misfit_m: float = DEFAULT_MAX_MISFIT_M) -> GeotagResult:
+    """Geotag ``photos`` from ``tracks`` (merged by time). ``clock_offset``: ``"auto"`` (within
+    +-:data:`MAX_AUTO_CLOCK_OFFSET_S`) or seconds (telemetry UTC - camera clock). A photo the logs cannot tag
+    (gap, outside the track) is tagged from its own EXIF GPS and XMP attitude (``source`` :data:`PHOTO_SOURCE`)
+    where it has them. :class:`BadInput` when the photos' own GPS is a median of more than ``max_misfit_m``
+    metres from their geotags."""
     relative = [t.report.source for t in tracks if t.clock == "relative"]
     if relative:
         raise ValueError(f"{relative[0]}: log has no wall-clock time (SRT without a date); give its start time (start_time_s, CLI --start-time)")
@@ -238,7 +263,7 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     slack = MATCH_SLACK_S if clock.method == "manual" else max(event_tolerance(track), min(MATCH_SLACK_S, 3 * clock.std_s))
     matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, slack)
     kind = track.report.kind if len(tracks) == 1 else "+".join(sorted({t.report.kind for t in tracks}))
-    tags = []
+    tags, from_photos = [], []
     for photo, exif_s, event in zip(timed, exif, matches):
         if event >= 0:
             t, time_source = float(track.photo_times_s[event]), "event"
@@ -246,15 +271,20 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
             t, time_source = exif_s + clock.offset_s + resolution / 2.0, "exif"
         tag = make_tag(photo.name, t, interpolator, f"{kind}/{time_source}", time_source)
         if isinstance(tag, str):
+            reason, tag = tag, photo_tag(photo, t, frame, height_datum, time_source, reason=tag)
+            if not isinstance(tag, str):
+                from_photos.append((photo.name, reason))
+        if isinstance(tag, str):
             untagged.append((photo.name, tag))
         else:
             tags.append(tag)
     notes = list(interpolator.notes)
+    notes += [note for note in (check_misfit(tags, timed, max_misfit_m), fallback_note(from_photos)) if note]
     if height_datum == HEIGHT_UNKNOWN:
         notes.append("take-off absolute height unknown: origin h0 = 0")
     elif height_datum == MEAN_SEA_LEVEL:
         notes.append("origin h0 = take-off height above mean sea level (the log's absolute heights), not ellipsoidal")
-    return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes)
+    return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes, from_photos)
 
 
 def make_tag(name: str, t: float, interpolator: TrackInterpolator, source: str, time_source: str) -> Geotag | str:
@@ -271,3 +301,53 @@ def make_tag(name: str, t: float, interpolator: TrackInterpolator, source: str, 
     r_world_cam = camera_from_gimbal(gimbal).as_matrix() if gimbal is not None else None
     return Geotag(name, t, time_source, source, float(lat), float(lon), relative, absolute,
                   ned_angles(aircraft) if aircraft is not None else nan3, gimbal_ypr, enu, r_world_cam)
+
+
+def photo_tag(photo: PhotoInfo, t: float, frame: LocalFrame, height_datum: str, time_source: str,
+              reason: str) -> Geotag | str:
+    """Tag a photo the logs could not (``reason``) from its own EXIF GPS and XMP heights/attitude at telemetry
+    time ``t`` (``source`` :data:`PHOTO_SOURCE`); the reason, extended, when the photo lacks a position or height.
+
+    Height above take-off: XMP ``RelativeAltitude``, else the photo's absolute height minus the origin's h0 when
+    that is known; attitude follows the tracks' rules (:func:`gimbal_angles`) on the photo's one row.
+    """
+    values = dict(photo.values)
+    if "height_above_takeoff_m" not in values and "absolute_height_m" in values and height_datum != HEIGHT_UNKNOWN:
+        values["height_above_takeoff_m"] = values["absolute_height_m"] - frame.h0_m
+    if not {"lat_deg", "lon_deg", "height_above_takeoff_m"} <= set(values):
+        return f"{reason}; the photo has no usable GPS position and height of its own"
+    row = Track.from_rows([t], {name: [value] for name, value in values.items()}, ReadReport(photo.name, "photo"))
+    tag = make_tag(photo.name, t, TrackInterpolator(row, frame, 0.0), PHOTO_SOURCE, time_source)
+    return f"{reason}; {tag}" if isinstance(tag, str) else tag
+
+
+def check_misfit(tags: list[Geotag], photos: list[PhotoInfo], max_misfit_m: float) -> str | None:
+    """A note on how far (m, geodesic) the photos' own GPS lies from their geotags from the logs; None without
+    GPS. :class:`BadInput` when the median is beyond ``max_misfit_m``: photos and logs from different places."""
+    own = {p.name: (p.values["lat_deg"], p.values["lon_deg"])
+           for p in photos if {"lat_deg", "lon_deg"} <= set(p.values)}
+    distances = np.array([geodesic_inverse(tag.lat_deg, tag.lon_deg, *own[tag.image_name]).distance_m
+                          for tag in tags if tag.source != PHOTO_SOURCE and tag.image_name in own])
+    if len(distances) == 0:
+        return None
+    median, worst = float(np.median(distances)), float(distances.max())
+    if median > max_misfit_m:
+        raise BadInput(f"the photos' own GPS is a median {format_distance(median)} (max {format_distance(worst)}, "
+                       f"{len(distances)} photos) from the logs' track at their matched times, more than the "
+                       f"{max_misfit_m:g} m a consumer GPS can be off: the photos are probably not from these logs; "
+                       f"give --max-misfit {math.ceil(1.01 * worst)} to accept the match anyway")
+    return f"photo GPS vs geotags from the logs: median {median:.2f} m, max {worst:.2f} m ({len(distances)} photos)"
+
+
+def format_distance(metres: float) -> str:
+    """``12.3 m`` or ``6360 km``."""
+    return f"{metres / 1000:.4g} km" if metres >= 1000 else f"{metres:.3g} m"
+
+
+def fallback_note(from_photos: list[tuple[str, str]]) -> str | None:
+    """The note counting and naming the photos tagged from their own EXIF/XMP (:data:`PHOTO_SOURCE`), or None."""
+    if not from_photos:
+        return None
+    names = [name for name, _ in from_photos]
+    return (f"{len(names)} photos the logs could not tag were tagged from their own EXIF GPS and XMP attitude "
+            f"(source {PHOTO_SOURCE}: consumer GPS): {name_list(names)}")

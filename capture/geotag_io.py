@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 
 from flightplan.atomic import atomic_path, write_text_atomic
-from .geotag import Geotag, GeotagResult
+from .geotag import PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import format_number, format_utc, parse_utc
 
@@ -86,6 +86,8 @@ def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
         "sources": [{"file": r.source, "kind": r.kind, "rows_read": r.rows_read, "rows_used": r.rows_used,
                      "rejected": len(r.rejected), "notes": r.notes} for r in result.sources],
         "untagged": [{"image_name": name, "reason": reason} for name, reason in result.untagged],
+        "from_photos": {"source": PHOTO_SOURCE, "accuracy": PHOTO_ACCURACY,
+                        "images": [{"image_name": name, "reason": reason} for name, reason in result.from_photos]},
         "notes": result.notes,
     }
     write_text_atomic(csv_path, table.getvalue())

@@ -85,6 +85,11 @@ class ReadReport:
         return text
 
 
+def name_list(names: list[str], shown: int = 10) -> str:
+    """``a, b, c`` -- the first ``shown`` names, then `` ...`` if there are more (for one-line summaries)."""
+    return ", ".join(names[:shown]) + (" ..." if len(names) > shown else "")
+
+
 def position_problem(lat_deg: float, lon_deg: float) -> str | None:
     """Why a WGS84 position (degrees) cannot be used, as a reject reason, or None when it can.
 

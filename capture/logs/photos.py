@@ -20,7 +20,7 @@ from defusedxml import ElementTree as SafeET
 from PIL import ExifTags, Image, UnidentifiedImageError
 
 from ..attitude import wrap_deg
-from ..track import LogFormatError, ReadReport, Track, position_problem
+from ..track import LogFormatError, ReadReport, Track, name_list, position_problem
 
 DRONE_DJI_NS = "http://www.dji.com/drone-dji/1.0/"
 PHOTO_SUFFIXES = (".jpg", ".jpeg")
@@ -29,6 +29,17 @@ XMP_FIELDS = {
     "AbsoluteAltitude": "absolute_height_m", "RelativeAltitude": "height_above_takeoff_m",
     "GimbalYawDegree": "gimbal_yaw_deg", "GimbalPitchDegree": "gimbal_pitch_deg", "GimbalRollDegree": "gimbal_roll_deg",
     "FlightYawDegree": "aircraft_yaw_deg", "FlightPitchDegree": "aircraft_pitch_deg", "FlightRollDegree": "aircraft_roll_deg",
+}
+#: Physical range of every number a photo may give (track field -> [low, high]); a value outside it, or not finite
+#: (XMP ``inf``, ``nan``, ``1e308``), is unusable: that field is treated as missing and the photo's problem noted.
+#: Heights in metres: from below the lowest land (Dead Sea shore, -430 m) to well above any drone's service
+#: ceiling (DJI: 6000 m) and Mount Everest; angles in degrees, one turn either way (DJI writes +-180).
+MAX_HEIGHT_M = 12_000.0
+MIN_HEIGHT_M = -1_000.0
+FIELD_RANGES: dict[str, tuple[float, float]] = {
+    "lat_deg": (-90.0, 90.0), "lon_deg": (-180.0, 360.0),
+    "absolute_height_m": (MIN_HEIGHT_M, MAX_HEIGHT_M), "height_above_takeoff_m": (MIN_HEIGHT_M, MAX_HEIGHT_M),
+    **{f"{part}_{axis}_deg": (-360.0, 360.0) for part in ("gimbal", "aircraft") for axis in ("yaw", "pitch", "roll")},
 }
 
 
@@ -68,11 +79,22 @@ def read_photo(path) -> PhotoInfo:
     read_exif_gps(exif, info)
     if xmp:
         try:
-            info.values.update(parse_dji_xmp(xmp))
+            values, problems = dji_xmp_values(dji_xmp_text(xmp))
         except ValueError as error:
             info.problems.append(f"XMP: {error}")
+        else:
+            info.values.update(values)
+            info.problems += [f"XMP: {problem}, ignored" for problem in problems]
     drop_unusable_position(info)
     return info
+
+
+def value_problem(name: str, value: float) -> str | None:
+    """Why ``value`` of track field ``name`` is unusable (not finite, outside :data:`FIELD_RANGES`), or None."""
+    low, high = FIELD_RANGES[name]
+    if not low <= value <= high:  # also refuses NaN
+        return f"is not a finite number within [{low:g}, {high:g}]"
+    return None
 
 
 def drop_unusable_position(info: PhotoInfo) -> None:
@@ -99,28 +121,48 @@ def read_exif_time(exif: Image.Exif, info: PhotoInfo) -> None:
     if subsec.isdigit():
         stamp += timedelta(seconds=int(subsec) / 10 ** len(subsec))
         info.time_resolution_s = 10.0 ** -len(subsec)
+    elif subsec:
+        info.problems.append(f"EXIF: SubSecTimeOriginal {subsec[:40]!r} is not digits, ignored (whole seconds)")
     offset = str(sub.get(ExifTags.Base.OffsetTimeOriginal, "")).strip("\x00 ")
-    if len(offset) == 6 and offset[0] in "+-" and offset[3] == ":":
-        sign = 1 if offset[0] == "+" else -1
-        stamp -= sign * timedelta(hours=int(offset[1:3]), minutes=int(offset[4:6]))
+    if offset:
+        if not (len(offset) == 6 and offset[0] in "+-" and offset[3] == ":" and offset[1:3].isdigit()
+                and offset[4:6].isdigit()):
+            info.problems.append(f"EXIF: OffsetTimeOriginal {offset[:40]!r} is not '+HH:MM', ignored")
+        else:
+            sign = 1 if offset[0] == "+" else -1
+            try:
+                stamp -= sign * timedelta(hours=int(offset[1:3]), minutes=int(offset[4:6]))
+            except OverflowError:
+                info.problems.append(f"EXIF: DateTimeOriginal {text!r} - {offset} is out of the calendar's range")
+                return
     info.exif_time_s = stamp.timestamp()
 
 
 def read_exif_gps(exif: Image.Exif, info: PhotoInfo) -> None:
-    """GPS IFD latitude/longitude (DMS rationals + N/S/E/W) and altitude -> ``info.values``."""
+    """GPS IFD latitude/longitude (DMS rationals + N/S/E/W) and altitude -> ``info.values``; a field that cannot
+    be read, or an altitude outside :data:`FIELD_RANGES`, is left out and noted in ``info.problems``."""
     gps = exif.get_ifd(ExifTags.IFD.GPSInfo)
     try:
         lat = dms_to_deg(gps.get(ExifTags.GPS.GPSLatitude), gps.get(ExifTags.GPS.GPSLatitudeRef), "NS")
         lon = dms_to_deg(gps.get(ExifTags.GPS.GPSLongitude), gps.get(ExifTags.GPS.GPSLongitudeRef), "EW")
     except (TypeError, ValueError, ZeroDivisionError) as error:
-        info.problems.append(f"EXIF GPS: {error}")
-        return
+        info.problems.append(f"EXIF GPS: latitude/longitude {error}, ignored")
+        lat = lon = None
     if lat is not None and lon is not None:
-        info.values.update(lat_deg=lat, lon_deg=lon)
+        info.values.update(lat_deg=lat, lon_deg=lon)  # checked as a pair by drop_unusable_position
     altitude = gps.get(ExifTags.GPS.GPSAltitude)
-    if altitude is not None:
-        below = gps.get(ExifTags.GPS.GPSAltitudeRef) in (1, b"\x01")
-        info.values["absolute_height_m"] = -float(altitude) if below else float(altitude)
+    if altitude is None:
+        return
+    below = gps.get(ExifTags.GPS.GPSAltitudeRef) in (1, b"\x01")
+    try:
+        height = -float(altitude) if below else float(altitude)
+    except (TypeError, ValueError, ZeroDivisionError):
+        info.problems.append(f"EXIF GPS: GPSAltitude {str(altitude)[:40]!r} is not a number, ignored")
+        return
+    if problem := value_problem("absolute_height_m", height):
+        info.problems.append(f"EXIF GPS: GPSAltitude {height!r} m {problem}, ignored")
+    else:
+        info.values["absolute_height_m"] = height
 
 
 def dms_to_deg(dms, ref, letters: str) -> float | None:
@@ -168,17 +210,34 @@ def xmp_number(raw: dict[str, str], tag: str) -> float:
         raise ValueError(f"drone-dji:{tag} = {raw[tag][:40]!r} is not a number") from None
 
 
+def dji_xmp_values(raw: dict[str, str]) -> tuple[dict[str, float], list[str]]:
+    """:func:`dji_xmp_text`'s values -> (track fields, problems): a value that is not a number within
+    :data:`FIELD_RANGES` is left out and described (tag, text, expected range); yaws wrapped to [-180, 180)."""
+    values, problems = {}, []
+    for tag, name in XMP_FIELDS.items():
+        if tag not in raw:
+            continue
+        try:
+            value = xmp_number(raw, tag)
+        except ValueError as error:
+            problems.append(str(error))
+            continue
+        if problem := value_problem(name, value):
+            problems.append(f"drone-dji:{tag} = {raw[tag][:40]!r} {problem}")
+        else:
+            values[name] = float(wrap_deg(value)) if name.endswith("yaw_deg") else value
+    return values, problems
+
+
 def parse_dji_xmp(packet: bytes | str) -> dict[str, float]:
     """``drone-dji:`` values of an XMP packet (attribute and element forms) -> track fields.
 
-    Raises ValueError on malformed XML, on DTDs/entities (refused, never expanded) and on non-numeric values.
+    Raises ValueError on malformed XML, on DTDs/entities (refused, never expanded) and on a value that is not a
+    number within :data:`FIELD_RANGES`.
     """
-    raw = dji_xmp_text(packet)
-    values = {}
-    for tag, name in XMP_FIELDS.items():
-        if tag in raw:
-            value = xmp_number(raw, tag)
-            values[name] = float(wrap_deg(value)) if name.endswith("yaw_deg") else value
+    values, problems = dji_xmp_values(dji_xmp_text(packet))
+    if problems:
+        raise ValueError(problems[0])
     return values
 
 
@@ -315,6 +374,10 @@ def read_photos(folder) -> tuple[list[PhotoInfo], ReadReport]:
             report.notes.append(f"{path.name}: {problem}")
         photos.append(photo)
     report.rows_used = len(photos)
+    flawed = [photo.name for photo in photos if photo.problems]
+    if flawed:
+        report.notes.append(f"{len(flawed)} of {len(photos)} photos have unusable metadata, those fields treated as "
+                            f"missing: {name_list(flawed)}")
     return photos, report
 
 

@@ -50,9 +50,9 @@ def test_geotag_command_end_to_end(synthetic_flight, capsys):
     out = folder / "out" / "geotags.csv"
     code = run(["geotag", "--photos", folder / "photos", "--log", folder / "flight.csv", "--out", out,
                 "--colmap-ref", folder / "out" / "ref.txt", "--write-exif"])
-    printed = capsys.readouterr().out
-    assert code == 0 and "clock offset" in printed and f"{len(shutter)} photos geotagged, 0 untagged" in printed
-    assert "[litchi]: 400 of 400 rows used" in printed
+    printed = capsys.readouterr()  # the result on stdout, the summary (a log) on stderr
+    assert code == 0 and "clock offset" in printed.err and f"{len(shutter)} photos geotagged, 0 untagged" in printed.out
+    assert "[litchi]: 400 of 400 rows used" in printed.err
     sidecar = json.loads(out.with_suffix(".json").read_text())
     error = abs(sidecar["clock_offset_s"] - 0.37)  # 36 photos: the shutter phase spans little of a second
     assert error < 3 * sidecar["clock_offset_std_s"] + 0.02 and sidecar["clock_offset_std_s"] < 0.3
@@ -86,7 +86,7 @@ def test_geotag_from_the_photos_own_metadata(shared_data, tmp_path, capsys):
     assert run(["geotag", "--photos", images, "--log", images, "--out", tmp_path / "g.csv"]) == 0
     priors = load_geotags(tmp_path / "g.csv")
     assert len(priors) == 18 and priors[0].position_enu_m[2] == pytest.approx(39.8)
-    assert "(same-clock)" in capsys.readouterr().out
+    assert "(same-clock)" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv, message", [
@@ -139,7 +139,7 @@ def test_geotag_counts_rejected_photos_per_reason(shared_data, tmp_path, capsys)
     for name in ("BAD1.JPG", "BAD2.JPG"):
         (photos / name).write_text("not a JPEG")
     assert run(["geotag", "--photos", photos, "--log", photos, "--out", tmp_path / "g.csv"]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     assert f"{photos} [photos]: 3 of 5 rows used; rejected 2 unreadable photo\n" in printed
 
 

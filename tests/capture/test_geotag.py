@@ -34,12 +34,15 @@ def flight(noise=NOISE, duration_s=460.0, rate_hz=10.0, seed=0):
 
 
 def errors(result, orbit, shutter):
-    """Per tagged photo: position error (m) and attitude error (deg) against the orbit's truth."""
+    """Per tagged photo: position error (m) and attitude error (deg; None when a tag has no attitude) against the
+    orbit's truth."""
     index = np.array([int(tag.image_name[4:8]) for tag in result.tags])
     h0 = result.origin.h0_m if result.origin_height_known else orbit.frame.h0_m
     truth_frame = LocalFrame(result.origin.lat0_deg, result.origin.lon0_deg, h0)
     truth = truth_frame.enu_points(*orbit.frame.to_geodetic(*orbit.enu(shutter[index]).T))
     estimate = np.array([tag.enu_m for tag in result.tags])
+    if any(tag.R_world_cam is None for tag in result.tags):
+        return np.linalg.norm(estimate - truth, axis=1), None
     rotations = Rotation.from_matrix(np.array([tag.R_world_cam for tag in result.tags]))
     angle = np.degrees((Rotation.from_matrix(orbit.R_world_cam(shutter[index])).inv() * rotations).magnitude())
     return np.linalg.norm(estimate - truth, axis=1), angle
@@ -91,6 +94,8 @@ def test_photos_without_gps_still_align_or_say_ambiguous():
 
 
 def test_manual_offset_and_gaps_are_reported_not_extrapolated():
+    """Photos in a telemetry gap are tagged from their own GPS (source photo_exif) with the gap as the reason;
+    a photo outside the track without GPS of its own stays untagged, saying both."""
     orbit, shutter, track = flight(duration_s=120.0, seed=4)
     keep = (track.time_s < orbit.start_s + 50.0) | (track.time_s > orbit.start_s + 56.0)
     gapped = Track.from_rows(track.time_s[keep], {k: v[keep] for k, v in track.columns.items()}, track.report,
@@ -99,11 +104,20 @@ def test_manual_offset_and_gaps_are_reported_not_extrapolated():
     photos = photos_for(shutter, CAMERA_OFFSET_S, orbit) + [early]
     result = geotag_photos(photos, [gapped], clock_offset=CAMERA_OFFSET_S, max_gap_s=2.0)
     assert result.clock.method == "manual" and result.clock.offset_s == CAMERA_OFFSET_S
-    reasons = dict(result.untagged)
     in_gap = [f"IMG_{i:04d}.JPG" for i, s in enumerate(shutter) if orbit.start_s + 50.0 < s < orbit.start_s + 56.0]
-    assert in_gap and all(re.search(r"telemetry gap of 6\.\d+ s", reasons[name]) for name in in_gap)
-    assert "outside the track's time span" in reasons["EARLY.JPG"]
-    assert len(result.tags) == len(shutter) - len(in_gap)
+    reasons = dict(result.from_photos)
+    assert in_gap and sorted(reasons) == in_gap
+    assert all(re.search(r"telemetry gap of 6\.\d+ s", reasons[name]) for name in in_gap)
+    assert [name for name, _ in result.untagged] == ["EARLY.JPG"]
+    assert re.search(r"outside the track's time span.*no usable GPS position", result.untagged[0][1])
+    assert len(result.tags) == len(shutter)
+    fallen = [tag for tag in result.tags if tag.image_name in reasons]
+    assert {tag.source for tag in fallen} == {"photo_exif"} and all(tag.R_world_cam is None for tag in fallen)
+    assert {tag.source for tag in result.tags} - {"photo_exif"} == {"synthetic/event"}
+    # the photo's own GPS is the truth here: the fallback position is it, in the geotags' frame
+    position_error, _ = errors(dataclasses.replace(result, tags=fallen), orbit, shutter)
+    assert position_error.max() < 0.01
+    assert any(f"{len(in_gap)} photos the logs could not tag" in note for note in result.notes)
 
 
 @pytest.mark.parametrize("writer", ["litchi", "airdata", "airdata-metric"])

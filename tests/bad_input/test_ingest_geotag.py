@@ -1,0 +1,85 @@
+"""``aerostereo-ingest geotag`` on hostile input: photos from another flight or place, outputs that name an input.
+
+Each case must end with exit 2, one stderr line naming what was wrong (and how to force it, where it can be
+forced), no traceback and no file left behind (:mod:`tests.bad_input.harness`).
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pytest
+
+from tests.bad_input.harness import Case, assert_refused, run_case
+from tests.capture.test_cli_logs import write_jpeg
+from tests.capture.test_geotag_checks import yerevan_log
+from tests.conftest import SHARED_DATA
+
+MINNESOTA_PHOTOS = SHARED_DATA / "brighton_beach" / "images"
+SEVEN_YEARS_S = 7.85 * 365.25 * 86400
+
+
+def flight(tmp, *, camera_shift_s=0.0, north_shift_m=0.0, photos=8):
+    """A Litchi log of the synthetic orbit around the demo origin (Yerevan, 2024) in ``tmp/flight.csv`` and
+    ``photos`` JPEGs in ``tmp/photos`` whose EXIF time is moved by ``camera_shift_s`` and whose GPS is moved
+    ``north_shift_m`` north of the track."""
+    orbit, shutter = yerevan_log(tmp / "flight.csv", duration_s=30.0)
+    shutter = shutter[:photos]
+    (tmp / "photos").mkdir()
+    east, north, _ = orbit.enu(shutter).T
+    lat, lon, _ = orbit.frame.to_geodetic(east, north + north_shift_m, np.zeros(len(shutter)))
+    for i, s in enumerate(shutter):
+        write_jpeg(tmp / "photos" / f"DJI_{i:04d}.JPG", s - 0.37 + camera_shift_s, lat[i], lon[i])
+
+
+def minnesota_photos_and_a_yerevan_log(tmp):
+    if not MINNESOTA_PHOTOS.is_dir():
+        pytest.skip(f"real sample data not found at {SHARED_DATA} (set AEROSTEREO_SHARED_DATA)")
+    flight(tmp)
+    shutil.rmtree(tmp / "photos")
+    shutil.copytree(MINNESOTA_PHOTOS, tmp / "photos")
+
+
+GEOTAG = ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/flight.csv"]
+
+CASES = [
+    Case("geotag-minnesota-photos-yerevan-log", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/g.csv"],
+         r"7\.8\d years apart .*beyond the \+-14\.5 h .*--clock-offset", minnesota_photos_and_a_yerevan_log),
+    Case("geotag-camera-clock-years-off", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/g.csv"],
+         r"at least 7\.8\d years apart .*--clock-offset SECONDS",
+         lambda tmp: flight(tmp, camera_shift_s=-SEVEN_YEARS_S)),
+    Case("geotag-camera-clock-a-day-off", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/g.csv"],
+         r"at least 24 h apart .*\+-14\.5 h", lambda tmp: flight(tmp, camera_shift_s=86400.0)),
+    Case("geotag-photo-gps-elsewhere", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/g.csv"],
+         r"photos' own GPS is a median 4\.999 km .*more than the 100 m .*--max-misfit 50\d\d",
+         lambda tmp: flight(tmp, north_shift_m=5000.0)),
+    Case("geotag-photo-gps-elsewhere-tighter-bound", "aerostereo-ingest",
+         [*GEOTAG, "--out", "{tmp}/g.csv", "--max-misfit", "20"],
+         r"median 30 m .*more than the 20 m .*--max-misfit 31", lambda tmp: flight(tmp, north_shift_m=30.0)),
+    Case("geotag-forced-offset-elsewhere", "aerostereo-ingest",
+         [*GEOTAG, "--out", "{tmp}/g.csv", "--clock-offset", "0.37"],
+         r"median 4\.999 km", lambda tmp: flight(tmp, north_shift_m=5000.0)),
+    Case("geotag-out-is-a-photo", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/photos/DJI_0001.JPG"],
+         r"--out .*DJI_0001\.JPG: is also --photos", flight),
+    Case("geotag-out-is-the-log", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/flight.csv"],
+         r"--out .*flight\.csv: is also --log", flight),
+    Case("geotag-colmap-ref-is-the-log", "aerostereo-ingest",
+         [*GEOTAG, "--out", "{tmp}/g.csv", "--colmap-ref", "{tmp}/flight.csv"], r"--colmap-ref .*: is also --log",
+         flight),
+]
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: c.id)
+def test_refused(case, tmp_path):
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+def test_the_misfit_bound_can_be_lifted(tmp_path):
+    """The way out the refusal names works: --max-misfit above the stated distance accepts photos 5 km off, and
+    the summary still says how far they were."""
+    flight(tmp_path, north_shift_m=5000.0)
+    case = Case("lifted", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/g.csv", "--max-misfit", "6000"], "")
+    result = run_case(case, tmp_path)
+    assert result.code == 0 and "photo GPS vs geotags from the logs: median 4999." in result.err
+    assert (tmp_path / "g.csv").read_text().count("\n") == 9
