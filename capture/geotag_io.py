@@ -12,7 +12,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
+from xml.etree import ElementTree
 
 import numpy as np
 from PIL import ExifTags, Image, JpegImagePlugin
@@ -24,6 +24,11 @@ from flightplan.atomic import atomic_path, write_text_atomic
 from .geotag import Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import format_number, format_utc, parse_utc
+
+XMP_META_NS = "adobe:ns:meta/"
+RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
+XPACKET_BEGIN = '<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n'
+XPACKET_END = '<?xpacket end="w"?>'
 
 GEOTAG_COLUMNS = (
     "image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
@@ -129,19 +134,24 @@ def write_colmap_reference(priors: list[PosePrior], path) -> None:
 
 
 def dji_xmp_packet(tag: Geotag, extra: dict[str, str] | None = None) -> bytes:
-    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style), plus
-    the ``extra`` ``drone-dji:`` attributes given as text (e.g. :func:`dji_calibration_attributes`); every
-    value is XML-escaped."""
+    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style:
+    ``AbsoluteAltitude`` the geotag's absolute height, ``RelativeAltitude`` its height above take-off), plus the
+    ``extra`` ``drone-dji:`` attributes given as text (e.g. :func:`dji_calibration_attributes`).
+
+    Built as an element tree (:mod:`xml.etree.ElementTree`) and serialised by it, so every value is escaped
+    whatever characters it holds (``&<>"`` and line breaks included); the elements and attributes are named with
+    DJI's prefixes (``x:``, ``rdf:``, ``drone-dji:``, declared on them), which prefix-matching readers rely on."""
     values = {"GpsLatitude": tag.lat_deg, "GpsLongitude": tag.lon_deg,
               "AbsoluteAltitude": tag.absolute_height_m, "RelativeAltitude": tag.height_above_takeoff_m}
     for prefix, angles in (("Gimbal", tag.gimbal_ypr_deg), ("Flight", tag.aircraft_ypr_deg)):
         values.update({f"{prefix}YawDegree": angles[0], f"{prefix}PitchDegree": angles[1], f"{prefix}RollDegree": angles[2]})
     texts = {k: f"{v:+.8f}" for k, v in values.items() if math.isfinite(v)} | (extra or {})
-    attributes = "".join(f"\n   drone-dji:{k}={quoteattr(v)}" for k, v in texts.items())
-    return ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'
-            ' <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
-            f'  <rdf:Description rdf:about="" xmlns:drone-dji={quoteattr(DRONE_DJI_NS)}{attributes}/>\n'
-            ' </rdf:RDF>\n</x:xmpmeta>\n<?xpacket end="w"?>').encode("utf-8")
+    meta = ElementTree.Element("x:xmpmeta", {"xmlns:x": XMP_META_NS})
+    rdf = ElementTree.SubElement(meta, "rdf:RDF", {"xmlns:rdf": RDF_NS})
+    ElementTree.SubElement(rdf, "rdf:Description", {"rdf:about": "DJI Meta Data", "xmlns:drone-dji": DRONE_DJI_NS}
+                           | {f"drone-dji:{name}": text for name, text in texts.items()})
+    ElementTree.indent(meta, space=" ")
+    return (XPACKET_BEGIN + ElementTree.tostring(meta, encoding="unicode") + "\n" + XPACKET_END).encode("utf-8")
 
 
 def dji_calibration_attributes(fx: float, fy: float, cx: float, cy: float, width: int, height: int,
