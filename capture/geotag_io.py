@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 
 from flightplan.atomic import atomic_path, write_text_atomic
-from .geotag import Geotag, GeotagResult
+from .geotag import HEIGHT_UNKNOWN, Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import format_number, format_utc, parse_utc
 
@@ -39,13 +39,18 @@ GEOTAG_COLUMNS = (
 
 @dataclass(frozen=True)
 class PosePrior:
-    """A photo's pose prior: ENU position (m), R_world_cam (3x3, or None if no attitude), origin, UTC time."""
+    """A photo's pose prior: ENU position (m), R_world_cam (3x3, or None if no attitude), origin, UTC time, and
+    the geotag's WGS84 degrees and ``absolute_height_m`` (datum: the sidecar's ``origin_height_datum``; NaN if
+    the row has none)."""
 
     image_name: str
     position_enu_m: np.ndarray
     R_world_cam: np.ndarray | None
     origin: LocalFrame
     utc_time_s: float
+    lat_deg: float = math.nan
+    lon_deg: float = math.nan
+    absolute_height_m: float = math.nan
 
 
 def sidecar_path(csv_path) -> Path:
@@ -98,13 +103,25 @@ def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
     return csv_path, json_path
 
 
+def read_sidecar(csv_path) -> tuple[LocalFrame, str]:
+    """The sidecar's ENU origin and ``origin_height_datum`` (``unknown`` if absent); ValueError naming the file."""
+    path = sidecar_path(csv_path)
+    try:
+        sidecar = json.loads(path.read_text(encoding="utf-8"))
+        return LocalFrame.from_dict(sidecar["origin"]), str(sidecar.get("origin_height_datum", HEIGHT_UNKNOWN))
+    except (OSError, KeyError, ValueError, TypeError, AttributeError) as error:
+        raise ValueError(f"{path}: cannot read the origin ({error})") from None
+
+
+def optional_number(text: str) -> float:
+    """A CSV cell as a float; empty = NaN."""
+    return float(text) if text != "" else math.nan
+
+
 def load_geotags(csv_path) -> list[PosePrior]:
     """Read ``geotags.csv`` (+ sidecar origin) into pose priors; raises ValueError naming file:line."""
     csv_path = Path(csv_path)
-    try:
-        origin = LocalFrame.from_dict(json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))["origin"])
-    except (OSError, KeyError, ValueError, TypeError) as error:
-        raise ValueError(f"{sidecar_path(csv_path)}: cannot read the origin ({error})") from None
+    origin = read_sidecar(csv_path)[0]
     with csv_path.open(encoding="utf-8", newline="") as handle:
         reader = csv.DictReader(handle)
         if reader.fieldnames != GEOTAG_COLUMNS:
@@ -116,21 +133,14 @@ def load_geotags(csv_path) -> list[PosePrior]:
                 position = np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")])
                 q = [row[k] for k in ("qw", "qx", "qy", "qz")]
                 rotation = None if "" in q else Rotation.from_quat([float(v) for v in q], scalar_first=True).as_matrix()
-                priors.append(PosePrior(row["image_name"], position, rotation, origin, parse_utc(row["utc_time"])))
+                geodetic = [optional_number(row[k]) for k in ("lat_deg", "lon_deg", "absolute_height_m")]
+                priors.append(PosePrior(row["image_name"], position, rotation, origin, parse_utc(row["utc_time"]),
+                                        *geodetic))
             except (ValueError, TypeError) as error:
-                raise ValueError(f"{csv_path}:{line}: east_m,north_m,up_m must be numbers and qw,qx,qy,qz numbers "
-                                 f"or all empty, utc_time ISO 8601 ({error})") from None
+                raise ValueError(f"{csv_path}:{line}: east_m,north_m,up_m must be numbers, lat_deg,lon_deg,"
+                                 f"absolute_height_m numbers or empty, qw,qx,qy,qz numbers or all empty, utc_time "
+                                 f"ISO 8601 ({error})") from None
     return priors
-
-
-def colmap_reference_text(priors: list[PosePrior]) -> str:
-    """COLMAP geo-registration reference (``model_aligner --ref_images_path``): ``NAME X Y Z`` in ENU metres."""
-    return "".join(f"{p.image_name} {p.position_enu_m[0]:.4f} {p.position_enu_m[1]:.4f} {p.position_enu_m[2]:.4f}\n"
-                   for p in priors)
-
-
-def write_colmap_reference(priors: list[PosePrior], path) -> None:
-    write_text_atomic(path, colmap_reference_text(priors))
 
 
 def dji_xmp_packet(tag: Geotag, extra: dict[str, str] | None = None) -> bytes:
