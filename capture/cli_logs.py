@@ -15,7 +15,7 @@ from flightplan.argtypes import finite_number, positive_number
 from flightplan.cli_support import refuse_clobbering
 
 from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
-from .geotag_export import write_exports
+from .geotag_export import write_exports, write_track_gpx
 from .geotag_io import geotag_paths, sidecar_path, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
 from .logs.photos import read_photos
@@ -52,13 +52,14 @@ def register(subparsers) -> None:
     add_export_options(export, "")
     export.set_defaults(handler=run_export)
 
-    track = subparsers.add_parser("track", help="read any flight log and export it as CSV or KML")
+    track = subparsers.add_parser("track", help="read any flight log and export it as CSV, KML or GPX")
     track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) "
                                       "or pcap, or a folder of photos)")
     track.add_argument("--kind", choices=KINDS, help="force the reader instead of detecting it")
     add_time_options(track)
     track.add_argument("--out", help="track CSV to write")
     track.add_argument("--kml", help="track KML to write")
+    track.add_argument("--gpx", type=Path, help="track GPX 1.1 to write (ele: the log's absolute height, if any)")
     track.set_defaults(handler=run_track)
 
 
@@ -177,12 +178,16 @@ def print_report(report: ReadReport, shown_rejects: int = 20) -> None:
 
 
 def run_track(args) -> int:
-    """Read one log, print its report, export CSV and/or KML."""
-    if not args.out and not args.kml:
-        return report_error(args.command, "give --out track.csv and/or --kml track.kml")
+    """Read one log, print its report, export CSV, KML and/or GPX."""
+    if not (args.out or args.kml or args.gpx):
+        return report_error(args.command, "give --out track.csv, --kml track.kml and/or --gpx track.gpx")
     try:
+        refuse_clobbering({"FILE": Path(args.file)}, {"--out": args.out and Path(args.out),
+                                                      "--kml": args.kml and Path(args.kml), "--gpx": args.gpx})
         track = read_track(args.file, kind=args.kind, start_time_s=args.start_time,
                            srt_utc_offset_h=args.srt_utc_offset)
+        if args.gpx:
+            write_track_gpx(track, args.gpx)
         if args.out:
             track.write_csv(args.out)
         if args.kml:

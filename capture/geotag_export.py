@@ -1,6 +1,6 @@
 """Geotags (``geotags.csv`` + sidecar) exported for the tools people already use (docs/ingest-logs-geotags.md):
 
-* **GPX 1.1** (:func:`gpx_text`): one track, one segment, a ``trkpt`` per photo in time order with ``lat``/``lon``,
+* **GPX 1.1** (:func:`geotags_gpx_text`; a flight log's track: :func:`write_track_gpx`): one track, one segment, a ``trkpt`` per photo in time order with ``lat``/``lon``,
   ``ele``, ``time`` (UTC with microseconds) and ``name`` (the image). What ``exiftool -geotag``, QGIS, Google Earth
   and GPS tools read. ``ele`` is the geotag's ``absolute_height_m`` (the datum is the sidecar's
   ``origin_height_datum``, stated in the GPX ``metadata/desc``); left out where that height is empty or its
@@ -23,7 +23,7 @@ from flightplan.atomic import write_text_atomic
 
 from .geotag import HEIGHT_UNKNOWN
 from .geotag_io import PosePrior, load_geotags, read_sidecar
-from .track import format_number, format_utc
+from .track import Track, format_number, format_utc
 
 GPX_NS = "http://www.topografix.com/GPX/1/1"
 GPX_SCHEMA_LOCATION = f"{GPX_NS} http://www.topografix.com/GPX/1/1/gpx.xsd"
@@ -45,23 +45,45 @@ def known_height(point: PosePrior, datum: str) -> bool:
     return datum != HEIGHT_UNKNOWN and math.isfinite(point.absolute_height_m)
 
 
-def gpx_text(points: list[PosePrior], datum: str, creator: str = "aerostereo") -> str:
-    """A GPX 1.1 document: one ``trk`` with one ``trkseg`` of the points (module docstring)."""
-    gpx = ElementTree.Element("gpx", {"xmlns": GPX_NS, "version": "1.1", "creator": creator,
+def gpx_text(times_s, lat_deg, lon_deg, ele_m, names, description: str) -> str:
+    """A GPX 1.1 document: one ``trk`` with one ``trkseg``, a ``trkpt`` per row with ``ele`` (left out where NaN),
+    ``time`` (UTC with microseconds) and, if ``names`` is given, ``name``; ``description`` goes to
+    ``metadata/desc``."""
+    gpx = ElementTree.Element("gpx", {"xmlns": GPX_NS, "version": "1.1", "creator": "aerostereo",
                                       "xmlns:xsi": "http://www.w3.org/2001/XMLSchema-instance",
                                       "xsi:schemaLocation": GPX_SCHEMA_LOCATION})
-    metadata = ElementTree.SubElement(gpx, "metadata")
-    ElementTree.SubElement(metadata, "desc").text = (
-        f"photo positions from geotags.csv; ele = absolute_height_m (metres, datum: {datum})")
+    ElementTree.SubElement(ElementTree.SubElement(gpx, "metadata"), "desc").text = description
     segment = ElementTree.SubElement(ElementTree.SubElement(gpx, "trk"), "trkseg")
-    for p in points:
-        point = ElementTree.SubElement(segment, "trkpt", {"lat": format_number(p.lat_deg), "lon": format_number(p.lon_deg)})
-        if known_height(p, datum):
-            ElementTree.SubElement(point, "ele").text = format_number(p.absolute_height_m)
-        ElementTree.SubElement(point, "time").text = format_utc(p.utc_time_s)
-        ElementTree.SubElement(point, "name").text = p.image_name
+    for row, (time_s, lat, lon, ele) in enumerate(zip(times_s, lat_deg, lon_deg, ele_m)):
+        point = ElementTree.SubElement(segment, "trkpt", {"lat": format_number(lat), "lon": format_number(lon)})
+        if math.isfinite(ele):
+            ElementTree.SubElement(point, "ele").text = format_number(ele)
+        ElementTree.SubElement(point, "time").text = format_utc(time_s)
+        if names is not None:
+            ElementTree.SubElement(point, "name").text = names[row]
     ElementTree.indent(gpx, space=" ")
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ElementTree.tostring(gpx, encoding="unicode") + "\n"
+
+
+def geotags_gpx_text(points: list[PosePrior], datum: str) -> str:
+    """The geotags as GPX (module docstring): a point per photo, named by its image."""
+    return gpx_text([p.utc_time_s for p in points], [p.lat_deg for p in points], [p.lon_deg for p in points],
+                    [p.absolute_height_m if known_height(p, datum) else math.nan for p in points],
+                    [p.image_name for p in points],
+                    f"photo positions from geotags.csv; ele = absolute_height_m (metres, datum: {datum})")
+
+
+def write_track_gpx(track: Track, path) -> None:
+    """A flight log's track as GPX (atomically): its rows with a position, ``ele`` its ``absolute_height_m`` (above
+    sea level as the log gives it; left out where the log has none). ValueError for a track not on UTC."""
+    if track.clock != "utc":
+        raise ValueError(f"{track.report.source}: GPX times are UTC, but this track's clock is {track.clock!r} "
+                         "(give the log's UTC start with --start-time)")
+    rows = track.positions_mask()
+    write_text_atomic(path, gpx_text(track.time_s[rows], track["lat_deg"][rows], track["lon_deg"][rows],
+                                     track["absolute_height_m"][rows], None,
+                                     f"{track.report.source}; ele = absolute_height_m (metres above sea level, as "
+                                     "the log gives it; absent where the log has none)"))
 
 
 def odm_geo_text(points: list[PosePrior], datum: str) -> str:
@@ -99,7 +121,7 @@ def write_exports(csv_path, gpx: Path | None = None, odm_geo: Path | None = None
                      f"{datum}): their GPX ele and geo.txt z are left out")
     if odm_geo or colmap_ref:
         check_exportable(points)
-    for path, text in ((gpx, lambda: gpx_text(points, datum)), (odm_geo, lambda: odm_geo_text(points, datum)),
+    for path, text in ((gpx, lambda: geotags_gpx_text(points, datum)), (odm_geo, lambda: odm_geo_text(points, datum)),
                        (colmap_ref, lambda: colmap_reference_text(points))):
         if path:
             write_text_atomic(path, text())

@@ -138,3 +138,26 @@ def test_image_names_with_whitespace_are_refused_for_line_formats(brighton_geota
     assert run(["export", csv_path, "--odm-geo", tmp_path / "geo.txt"]) == 2
     assert "'DJI 0018.JPG' holds whitespace" in capsys.readouterr().err
     assert not (tmp_path / "geo.txt").exists()
+
+
+def test_track_gpx_of_a_real_airdata_log_carries_its_sea_level_heights(shared_data, tmp_path):
+    log = shared_data / "litchi" / "airdata_mini2_imperial_head.csv"
+    assert run(["track", log, "--gpx", tmp_path / "t.gpx", "--out", tmp_path / "t.csv"]) == 0
+    xmlschema.XMLSchema(GPX_SCHEMA).validate(tmp_path / "t.gpx")
+    points = ElementTree.parse(tmp_path / "t.gpx").getroot().findall(f".//{GPX}trkpt")
+    with open(tmp_path / "t.csv", newline="") as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(points) == len(rows) == 50
+    for point, row in zip(points, rows):
+        assert parse_utc(point.find(f"{GPX}time").text) == pytest.approx(parse_utc(row["utc_time"]), abs=1e-6)
+        assert float(point.get("lat")) == pytest.approx(float(row["lat_deg"]), abs=1e-9)
+        # altitude_above_seaLevel(feet) in the log, metres here; not the height above take-off
+        assert float(point.find(f"{GPX}ele").text) == pytest.approx(float(row["absolute_height_m"]), abs=1e-6)
+        assert float(row["absolute_height_m"]) != pytest.approx(float(row["height_above_takeoff_m"]), abs=1.0)
+
+
+def test_track_gpx_refuses_a_track_not_on_utc(shared_data, tmp_path, capsys):
+    images = shared_data / "brighton_beach" / "images"  # photos: the camera's clock, not UTC
+    assert run(["track", images, "--gpx", tmp_path / "t.gpx"]) == 2
+    assert "GPX times are UTC, but this track's clock is 'camera'" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
