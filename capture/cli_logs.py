@@ -1,8 +1,8 @@
 """``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
 
-``register(subparsers)`` adds them (and ``export``: geotags.csv -> GPX, ODM geo.txt, COLMAP reference); each sets ``handler`` to a function taking the parsed args and returning an
-exit code (0 ok, 2 bad input: one line on stderr, nothing written). :func:`report_error` writes that line for
-every ``aerostereo-ingest`` subcommand.
+``register(subparsers)`` adds both, and ``export`` (geotags.csv -> GPX, ODM geo.txt, COLMAP reference); each
+sets ``handler`` to a function taking the parsed args and returning an exit code (0 ok, 2 bad input: one line on
+stderr, nothing written). :func:`report_error` writes that line for every ``aerostereo-ingest`` subcommand.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from flightplan.argtypes import finite_number, positive_number
 from flightplan.cli_support import refuse_clobbering
 
 from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
-from .geotag_export import write_exports, write_track_gpx
+from .geotag_export import check_line_names, write_exports, write_track_gpx
 from .geotag_io import geotag_paths, sidecar_path, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
 from .logs.photos import read_photos
@@ -129,6 +129,8 @@ def run_geotag(args) -> int:
         if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
             return report_error(args.command, f"{exif_dir}: refusing to overwrite the original photos; "
                                               "choose another --exif-dir")
+        if args.odm_geo or args.colmap_ref:
+            check_line_names([tag.image_name for tag in result.tags])  # before anything is written
         csv_path, json_path = write_geotags(result, args.out)
         export_notes = write_exports(csv_path, args.gpx, args.odm_geo, args.colmap_ref)
         if args.write_exif:

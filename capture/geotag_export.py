@@ -100,11 +100,11 @@ def colmap_reference_text(points: list[PosePrior]) -> str:
     return "".join(f"{p.image_name} {' '.join(f'{v:.4f}' for v in p.position_enu_m)}\n" for p in points)
 
 
-def check_exportable(points: list[PosePrior]) -> None:
+def check_line_names(names) -> None:
     """ValueError if an image name would break a whitespace-separated line (geo.txt, COLMAP)."""
-    for p in points:
-        if not p.image_name or any(c.isspace() for c in p.image_name):
-            raise ValueError(f"image name {p.image_name!r} holds whitespace: geo.txt and COLMAP reference lines "
+    for name in names:
+        if not name or any(c.isspace() for c in name):
+            raise ValueError(f"image name {name!r} holds whitespace: geo.txt and COLMAP reference lines "
                              "are split on whitespace; rename the photo")
 
 
@@ -120,7 +120,7 @@ def write_exports(csv_path, gpx: Path | None = None, odm_geo: Path | None = None
         notes.append(f"{unknown} of {len(points)} geotags have no absolute height of known datum (origin_height_datum "
                      f"{datum}): their GPX ele and geo.txt z are left out")
     if odm_geo or colmap_ref:
-        check_exportable(points)
+        check_line_names(p.image_name for p in points)
     for path, text in ((gpx, lambda: geotags_gpx_text(points, datum)), (odm_geo, lambda: odm_geo_text(points, datum)),
                        (colmap_ref, lambda: colmap_reference_text(points))):
         if path:

@@ -161,3 +161,16 @@ def test_track_gpx_refuses_a_track_not_on_utc(shared_data, tmp_path, capsys):
     assert run(["track", images, "--gpx", tmp_path / "t.gpx"]) == 2
     assert "GPX times are UTC, but this track's clock is 'camera'" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_geotag_refuses_a_line_format_export_before_writing_anything(shared_data, tmp_path, capsys):
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    source = shared_data / "brighton_beach" / "images" / "DJI_0018.JPG"
+    (photos / "DJI 0018.JPG").write_bytes(source.read_bytes())
+    out = tmp_path / "out"
+    out.mkdir()
+    assert run(["geotag", "--photos", photos, "--log", photos, "--out", out / "g.csv",
+                "--colmap-ref", out / "ref.txt"]) == 2
+    assert "'DJI 0018.JPG' holds whitespace" in capsys.readouterr().err
+    assert list(out.iterdir()) == []
