@@ -65,7 +65,8 @@ def register(subparsers) -> None:
 
 def add_export_options(parser: argparse.ArgumentParser, also: str) -> None:
     """``--gpx``, ``--odm-geo``, ``--colmap-ref``: the exports of :mod:`capture.geotag_export`."""
-    parser.add_argument("--gpx", type=Path, help=f"{also}write a GPX 1.1 track, a point per photo (exiftool -geotag, QGIS)")
+    parser.add_argument("--gpx", type=Path,
+                        help=f"{also}write a GPX 1.1 track, a point per photo (exiftool -geotag, QGIS)")
     parser.add_argument("--odm-geo", type=Path,
                         help=f"{also}write an OpenDroneMap geo.txt (EPSG:4326; image_name lon lat z)")
     parser.add_argument("--colmap-ref", type=Path,

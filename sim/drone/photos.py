@@ -162,8 +162,8 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
             rgb = render(scene, rig, T_world_cam, sun, lighting=lighting, pool=pool).views[0].rgb
             rendered = time.perf_counter()
             camera_time = start_utc.replace(tzinfo=None) + dt.timedelta(seconds=float(photos.camera_time_s[index]))
-            write_dji_jpeg(out_dir / names[index], rgb, photo_geotag(photos, index, home_msl, names[index]), camera_time,
-                           camera)
+            tag = photo_geotag(photos, index, home_msl, names[index])
+            write_dji_jpeg(out_dir / names[index], rgb, tag, camera_time, camera)
             result.render_s += rendered - started
             result.write_s += time.perf_counter() - rendered
             result.photos += 1

@@ -95,8 +95,8 @@ def test_heights_above_sea_level_follow_the_stated_geoid_undulation(tmp_path):
     mission = fly_litchi_mission(short_orbit_csv(tmp_path / "orbit.csv", waypoints=8, photo_interval_s=20.0), world,
                                  seed=3, imperfections=Imperfections.none())
     undulation = 17.5
-    render_photos(mission, world, tmp_path / "photos", photo_camera(32, 24, lens=0.0), CAMERA_TIME, limit=1, progress=False,
-                  geoid_undulation_m=undulation)
+    render_photos(mission, world, tmp_path / "photos", photo_camera(32, 24, lens=0.0), CAMERA_TIME, limit=1,
+                  progress=False, geoid_undulation_m=undulation)
     index = int(np.flatnonzero(mission.photos.taken)[0])
     relative = mission.photos.measured_height_above_takeoff_m[index]
     expected = mission.sensors.measured_home()[2] - undulation + relative
