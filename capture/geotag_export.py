@@ -2,9 +2,10 @@
 
 * **GPX 1.1** (:func:`geotags_gpx_text`; a flight log's track: :func:`write_track_gpx`): one track, one
   segment, a ``trkpt`` per photo in time order with ``lat``/``lon``, ``ele``, ``time`` (UTC with microseconds)
-  and ``name`` (the image). What ``exiftool -geotag``, QGIS, Google Earth and GPS tools read. ``ele`` is the geotag's ``absolute_height_m`` (the datum is the sidecar's
-  ``origin_height_datum``, stated in the GPX ``metadata/desc``); left out where that height is empty or its
-  datum ``unknown`` (a Litchi log: no absolute height at all).
+  and ``name`` (the image). What ``exiftool -geotag``, QGIS, Google Earth and GPS tools read. ``ele`` is the
+  geotag's ``absolute_height_m`` (the datum is the sidecar's ``origin_height_datum``, stated in the GPX
+  ``metadata/desc``); left out where that height is empty or its datum ``unknown`` (a Litchi log: no absolute
+  height at all).
 * **ODM ``geo.txt``** (:func:`odm_geo_text`): ``EPSG:4326``, then ``image_name lon lat z``; ``z`` is the geotag's
   ``absolute_height_m`` (left out where GPX leaves ``ele`` out: ODM's z is optional).
 * **COLMAP** reference (:func:`colmap_reference_text`): ``image_name X Y Z``, the ENU position in metres in the
