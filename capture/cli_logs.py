@@ -1,8 +1,8 @@
 """``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
 
-``register(subparsers)`` adds both; each sets ``handler`` to a function taking the parsed args and returning an
-exit code (0 ok, 2 bad input: one line on stderr, nothing written). :func:`report_error` writes that line for
-every ``aerostereo-ingest`` subcommand.
+``register(subparsers)`` adds both, and ``export`` (geotags.csv -> GPX, ODM geo.txt, COLMAP reference); each
+sets ``handler`` to a function taking the parsed args and returning an exit code (0 ok, 2 bad input: one line on
+stderr, nothing written). :func:`report_error` writes that line for every ``aerostereo-ingest`` subcommand.
 """
 
 from __future__ import annotations
@@ -15,7 +15,8 @@ from flightplan.argtypes import finite_number, positive_number
 from flightplan.cli_support import refuse_clobbering
 
 from .geotag import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, geotag_photos
-from .geotag_io import geotag_paths, load_geotags, write_colmap_reference, write_exif_copies, write_geotags
+from .geotag_export import check_line_names, write_exports, write_track_gpx
+from .geotag_io import geotag_paths, sidecar_path, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
 from .logs.photos import list_photos, read_photos
 from .track import LogFormatError, ReadReport, parse_utc
@@ -39,20 +40,45 @@ def register(subparsers) -> None:
                              "logs; a larger one is refused as photos from another place (default %(default)s)")
     add_time_options(geotag)
     geotag.add_argument("--out", required=True, help="geotags.csv to write (the .json sidecar goes beside it)")
-    geotag.add_argument("--colmap-ref", help="also write a COLMAP reference file 'NAME X Y Z' (ENU metres)")
+    add_export_options(geotag, "also ")
     geotag.add_argument("--write-exif", action="store_true",
                         help="write geotagged copies of the photos (EXIF GPS + DJI XMP) into --exif-dir")
     geotag.add_argument("--exif-dir", help="folder for the geotagged copies (default: <out folder>/geotagged)")
     geotag.set_defaults(handler=run_geotag)
 
-    track = subparsers.add_parser("track", help="read any flight log and export it as CSV or KML")
+    export = subparsers.add_parser(
+        "export", help="geotags.csv -> GPX (exiftool -geotag, QGIS), ODM geo.txt, COLMAP model_aligner reference",
+        description="Export the geotags of a geotags.csv (+ its .json sidecar) for other tools. Heights are copied: "
+                    "GPX ele and geo.txt z are the geotags' absolute_height_m (left out when the sidecar says its "
+                    "datum is unknown), COLMAP X Y Z the ENU position in the geotags' frame.")
+    export.add_argument("geotags", type=Path, help="geotags.csv written by 'aerostereo-ingest geotag'")
+    add_export_options(export, "")
+    export.set_defaults(handler=run_export)
+
+    track = subparsers.add_parser("track", help="read any flight log and export it as CSV, KML or GPX")
     track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) "
                                       "or pcap, or a folder of photos)")
     track.add_argument("--kind", choices=KINDS, help="force the reader instead of detecting it")
     add_time_options(track)
     track.add_argument("--out", help="track CSV to write")
     track.add_argument("--kml", help="track KML to write")
+    track.add_argument("--gpx", type=Path, help="track GPX 1.1 to write (ele: the log's absolute height, if any)")
     track.set_defaults(handler=run_track)
+
+
+def add_export_options(parser: argparse.ArgumentParser, also: str) -> None:
+    """``--gpx``, ``--odm-geo``, ``--colmap-ref``: the exports of :mod:`capture.geotag_export`."""
+    parser.add_argument("--gpx", type=Path,
+                        help=f"{also}write a GPX 1.1 track, a point per photo (exiftool -geotag, QGIS)")
+    parser.add_argument("--odm-geo", type=Path,
+                        help=f"{also}write an OpenDroneMap geo.txt (EPSG:4326; image_name lon lat z)")
+    parser.add_argument("--colmap-ref", type=Path,
+                        help=f"{also}write a COLMAP model_aligner reference 'image_name X Y Z' (ENU metres; "
+                             "--ref_is_gps 0 --alignment_type custom)")
+
+
+def export_outputs(args) -> dict[str, Path | None]:
+    return {"--gpx": args.gpx, "--odm-geo": args.odm_geo, "--colmap-ref": args.colmap_ref}
 
 
 def add_time_options(parser: argparse.ArgumentParser) -> None:
@@ -92,9 +118,9 @@ def read_logs(args) -> list:
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset."""
     try:
-        csv_out, json_out = geotag_paths(args.out)  # a bad --out fails before the logs are read
-        refuse_clobbering({"--photos": list_photos(args.photos), "--log": args.log},
-                          {"--out": csv_out, "--out's sidecar": json_out, "--colmap-ref": args.colmap_ref})
+        csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
+        refuse_clobbering({"--photos": list_photos(args.photos), "--log": [Path(log) for log in args.log]},
+                          {"--out": csv_path, "--out's sidecar": json_path, **export_outputs(args)})
         tracks = read_logs(args)
         photos, photo_report = read_photos(args.photos)
         if not photos:
@@ -108,9 +134,10 @@ def run_geotag(args) -> int:
         if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
             return report_error(args.command, f"{exif_dir}: refusing to overwrite the original photos; "
                                               "choose another --exif-dir")
+        if args.odm_geo or args.colmap_ref:
+            check_line_names([tag.image_name for tag in result.tags])  # before anything is written
         csv_path, json_path = write_geotags(result, args.out)
-        if args.colmap_ref:
-            write_colmap_reference(load_geotags(csv_path), args.colmap_ref)
+        export_notes = write_exports(csv_path, args.gpx, args.odm_geo, args.colmap_ref)
         if args.write_exif:
             write_exif_copies(result, args.photos, exif_dir)
     except (LogFormatError, ValueError, OSError) as error:
@@ -120,13 +147,31 @@ def run_geotag(args) -> int:
     if photo_report.source not in {report.source for report in result.sources}:
         print_report(photo_report, file=sys.stderr)  # which photos could not be read or had unusable values
     print(result.clock.summary(), file=sys.stderr)
-    for note in result.notes:
+    for note in result.notes + export_notes:
         print(f"note: {note}", file=sys.stderr)
     for name, reason in result.untagged:
         print(f"  untagged {name}: {reason}", file=sys.stderr)
     own = f" ({len(result.from_photos)} from their own EXIF/XMP)" if result.from_photos else ""
     print(f"{len(result.tags)} photos geotagged{own}, {len(result.untagged)} untagged -> {csv_path} "
           f"(+ {json_path.name})")
+    return 0
+
+
+def run_export(args) -> int:
+    """Write the requested exports of a geotags.csv; one line per file written."""
+    outputs = export_outputs(args)
+    if not any(outputs.values()):
+        return report_error(args.command, "give at least one of --gpx, --odm-geo, --colmap-ref")
+    try:
+        refuse_clobbering({"geotags": args.geotags, "(sidecar)": sidecar_path(args.geotags)}, outputs)
+        notes = write_exports(args.geotags, args.gpx, args.odm_geo, args.colmap_ref)
+    except (ValueError, OSError) as error:
+        return report_error(args.command, error)
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
+    for option, path in outputs.items():
+        if path:
+            print(f"{option[2:]}: {path}")
     return 0
 
 
@@ -143,12 +188,16 @@ def print_report(report: ReadReport, shown_rejects: int = 20, file=None) -> None
 
 
 def run_track(args) -> int:
-    """Read one log, print its report, export CSV and/or KML."""
-    if not args.out and not args.kml:
-        return report_error(args.command, "give --out track.csv and/or --kml track.kml")
+    """Read one log, print its report, export CSV, KML and/or GPX."""
+    if not (args.out or args.kml or args.gpx):
+        return report_error(args.command, "give --out track.csv, --kml track.kml and/or --gpx track.gpx")
     try:
+        refuse_clobbering({"FILE": Path(args.file)}, {"--out": args.out and Path(args.out),
+                                                      "--kml": args.kml and Path(args.kml), "--gpx": args.gpx})
         track = read_track(args.file, kind=args.kind, start_time_s=args.start_time,
                            srt_utc_offset_h=args.srt_utc_offset)
+        if args.gpx:
+            write_track_gpx(track, args.gpx)
         if args.out:
             track.write_csv(args.out)
         if args.kml:

@@ -12,7 +12,7 @@ import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
+from xml.etree import ElementTree
 
 import numpy as np
 from PIL import ExifTags, Image, JpegImagePlugin
@@ -21,9 +21,14 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 
 from flightplan.atomic import atomic_path, write_text_atomic
-from .geotag import PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
+from .geotag import HEIGHT_UNKNOWN, PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import format_number, format_utc, parse_utc
+
+XMP_META_NS = "adobe:ns:meta/"
+RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
+XPACKET_BEGIN = '<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n'
+XPACKET_END = '<?xpacket end="w"?>'
 
 GEOTAG_COLUMNS = (
     "image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
@@ -34,13 +39,18 @@ GEOTAG_COLUMNS = (
 
 @dataclass(frozen=True)
 class PosePrior:
-    """A photo's pose prior: ENU position (m), R_world_cam (3x3, or None if no attitude), origin, UTC time."""
+    """A photo's pose prior: ENU position (m), R_world_cam (3x3, or None if no attitude), origin, UTC time, and
+    the geotag's WGS84 degrees and ``absolute_height_m`` (datum: the sidecar's ``origin_height_datum``; NaN if
+    the row has none)."""
 
     image_name: str
     position_enu_m: np.ndarray
     R_world_cam: np.ndarray | None
     origin: LocalFrame
     utc_time_s: float
+    lat_deg: float = math.nan
+    lon_deg: float = math.nan
+    absolute_height_m: float = math.nan
 
 
 def sidecar_path(csv_path) -> Path:
@@ -95,13 +105,25 @@ def write_geotags(result: GeotagResult, csv_path) -> tuple[Path, Path]:
     return csv_path, json_path
 
 
+def read_sidecar(csv_path) -> tuple[LocalFrame, str]:
+    """The sidecar's ENU origin and ``origin_height_datum`` (``unknown`` if absent); ValueError naming the file."""
+    path = sidecar_path(csv_path)
+    try:
+        sidecar = json.loads(path.read_text(encoding="utf-8"))
+        return LocalFrame.from_dict(sidecar["origin"]), str(sidecar.get("origin_height_datum", HEIGHT_UNKNOWN))
+    except (OSError, KeyError, ValueError, TypeError, AttributeError) as error:
+        raise ValueError(f"{path}: cannot read the origin ({error})") from None
+
+
+def optional_number(text: str) -> float:
+    """A CSV cell as a float; empty = NaN."""
+    return float(text) if text != "" else math.nan
+
+
 def load_geotags(csv_path) -> list[PosePrior]:
     """Read ``geotags.csv`` (+ sidecar origin) into pose priors; raises ValueError naming file:line."""
     csv_path = Path(csv_path)
-    try:
-        origin = LocalFrame.from_dict(json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))["origin"])
-    except (OSError, KeyError, ValueError, TypeError) as error:
-        raise ValueError(f"{sidecar_path(csv_path)}: cannot read the origin ({error})") from None
+    origin = read_sidecar(csv_path)[0]
     with csv_path.open(encoding="utf-8", newline="") as handle:
         reader = csv.DictReader(handle)
         if reader.fieldnames != GEOTAG_COLUMNS:
@@ -113,37 +135,35 @@ def load_geotags(csv_path) -> list[PosePrior]:
                 position = np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")])
                 q = [row[k] for k in ("qw", "qx", "qy", "qz")]
                 rotation = None if "" in q else Rotation.from_quat([float(v) for v in q], scalar_first=True).as_matrix()
-                priors.append(PosePrior(row["image_name"], position, rotation, origin, parse_utc(row["utc_time"])))
+                geodetic = [optional_number(row[k]) for k in ("lat_deg", "lon_deg", "absolute_height_m")]
+                priors.append(PosePrior(row["image_name"], position, rotation, origin, parse_utc(row["utc_time"]),
+                                        *geodetic))
             except (ValueError, TypeError) as error:
-                raise ValueError(f"{csv_path}:{line}: east_m,north_m,up_m must be numbers and qw,qx,qy,qz numbers "
-                                 f"or all empty, utc_time ISO 8601 ({error})") from None
+                raise ValueError(f"{csv_path}:{line}: east_m,north_m,up_m must be numbers, lat_deg,lon_deg,"
+                                 f"absolute_height_m numbers or empty, qw,qx,qy,qz numbers or all empty, utc_time "
+                                 f"ISO 8601 ({error})") from None
     return priors
 
 
-def colmap_reference_text(priors: list[PosePrior]) -> str:
-    """COLMAP geo-registration reference (``model_aligner --ref_images_path``): ``NAME X Y Z`` in ENU metres."""
-    return "".join(f"{p.image_name} {p.position_enu_m[0]:.4f} {p.position_enu_m[1]:.4f} {p.position_enu_m[2]:.4f}\n"
-                   for p in priors)
-
-
-def write_colmap_reference(priors: list[PosePrior], path) -> None:
-    write_text_atomic(path, colmap_reference_text(priors))
-
-
 def dji_xmp_packet(tag: Geotag, extra: dict[str, str] | None = None) -> bytes:
-    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style), plus
-    the ``extra`` ``drone-dji:`` attributes given as text (e.g. :func:`dji_calibration_attributes`); every
-    value is XML-escaped."""
+    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style:
+    ``AbsoluteAltitude`` the geotag's absolute height, ``RelativeAltitude`` its height above take-off), plus the
+    ``extra`` ``drone-dji:`` attributes given as text (e.g. :func:`dji_calibration_attributes`).
+
+    Built as an element tree (:mod:`xml.etree.ElementTree`) and serialised by it, so every value is escaped
+    whatever characters it holds (``&<>"`` and line breaks included); the elements and attributes are named with
+    DJI's prefixes (``x:``, ``rdf:``, ``drone-dji:``, declared on them), which prefix-matching readers rely on."""
     values = {"GpsLatitude": tag.lat_deg, "GpsLongitude": tag.lon_deg,
               "AbsoluteAltitude": tag.absolute_height_m, "RelativeAltitude": tag.height_above_takeoff_m}
     for prefix, angles in (("Gimbal", tag.gimbal_ypr_deg), ("Flight", tag.aircraft_ypr_deg)):
         values.update({f"{prefix}YawDegree": angles[0], f"{prefix}PitchDegree": angles[1], f"{prefix}RollDegree": angles[2]})
     texts = {k: f"{v:+.8f}" for k, v in values.items() if math.isfinite(v)} | (extra or {})
-    attributes = "".join(f"\n   drone-dji:{k}={quoteattr(v)}" for k, v in texts.items())
-    return ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>\n<x:xmpmeta xmlns:x="adobe:ns:meta/">\n'
-            ' <rdf:RDF xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#">\n'
-            f'  <rdf:Description rdf:about="" xmlns:drone-dji={quoteattr(DRONE_DJI_NS)}{attributes}/>\n'
-            ' </rdf:RDF>\n</x:xmpmeta>\n<?xpacket end="w"?>').encode("utf-8")
+    meta = ElementTree.Element("x:xmpmeta", {"xmlns:x": XMP_META_NS})
+    rdf = ElementTree.SubElement(meta, "rdf:RDF", {"xmlns:rdf": RDF_NS})
+    ElementTree.SubElement(rdf, "rdf:Description", {"rdf:about": "DJI Meta Data", "xmlns:drone-dji": DRONE_DJI_NS}
+                           | {f"drone-dji:{name}": text for name, text in texts.items()})
+    ElementTree.indent(meta, space=" ")
+    return (XPACKET_BEGIN + ElementTree.tostring(meta, encoding="unicode") + "\n" + XPACKET_END).encode("utf-8")
 
 
 def dji_calibration_attributes(fx: float, fy: float, cx: float, cy: float, width: int, height: int,

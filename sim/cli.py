@@ -17,6 +17,7 @@ from pathlib import Path
 
 from capture.track import parse_utc
 from flightplan.litchi import LitchiFormatError
+from flightplan.argtypes import finite_number
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
 from sim.export_cli import add_export_parser
 from sim.render_cli import add_compare_parser, render_main
@@ -57,6 +58,9 @@ def add_fly_parser(subparsers) -> None:
     parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now)")
     parser.add_argument("--photos", type=int, dest="photo_limit", help="render only the first N photos")
     parser.add_argument("--logs", action="store_true", help="also write flight_log.csv (Litchi) and flight.srt")
+    parser.add_argument("--geoid-undulation", type=finite_number, default=0.0, metavar="N",
+                        help="geoid height above the WGS84 ellipsoid at the scene (m): photos and logs carry "
+                             "ellipsoidal height - N as height above sea level (default 0: the ellipsoid)")
     parser.set_defaults(handler=run_fly)
 
 
@@ -96,7 +100,7 @@ def run_fly(args) -> int:
         raise CliError(f"--photos {args.photo_limit}: expected a count >= 0")
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[args.noise](), seed=args.seed, start_utc=args.start_utc,
-                         photo_limit=args.photo_limit, logs=args.logs)
+                         photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation)
     scene = load_scene(resolve_scene_dir(args.scene))
     report = run_session(args.mission, scene, args.out, options)
     flight, photos = report.mission.flight, report.mission.photos

@@ -47,7 +47,11 @@ def cell(value: float, decimals: int) -> str:
 
 
 def litchi_csv_text(track: Track) -> str:
-    """Metric Litchi flight log (``altitude(m)``, ``speed(mps)``, gimbal as tenths in ``gimbal*Raw``)."""
+    """Metric Litchi flight log (``altitude(m)``, ``speed(mps)``, gimbal as tenths in ``gimbal*Raw``).
+
+    ``altitude(m)`` is the track's ``height_above_takeoff_m``, as in Litchi's own logs: a barometric height above
+    the take-off point, never a GPS or sea-level altitude (a Litchi log has no absolute height column, so the
+    track's ``absolute_height_m`` is not written; use the SRT's ``abs_alt`` or a GPX export for that)."""
     header = ("latitude,longitude,altitude(m),speed(mps),time(millisecond),datetime(utc),pitch(deg),roll(deg),"
               "yaw(deg),isflying,istakingphoto,gimbalPitchRaw,gimbalRollRaw,gimbalYawRaw,home_latitude,home_longitude")
     home = track.take_off()

@@ -12,12 +12,15 @@ from capture.logs.writers import write_litchi_csv, write_srt
 from capture.track import Home, ReadReport, Track
 
 
-def telemetry_track(mission, start_utc: dt.datetime) -> Track:
+def telemetry_track(mission, start_utc: dt.datetime, geoid_undulation_m: float = 0.0) -> Track:
     """One row per OSD record sent (UTC = ``start_utc`` + telemetry time), with the gimbal record of the same
-    instant (NaN where none was sent); photo events at the shutter records; home = the recorded home point."""
+    instant (NaN where none was sent); photo events at the shutter records; home = the recorded home point.
+    Heights: ``height_above_takeoff_m`` barometric; ``absolute_height_m`` (and the home's) above sea level = the
+    recorded home's ellipsoidal height - ``geoid_undulation_m`` (N, m) + the barometric height."""
     osd = mission.telemetry.osd
     gimbal = {r.t_s: r for r in mission.telemetry.gimbal}
-    home_lat, home_lon, home_h = mission.sensors.measured_home()
+    home_lat, home_lon, home_h_ellipsoid = mission.sensors.measured_home()
+    home_h = home_h_ellipsoid - geoid_undulation_m
     t = np.array([r.t_s for r in osd])
     nan = float("nan")
     g = [gimbal.get(r.t_s) for r in osd]
@@ -38,9 +41,11 @@ def telemetry_track(mission, start_utc: dt.datetime) -> Track:
                            home=Home(home_lat, home_lon, home_h))
 
 
-def write_flight_logs(mission, start_utc: dt.datetime, out_dir) -> tuple[Path, Path]:
-    """Write ``flight_log.csv`` (Litchi flight-log columns) and ``flight.srt`` (dated DJI style) into ``out_dir``."""
-    track = telemetry_track(mission, start_utc)
+def write_flight_logs(mission, start_utc: dt.datetime, out_dir, geoid_undulation_m: float = 0.0) -> tuple[Path, Path]:
+    """Write ``flight_log.csv`` (Litchi flight-log columns: its ``altitude(m)`` is the height above take-off, as
+    in Litchi's own logs, never a GPS altitude) and ``flight.srt`` (dated DJI style: ``rel_alt`` above take-off,
+    ``abs_alt`` above sea level, see :func:`telemetry_track`) into ``out_dir``."""
+    track = telemetry_track(mission, start_utc, geoid_undulation_m)
     csv_path, srt_path = Path(out_dir) / "flight_log.csv", Path(out_dir) / "flight.srt"
     write_litchi_csv(track, csv_path)
     write_srt(track, srt_path, style="dated")

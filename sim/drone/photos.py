@@ -7,39 +7,39 @@ Exposure: each photo is rendered with its auto-exposure gain per channel in line
 (:mod:`sim.drone.exposure`, one small metering render per photo first).
 
 Metadata, as a DJI camera writes it, from what the aircraft MEASURED at the exposure (``Photos.measured_*``):
-EXIF ``DateTimeOriginal`` + ``SubSecTimeOriginal`` (milliseconds) from the camera clock (``start_utc +
-camera_time_s``, which includes the camera clock's offset; written without a time zone, as DJI does), the
-GPS IFD (measured latitude/longitude; altitude = measured home height + barometric height), Make/Model/focal
-length, and the XMP ``drone-dji:`` packet of :func:`capture.geotag_io.dji_xmp_packet` with the camera's
-calibration as DJI writes it (:func:`capture.geotag_io.dji_calibration_attributes`, at the photo's size).
+the EXIF of :func:`sim.drone.exif.dji_exif` (times from the camera clock ``start_utc + camera_time_s``, which
+includes the camera clock's offset; the GPS IFD with the measured latitude/longitude and the height above sea
+level = measured home height + barometric height - the stated geoid undulation), and the XMP ``drone-dji:``
+packet of :func:`capture.geotag_io.dji_xmp_packet` (``AbsoluteAltitude`` the same height above sea level,
+``RelativeAltitude`` the barometric height above take-off) with the camera's calibration as DJI writes it
+(:func:`capture.geotag_io.dji_calibration_attributes`, at the photo's size).
 """
 
 from __future__ import annotations
 
 import datetime as dt
-import math
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from PIL import ExifTags, Image, TiffImagePlugin
+from PIL import Image
 from tqdm import tqdm
 
 from flightplan.atomic import atomic_path
 from capture.geotag import Geotag
-from capture.geotag_io import dji_calibration_attributes, dji_xmp_packet, set_exif_gps
-from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM, MINI_SE_CAMERA, CameraProfile
+from capture.geotag_io import dji_calibration_attributes, dji_xmp_packet
+from flightplan.aircraft import MINI_SE_CAMERA, CameraProfile
 from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera, Rig
+from sim.drone.exif import dji_exif
 from sim.drone.exposure import auto_exposure_gains, metered_luminance
 from sim.raycast import default_workers
 from sim.render import Lighting, Sun, render
 from sim.scene import Scene
 from sim.shade import SRGB8_TO_LINEAR
 
-MAKE, MODEL = "DJI", "FC7103"
 JPEG_QUALITY = 92
 DEFAULT_SUN = Sun(azimuth_deg=150.0, elevation_deg=50.0)
 #: Date written at the head of the virtual camera's XMP ``DewarpData`` (a factory calibration's date).
@@ -97,39 +97,24 @@ def poses_in_scene(flight_frame: LocalFrame, scene_frame: LocalFrame, position_e
     return flight_frame.transform_to(scene_frame) @ T_flight_cam
 
 
-def photo_geotag(photos, index: int, home_height_ellipsoid_m: float, name: str) -> Geotag:
-    """What photo ``index`` records about itself (measured values) as a :class:`capture.geotag.Geotag`."""
+def photo_geotag(photos, index: int, home_height_msl_m: float, name: str) -> Geotag:
+    """What photo ``index`` records about itself (measured values) as a :class:`capture.geotag.Geotag`; its
+    ``absolute_height_m`` is the home's height above sea level ``home_height_msl_m`` + the barometric height."""
     relative = float(photos.measured_height_above_takeoff_m[index])
     return Geotag(image_name=name, time_s=float(photos.camera_time_s[index]), time_source="camera", source="drone",
                   lat_deg=float(photos.measured_latitude_deg[index]), lon_deg=float(photos.measured_longitude_deg[index]),
-                  height_above_takeoff_m=relative, absolute_height_m=home_height_ellipsoid_m + relative,
+                  height_above_takeoff_m=relative, absolute_height_m=home_height_msl_m + relative,
                   aircraft_ypr_deg=photos.measured_aircraft_ypr_deg[index], gimbal_ypr_deg=photos.measured_gimbal_ypr_deg[index],
                   enu_m=np.full(3, np.nan), R_world_cam=None)
 
 
-def dji_exif(tag: Geotag, camera_time: dt.datetime, profile: CameraProfile) -> Image.Exif:
-    """EXIF of a DJI photo: Make/Model, camera-clock DateTimeOriginal + SubSecTimeOriginal, focal length, GPS."""
-    exif = Image.Exif()
-    exif[ExifTags.Base.Make] = MAKE
-    exif[ExifTags.Base.Model] = MODEL
-    stamp = camera_time.strftime("%Y:%m:%d %H:%M:%S")
-    exif[ExifTags.Base.DateTime] = stamp
-    sub = exif.get_ifd(ExifTags.IFD.Exif)
-    sub[ExifTags.Base.DateTimeOriginal] = stamp
-    sub[ExifTags.Base.SubsecTimeOriginal] = f"{camera_time.microsecond // 1000:03d}"
-    sub[ExifTags.Base.FocalLength] = TiffImagePlugin.IFDRational(round(profile.focal_length_mm * 100), 100)
-    sub[ExifTags.Base.FocalLengthIn35mmFilm] = round(FULL_FRAME_DIAGONAL_MM / 2.0 / math.tan(
-        math.radians(profile.diagonal_fov_deg) / 2.0))
-    exif[ExifTags.IFD.Exif] = sub
-    set_exif_gps(exif, tag)
-    return exif
-
-
 def write_dji_jpeg(path, rgb: np.ndarray, tag: Geotag, camera_time: dt.datetime, camera: PinholeCamera,
                    profile: CameraProfile = MINI_SE_CAMERA) -> None:
-    """Write ``rgb`` (H,W,3 uint8) taken by ``camera`` as a JPEG with DJI EXIF and XMP (atomically)."""
+    """Write ``rgb`` (H,W,3 uint8) taken by ``camera`` as a JPEG with DJI EXIF and XMP (atomically); heights
+    as in ``tag`` (``absolute_height_m`` above sea level)."""
+    exif = dji_exif(tag, camera_time, profile, (camera.width, camera.height))
     with atomic_path(path) as tmp:
-        Image.fromarray(rgb).save(tmp, format="JPEG", quality=JPEG_QUALITY, exif=dji_exif(tag, camera_time, profile),
+        Image.fromarray(rgb).save(tmp, format="JPEG", quality=JPEG_QUALITY, exif=exif,
                                   xmp=dji_xmp_packet(tag, camera_xmp(camera)))
 
 
@@ -147,18 +132,21 @@ class RenderedPhotos:
 
 
 def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_utc: dt.datetime,
-                  sun: Sun = DEFAULT_SUN, limit: int | None = None, progress: bool = True) -> RenderedPhotos:
+                  sun: Sun = DEFAULT_SUN, limit: int | None = None, progress: bool = True,
+                  geoid_undulation_m: float = 0.0) -> RenderedPhotos:
     """Render every photo the camera took (the first ``limit`` if given) from its true pose into ``out_dir``,
     each at its auto-exposure gains (metered first, for the whole set: the gains lag from photo to photo).
 
-    Names are ``Photos.names`` (DJI_0001.JPG ...); EXIF/XMP carry the measured values (module docstring).
+    Names are ``Photos.names`` (DJI_0001.JPG ...); EXIF/XMP carry the measured values (module docstring), heights
+    above sea level = ellipsoidal height - ``geoid_undulation_m`` (N, metres, the geoid's height above the WGS84
+    ellipsoid stated for the scene; 0: the virtual world's sea level is the ellipsoid).
     """
     photos, flight = mission.photos, mission.flight
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     taken = np.flatnonzero(photos.taken)[:limit]
     poses = poses_in_scene(flight.frame, scene.origin, photos.position_enu_m[taken], photos.R_world_cam[taken])
-    home_h = mission.sensors.measured_home()[2]
+    home_msl = mission.sensors.measured_home()[2] - geoid_undulation_m
     rig, names = Rig((camera,)), photos.names
     result = RenderedPhotos(np.full((len(photos.t_s), 3), np.nan))
     with ThreadPoolExecutor(default_workers()) as pool:
@@ -174,8 +162,8 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
             rgb = render(scene, rig, T_world_cam, sun, lighting=lighting, pool=pool).views[0].rgb
             rendered = time.perf_counter()
             camera_time = start_utc.replace(tzinfo=None) + dt.timedelta(seconds=float(photos.camera_time_s[index]))
-            write_dji_jpeg(out_dir / names[index], rgb, photo_geotag(photos, index, home_h, names[index]), camera_time,
-                           camera)
+            tag = photo_geotag(photos, index, home_msl, names[index])
+            write_dji_jpeg(out_dir / names[index], rgb, tag, camera_time, camera)
             result.render_s += rendered - started
             result.write_s += time.perf_counter() - rendered
             result.photos += 1

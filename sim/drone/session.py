@@ -15,6 +15,7 @@ code path); ``tcp`` streams to ``socket://host:port`` (someone must listen there
 from __future__ import annotations
 
 import datetime as dt
+import math
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -42,7 +43,9 @@ CAPTURE_NAME = "flight.duml"
 
 @dataclass(frozen=True)
 class FlyOptions:
-    """How to fly: render size (px), link, port URL for ``tcp``, pacing speed-up, imperfections, seed, start."""
+    """How to fly: render size (px), link, port URL for ``tcp``, pacing speed-up, imperfections, seed, start, and
+    ``geoid_undulation_m`` (N: the geoid's height above the WGS84 ellipsoid at the scene, metres) that turns the
+    flight's ellipsoidal heights into the heights above sea level the photos and logs carry (h - N)."""
 
     photo_size: tuple[int, int] = (800, 600)
     link: str = "file"
@@ -54,8 +57,11 @@ class FlyOptions:
     photo_limit: int | None = None
     logs: bool = False
     progress: bool = True
+    geoid_undulation_m: float = 0.0
 
     def __post_init__(self) -> None:
+        if not math.isfinite(self.geoid_undulation_m):
+            raise ValueError(f"geoid undulation must be a finite number of metres, got {self.geoid_undulation_m}")
         if self.link not in LINKS:
             raise ValueError(f"link {self.link!r}: expected one of {', '.join(LINKS)}")
         if self.link == "tcp" and not (self.port or "").startswith("socket://"):
@@ -137,12 +143,15 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
         write_raw_capture(frames, capture, clock.start_utc)
         sent = sum(len(frame.data) for frame in frames)
     if options.logs:
-        write_flight_logs(mission, clock.start_utc, out_dir)
+        write_flight_logs(mission, clock.start_utc, out_dir, options.geoid_undulation_m)
     camera = photo_camera(*options.photo_size, lens=options.imperfections.lens_distortion)
     rendered = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
-                             progress=options.progress)
+                             progress=options.progress, geoid_undulation_m=options.geoid_undulation_m)
     write_truth(out_dir, mission.flight, mission.photos, options.seed, gains=rendered.gains, extra={
         "start_utc": clock.start_utc.isoformat(), "telemetry_clock_note": "UTC = start_utc + t_s",
         "mission_csv": str(mission_csv), "scene": scene.source, "link": options.link,
-        "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist(), "camera": camera_truth(camera)})
+        "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist(), "camera": camera_truth(camera),
+        "geoid_undulation_m": options.geoid_undulation_m,
+        "height_note": "h_ellipsoid_m is above the WGS84 ellipsoid; photos and logs carry h_ellipsoid_m - "
+                       "geoid_undulation_m as the height above sea level"})
     return FlyReport(mission, clock.start_utc, len(frames), sent, rendered)

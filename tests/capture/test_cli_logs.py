@@ -92,7 +92,7 @@ def test_geotag_from_the_photos_own_metadata(shared_data, tmp_path, capsys):
 @pytest.mark.parametrize("argv, message", [
     (["track", "{data}/brighton_beach/LICENSE", "--out", "{tmp}/x.csv"], "unknown log format"),
     (["track", "{tmp}/missing.csv", "--out", "{tmp}/x.csv"], "no such file"),
-    (["track", "{data}/litchi/airdata_mini2_imperial_head.csv"], "give --out"),
+    (["track", "{data}/litchi/airdata_mini2_imperial_head.csv"], "give --out track.csv, --kml track.kml and/or --gpx"),
     (["geotag", "--photos", "{data}/brighton_beach/images", "--log", "{data}/dji/DJI_SRT_Parser__mavic_mini.SRT",
       "--out", "{tmp}/x.csv"], "no wall-clock time"),
     (["geotag", "--photos", "{data}/brighton_beach/images", "--log", "{data}/dji/DJI_SRT_Parser__mavic_pro.SRT",

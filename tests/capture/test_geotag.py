@@ -12,8 +12,8 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from capture.geotag import HEIGHT_UNKNOWN, MEAN_SEA_LEVEL, Geotag, geotag_photos
-from capture.geotag_io import (GEOTAG_COLUMNS, colmap_reference_text, dji_calibration_attributes, dji_xmp_packet,
-                               load_geotags, write_geotags)
+from capture.geotag_export import colmap_reference_text
+from capture.geotag_io import GEOTAG_COLUMNS, dji_calibration_attributes, dji_xmp_packet, load_geotags, write_geotags
 from capture.logs import read_track
 from capture.logs.photos import DRONE_DJI_NS, PhotoInfo
 from capture.logs.writers import write_airdata_csv, write_litchi_csv, write_srt
@@ -175,6 +175,8 @@ def test_geotag_files_round_trip(tmp_path):
         np.testing.assert_allclose(prior.position_enu_m, tag.enu_m, atol=1e-8)
         np.testing.assert_allclose(prior.R_world_cam, tag.R_world_cam, atol=1e-8)
         assert prior.utc_time_s == pytest.approx(tag.time_s, abs=1e-6)
+        assert (prior.lat_deg, prior.lon_deg) == pytest.approx((tag.lat_deg, tag.lon_deg), abs=1e-9)
+        assert prior.absolute_height_m == pytest.approx(tag.absolute_height_m, abs=1e-6)
     first = colmap_reference_text(priors).splitlines()[0].split()
     assert first[0] == priors[0].image_name and [float(v) for v in first[1:]] == pytest.approx(priors[0].position_enu_m, abs=1e-4)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["geotags.csv", "geotags.json"]  # no temporaries left

@@ -236,16 +236,23 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
 
 
 def test_flight_logs_read_back_as_the_telemetry_sent(mission_csv, tmp_path):
+    """Litchi's altitude(m) and the SRT's rel_alt are heights above take-off; the SRT's abs_alt is the height
+    above sea level: the recorded home's ellipsoidal height - the stated geoid undulation + rel_alt."""
     mission = flown(mission_csv, Imperfections.realistic())
-    csv_path, srt_path = write_flight_logs(mission, START, tmp_path)
+    undulation = -21.5
+    csv_path, srt_path = write_flight_logs(mission, START, tmp_path, geoid_undulation_m=undulation)
     osd = mission.telemetry.osd
+    relative = np.array([r.height_above_takeoff_m for r in osd])
     for path in (csv_path, srt_path):
         track = read_track(path)
         assert len(track) == len(osd)
         np.testing.assert_allclose(track.time_s, [START.timestamp() + r.t_s for r in osd], atol=1e-3)
         np.testing.assert_allclose(track["lat_deg"], [r.latitude_deg for r in osd], atol=1e-8)
-        np.testing.assert_allclose(track["height_above_takeoff_m"], [r.height_above_takeoff_m for r in osd], atol=1e-3)
+        np.testing.assert_allclose(track["height_above_takeoff_m"], relative, atol=1e-3)
     assert len(read_track(csv_path).photo_times_s) == len(mission.telemetry.shutter)
+    assert not np.isfinite(read_track(csv_path)["absolute_height_m"]).any()  # a Litchi log has no absolute height
+    home_msl = mission.sensors.measured_home()[2] - undulation
+    np.testing.assert_allclose(read_track(srt_path)["absolute_height_m"], home_msl + relative, atol=1e-3)
 
 
 def test_cli_fly_over_the_small_demo_world_writes_every_output(mission_csv, tmp_path, capsys):
