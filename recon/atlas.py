@@ -86,7 +86,7 @@ class Atlas:
     """A textured mesh: ``vertices`` (M, 3) ENU metres (split where charts meet), ``faces`` (F, 3) in the input
     mesh's face order, ``uv`` (M, 2) with v up (OBJ/trimesh convention), ``image`` (H, W, 3) uint8 sRGB; per face its
     photo ``labels`` (index into the photos, -1: none saw it); per photo name its exposure ``gains`` (texture =
-    gain x photo, linear light); ``coverage`` the fraction of the surface area some photo sees."""
+    gain x photo, linear light; held-out photos included); ``coverage`` the fraction of the surface area some photo sees."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -290,6 +290,35 @@ def atlas_gains(views: FaceViews, centroids: np.ndarray, photos: list[Photo], li
     return np.exp(solve_log_gains(log_luminance, options.min_overlap))
 
 
+def held_out_gains(scene: Scene, mesh: trimesh.Trimesh, labels: np.ndarray, photos: list[Photo],
+                   linear: list[np.ndarray], gains: np.ndarray, held_out: list[Photo],
+                   options: AtlasOptions) -> np.ndarray:
+    """Exposure gains of photos left out of the texture (``held_out``), against the finished texture: the mean over
+    up to ``gain_faces`` textured faces each sees (:func:`visible_faces`) of log(texture luminance) - log(its own
+    luminance), the texture's luminance being its face photo's gain x that photo's luminance at the centroid.
+
+    A held-out photo's exposure (auto-exposure, white balance) is a property of that photo that no twin can predict;
+    one number per photo, measured the way the texture's own photos' gains are, so that ``compare`` can score the
+    twin's colours at that photo's exposure. 1.0 for a photo that sees fewer than ``min_overlap`` textured faces.
+    """
+    centroids, normals = np.asarray(mesh.triangles_center), np.asarray(mesh.face_normals)
+    result = np.ones(len(held_out))
+    for index, photo in enumerate(held_out):
+        faces, _ = visible_faces(scene, centroids, normals, photo, options.border_px)
+        faces = faces[labels[faces] >= 0]
+        if len(faces) < options.min_overlap:
+            continue
+        faces = faces[np.linspace(0, len(faces) - 1, min(options.gain_faces, len(faces))).astype(np.int64)]
+        texture = np.empty(len(faces))
+        for k in np.unique(labels[faces]):
+            own = labels[faces] == k
+            texture[own] = gains[k] * sample_photo(photos[k], linear[k], centroids[faces[own]]).mean(axis=1)
+        own_luminance = sample_photo(photo, linear_texture(photo.image), centroids[faces]).mean(axis=1)
+        log_ratio = np.log(np.maximum(texture, 1e-4)) - np.log(np.maximum(own_luminance, 1e-4))
+        result[index] = float(np.exp(log_ratio.mean()))
+    return result
+
+
 # ---------------------------------------------------------------- 5. texels
 
 
@@ -369,8 +398,9 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
 
 
 def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions = AtlasOptions(),
-                  progress=lambda it: it, log=lambda message: None) -> Atlas:
-    """The textured atlas of an ENU ``mesh`` from undistorted ``photos`` (see the module docstring)."""
+                  progress=lambda it: it, log=lambda message: None, held_out: list[Photo] = ()) -> Atlas:
+    """The textured atlas of an ENU ``mesh`` from undistorted ``photos`` (see the module docstring); the gains also
+    name the ``held_out`` photos, which colour nothing (:func:`held_out_gains`)."""
     if not photos:
         raise ValueError("texturing needs at least one photo")
     scene = scene_from_mesh(mesh)
@@ -393,5 +423,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
         f"patches")
+    held_gains = held_out_gains(scene, mesh, labels, photos, linear, gains, list(held_out), options)
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
-                 {photo.name: float(g) for photo, g in zip(photos, gains)}, coverage, 1.0 / texels_per_m)
+                 {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}, coverage,
+                 1.0 / texels_per_m)

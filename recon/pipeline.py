@@ -298,6 +298,19 @@ class Recon:
             small.visual.vertex_colors = np.asarray(full.visual.vertex_colors)[nearest]
         return small
 
+    def held_out_photos(self) -> list:
+        """The registered held-out photos, undistorted like the dense views into ``work/held_out`` (for their
+        exposure gains only: they colour nothing)."""
+        sparse = pycolmap.Reconstruction(self.work / "sparse")
+        held = {image.name for image in sparse.images.values() if image.has_pose and image.name in self.held_out}
+        if not held:
+            return []
+        workspace = self.work / "held_out"
+        shutil.rmtree(workspace, ignore_errors=True)
+        others = {image.name for image in sparse.images.values()} - held
+        dense.undistort(self.work / "sparse", self.photo_dir, workspace, self.options.dense, others)
+        return texturing.load_photos(pycolmap.Reconstruction(workspace / "sparse"), workspace / "images", read_rgb)
+
     def stage_texture(self):
         marker = self.work / "texture_report.json"
         if self.options.texture == "none":
@@ -309,7 +322,8 @@ class Recon:
             count = lambda items: counted(items, "photos", progress)
             if self.options.texture == "atlas":
                 textured = texture_atlas(surface, photos, self.options.atlas_options, count,
-                                         log=lambda message: self.log(f"[texture] {message}"))
+                                         log=lambda message: self.log(f"[texture] {message}"),
+                                         held_out=self.held_out_photos())
                 encoded, texel_m, coverage = textured.glb(), textured.texel_m, textured.coverage
             else:
                 textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)

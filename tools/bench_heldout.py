@@ -22,8 +22,10 @@ their ``--mesh``/``--texture`` change are redone (the stage stamps say which), a
 those stages.
 
 Table: one row per variant and group (held-out, used, all photos): mean formula 3 raw / with gain, whole image / covered
-pixels, mean coverage; then the seconds of each step. Held-out photos have no texture gain (1.0: the texture
-never saw them), so their "gain" columns equal the raw ones. A rerun with the same ``--work`` resumes both runs.
+pixels, mean coverage; then the seconds of each step. A held-out photo's "gain" is its own exposure measured
+against the finished texture (``recon.atlas.held_out_gains``: one number per photo, the way the texture's photos'
+gains are measured; atlas texture only); its colours never enter the texture. A rerun with the same ``--work``
+resumes both runs.
 """
 
 from __future__ import annotations

@@ -120,6 +120,22 @@ def test_exposure_gains_undo_a_known_exposure(world):
     assert product / product.mean() == pytest.approx(np.ones(8), abs=0.03)
 
 
+def test_a_held_out_photo_gets_its_exposure_but_colours_nothing(world):
+    """Two photos between the texture's own, taken at exposures 1.3 and 0.8: their gains (texture = gain x photo)
+    come back as 1 / exposure relative to the texture photos' (all at 1), and the texture is the one made without
+    them."""
+    mesh, truth, photos = world
+    held = take_photos(truth, oblique_poses(2, 30.0, 28.0, phase_deg=22.5), gains=np.array([1.3, 0.8]))
+    held = [Photo(f"held_{k}", p.image, p.camera, p.T_world_cam) for k, p in enumerate(held)]
+    options = AtlasOptions(gain_faces=5000, min_overlap=10)
+    atlas = texture_atlas(mesh, photos, options, held_out=held)
+    alone = texture_atlas(mesh, photos, options)
+    texture_gain = np.exp(np.mean(np.log([atlas.gains[p.name] for p in photos])))
+    assert atlas.gains["held_0"] / texture_gain == pytest.approx(1 / 1.3, rel=0.03)
+    assert atlas.gains["held_1"] / texture_gain == pytest.approx(1 / 0.8, rel=0.03)
+    assert np.array_equal(atlas.image, alone.image) and np.array_equal(atlas.labels, alone.labels)
+
+
 def test_the_atlas_fits_the_size_asked_for(world):
     mesh, _, photos = world
     atlas = texture_atlas(mesh, photos, AtlasOptions(texel_m=0.01, max_texture_px=512))
