@@ -172,6 +172,9 @@ class Recon:
             raise ValueError(f"{self.scene_dir}: is a file; the output must be a (new or resumable) scene folder")
         self.work = self.scene_dir / "work"
         self.names, self.priors = load_priors(self.photo_dir, self.geotags_csv)
+        if options.mesh == "2.5d" and options.grid_m is not None:  # refuse before SfM what meshing could not hold
+            extent = np.ptp(self.priors.positions_enu[:, :2], axis=0)  # orbits and grids surround what they see
+            meshing.require_height_field_memory(*extent, options.grid_m, "at least the photos' extent")
         if self.priors.untagged:
             self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
                      f"{', '.join(self.priors.untagged[:10])}")
