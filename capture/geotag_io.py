@@ -19,11 +19,12 @@ from PIL import ExifTags, Image, JpegImagePlugin
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from flightplan.jsonfile import loads_json
 
 from flightplan.atomic import atomic_path, write_text_atomic
 from .geotag import Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
-from .track import format_number, format_utc, parse_utc
+from .track import csv_errors, csv_rows, format_number, format_utc, parse_utc
 
 GEOTAG_COLUMNS = (
     "image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
@@ -97,16 +98,18 @@ def load_geotags(csv_path) -> list[PosePrior]:
     """Read ``geotags.csv`` (+ sidecar origin) into pose priors; raises ValueError naming file:line."""
     csv_path = Path(csv_path)
     try:
-        origin = LocalFrame.from_dict(json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))["origin"])
+        origin = LocalFrame.from_dict(loads_json(sidecar_path(csv_path).read_text(encoding="utf-8"))["origin"])
     except (OSError, KeyError, ValueError, TypeError) as error:
         raise ValueError(f"{sidecar_path(csv_path)}: cannot read the origin ({error})") from None
     with csv_path.open(encoding="utf-8", newline="") as handle:
         reader = csv.DictReader(handle)
-        if reader.fieldnames != GEOTAG_COLUMNS:
+        with csv_errors(csv_path, reader):
+            fieldnames = reader.fieldnames
+        if fieldnames != GEOTAG_COLUMNS:
             raise ValueError(f"{csv_path}:1: expected the geotags.csv header {','.join(GEOTAG_COLUMNS)}, "
                              f"got {','.join(reader.fieldnames or [])}")
         priors = []
-        for line, row in enumerate(reader, start=2):
+        for line, row in csv_rows(reader, csv_path):
             try:
                 position = np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")])
                 q = [row[k] for k in ("qw", "qx", "qy", "qz")]

@@ -43,6 +43,7 @@ from recon.atlas import AtlasOptions, texture_atlas
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
+from flightplan.jsonfile import read_json
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
@@ -211,7 +212,7 @@ class Recon:
             stamps.write(stage, *records[stage], finished=True)
             self.seconds[stage] = round(time.perf_counter() - t0, 2)
             self.log(f"[{stage}] done ({self.seconds[stage]} s)")
-        return json.loads((self.scene_dir / "scene.json").read_text(encoding="utf-8"))
+        return read_json(self.scene_dir / "scene.json")
 
     def step_progress(self, stage: str):
         """The progress callback ``(step, done, total)`` for counts from inside ``stage``."""

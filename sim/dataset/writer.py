@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
+from flightplan.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.replay import write_photo_names
 from flightplan.atomic import remove_stale_temps, write_text_atomic
@@ -186,7 +187,7 @@ def read_dataset_json(root: Path) -> dict:
     """Read ``ROOT/dataset.json`` with a clear error when it is missing or not ours."""
     path = Path(root) / "dataset.json"
     try:
-        description = json.loads(path.read_text(encoding="utf-8"))
+        description = loads_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DatasetError(f"{path}: not found; is {root} a dataset folder?") from None
     except UnicodeDecodeError as error:
