@@ -86,7 +86,7 @@ def _ply_size(path: Path) -> MeshSize:
         head = file.read(_PLY_MAX_HEADER_BYTES)
     end = head.find(b"end_header")
     if not head.startswith(b"ply") or end < 0:
-        raise MeshFileError(f"{path}: not a PLY file (no 'ply' ... 'end_header' in its first "
+        raise MeshFileError(f"{path}: not a readable mesh (a PLY file starts 'ply' ... 'end_header' within "
                             f"{_PLY_MAX_HEADER_BYTES // 1024} KiB)")
     body_start = head.find(b"\n", end) + 1 or len(head)
     body_bytes = path.stat().st_size - body_start
@@ -140,7 +140,7 @@ def _glb_size(path: Path) -> MeshSize:
     """Vertices and triangles of every mesh instance of a GLB's scene, and its largest embedded image side."""
     data = path.read_bytes()
     if len(data) < 20 or data[:4] != _GLB_MAGIC:
-        raise MeshFileError(f"{path}: not a glTF binary (GLB) file")
+        raise MeshFileError(f"{path}: not a readable mesh (a GLB file starts 'glTF')")
     json_length, json_type = struct.unpack_from("<II", data, 12)
     if json_type != _GLB_JSON_CHUNK or 20 + json_length > len(data):
         raise MeshFileError(f"{path}: the GLB's first chunk must be its JSON, {json_length} bytes within the file")
