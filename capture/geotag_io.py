@@ -19,11 +19,12 @@ from PIL import ExifTags, Image, JpegImagePlugin
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
+from flightplan.jsonfile import loads_json
 
 from flightplan.atomic import atomic_path, write_text_atomic
 from .geotag import HEIGHT_UNKNOWN, PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
-from .track import format_number, format_utc, parse_utc
+from .track import csv_errors, csv_rows, format_number, format_utc, parse_utc
 
 XMP_META_NS = "adobe:ns:meta/"
 RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
@@ -109,7 +110,7 @@ def read_sidecar(csv_path) -> tuple[LocalFrame, str]:
     """The sidecar's ENU origin and ``origin_height_datum`` (``unknown`` if absent); ValueError naming the file."""
     path = sidecar_path(csv_path)
     try:
-        sidecar = json.loads(path.read_text(encoding="utf-8"))
+        sidecar = loads_json(path.read_text(encoding="utf-8"))
         return LocalFrame.from_dict(sidecar["origin"]), str(sidecar.get("origin_height_datum", HEIGHT_UNKNOWN))
     except (OSError, KeyError, ValueError, TypeError, AttributeError) as error:
         raise ValueError(f"{path}: cannot read the origin ({error})") from None
@@ -126,11 +127,13 @@ def load_geotags(csv_path) -> list[PosePrior]:
     origin = read_sidecar(csv_path)[0]
     with csv_path.open(encoding="utf-8", newline="") as handle:
         reader = csv.DictReader(handle)
-        if reader.fieldnames != GEOTAG_COLUMNS:
+        with csv_errors(csv_path, reader):
+            fieldnames = reader.fieldnames
+        if fieldnames != GEOTAG_COLUMNS:
             raise ValueError(f"{csv_path}:1: expected the geotags.csv header {','.join(GEOTAG_COLUMNS)}, "
                              f"got {','.join(reader.fieldnames or [])}")
         priors = []
-        for line, row in enumerate(reader, start=2):
+        for line, row in csv_rows(reader, csv_path):
             try:
                 position = np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")])
                 q = [row[k] for k in ("qw", "qx", "qy", "qz")]

@@ -13,8 +13,11 @@ Photo events (shutter times on the track's clock) are a separate sorted list.
 
 from __future__ import annotations
 
+import csv
 import math
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 
@@ -44,6 +47,29 @@ CLOCKS = ("utc", "relative", "camera")
 
 class LogFormatError(ValueError):
     """A file that cannot be read at all; the message names the file and the line or byte offset."""
+
+
+@contextmanager
+def csv_errors(source, reader, first_line: int = 1):
+    """Inside the block, an error of the ``csv`` module (a field over its size limit, a NUL byte) raises
+    :class:`LogFormatError` naming ``source`` and the line ``reader`` stopped at (``first_line``: the file line
+    of the reader's first line)."""
+    try:
+        yield
+    except csv.Error as error:
+        lines_read = getattr(reader, "reader", reader).line_num  # a DictReader counts only the rows it returned
+        raise LogFormatError(f"{source}:{lines_read + first_line - 1}: {error}") from None
+
+
+def csv_rows(reader, source, first_line: int = 1) -> Iterator[tuple[int, list]]:
+    """``(file line, row)`` of each row of a ``csv`` ``reader`` (or ``DictReader``), errors as :func:`csv_errors`."""
+    rows = iter(reader)
+    while True:
+        with csv_errors(source, reader, first_line):
+            row = next(rows, None)
+        if row is None:
+            return
+        yield reader.line_num + first_line - 1, row
 
 
 @dataclass(frozen=True)

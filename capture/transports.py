@@ -155,6 +155,9 @@ class SerialSource(LiveSource):
     def __init__(self, url: str, baudrate: int = 115200, read_timeout_s: float = 0.05, max_chunk_bytes: int = 65536,
                  **kwargs) -> None:
         super().__init__(**kwargs)
+        if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
+            raise TransportError(f"serial port {url}: baud rate must be a positive whole number of bits per second, "
+                                 f"got {baudrate!r}")
         self.url, self.baudrate, self.read_timeout_s = url, baudrate, read_timeout_s
         self.max_chunk_bytes = max_chunk_bytes
         self.description = f"serial port {url}"

@@ -32,6 +32,8 @@ ACTION_TAKE_PHOTO = 1
 
 # Limits a mission must respect to import and fly (research/litchi.md sections 1.2 and 1.4; [FLim], [HD4N]).
 MAX_WAYPOINTS = 99
+#: Largest mission file read: 99 rows of 46 columns take about 20 KB; more is not a mission (a flight log?).
+MAX_MISSION_FILE_BYTES = 1024 ** 2
 MIN_LEG_M, MAX_LEG_M = 0.6, 1999.0  # 3-D distance between consecutive waypoints
 MAX_MISSION_DISTANCE_M = 30_000.0  # cumulative length of all legs [FLim]
 MIN_CURVE_M, MAX_CURVE_M = 0.2, 1000.0  # 0.2 m (the DJI minimum) is what Litchi writes for "no curve"
@@ -231,6 +233,9 @@ def parse_mission_csv(text: str, source: str = "<text>") -> Mission:
             continue
         cells = line.split(",")
         where = f"{source}:{line_number}"
+        if len(waypoints) == MAX_WAYPOINTS:
+            raise LitchiFormatError(f"{where}: more than {MAX_WAYPOINTS} waypoints, Litchi's limit per mission; "
+                                    "is this a flight log rather than a Litchi Mission Hub CSV?")
         if len(cells) != len(header):
             raise LitchiFormatError(f"{where}: expected {len(header)} comma-separated fields, got {len(cells)}")
         waypoints.append(_parse_row(cells, index, where))
@@ -240,7 +245,11 @@ def parse_mission_csv(text: str, source: str = "<text>") -> Mission:
 def read_mission_csv(path: str | Path) -> Mission:
     """Read a Litchi Mission Hub CSV (metric or imperial) into a :class:`Mission` with metric units."""
     path = Path(path)
-    raw = path.read_bytes()
+    with path.open("rb") as file:
+        raw = file.read(MAX_MISSION_FILE_BYTES + 1)
+    if len(raw) > MAX_MISSION_FILE_BYTES:
+        raise LitchiFormatError(f"{path}: larger than {MAX_MISSION_FILE_BYTES // 1024} KiB; a Litchi mission of "
+                                f"{MAX_WAYPOINTS} waypoints takes about 20 KB (is this a flight log?)")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as error:

@@ -85,11 +85,18 @@ class OrbitRequest:
         _require(math.isfinite(self.poi_height_m), "POI height must be finite", self.poi_height_m)
         _require(self.deviation_tolerance_m > 0.0, "deviation tolerance must be positive", self.deviation_tolerance_m)
         if self.waypoints_per_ring is not None:
+            most = max_waypoints_per_ring(len(self.rings))
             _require(
-                self.waypoints_per_ring >= MIN_WAYPOINTS_PER_RING,
-                f"waypoints per ring must be at least {MIN_WAYPOINTS_PER_RING}",
+                MIN_WAYPOINTS_PER_RING <= self.waypoints_per_ring <= most,
+                f"waypoints per ring must be {MIN_WAYPOINTS_PER_RING}..{most} (Litchi holds at most "
+                f"{litchi.MAX_WAYPOINTS} waypoints per mission, each ring adds one to close its loop)",
                 self.waypoints_per_ring,
             )
+
+
+def max_waypoints_per_ring(ring_count: int) -> int:
+    """Most waypoints a ring may have when ``ring_count`` closed rings share one Litchi mission."""
+    return litchi.MAX_WAYPOINTS // ring_count - 1
 
 
 def _require(condition: bool, message: str, value) -> None:
@@ -157,13 +164,24 @@ def chord_m(radius_m: float, waypoints: int) -> float:
 
 def feasible_waypoint_range(radius_m: float, max_waypoints: int) -> tuple[int, int]:
     """``(fewest, most)`` waypoints per ring whose legs stay within Litchi's leg and curve rules."""
-    fewest = MIN_WAYPOINTS_PER_RING
-    while chord_m(radius_m, fewest) > litchi.MAX_LEG_M:
-        fewest += 1
+    fewest = max(MIN_WAYPOINTS_PER_RING, fewest_waypoints_for_leg(radius_m, litchi.MAX_LEG_M))
+    if fewest > max_waypoints:  # a circle this large cannot keep its legs short enough
+        return fewest, fewest - 1
     most = fewest - 1
     while most < max_waypoints and chord_m(radius_m, most + 1) >= MIN_PLANNED_LEG_M:
         most += 1
     return fewest, most
+
+
+def fewest_waypoints_for_leg(radius_m: float, max_leg_m: float) -> int:
+    """The fewest equal steps around a circle of ``radius_m`` whose chords are at most ``max_leg_m`` (metres).
+
+    Closed form (``chord = 2 R sin(pi / N)``), so a huge radius costs no time; at least 1.
+    """
+    if 2.0 * radius_m <= max_leg_m:
+        return 1
+    count = math.ceil(math.pi / math.asin(max_leg_m / (2.0 * radius_m)))
+    return count + (chord_m(radius_m, count) > max_leg_m)  # one more where rounding left the chord a hair long
 
 
 def choose_waypoint_count(radius_m: float, tolerance_m: float, max_waypoints: int) -> int:
@@ -174,7 +192,7 @@ def choose_waypoint_count(radius_m: float, tolerance_m: float, max_waypoints: in
     fewest, most = feasible_waypoint_range(radius_m, max_waypoints)
     if most < fewest:
         raise ValueError(
-            f"no feasible waypoint count for radius {radius_m} m: legs must be {MIN_PLANNED_LEG_M:.2f}-"
+            f"no feasible waypoint count for radius {radius_m:g} m: legs must be {MIN_PLANNED_LEG_M:.2f}-"
             f"{litchi.MAX_LEG_M:.0f} m and a ring holds at most {max_waypoints} waypoints"
         )
     within_tolerance = (count for count in range(fewest, most + 1) if sagitta_m(radius_m, count) <= tolerance_m)
@@ -292,7 +310,7 @@ def _transition_length_m(previous: RingPrediction, following: RingPrediction) ->
 
 def plan_orbit(request: OrbitRequest, aircraft: AircraftProfile = DJI_MINI_SE) -> OrbitPlan:
     """Plan ``request`` (see the module docstring) and predict path length, time, photos, GSD and overlap."""
-    max_per_ring = litchi.MAX_WAYPOINTS // len(request.rings) - 1
+    max_per_ring = max_waypoints_per_ring(len(request.rings))
     rows: list[litchi.Waypoint] = []
     predictions: list[RingPrediction] = []
     notes: list[str] = []

@@ -28,6 +28,7 @@ from recon.priors import PriorsError
 from recon.sfm import SfmError, SfmOptions
 from recon.atlas import AtlasOptions
 from recon.texture import TextureOptions
+from sim.mesh_file import check_mesh_file
 
 
 def positive_int(text: str) -> int:
@@ -90,6 +91,7 @@ def build_merge_parser() -> argparse.ArgumentParser:
 def load_mesh(path: Path) -> trimesh.Trimesh:
     if not path.is_file():
         raise FileNotFoundError(f"{path}: mesh file not found")
+    check_mesh_file(path)
     try:
         loaded = trimesh.load(path, force="mesh", process=False)
     except Exception as error:  # trimesh's format readers raise KeyError, ValueError, struct.error, ... on bad files

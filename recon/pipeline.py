@@ -43,6 +43,7 @@ from recon.atlas import AtlasOptions, texture_atlas
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
+from flightplan.jsonfile import read_json
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
@@ -172,6 +173,9 @@ class Recon:
             raise ValueError(f"{self.scene_dir}: is a file; the output must be a (new or resumable) scene folder")
         self.work = self.scene_dir / "work"
         self.names, self.priors = load_priors(self.photo_dir, self.geotags_csv)
+        if options.mesh == "2.5d" and options.grid_m is not None:  # refuse before SfM what meshing could not hold
+            extent = np.ptp(self.priors.positions_enu[:, :2], axis=0)  # orbits and grids surround what they see
+            meshing.require_height_field_memory(*extent, options.grid_m, "at least the photos' extent")
         if self.priors.untagged:
             self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
                      f"{', '.join(self.priors.untagged[:10])}")
@@ -208,7 +212,7 @@ class Recon:
             stamps.write(stage, *records[stage], finished=True)
             self.seconds[stage] = round(time.perf_counter() - t0, 2)
             self.log(f"[{stage}] done ({self.seconds[stage]} s)")
-        return json.loads((self.scene_dir / "scene.json").read_text(encoding="utf-8"))
+        return read_json(self.scene_dir / "scene.json")
 
     def step_progress(self, stage: str):
         """The progress callback ``(step, done, total)`` for counts from inside ``stage``."""

@@ -11,7 +11,6 @@ consumer-GPS :data:`DEFAULT_SIGMA_M`. Also the camera SfM starts from: the DJI f
 from __future__ import annotations
 
 import dataclasses
-import json
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -26,6 +25,7 @@ from capture.logs.photos import FactoryCalibration, PhotoInfo, parse_dji_xmp, re
 from capture.track import LogFormatError
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
 from flightplan.geodesy import LocalFrame
+from flightplan.jsonfile import read_json
 
 DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
 #: Least prior sigma (m) of an RTK fixed position, whatever the receiver claims: the photo's exposure is not
@@ -86,7 +86,7 @@ def read_geotags(csv_path: Path) -> PosePriors:
         raise PriorsError(f"{csv_path}: geotags file not found")
     try:
         tags = load_geotags(csv_path)
-        meta = json.loads(sidecar_path(csv_path).read_text(encoding="utf-8"))
+        meta = read_json(sidecar_path(csv_path))
     except (OSError, ValueError) as error:
         raise PriorsError(str(error)) from None
     if not tags:

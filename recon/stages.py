@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from flightplan.atomic import write_text_atomic
+from flightplan.jsonfile import read_json
 
 STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
 
@@ -140,7 +141,7 @@ class StageStamps:
 
     def read(self, stage: str) -> dict | None:
         path = self.folder / f"{stage}.json"
-        return json.loads(path.read_text(encoding="utf-8")) if path.exists() else None
+        return read_json(path) if path.exists() else None
 
     def write(self, stage: str, record: dict, digest: str, finished: bool) -> None:
         stamp = {"format": STAMP_FORMAT, "fingerprint": digest, "finished": finished, "record": record}

@@ -215,6 +215,10 @@ def look_at(eye_enu, target_enu, up_enu=(0.0, 0.0, 1.0)) -> np.ndarray:
     return pose_from_position(eye, np.stack([x, y, z], axis=1))
 
 
+#: Most samples per pixel: the stratified pattern numbers a pixel's strata in uint16.
+MAX_SAMPLES_PER_PIXEL = 65535
+
+
 def stratified_offsets(samples_per_pixel: int, n_pixels: int, rng: np.random.Generator) -> Iterator[np.ndarray]:
     """Yield, per sample, sub-pixel offsets ``(n_pixels, 2)`` in [-0.5, 0.5) from the pixel centres.
 
@@ -223,8 +227,8 @@ def stratified_offsets(samples_per_pixel: int, n_pixels: int, rng: np.random.Gen
     uniformly inside its cell, so every row and every column stratum of a pixel holds exactly one sample.
     """
     n = int(samples_per_pixel)
-    if n < 1 or n > 65535:
-        raise ValueError(f"samples_per_pixel must be in [1, 65535], got {samples_per_pixel}")
+    if n < 1 or n > MAX_SAMPLES_PER_PIXEL:
+        raise ValueError(f"samples_per_pixel must be in [1, {MAX_SAMPLES_PER_PIXEL}], got {samples_per_pixel}")
     if n == 1:
         yield np.zeros((n_pixels, 2))
         return

@@ -21,9 +21,10 @@ import numpy as np
 
 from sim.camera import PinholeCamera, Rig
 from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
+from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
 from sim.raycast import default_workers
-from sim.render import miss_fraction, render
+from sim.render import miss_fraction, render, render_memory_bytes
 from sim.sampling import (
     RENDER_STREAM,
     PoseSample,
@@ -257,11 +258,20 @@ class FrameRenderer:
             self.poses = PoseSource(self.scene, options, self.rig.cameras[0])
         except ValueError as error:
             raise RenderInputError(str(error)) from None
-        self.pool = ThreadPoolExecutor(threads or default_workers())
+        self.threads = threads or default_workers()
+        self.pool = ThreadPoolExecutor(self.threads)
 
     @property
     def frame_count(self) -> int:
         return self.poses.frame_count
+
+    def memory_bytes(self) -> int:
+        """Peak memory (bytes) of rendering and writing frames in this process: the render of the largest frame
+        plus the frames queued for writing (each view's rgb and depth: 7 bytes per pixel)."""
+        largest = max(camera.width * camera.height for camera in self.lenses or self.rig.cameras)
+        pixels = [largest] * len(self.rig.cameras)
+        queued = (MAX_PENDING_FRAMES + 1) * (3 + 4) * sum(pixels)
+        return render_memory_bytes(pixels, self.options.spp, self.threads) + queued
 
     def record(self, index: int) -> tuple[FrameRecord, FrameStats]:
         """Render frame ``index`` (its pose, sun and jitter depend only on ``(seed, index)``)."""

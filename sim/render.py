@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 from collections import defaultdict
+from collections.abc import Sequence
 from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import contextmanager, nullcontext
 from dataclasses import dataclass
@@ -57,6 +58,17 @@ class Frame:
 #: goes through every stage (rays, hits, shadow rays, shading, film) on one thread while its arrays are still in
 #: cache, with no barrier between stages. Fixed, so supersampled images do not depend on the number of CPUs.
 BLOCK_PIXELS = 131072
+#: Bytes per pixel of one view's output arrays (rgb 3, depth 4, distance 4, normal 12, valid 1); see ``_ViewImages``.
+VIEW_BYTES_PER_PIXEL = 24
+
+
+def render_memory_bytes(pixels_per_view: Sequence[int], samples_per_pixel: int, threads: int) -> int:
+    """Peak memory (bytes) of one :func:`render` call: every view's output arrays, plus, when supersampling, one
+    block's stratified sample pattern per busy thread (2 bytes per sample and pixel, twice while it is permuted)."""
+    outputs = VIEW_BYTES_PER_PIXEL * sum(pixels_per_view)
+    if samples_per_pixel == 1:
+        return outputs
+    return outputs + threads * 2 * 2 * samples_per_pixel * min(BLOCK_PIXELS, max(pixels_per_view))
 
 
 class StageTimes(defaultdict):

@@ -50,6 +50,10 @@ from sim.frame_renderer import (
     RenderInputError,
     RenderOptions,
 )
+from flightplan.cli_support import BadInput, require_disk, require_memory
+from sim.camera import MAX_SAMPLES_PER_PIXEL
+from sim.dataset.kitti import KittiLayout
+from sim.dataset.writer import frame_disk_bytes, recorded_frames
 from sim.raycast import default_workers
 from sim.scene import read_scene_json
 
@@ -131,12 +135,15 @@ def _check_options(options: RenderOptions) -> None:
     for name in ("width", "height", "spp", "workers"):
         if getattr(options, name) is not None and getattr(options, name) < 1:
             problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
+    if options.spp > MAX_SAMPLES_PER_PIXEL:
+        problems.append(f"spp must be at most {MAX_SAMPLES_PER_PIXEL} (the sampler numbers a pixel's strata in "
+                        f"16 bits), got {options.spp}")
     for name, value in (("baseline", options.baseline_m), ("altitude", options.altitude_m),
                         ("speed", options.speed_m_s), ("rate", options.frame_rate_hz)):
-        if not value > 0:
-            problems.append(f"{name} must be positive, got {value}")
-    if not options.margin_m >= 0:
-        problems.append(f"margin must be >= 0, got {options.margin_m}")
+        if not 0 < value < math.inf:
+            problems.append(f"{name} must be a positive finite number, got {value}")
+    if not 0 <= options.margin_m < math.inf:
+        problems.append(f"margin must be a finite number >= 0, got {options.margin_m}")
     if not 0 <= options.max_sky_fraction <= 1:
         problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
     if not 0 < options.fov_deg < 180:
@@ -156,6 +163,20 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
                                 formats=tuple(options.formats), scene=scene,
                                 sampling=options.sampling_description(), command_line=list(command_line))
+
+
+def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range) -> None:
+    """Refuse (:class:`RenderInputError`) a run whose frames would not fit in memory or whose missing frames of
+    ``shard`` would not fit on the disk of ``out_dir``, before any file is written."""
+    options, camera = renderer.options, renderer.rig.cameras[0]
+    options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
+    missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
+    try:
+        require_memory(options.workers * renderer.memory_bytes(),
+                       f"rendering {options_size} at --spp {options.spp} with --workers {options.workers}")
+        require_disk(out_dir, missing * frame_disk_bytes(spec), f"{missing} frames of {options_size}")
+    except BadInput as error:
+        raise RenderInputError(str(error)) from None
 
 
 def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
@@ -182,9 +203,11 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     renderer = FrameRenderer(scene_dir, options, threads)
     try:
         spec = dataset_spec(renderer, scene_dir, options, sys.argv if command_line is None else command_line)
+        shard = shard_frames(spec.frame_count, *options.shard)
+        _check_resources(renderer, spec, out_dir, shard)
         writer = _open_writer(out_dir, spec)
-        pending = writer.pending(shard_frames(spec.frame_count, *options.shard))
-        shard_size = len(shard_frames(spec.frame_count, *options.shard))
+        pending = writer.pending(shard)
+        shard_size = len(shard)
         bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,
                    desc=f"rendering {out_dir.name}")
         with bar:

@@ -19,7 +19,6 @@ and ``valid_area`` ``(xmin, xmax, ymin, ymax)`` where the scene has real content
 from __future__ import annotations
 
 import functools
-import json
 import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -33,6 +32,7 @@ from scipy.spatial.transform import Rotation
 from capture.geotag_io import PosePrior, load_geotags, sidecar_path
 from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
+from flightplan.jsonfile import read_json
 from sim.camera import pose_from_position
 from sim.scene_cameras import SceneCamera
 
@@ -310,7 +310,7 @@ def _read_photos(path: Path) -> list[PosePrior]:
 
 def _origin_height_known(sidecar: Path) -> bool:
     """The sidecar's ``origin_height_known`` (true when absent: the origin's h0 is then taken as stated)."""
-    known = json.loads(sidecar.read_text(encoding="utf-8")).get("origin_height_known", True)
+    known = read_json(sidecar).get("origin_height_known", True)
     if not isinstance(known, bool):
         raise ValueError(f"{sidecar}: origin_height_known must be true or false, got {known!r}")
     return known

@@ -19,7 +19,10 @@ import trimesh
 from embreex import mesh_construction, rtcore, rtcore_scene
 from PIL import Image
 
+from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
+from flightplan.jsonfile import loads_json
+from sim.mesh_file import check_mesh_file
 from sim.scene_cameras import CamerasError, SceneCamera, read_cameras
 from sim.shade import MAX_TEXTURE_SIDE, linear_texture
 
@@ -153,7 +156,7 @@ def read_scene_json(scene_dir: Path) -> dict:
     if not path.is_file():
         raise SceneError(f"{path}: scene.json not found (a scene folder needs scene.json and its mesh)")
     try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
+        meta = loads_json(path.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise SceneError(f"{path}: not valid UTF-8 JSON ({exc})") from None
     if not isinstance(meta, dict):
@@ -176,11 +179,22 @@ def read_scene_json(scene_dir: Path) -> dict:
         raise SceneError(f"{path}: \"mesh\" must name the mesh file")
     if not isinstance(meta.get("cameras", ""), str):
         raise SceneError(f"{path}: \"cameras\" must name the cameras file (cameras.json)")
+    for key in ("mesh", "cameras"):
+        if key in meta:
+            _require_inside(Path(scene_dir), meta[key], f"{path}: \"{key}\"")
     try:
         meta["origin_frame"] = LocalFrame.from_dict(meta["origin"])
     except (KeyError, TypeError, ValueError) as exc:
         raise SceneError(f"{path}: \"origin\" needs lat0_deg, lon0_deg, h0_ellipsoid_m ({exc})") from None
     return meta
+
+
+def _require_inside(scene_dir: Path, name: str, where: str) -> None:
+    """Refuse a file name that leaves the scene folder (absolute, ``..``, or a link out): a scene folder is
+    self-contained, so copying it copies the scene and loading it reads nothing else."""
+    folder = scene_dir.resolve()
+    if Path(name).is_absolute() or not (folder / name).resolve().is_relative_to(folder):
+        raise SceneError(f"{where} {name!r} is outside the scene folder; name a file inside {scene_dir}")
 
 
 def _is_rectangle(area) -> bool:
@@ -227,6 +241,10 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface]:
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
+    try:
+        check_mesh_file(path, MAX_TEXTURE_SIDE)
+    except BadInput as error:  # declares more than can be loaded, or more than this machine's memory holds
+        raise SceneError(str(error)) from None
     try:
         mesh = trimesh.load(path, force="mesh", process=False)
     except Exception as exc:  # trimesh raises many types for unreadable files

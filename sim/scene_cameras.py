@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.atomic import write_text_atomic
+from flightplan.jsonfile import loads_json
 from sim.camera import PinholeCamera, check_pose
 
 CAMERAS_FORMAT = "aerostereo-cameras/1"
@@ -61,7 +62,7 @@ def read_cameras(path: Path) -> tuple[SceneCamera, ...]:
     """Parse and check ``cameras.json``; :class:`CamerasError` naming the file (and camera) on bad content."""
     path = Path(path)
     try:
-        document = json.loads(path.read_text(encoding="utf-8"))
+        document = loads_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise CamerasError(f"{path}: cameras file not found (scene.json names it)") from None
     except (UnicodeDecodeError, json.JSONDecodeError) as error:

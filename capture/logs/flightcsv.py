@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..attitude import wrap_deg
-from ..track import Home, LogFormatError, ReadReport, Track, parse_utc, position_problem
+from ..track import Home, LogFormatError, ReadReport, Track, csv_rows, parse_utc, position_problem
 
 LENGTH_TO_M = {"feet": 0.3048, "ft": 0.3048, "m": 1.0, "meters": 1.0, "metres": 1.0, "meter": 1.0, "metre": 1.0}
 SPEED_TO_M_S = {"mph": 0.44704, "mps": 1.0, "m/s": 1.0, "kmh": 1 / 3.6, "km/h": 1 / 3.6, "kph": 1 / 3.6,
@@ -102,14 +102,14 @@ def read_flight_csv(path, kind: str | None = None) -> Track:
                              "latitude, longitude and istakingphoto or isPhoto)")
     specs, photo_flag = FORMATS[kind]
     report = ReadReport(str(path), kind)
-    header = [parse_header_cell(cell) for cell in next(csv.reader([lines[0]]))]
+    header = [parse_header_cell(cell) for cell in next(csv_rows(csv.reader([lines[0]]), path))[1]]
     columns = locate_columns(path, header, specs)
     time_col = find_column(header, "datetime", "utc")
     if time_col is None:
         raise LogFormatError(f"{path}:1: no 'datetime(utc)' column")
     elapsed_col = find_column(header, "time", "millisecond")
     flag_col = find_column(header, photo_flag)
-    home = litchi_home(header, lines) if kind == "litchi" else None
+    home = litchi_home(header, lines, path) if kind == "litchi" else None
 
     rows = parse_rows(path, lines, header, columns, time_col, elapsed_col, flag_col, report)
     times = refine_whole_seconds(rows["datetime"], rows["elapsed_ms"], path, report)
@@ -153,7 +153,7 @@ def parse_rows(path, lines, header, columns, time_col, elapsed_col, flag_col, re
     """Parse every data line; rows with an unreadable time or position are rejected with file:line."""
     out: dict[str, list] = {name: [] for name in ("line", "datetime", "elapsed_ms", "flag", *columns)}
     width = len(header)
-    for line_no, cells in enumerate(csv.reader(io.StringIO("\n".join(lines[1:]))), start=2):
+    for line_no, cells in csv_rows(csv.reader(io.StringIO("\n".join(lines[1:]))), path, first_line=2):
         if not cells or all(not c.strip() for c in cells):
             continue
         report.rows_read += 1
@@ -250,12 +250,12 @@ def rising_edge_times(times: np.ndarray, flag: np.ndarray) -> np.ndarray:
     return events
 
 
-def litchi_home(header, lines) -> Home | None:
+def litchi_home(header, lines, path) -> Home | None:
     """Litchi's home_latitude/home_longitude from the first row that has them non-zero and in range."""
     lat_col, lon_col = find_column(header, "home_latitude"), find_column(header, "home_longitude")
     if lat_col is None or lon_col is None:
         return None
-    for cells in csv.reader(io.StringIO("\n".join(lines[1:200]))):
+    for _, cells in csv_rows(csv.reader(io.StringIO("\n".join(lines[1:200]))), path, first_line=2):
         try:
             lat, lon = cell_number(cells, lat_col, "home_latitude"), cell_number(cells, lon_col, "home_longitude")
         except ValueError:

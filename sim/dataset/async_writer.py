@@ -14,6 +14,8 @@ import threading
 from sim.dataset.writer import FrameRecord, KittiDatasetWriter
 
 _STOP = object()
+#: Frames queued for writing by default (each holds every view's rgb and depth).
+MAX_PENDING_FRAMES = 4
 
 
 class AsyncFrameWriter:
@@ -24,7 +26,7 @@ class AsyncFrameWriter:
     ...         frames.submit(record)
     """
 
-    def __init__(self, writer: KittiDatasetWriter, max_pending: int = 4, threads: int = 1):
+    def __init__(self, writer: KittiDatasetWriter, max_pending: int = MAX_PENDING_FRAMES, threads: int = 1):
         if max_pending < 1 or threads < 1:
             raise ValueError(f"max_pending and threads must be >= 1, got {max_pending} and {threads}")
         self.writer = writer

@@ -18,6 +18,7 @@ from flightplan.atomic import write_bytes_atomic
 from sim.dataset import images
 from sim.dataset.kitti import KittiLayout, frame_file_name, stereo_baseline_m
 from sim.dataset.writer import DatasetError, read_dataset_json
+from flightplan.jsonfile import loads_json
 
 LEFT, RIGHT = 0, 1
 
@@ -84,7 +85,7 @@ class DatasetSource:
 def _record(path: Path, number: int, line: str) -> dict:
     """Line ``number`` of ``frames.jsonl`` as a JSON object, or an error naming the file and line."""
     try:
-        record = json.loads(line)
+        record = loads_json(line)
     except json.JSONDecodeError as error:
         raise DatasetError(f"{path}: line {number} is not JSON ({error.msg}); rerun the render to finalize the "
                            "dataset again") from None

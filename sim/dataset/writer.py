@@ -20,6 +20,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
+import os
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
+from flightplan.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.replay import write_photo_names
 from flightplan.atomic import remove_stale_temps, write_text_atomic
@@ -47,6 +49,13 @@ DATASET_FORMAT = "aerostereo-dataset/1"
 FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png")
 DEFAULT_FORMATS = ("depth_exr", "disparity_png", "disparity_exr")
 STEREO_VIEWS = (0, 1)
+#: Uncompressed bytes per pixel of each file kind of :func:`view_files`.
+RAW_BYTES_PER_PIXEL = {"rgb": 3, "grey": 1, "depth_exr": 4, "depth_cm_png": 2, "disparity_png": 2, "disparity_exr": 4}
+#: What PNG and EXR files of rendered frames take of their raw size: 0.51 for a whole frame of the demo world
+#: (colour PNG 0.51, grey 0.52, depth EXR 0.65, disparity EXR 0.59, disparity PNG 0.09).
+COMPRESSED_FRACTION = 0.5
+#: Smallest space a file takes on disk (one block of ext4, XFS, tmpfs).
+FILE_BLOCK_BYTES = 4096
 
 
 class DatasetError(ValueError):
@@ -178,7 +187,7 @@ def read_dataset_json(root: Path) -> dict:
     """Read ``ROOT/dataset.json`` with a clear error when it is missing or not ours."""
     path = Path(root) / "dataset.json"
     try:
-        description = json.loads(path.read_text(encoding="utf-8"))
+        description = loads_json(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise DatasetError(f"{path}: not found; is {root} a dataset folder?") from None
     except UnicodeDecodeError as error:
@@ -206,6 +215,26 @@ def view_files(layout: KittiLayout, formats: Sequence[str], view: int, index: in
     if view in STEREO_VIEWS and "disparity_exr" in formats:
         files[layout.disparity_dir(view) / frame_file_name(index, ".exr")] = "disparity_exr"
     return files
+
+
+def frame_disk_bytes(spec: DatasetSpec) -> float:
+    """About how many bytes one frame of ``spec`` takes on disk: its files at :data:`COMPRESSED_FRACTION` of their raw
+    size, each at least one :data:`FILE_BLOCK_BYTES` block, plus its record."""
+    layout = KittiLayout(Path(), spec.sequence)
+    total = FILE_BLOCK_BYTES  # frame_meta/NNNNNN.json
+    for view, camera in enumerate(spec.cameras):
+        pixels = int(camera.width) * int(camera.height)
+        for kind in view_files(layout, spec.formats, view, 0).values():
+            total += max(FILE_BLOCK_BYTES, COMPRESSED_FRACTION * RAW_BYTES_PER_PIXEL[kind] * pixels)
+    return total
+
+
+def recorded_frames(layout: KittiLayout) -> set[int]:
+    """Indices of the frames whose record exists (one listing of ``frame_meta``, whatever the frame count)."""
+    if not layout.frame_meta_dir.is_dir():
+        return set()
+    names = (entry.name for entry in os.scandir(layout.frame_meta_dir))
+    return {int(name[:-5]) for name in names if name.endswith(".json") and name[:-5].isdigit()}
 
 
 class KittiDatasetWriter:
@@ -241,8 +270,9 @@ class KittiDatasetWriter:
         return all(path.exists() for path in self.frame_files(index))
 
     def pending(self, indices: Iterable[int]) -> list[int]:
-        """The frames of ``indices`` that still have to be written (resume)."""
-        return [index for index in indices if not self.is_complete(index)]
+        """The frames of ``indices`` that still have to be written (resume); only recorded frames are looked at."""
+        recorded = recorded_frames(self.layout)
+        return [index for index in indices if index not in recorded or not self.is_complete(index)]
 
     def write_frame(self, record: FrameRecord) -> None:
         """Encode and write all files of one frame, then its record. Safe to call again after a crash."""

@@ -93,7 +93,7 @@ def camera_states(shutter: Iterable[ShutterRecord], duration_s: float, dropouts_
     times = np.arange(0.0, duration_s + 1e-9, period_s)
     times = times[~in_windows(times, dropouts_s)]
     taken_before = np.searchsorted(shots, times, side="right")
-    last_shot = np.where(taken_before > 0, shots[np.maximum(taken_before - 1, 0)], -np.inf)
+    last_shot = np.concatenate([[-np.inf], shots])[taken_before]  # -inf before the first shot (or with none)
     shooting = times - last_shot < period_s - 1e-9
     return [(float(t), dataclasses.replace(
                 CAMERA_TEMPLATE, status_flags=CAMERA_TEMPLATE.status_flags | (int(s) << 3),

@@ -27,6 +27,7 @@ from capture.messages import default_registry
 from capture.raw import atomic_capture
 from capture.recorder import record
 from capture.transports import SerialSource
+from flightplan.cli_support import require_memory
 from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
 from sim.drone.logs import write_flight_logs
@@ -34,11 +35,17 @@ from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_c
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
+from sim.raycast import default_workers
+from sim.render import render_memory_bytes
 from sim.scene import Scene
 
 LINKS = ("file", "loop", "tcp")
 NOISE = {"realistic": Imperfections.realistic, "none": Imperfections.none}
 CAPTURE_NAME = "flight.duml"
+#: JPEG stores a photo's width and height in 16 bits.
+MAX_PHOTO_SIDE_PX = 65535
+#: How far past the flight's end its time stamps may reach (the camera clock's offset is seconds at most).
+TIME_LINE_SLACK_S = 86400.0
 
 
 @dataclass(frozen=True)
@@ -66,8 +73,9 @@ class FlyOptions:
             raise ValueError(f"link {self.link!r}: expected one of {', '.join(LINKS)}")
         if self.link == "tcp" and not (self.port or "").startswith("socket://"):
             raise ValueError(f"link tcp needs a port socket://HOST:PORT, got {self.port!r}")
-        if min(self.photo_size) <= 0:
-            raise ValueError(f"photo size must be positive, got {self.photo_size}")
+        if not all(0 < side <= MAX_PHOTO_SIDE_PX for side in self.photo_size):
+            raise ValueError(f"photo size must be 1..{MAX_PHOTO_SIDE_PX} pixels a side (JPEG stores each in 16 bits), "
+                             f"got {self.photo_size}")
 
 
 @dataclass
@@ -127,14 +135,29 @@ def stream_to_port(frames: list[Frame], url: str, clock: MissionClock, progress:
     return sent
 
 
+def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOptions) -> None:
+    """Refuse (``ValueError``) a session whose time stamps would pass year 9999 or whose photo render needs more
+    memory than is free, before anything is written."""
+    try:
+        start_utc + dt.timedelta(seconds=mission.flight.duration_s + TIME_LINE_SLACK_S)
+    except OverflowError:
+        raise ValueError(f"start UTC {start_utc.isoformat()}: the {mission.flight.duration_s:.0f} s flight would "
+                         "end after year 9999, the last a time stamp can hold") from None
+    width, height = options.photo_size
+    pixels = width * height
+    require_memory(render_memory_bytes([pixels], 1, default_workers()) + 3 * pixels,  # + the JPEG encoder's copy
+                   f"--photo-size {width} {height}")
+
+
 def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyReport:
     """Fly, deliver the telemetry, take the photos and write the truth into ``out_dir`` (module docstring)."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     mission = fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections)
+    clock = MissionClock(options.speedup, options.start_utc)
+    check_session(mission, clock.start_utc, options)
+    out_dir.mkdir(parents=True, exist_ok=True)
     frames = duml_frames(mission)
     capture = out_dir / CAPTURE_NAME
-    clock = MissionClock(options.speedup, options.start_utc)
     if options.link == "loop":
         sent = record_loopback(frames, capture, clock, options.progress)
     else:

@@ -32,7 +32,8 @@ from flightplan.cli import main as mission_main
 from recon.cli import main as recon_main
 from sim.cli import main as render_main
 
-SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
+SHARED_DATA = next((folder / "shared" / "data" for folder in Path(__file__).resolve().parents
+                    if (folder / "shared" / "data").is_dir()), Path("/work/shared/data"))  # also from /work/wt/NAME
 
 PROGRAMS: dict[str, Callable[[list[str]], int]] = {
     "aerostereo-mission": mission_main,

@@ -190,3 +190,10 @@ def test_injected_hid_device_reconnects(tmp_path):
 def test_unopenable_serial_port_is_a_clear_error(tmp_path):
     with pytest.raises(TransportError, match="cannot open serial port .*no-such-tty"):
         next(SerialSource(str(tmp_path / "no-such-tty")).chunks())
+
+
+@pytest.mark.parametrize("baudrate", [-1, 0, 9600.5, True])
+def test_a_baud_rate_that_is_not_a_positive_whole_number_is_refused_before_opening(baudrate):
+    with pytest.raises(TransportError, match=f"serial port loop://: baud rate must be .* got {baudrate!r}"):
+        SerialSource("loop://", baudrate=baudrate)
+    assert SerialSource("loop://", baudrate=9600).baudrate == 9600

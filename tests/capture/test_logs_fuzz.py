@@ -166,3 +166,19 @@ def test_litchi_imperial_export(tmp_path):
     assert track.time_s[1] - track.time_s[0] == pytest.approx(0.113, abs=1e-6)
     start = track.time_s[0]
     assert track.photo_times_s - start == pytest.approx([(0.0 + 0.113) / 2, (0.288 + 0.402) / 2], abs=1e-6)
+
+
+def test_csv_rows_number_file_lines_and_name_a_field_over_the_csv_limit(tmp_path):
+    import csv
+    import io
+
+    from capture.track import csv_rows
+
+    text = 'a,b\n1,"two\nlines"\n3,4\n'
+    assert list(csv_rows(csv.reader(io.StringIO(text)), "x.csv")) == [(1, ["a", "b"]), (3, ["1", "two\nlines"]),
+                                                                     (4, ["3", "4"])]
+    with_header = csv.DictReader(io.StringIO(text + "5," + "x" * 200_000 + "\n"))
+    rows = csv_rows(with_header, "x.csv")
+    assert [next(rows)[0], next(rows)[0]] == [3, 4]
+    with pytest.raises(LogFormatError, match=r"^x\.csv:5: field larger than field limit"):
+        next(rows)

@@ -106,3 +106,20 @@ def test_mission_column_view(mission):
     altitudes = mission.column("altitude_m")
     assert altitudes.shape == (len(mission),) and set(altitudes) == {30.0}
     assert dataclasses.is_dataclass(mission.waypoints[0])
+
+
+def test_a_file_with_more_rows_than_litchi_allows_is_not_a_mission(tmp_path, mission):
+    rows = litchi.mission_to_csv_text(litchi.Mission(mission.waypoints[:1] * litchi.MAX_WAYPOINTS)).splitlines()
+    path = tmp_path / "m.csv"
+    path.write_text("\n".join(rows) + "\n")
+    assert len(litchi.read_mission_csv(path).waypoints) == litchi.MAX_WAYPOINTS
+    path.write_text("\n".join(rows + rows[-1:]) + "\n")
+    with pytest.raises(litchi.LitchiFormatError, match=rf"m.csv:{litchi.MAX_WAYPOINTS + 2}: more than 99 waypoints"):
+        litchi.read_mission_csv(path)
+
+
+def test_a_file_larger_than_any_mission_is_refused_before_it_is_read(tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_bytes(b"latitude,longitude\n" + b"1,2\n" * (litchi.MAX_MISSION_FILE_BYTES // 4))
+    with pytest.raises(litchi.LitchiFormatError, match="m.csv: larger than 1024 KiB"):
+        litchi.read_mission_csv(path)

@@ -189,3 +189,27 @@ def test_a_tolerance_below_rounding_gives_the_most_waypoints_not_a_crash():
 
     for tolerance in (1e-15, 5e-324):
         assert choose_waypoint_count(50.0, tolerance, 98) == feasible_waypoint_range(50.0, 98)[1] == 98
+
+
+@pytest.mark.parametrize("radius", [999.0, 999.6, 1000.0, 5000.0, 31_000.0, 1e6, 1e12])
+def test_fewest_waypoints_for_leg_is_the_smallest_count_whose_chord_fits(radius):
+    from flightplan.orbit import chord_m, fewest_waypoints_for_leg
+
+    count = fewest_waypoints_for_leg(radius, litchi.MAX_LEG_M)
+    assert chord_m(radius, count) <= litchi.MAX_LEG_M
+    assert count == 1 or chord_m(radius, count - 1) > litchi.MAX_LEG_M
+
+
+def test_a_radius_beyond_litchi_limits_is_refused_at_once():
+    # 1e12 m needs ~3e9 legs of 1999 m; the planner used to count them one by one.
+    with pytest.raises(ValueError, match="no feasible waypoint count for radius 1e\\+12 m"):
+        plan_orbit(OrbitRequest(45.0, 7.0, (Ring(1e12, 30.0),)))
+
+
+@pytest.mark.parametrize("rings, most", [((Ring(),), 98), ((Ring(), Ring(80.0, 40.0)), 48)])
+def test_waypoints_per_ring_beyond_litchi_mission_limit_are_refused(rings, most):
+    assert len(plan_orbit(OrbitRequest(45.0, 7.0, rings, waypoints_per_ring=most)).mission) <= litchi.MAX_WAYPOINTS
+    with pytest.raises(ValueError, match=f"waypoints per ring must be 3..{most}"):
+        OrbitRequest(45.0, 7.0, rings, waypoints_per_ring=most + 1)
+    with pytest.raises(ValueError, match="waypoints per ring"):
+        OrbitRequest(45.0, 7.0, rings, waypoints_per_ring=10**9)

@@ -81,3 +81,30 @@ def test_empty_point_cloud_is_a_clear_error(tmp_path):
                    "property float z\nend_header\n")
     with pytest.raises(ValueError, match=f"{ply}: no points in this point cloud"):
         read_point_cloud(ply)
+
+
+def test_the_memory_per_cell_covers_what_gridding_and_triangulating_hold(cloud):
+    import tracemalloc
+
+    from recon.mesh import HEIGHT_FIELD_BYTES_PER_CELL, HEIGHT_FIELD_BYTES_PER_POINT
+
+    points, colors = cloud
+    tracemalloc.start()
+    try:
+        field = height_field(points, colors, cell_m=0.1)
+        gridding = tracemalloc.get_traced_memory()[1]
+        tracemalloc.reset_peak()
+        height_field_mesh(field)
+        triangulating = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    estimate = HEIGHT_FIELD_BYTES_PER_CELL * field.z.size + HEIGHT_FIELD_BYTES_PER_POINT * len(points)
+    assert 0.5 * estimate <= max(gridding, triangulating) <= estimate
+
+
+def test_a_cell_too_fine_for_the_memory_is_refused_before_gridding(cloud):
+    from flightplan.cli_support import BadInput
+
+    points, colors = cloud  # 60 m x 60 m
+    with pytest.raises(BadInput, match=r"--grid 1e-06 over the point cloud of 60.0 x 60.0 m \(3.6e\+15 cells\) needs"):
+        height_field(points, colors, cell_m=1e-6)

@@ -272,3 +272,15 @@ def test_cli_fly_over_the_small_demo_world_writes_every_output(mission_csv, tmp_
     assert len(track.photo_times_s) >= sum(p["taken"] for p in truth["photos"]) - 3
     assert {p.name for p in out.iterdir()} >= {"flight.duml", "flight.duml.idx", "flight_log.csv", "flight.srt",
                                               "truth.csv", "truth.json", "photos"}
+
+
+def test_camera_pushes_count_the_shots_before_them_and_a_flight_without_photos_has_none():
+    from sim.drone.link import CAMERA_STATE_HZ, camera_states
+    from sim.drone.schedule import ShutterRecord
+
+    period = 1.0 / CAMERA_STATE_HZ
+    pushes = camera_states([ShutterRecord(2.0 * period, 0)], 4 * period, np.empty((0, 2)))
+    assert [bool(state.status_flags & 8) for _, state in pushes] == [False, False, True, False, False]
+    assert pushes[4][1].remaining_shots == pushes[1][1].remaining_shots - 1
+    silent = camera_states([], 4 * period, np.empty((0, 2)))  # a mission that takes no photo (crashed before)
+    assert len(silent) == 5 and not any(state.status_flags & 8 for _, state in silent)

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 import os
 import shutil
 import signal
@@ -334,9 +335,11 @@ def test_cli_defaults_are_the_render_options_defaults():
 
 
 def test_cli_refuses_settings_that_cannot_render_before_rendering(scene_dir, tmp_path, capsys):
-    for option, value in (("rate", 0), ("speed", -2), ("altitude", 0), ("margin", -1)):
+    for option, value in (("rate", 0), ("speed", -2), ("altitude", 0), ("margin", -1), ("baseline", math.inf),
+                          ("margin", math.inf)):
         message = _error_of(capsys, _argv(scene_dir, tmp_path / option, mode="trajectory", **{option: value}))
-        assert message.endswith(f"{option} must be {'>= 0' if option == 'margin' else 'positive'}, got {value:.1f}")
+        expected = "a finite number >= 0" if option == "margin" else "a positive finite number"
+        assert message.endswith(f"{option} must be {expected}, got {value:.1f}")
     out = tmp_path / "no-depth"
     argv = _argv(scene_dir, out, frames=1, width=16, height=8, formats="disparity_png") + ["--contact-sheet",
                                                                                              str(tmp_path / "s.png")]
@@ -408,3 +411,34 @@ def test_lens_distortion_renders_through_the_distorted_lens(scene_dir, tmp_path,
     np.testing.assert_allclose(points[ground, 2], 0.0, atol=2e-3)
     pinhole = PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], 64, 48)
     assert np.abs(hit_points(pinhole)[ground, 2]).max() > 1.0  # the distortion is really in the images
+
+
+def test_the_disk_estimate_per_frame_is_within_a_factor_two_of_the_frames_written(reference, scene_dir):
+    from sim.dataset.writer import KittiDatasetWriter, frame_disk_bytes
+    from sim.render_dataset import dataset_spec
+
+    dataset, summary = reference
+    renderer = FrameRenderer(scene_dir, RenderOptions(**SMALL))
+    spec = dataset_spec(renderer, scene_dir, renderer.options, ["test"])
+    renderer.close()
+    files = KittiDatasetWriter(dataset, spec).frame_files(0)
+    on_disk = sum(path.stat().st_blocks * 512 for path in files)  # what the files take, block-rounded
+    assert 0.5 <= frame_disk_bytes(spec) / on_disk <= 2.0
+
+
+def test_the_memory_estimate_counts_every_array_a_view_keeps(scene_dir):
+    from sim.render import VIEW_BYTES_PER_PIXEL, render, render_memory_bytes
+    from sim.frame_renderer import build_rig
+    from sim.shade import Sun
+
+    options = RenderOptions(width=40, height=30)
+    rig = build_rig(options)
+    renderer = FrameRenderer(scene_dir, options, threads=1)
+    T = renderer.poses.pose(0).T_world_cam
+    views = render(renderer.scene, rig, T, Sun(0.0, 45.0, 1.0), pool=renderer.pool).views
+    renderer.close()
+    kept = sum(view.rgb.nbytes + view.depth.nbytes + view.distance.nbytes + view.normal.nbytes + view.valid.nbytes
+               for view in views)
+    assert kept == render_memory_bytes([40 * 30] * len(views), 1, 1) == VIEW_BYTES_PER_PIXEL * 40 * 30 * len(views)
+    # Supersampling adds each thread's sample pattern: 2 bytes per sample and pixel, twice while permuted.
+    assert render_memory_bytes([40 * 30] * 2, 16, 3) - kept == 3 * 4 * 16 * 40 * 30

@@ -172,3 +172,21 @@ def test_a_mesh_without_texture_or_colours_is_rejected(tmp_path):
     trimesh.Trimesh(vertices, faces, process=False).export(tmp_path / "bare.obj")
     with pytest.raises(SceneError, match="bare.obj: mesh has no texture"):
         load_scene(write_scene(tmp_path, "bare.obj"))
+
+
+def test_a_scene_folder_is_self_contained_and_links_out_are_refused(tmp_path):
+    colored = trimesh.creation.box()
+    colored.visual.vertex_colors = [90, 120, 60, 255]
+    (tmp_path / "outside").mkdir()
+    colored.export(tmp_path / "outside" / "box.ply")
+    scene_dir = tmp_path / "scene"
+    scene_dir.mkdir()
+    (scene_dir / "sub").mkdir()
+    colored.export(scene_dir / "sub" / "box.ply")
+    assert len(load_scene(write_scene(scene_dir, "sub/../sub/box.ply")).faces) == 12  # `..` that stays inside
+    (scene_dir / "link.ply").symlink_to(tmp_path / "outside" / "box.ply")
+    for name in ("../outside/box.ply", str(tmp_path / "outside" / "box.ply"), "link.ply"):
+        with pytest.raises(SceneError, match=r"scene\.json: \"mesh\" .* is outside the scene folder"):
+            load_scene(write_scene(scene_dir, name))
+    with pytest.raises(SceneError, match=r"scene\.json: \"cameras\" '\.\./cameras\.json' is outside"):
+        load_scene(write_scene(scene_dir, "sub/box.ply", cameras="../cameras.json"))

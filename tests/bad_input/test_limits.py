@@ -1,0 +1,200 @@
+"""Unbounded work and numeric tracebacks (issue 18): each request that would loop, fill the memory or the disk, or
+end in a traceback is refused up front with one line naming the argument or file, exit code 2, nothing written.
+
+Sizes are chosen so that every machine refuses them (beyond 32-bit indices, JPEG's 16-bit sides, petabytes of
+memory or disk), not only this one.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+from pathlib import Path
+
+import pytest
+import trimesh
+
+from capture.geotag_io import GEOTAG_COLUMNS
+from flightplan.demo_location import DEMO_ORIGIN
+from flightplan.litchi import write_mission_csv
+from flightplan.orbit import OrbitRequest, Ring, plan_orbit
+from tests.bad_input.harness import SHARED_DATA, Case, assert_refused, run_case
+
+BRIGHTON = SHARED_DATA / "brighton_beach" / "images"
+NESTED = "[" * 100_000 + "]" * 100_000
+HUGE_FIELD = "x" * (20 * 1024 * 1024)  # 20 MB: beyond the csv module's 128 KiB field limit
+ORIGIN = {"lat0_deg": DEMO_ORIGIN.lat0_deg, "lon0_deg": DEMO_ORIGIN.lon0_deg, "h0_ellipsoid_m": 0.0}
+
+
+def write_mission(tmp: Path) -> None:
+    """A small orbit (5 m, 20 m up) over the demo world: quick to fly."""
+    write_mission_csv(plan_orbit(OrbitRequest(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg, (Ring(5.0, 20.0),))).mission,
+                      tmp / "m.csv")
+
+
+def write_flight_log(tmp: Path) -> None:
+    """A Litchi flight log of 150 rows (a log, not a mission: it has more rows than a mission may)."""
+    header = "latitude,longitude,altitude(m),speed(mps),time(millisecond),datetime(utc),isflying,istakingphoto"
+    rows = [f"{DEMO_ORIGIN.lat0_deg + 1e-6 * i},{DEMO_ORIGIN.lon0_deg},20,1,{100 * i},2024-05-01 10:00:{i // 10:02d}.0,"
+            "1,0" for i in range(150)]
+    (tmp / "flight_log.csv").write_text("\n".join([header, *rows]) + "\n")
+
+
+def write_scene(tmp: Path, mesh: str, **meta) -> None:
+    """``tmp/scene/scene.json`` naming ``mesh`` (and whatever else ``meta`` adds)."""
+    (tmp / "scene").mkdir(exist_ok=True)
+    description = {"format": "aerostereo-scene/1", "mesh": mesh, "origin": ORIGIN} | meta
+    (tmp / "scene" / "scene.json").write_text(json.dumps(description))
+
+
+def write_glb_bomb(path: Path, instances: int = 110_000) -> None:
+    """A 2.2 MB GLB placing one 20480-triangle mesh from ``instances`` nodes: 2.25e9 triangles once concatenated."""
+    data = trimesh.creation.icosphere(subdivisions=5).export(file_type="glb")
+    json_length = struct.unpack_from("<I", data, 12)[0]
+    gltf = json.loads(data[20:20 + json_length])
+    binary = data[20 + json_length:]
+    gltf["nodes"] = [{"mesh": 0} for _ in range(instances)]
+    gltf["scenes"], gltf["scene"] = [{"nodes": list(range(instances))}], 0
+    text = json.dumps(gltf, separators=(",", ":")).encode()
+    text += b" " * (-len(text) % 4)
+    header = b"glTF" + struct.pack("<II", 2, 12 + 8 + len(text) + len(binary))
+    path.write_bytes(header + struct.pack("<II", len(text), 0x4E4F534A) + text + binary)
+
+
+def write_ply_bomb(path: Path) -> None:
+    """A binary PLY of a small sphere whose header claims three billion faces."""
+    ply = trimesh.exchange.ply.export_ply(trimesh.creation.icosphere(subdivisions=2), encoding="binary")
+    path.write_bytes(ply.replace(b"element face 320", b"element face 3000000000"))
+
+
+def scene_with(mesh_writer, name: str):
+    def setup(tmp: Path) -> None:
+        write_scene(tmp, name)
+        mesh_writer(tmp / "scene" / name)
+    return setup
+
+
+def scene_outside(name_of):
+    """A scene whose scene.json names a real mesh outside its folder (``name_of(tmp)``)."""
+    def setup(tmp: Path) -> None:
+        (tmp / "elsewhere").mkdir()
+        trimesh.creation.box().export(tmp / "elsewhere" / "box.ply")
+        write_scene(tmp, name_of(tmp))
+    return setup
+
+
+def nested_scene_json(tmp: Path) -> None:
+    (tmp / "scene").mkdir()
+    (tmp / "scene" / "scene.json").write_text(NESTED)
+
+
+def nested_cameras_json(tmp: Path) -> None:
+    write_scene(tmp, "box.ply", cameras="cameras.json")
+    box = trimesh.creation.box()
+    box.visual.vertex_colors = [200, 100, 50, 255]
+    box.export(tmp / "scene" / "box.ply")
+    (tmp / "scene" / "cameras.json").write_text(NESTED)
+
+
+def nested_dataset_json(tmp: Path) -> None:
+    (tmp / "d").mkdir()
+    (tmp / "d" / "dataset.json").write_text(NESTED)
+
+
+def geotags(tmp: Path, sidecar: str, field: str = "DJI_0018.JPG") -> None:
+    """``geotags.csv`` (one row whose image name is ``field``) and its ``geotags.json`` sidecar text."""
+    row = [field, "2024-05-01T10:00:00Z"] + ["0"] * (len(GEOTAG_COLUMNS) - 2)
+    (tmp / "geotags.csv").write_text(",".join(GEOTAG_COLUMNS) + "\n" + ",".join(row) + "\n")
+    (tmp / "geotags.json").write_text(sidecar)
+
+
+def huge_log_field(tmp: Path) -> None:
+    write_flight_log(tmp)
+    lines = (tmp / "flight_log.csv").read_text().splitlines()
+    lines[3] = HUGE_FIELD + lines[3]
+    (tmp / "flight_log.csv").write_text("\n".join(lines) + "\n")
+
+
+def huge_mission_field(tmp: Path) -> None:
+    write_mission(tmp)
+    text = (tmp / "m.csv").read_text()
+    (tmp / "m.csv").write_text(text.replace("\n", "\n" + HUGE_FIELD, 1))
+
+
+def merge_inputs(tmp: Path) -> None:
+    write_ply_bomb(tmp / "a.ply")
+    trimesh.creation.box().export(tmp / "b.ply")
+    (tmp / "pairs.txt").write_text("0 0 0 0 0 0\n1 0 0 1 0 0\n0 1 0 0 1 0\n0 0 1 0 0 1\n")
+
+
+RENDER = ["--scene", "demo:small", "--out", "{tmp}/d", "--quiet"]
+FLY = ["fly", "--scene", "demo:small", "--out", "{tmp}/f", "--mission", "{tmp}/m.csv"]
+RECON = ["--photos", str(BRIGHTON), "--out", "{tmp}/s"]
+SCENE = ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--quiet", "--frames", "1"]
+
+CASES = [
+    # aerostereo-mission: the planner looped over 1e12 m of legs; 1e9 waypoints grew the memory
+    Case("mission-radius-1e12", "aerostereo-mission", ["--demo", "--radius", "1e12", "--out", "{tmp}/m.csv"],
+         r"no feasible waypoint count for radius 1e\+12 m: .* at most 98 waypoints"),
+    Case("mission-waypoints-1e9", "aerostereo-mission", ["--demo", "--waypoints", "1000000000", "--out", "{tmp}/m.csv"],
+         r"waypoints per ring must be 3\.\.98 \(Litchi holds at most 99 waypoints"),
+    # aerostereo-render: sizes checked against the machine before the first frame
+    Case("render-frames-1e9", "aerostereo-render", [*RENDER, "--frames", "1000000000"],
+         r"1000000000 frames of 1280x720 .* needs about .* on disk; .* free"),
+    Case("render-width-1e6", "aerostereo-render", [*RENDER, "--width", "1000000", "--height", "100000"],
+         r"rendering 1000000x100000 pixels x 2 cameras .* needs about .* of memory; this machine has"),
+    Case("render-spp-1e6", "aerostereo-render", [*RENDER, "--spp", "1000000"], r"spp must be at most 65535"),
+    Case("render-baseline-inf", "aerostereo-render", [*RENDER, "--baseline", "inf"],
+         r"baseline must be a positive finite number, got inf"),
+    # aerostereo-render fly
+    Case("fly-photo-size-1e6", "aerostereo-render", [*FLY, "--photo-size", "1000000", "1000000"],
+         r"photo size must be 1\.\.65535 pixels a side", setup=write_mission),
+    Case("fly-log-as-mission", "aerostereo-render", [*FLY[:-1], "{tmp}/flight_log.csv"],
+         r"flight_log\.csv:101: more than 99 waypoints", setup=write_flight_log),
+    Case("fly-year-9999", "aerostereo-render", [*FLY, "--start-utc", "9999-12-31T23:59:59Z"],
+         r"start UTC 9999-12-31.* would end after year 9999", setup=write_mission),
+    Case("fly-mission-20mb-field", "aerostereo-render", FLY, r"m\.csv: larger than 1024 KiB", setup=huge_mission_field),
+    # aerostereo-recon: the height field's size from the photos' extent, before SfM
+    Case("recon-grid-1e-6", "aerostereo-recon", [*RECON, "--mesh", "2.5d", "--grid", "1e-6"],
+         r"--grid 1e-06 over at least the photos' extent of .* needs about .* PiB of memory"),
+    # meshes that decode to far more than their file size
+    Case("scene-glb-instancing-bomb", "aerostereo-render", SCENE,
+         r"bomb\.glb: declares \d+ vertices and 2252800000 triangles; the renderer indexes at most",
+         setup=scene_with(write_glb_bomb, "bomb.glb")),
+    Case("scene-ply-header-bomb", "aerostereo-render", SCENE,
+         r"bomb\.ply: header declares 162 vertex, 3000000000 face, which take at least",
+         setup=scene_with(write_ply_bomb, "bomb.ply")),
+    Case("merge-ply-header-bomb", "aerostereo-recon",
+         ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt", "--out", "{tmp}/c.ply"],
+         r"a\.ply: header declares .* 3000000000 face", setup=merge_inputs),
+    # a scene folder is self-contained
+    Case("scene-mesh-absolute", "aerostereo-render", SCENE, r"scene\.json: \"mesh\" '/.*box\.ply' is outside the scene",
+         setup=scene_outside(lambda tmp: str(tmp / "elsewhere" / "box.ply"))),
+    Case("scene-mesh-dotdot", "aerostereo-render", SCENE,
+         r"scene\.json: \"mesh\" '\.\./elsewhere/box\.ply' is outside the scene",
+         setup=scene_outside(lambda tmp: "../elsewhere/box.ply")),
+    # deeply nested JSON in each JSON file the CLIs read
+    Case("scene-json-nested", "aerostereo-render", SCENE, r"scene\.json: .*nested deeper than", setup=nested_scene_json),
+    Case("cameras-json-nested", "aerostereo-render", SCENE, r"cameras\.json: .*nested deeper than",
+         setup=nested_cameras_json),
+    Case("dataset-json-nested", "aerostereo-render", [*RENDER, "--frames", "1", "--width", "8", "--height", "8"],
+         r"dataset\.json: invalid JSON at line 1: nested deeper than", setup=nested_dataset_json),
+    Case("geotags-json-nested", "aerostereo-recon", [*RECON, "--geotags", "{tmp}/geotags.csv"],
+         r"geotags\.json: .*nested deeper than", setup=lambda tmp: geotags(tmp, NESTED)),
+    # a 20 MB CSV field in each CSV the CLIs read
+    Case("geotags-csv-20mb-field", "aerostereo-recon", [*RECON, "--geotags", "{tmp}/geotags.csv"],
+         r"geotags\.csv:2: field larger than field limit",
+         setup=lambda tmp: geotags(tmp, json.dumps({"origin": ORIGIN}), HUGE_FIELD)),
+    Case("flight-log-20mb-field", "aerostereo-ingest", ["track", "{tmp}/flight_log.csv", "--out", "{tmp}/t.csv"],
+         r"flight_log\.csv:4: field larger than field limit", setup=huge_log_field),
+    # aerostereo-ingest record
+    Case("record-baud-negative", "aerostereo-ingest", ["record", "--port", "loop://", "--baud", "-1", "--out",
+                                                       "{tmp}/c.duml"], r"baud rate must be a positive .*got -1"),
+    Case("record-baud-zero", "aerostereo-ingest", ["record", "--port", "loop://", "--baud", "0", "--out",
+                                                   "{tmp}/c.duml"], r"baud rate must be a positive .*got 0"),
+]
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda case: case.id)
+def test_refused(case, tmp_path):
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
