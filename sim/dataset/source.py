@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.atomic import write_bytes_atomic
+from flightplan.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.kitti import KittiLayout, frame_file_name, stereo_baseline_m
 from sim.dataset.writer import DatasetError, read_dataset_json
-from flightplan.jsonfile import loads_json
 
 LEFT, RIGHT = 0, 1
 
