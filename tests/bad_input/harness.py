@@ -13,8 +13,8 @@ Each ``tests/bad_input/test_<area>.py`` holds a table of :class:`Case` and one p
     def test_refused(case, tmp_path):
         assert_refused(run_case(case, tmp_path), case, tmp_path)
 
-``{tmp}`` in an argument is the case's folder; ``{data}`` is ``/work/shared/data``-like real data
-(:data:`SHARED_DATA`); ``setup(tmp)`` writes the case's input files before the run.
+``{tmp}`` in an argument is the case's folder; ``{data}`` is the real sample data
+(``tests.conftest.SHARED_DATA``); ``setup(tmp)`` writes the case's input files before the run.
 """
 
 from __future__ import annotations
@@ -31,9 +31,8 @@ from capture.cli import main as ingest_main
 from flightplan.cli import main as mission_main
 from recon.cli import main as recon_main
 from sim.cli import main as render_main
+from tests.conftest import SHARED_DATA
 
-SHARED_DATA = next((folder / "shared" / "data" for folder in Path(__file__).resolve().parents
-                    if (folder / "shared" / "data").is_dir()), Path("/work/shared/data"))  # also from /work/wt/NAME
 
 PROGRAMS: dict[str, Callable[[list[str]], int]] = {
     "aerostereo-mission": mission_main,
