@@ -1,8 +1,10 @@
 """``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
 
 ``register(subparsers)`` adds both; each sets ``handler`` to a function taking the parsed args and returning an
-exit code (0 ok, 2 bad input: one line on stderr, nothing written). :func:`report_error` writes that line for
-every ``aerostereo-ingest`` subcommand.
+exit code. Bad input raises :class:`~flightplan.cli_support.BadInput` (or a ``ValueError``/``OSError``), which
+``aerostereo-ingest`` reports as one line on stderr with exit code 2, nothing written. Outputs that name an input
+(a photo, a log) or each other are refused before anything is read. The readers' reports go to stderr, the
+result line to stdout.
 """
 
 from __future__ import annotations
@@ -12,14 +14,14 @@ import sys
 from pathlib import Path
 
 from flightplan.argtypes import finite_number, positive_number
+from flightplan.cli_support import BadInput, folder_inputs, refuse_clobbering
 
 from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
 from .geotag_io import geotag_paths, load_geotags, write_colmap_reference, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
 from .logs.photos import read_photos
-from .track import LogFormatError, ReadReport, parse_utc
-
-EXIT_BAD_INPUT = 2
+from .raw import index_path
+from .track import ReadReport, parse_utc
 
 
 def register(subparsers) -> None:
@@ -75,10 +77,19 @@ def parse_time_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected an ISO 8601 time like 2021-09-06T02:23:48Z, got {text!r}") from None
 
 
-def report_error(command: str, message) -> int:
-    """Print ``aerostereo-ingest COMMAND: error: MESSAGE`` (argparse's own form) on stderr; the exit code."""
-    print(f"aerostereo-ingest {command}: error: {message}", file=sys.stderr)
-    return EXIT_BAD_INPUT
+def log_inputs(path) -> list[Path]:
+    """The files a flight log argument reads: the file and its ``.idx`` (a DUML capture), or a folder's files."""
+    path = Path(path)
+    return [path, index_path(path), *folder_inputs(path)]
+
+
+def refuse_clobbering_logs(args, outputs: dict) -> None:
+    """Refuse (:class:`BadInput`) outputs that name a photo, a log (or its index) or each other."""
+    photos = getattr(args, "photos", None)
+    logs = getattr(args, "log", None) or [args.file]
+    inputs = {"--photos": [photos, *folder_inputs(photos)] if photos else None,
+              "--log" if photos else "FILE": [path for log in logs for path in log_inputs(log)]}
+    refuse_clobbering(inputs, outputs)
 
 
 def read_logs(args) -> list:
@@ -86,65 +97,56 @@ def read_logs(args) -> list:
 
 
 def run_geotag(args) -> int:
-    """Geotag the photos; print a per-source summary and the clock offset."""
-    try:
-        geotag_paths(args.out)  # a bad --out fails before the logs are read
-        tracks = read_logs(args)
-        photos, photo_report = read_photos(args.photos)
-        if not photos:
-            return report_error(args.command, f"{args.photos}: no readable JPEG photos")
-        result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap)
-        if not result.tags:
-            reasons = "; ".join(f"{name}: {reason}" for name, reason in result.untagged[:3])
-            return report_error(args.command, f"no photo could be geotagged ({reasons})")
-        exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
-        if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
-            return report_error(args.command, f"{exif_dir}: refusing to overwrite the original photos; "
-                                              "choose another --exif-dir")
-        csv_path, json_path = write_geotags(result, args.out)
-        if args.colmap_ref:
-            write_colmap_reference(load_geotags(csv_path), args.colmap_ref)
-        if args.write_exif:
-            write_exif_copies(result, args.photos, exif_dir)
-    except (LogFormatError, ValueError, OSError) as error:
-        return report_error(args.command, error)
+    """Geotag the photos; print a per-source summary and the clock offset (stderr), the result line (stdout)."""
+    csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
+    exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
+    refuse_clobbering_logs(args, {"--out": csv_path, "--out's sidecar": json_path, "--colmap-ref": args.colmap_ref,
+                                  "--exif-dir": exif_dir if args.write_exif else None})
+    tracks = read_logs(args)
+    photos, photo_report = read_photos(args.photos)
+    if not photos:
+        raise BadInput(f"{args.photos}: no readable JPEG photos")
+    result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap)
+    if not result.tags:
+        reasons = "; ".join(f"{name}: {reason}" for name, reason in result.untagged[:3])
+        raise BadInput(f"no photo could be geotagged ({reasons})")
+    write_geotags(result, csv_path)
+    if args.colmap_ref:
+        write_colmap_reference(load_geotags(csv_path), args.colmap_ref)
+    if args.write_exif:
+        write_exif_copies(result, args.photos, exif_dir)
     for report in result.sources:
         print_report(report, shown_rejects=0)  # counts per reason; `track` lists a log's rejects
     if photo_report.source not in {report.source for report in result.sources}:
         print_report(photo_report)  # which photos could not be read
-    print(result.clock.summary())
+    print(result.clock.summary(), file=sys.stderr)
     for note in result.notes:
-        print(f"note: {note}")
-    print(f"{len(result.tags)} photos geotagged, {len(result.untagged)} untagged -> {csv_path} (+ {json_path.name})")
+        print(f"note: {note}", file=sys.stderr)
     for name, reason in result.untagged:
-        print(f"  untagged {name}: {reason}")
+        print(f"  untagged {name}: {reason}", file=sys.stderr)
+    print(f"{len(result.tags)} photos geotagged, {len(result.untagged)} untagged -> {csv_path} (+ {json_path.name})")
     return 0
 
 
 def print_report(report: ReadReport, shown_rejects: int = 20) -> None:
-    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line."""
-    print(report.summary())
-    for note in report.notes:
-        print(f"  note: {note}")
-    for problem in report.rejected[:shown_rejects]:
-        print(f"  rejected {problem}")
+    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line (stderr)."""
+    lines = [report.summary(), *(f"  note: {note}" for note in report.notes),
+             *(f"  rejected {problem}" for problem in report.rejected[:shown_rejects])]
     if len(report.rejected) > shown_rejects:
-        print(f"  ... and {len(report.rejected) - shown_rejects} more rejected")
+        lines.append(f"  ... and {len(report.rejected) - shown_rejects} more rejected")
+    print("\n".join(lines), file=sys.stderr)
 
 
 def run_track(args) -> int:
-    """Read one log, print its report, export CSV and/or KML."""
+    """Read one log, print its report (stderr), export CSV and/or KML, print the result line (stdout)."""
     if not args.out and not args.kml:
-        return report_error(args.command, "give --out track.csv and/or --kml track.kml")
-    try:
-        track = read_track(args.file, kind=args.kind, start_time_s=args.start_time,
-                           srt_utc_offset_h=args.srt_utc_offset)
-        if args.out:
-            track.write_csv(args.out)
-        if args.kml:
-            track.write_kml(args.kml)
-    except (LogFormatError, ValueError, OSError) as error:
-        return report_error(args.command, error)
+        raise BadInput("give --out track.csv and/or --kml track.kml")
+    refuse_clobbering_logs(args, {"--out": args.out, "--kml": args.kml})
+    track = read_track(args.file, kind=args.kind, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset)
+    if args.out:
+        track.write_csv(args.out)
+    if args.kml:
+        track.write_kml(args.kml)
     print_report(track.report)
     print(f"{len(track)} rows, {len(track.photo_times_s)} photo events, clock {track.clock}, "
           f"fields: {', '.join(sorted(track.fields))}")

@@ -102,9 +102,14 @@ class Job:
     threads: int
 
 
+def is_demo_scene(scene: str | os.PathLike | None) -> bool:
+    """Whether ``scene`` names the built-in demo world: ``None``, ``"demo"`` or ``"demo:VARIANT"``."""
+    return scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":")
+
+
 def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
-    """The scene folder: ``None``, ``"demo"`` or ``"demo:VARIANT"`` is the built-in demo world (built once, cached)."""
-    if scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":"):
+    """The scene folder: the built-in demo world (:func:`is_demo_scene`; built once, cached) or a folder."""
+    if is_demo_scene(scene):
         from sim.worlds import demo_scene_dir
 
         variant = str(scene or DEMO_SCENE).partition(":")[2] or "default"
