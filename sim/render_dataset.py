@@ -163,9 +163,9 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
                                 sampling=options.sampling_description(), command_line=list(command_line))
 
 
-def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
+def _open_writer(out_dir: Path, spec: DatasetSpec, overwrite: bool) -> KittiDatasetWriter:
     try:
-        return KittiDatasetWriter(out_dir, spec)
+        return KittiDatasetWriter(out_dir, spec, overwrite)
     except (DatasetError, ValueError) as error:
         raise RenderInputError(str(error)) from None
     except OSError as error:
@@ -173,10 +173,12 @@ def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
 
 
 def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, options: RenderOptions,
-                   command_line: Sequence[str] | None = None, progress: bool = True) -> RenderSummary:
+                   command_line: Sequence[str] | None = None, progress: bool = True,
+                   overwrite: bool = False) -> RenderSummary:
     """Render (or resume) the dataset of ``options`` from ``scene`` into ``out_dir``; see the module docstring.
 
-    Raises :class:`RenderInputError` for bad input before anything is rendered.
+    A dataset of other settings already in ``out_dir`` is refused, or with ``overwrite`` deleted first (only its
+    own files). Raises :class:`RenderInputError` for bad input before anything is rendered.
     """
     start = time.perf_counter()
     _check_options(options)
@@ -187,7 +189,7 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     renderer = FrameRenderer(scene_dir, options, threads)
     try:
         spec = dataset_spec(renderer, scene_dir, options, sys.argv if command_line is None else command_line)
-        writer = _open_writer(out_dir, spec)
+        writer = _open_writer(out_dir, spec, overwrite)
         pending = writer.pending(shard_frames(spec.frame_count, *options.shard))
         shard_size = len(shard_frames(spec.frame_count, *options.shard))
         bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,

@@ -28,7 +28,8 @@ from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
 from sim.frame_renderer import FrameRenderer, RenderOptions
 from sim.cli import main as cli_main
-from sim.render_cli import build_parser, options_from_args, render_main
+from sim.cli import main as render_main
+from sim.render_cli import build_parser, options_from_args
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR, camera_rotation
 
@@ -201,7 +202,7 @@ def _first_partial_frame(dataset: Path) -> int | None:
 def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_dir, tmp_path):
     killed = tmp_path / "killed"
     argv = _argv(scene_dir, killed, **KILL_OPTIONS)
-    code = f"import sys; from sim.render_cli import build_parser, options_from_args, render_main; sys.exit(render_main({argv!r}))"
+    code = f"import sys; from sim.cli import main; sys.exit(main({argv!r}))"
     process = subprocess.Popen([sys.executable, "-c", code], cwd=REPO_ROOT,
                                env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
     deadline, partial = time.monotonic() + 60, None
