@@ -32,7 +32,7 @@ def register(subparsers) -> None:
                         help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) or pcap, "
                              "or a folder of photos); repeatable")
     geotag.add_argument("--clock-offset", default="auto", type=parse_clock_offset,
-                        help="'auto' (default) or seconds to add to the camera clock to get telemetry UTC")
+                        help="'auto' or seconds to add to the camera clock to get telemetry UTC")
     geotag.add_argument("--max-gap", type=positive_number, default=DEFAULT_MAX_GAP_S,
                         help="longest telemetry gap (s) to interpolate across (default %(default)s)")
     add_time_options(geotag)

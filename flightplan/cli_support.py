@@ -140,6 +140,17 @@ def refuse_clobbering(inputs: Mapping[str, Path | Iterable[Path] | None],
         seen[key] = name
 
 
+def path_problem(path: Path, folder: bool) -> str | None:
+    """Why ``path`` is not the existing folder (``folder=True``) or file asked for: ``"not found"``, ``"is a
+    file"``, ``"is a folder"``; ``None`` when it is what was asked for."""
+    path = Path(path)
+    if not path.exists():
+        return "not found"
+    if path.is_dir() != folder:
+        return "is a folder" if path.is_dir() else "is a file"
+    return None
+
+
 def folder_inputs(folder: Path | None) -> list[Path]:
     """The existing files directly in ``folder`` (none if it is not a folder): what a command reading that folder
     must never overwrite."""

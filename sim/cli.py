@@ -15,7 +15,7 @@ import sys
 from pathlib import Path
 
 from capture.track import parse_utc
-from flightplan.cli_support import BadInput, add_version, folder_inputs, refuse_clobbering, run_cli
+from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
 from sim import render_cli
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
 from sim.render_cli import PROG, add_compare_parser
@@ -107,8 +107,8 @@ def refuse_clobbering_fly(args) -> None:
 
 
 def run_fly(args) -> int:
-    if not args.mission.is_file():
-        raise BadInput(f"{args.mission}: no such mission file")
+    if problem := path_problem(args.mission, folder=False):
+        raise BadInput(f"{args.mission}: {problem}; expected a Litchi mission CSV")
     if args.photo_limit is not None and args.photo_limit < 0:
         raise BadInput(f"--photos {args.photo_limit}: expected a count >= 0")
     refuse_clobbering_fly(args)

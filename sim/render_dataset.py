@@ -33,6 +33,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from flightplan.cli_support import path_problem
 from sim.dataset import (
     AsyncFrameWriter,
     DatasetError,
@@ -118,8 +119,8 @@ def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
         except ValueError as error:
             raise RenderInputError(str(error)) from None
     path = Path(scene)
-    if not path.is_dir():
-        raise RenderInputError(f"{path}: scene folder not found")
+    if problem := path_problem(path, folder=True):
+        raise RenderInputError(f"{path}: {problem}; expected a scene folder (scene.json + mesh)")
     return path
 
 

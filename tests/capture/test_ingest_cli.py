@@ -50,7 +50,7 @@ def test_decode_raw_capture_with_index_uses_arrival_times(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["decode", "MISSING.duml", "--out", "x.csv"], "MISSING.duml: no such file"),
+    (["decode", "MISSING.duml", "--out", "x.csv"], "MISSING.duml: not found; expected a raw capture"),
     (["record", "--port", "usb:zz:1", "--out", "x.duml"], "expected usb:VID:PID"),
     (["record", "--port", "/dev/no-such-tty-aerostereo", "--duration", "1", "--out", "x.duml"], "cannot open serial"),
 ])
