@@ -117,7 +117,7 @@ def run_record(args) -> int:
 def run_decode(args) -> int:
     if problem := path_problem(args.input, folder=False):
         raise BadInput(f"{args.input}: {problem}; expected a raw capture NAME.duml or a .pcap file")
-    refuse_clobbering({"INPUT": cli_logs.log_inputs(args.input)}, {"--out": args.out})
+    refuse_clobbering({"INPUT": cli_logs.log_inputs([args.input])}, {"--out": args.out})
     if not is_pcap(args.input) and not index_path(args.input).exists():
         print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
     problems: list[str] = []

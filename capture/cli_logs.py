@@ -77,19 +77,9 @@ def parse_time_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected an ISO 8601 time like 2021-09-06T02:23:48Z, got {text!r}") from None
 
 
-def log_inputs(path) -> list[Path]:
-    """The files a flight log argument reads: the file and its ``.idx`` (a DUML capture), or a folder's files."""
-    path = Path(path)
-    return [path, index_path(path), *folder_inputs(path)]
-
-
-def refuse_clobbering_logs(args, outputs: dict) -> None:
-    """Refuse (:class:`BadInput`) outputs that name a photo, a log (or its index) or each other."""
-    photos = getattr(args, "photos", None)
-    logs = getattr(args, "log", None) or [args.file]
-    inputs = {"--photos": [photos, *folder_inputs(photos)] if photos else None,
-              "--log" if photos else "FILE": [path for log in logs for path in log_inputs(log)]}
-    refuse_clobbering(inputs, outputs)
+def log_inputs(paths) -> list[Path]:
+    """What flight log arguments read: each file and its ``.idx`` (a DUML capture), or a folder and its files."""
+    return [input_path for path in map(Path, paths) for input_path in (*folder_inputs(path), index_path(path))]
 
 
 def read_logs(args) -> list:
@@ -100,8 +90,9 @@ def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset (stderr), the result line (stdout)."""
     csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
     exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
-    refuse_clobbering_logs(args, {"--out": csv_path, "--out's sidecar": json_path, "--colmap-ref": args.colmap_ref,
-                                  "--exif-dir": exif_dir if args.write_exif else None})
+    refuse_clobbering({"--photos": folder_inputs(args.photos), "--log": log_inputs(args.log)},
+                      {"--out": csv_path, "--out's sidecar": json_path, "--colmap-ref": args.colmap_ref,
+                       "--exif-dir": exif_dir if args.write_exif else None})
     tracks = read_logs(args)
     photos, photo_report = read_photos(args.photos)
     if not photos:
@@ -141,7 +132,7 @@ def run_track(args) -> int:
     """Read one log, print its report (stderr), export CSV and/or KML, print the result line (stdout)."""
     if not args.out and not args.kml:
         raise BadInput("give --out track.csv and/or --kml track.kml")
-    refuse_clobbering_logs(args, {"--out": args.out, "--kml": args.kml})
+    refuse_clobbering({"FILE": log_inputs([args.file])}, {"--out": args.out, "--kml": args.kml})
     track = read_track(args.file, kind=args.kind, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset)
     if args.out:
         track.write_csv(args.out)

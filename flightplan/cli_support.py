@@ -151,12 +151,13 @@ def path_problem(path: Path, folder: bool) -> str | None:
     return None
 
 
-def folder_inputs(folder: Path | None) -> list[Path]:
-    """The existing files directly in ``folder`` (none if it is not a folder): what a command reading that folder
-    must never overwrite."""
-    if folder is None or not Path(folder).is_dir():
+def folder_inputs(path: Path | None) -> list[Path]:
+    """What a command reading ``path`` must never overwrite: the path itself and, for a folder, the existing files
+    directly in it (``[]`` for ``None``)."""
+    if path is None:
         return []
-    return [path for path in Path(folder).iterdir() if path.is_file()]
+    path = Path(path)
+    return [path, *(child for child in path.iterdir() if child.is_file())] if path.is_dir() else [path]
 
 
 @contextlib.contextmanager

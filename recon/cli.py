@@ -124,7 +124,7 @@ def run_merge(argv) -> int:
 def run_recon(argv) -> int:
     args = build_parser().parse_args(argv)
     geotags = args.geotags and [args.geotags, sidecar_path(args.geotags)]
-    refuse_clobbering({"--photos": [args.photos, *folder_inputs(args.photos)], "--geotags": geotags},
+    refuse_clobbering({"--photos": folder_inputs(args.photos), "--geotags": geotags},
                       {"--out": args.out})
     if not args.verbose:
         pycolmap.logging.minloglevel = 2

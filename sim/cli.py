@@ -97,7 +97,7 @@ def refuse_clobbering_fly(args) -> None:
     """Refuse (:class:`BadInput`) an ``--out`` folder that is, or holds, the mission or the scene: fly writes
     fixed names (photos/, flight.duml, truth.json...) into it."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
-    inputs = {"--mission": args.mission, "--scene": scene and [scene, *folder_inputs(scene)]}
+    inputs = {"--mission": args.mission, "--scene": folder_inputs(scene)}
     refuse_clobbering(inputs, {"--out": args.out})
     out = args.out.resolve()
     for name, path in (("--mission", args.mission), ("--scene", scene)):

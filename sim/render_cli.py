@@ -118,7 +118,7 @@ def refuse_clobbering_render(args: argparse.Namespace) -> None:
     geotags (or their sidecar) or the other output."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     geotags = None if args.geotags is None else [args.geotags, sidecar_path(args.geotags)]
-    refuse_clobbering({"--scene": scene and [scene, *folder_inputs(scene)], "--geotags": geotags},
+    refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags},
                       {"--out": args.out, "--contact-sheet": args.contact_sheet})
 
 

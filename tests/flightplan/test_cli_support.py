@@ -130,4 +130,5 @@ def test_path_problem_and_folder_inputs(tmp_path):
     assert path_problem(tmp_path / "a.jpg", folder=True) == "is a file"
     assert path_problem(tmp_path, folder=False) == "is a folder"
     assert path_problem(tmp_path / "none", folder=True) == "not found"
-    assert folder_inputs(tmp_path) == [tmp_path / "a.jpg"] and folder_inputs(tmp_path / "a.jpg") == []
+    assert folder_inputs(tmp_path) == [tmp_path, tmp_path / "a.jpg"]  # not the subfolder
+    assert folder_inputs(tmp_path / "a.jpg") == [tmp_path / "a.jpg"] and folder_inputs(None) == []
