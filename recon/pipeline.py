@@ -229,6 +229,11 @@ class Recon:
         self.log(f"[sfm] {len(report.registered)}/{report.num_photos} registered, {report.num_points3d} points, "
                  f"reprojection {report.mean_reprojection_error_px:.2f} px, residual RMS vs priors "
                  f"{report.residual_rms_enu_m} m (E/N/U)")
+        offset = report.georegistration["tag_offset"]
+        if offset["applied"]:
+            self.log(f"[sfm] the tags lead the cameras by {offset['along_track_offset_m']:+.3f} m along the track "
+                     f"(+-{offset['along_track_sigma_m']:.3f}): residual RMS with it removed "
+                     f"{report.residual_rms_enu_m_offset_removed} m (E/N/U)")
         write_model_atomic(rec, self.work / "sparse")
         report.write(self.work / "sfm_report.json")
 

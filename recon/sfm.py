@@ -14,6 +14,7 @@ ENU metres, OpenCV camera axes), converted here only.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import threading
 import time
@@ -27,6 +28,7 @@ from scipy.spatial import cKDTree
 from flightplan.atomic import write_text_atomic
 from recon.priors import CameraSeed, PosePriors, PriorsError
 from recon.similarity import Similarity, umeyama
+from recon.tag_offset import fit_tag_offset, travel_directions
 from sim.camera import PinholeCamera
 
 MIN_PHOTOS = 3
@@ -74,6 +76,7 @@ class SfmReport:
     num_points3d: int
     mean_reprojection_error_px: float
     residual_rms_enu_m: list[float]
+    residual_rms_enu_m_offset_removed: list[float]  # against the tags moved back by their along-track offset
     residual_max_m: float
     focal_seed_px: float
     focal_seed_source: str
@@ -572,6 +575,11 @@ def georegister(centres: np.ndarray, rotations: np.ndarray, priors: PosePriors) 
     return compose(refit, compose(about_centroid, first)), tilt
 
 
+def rms_enu(residual: np.ndarray) -> list[float]:
+    """RMS per axis east/north/up of (N, 3) residuals, metres rounded to 0.1 mm."""
+    return np.sqrt(np.mean(np.square(residual), axis=0)).round(4).tolist()
+
+
 def apply_similarity(rec: pycolmap.Reconstruction, sim: Similarity) -> None:
     """Transform the model in place (points and poses)."""
     rec.transform(pycolmap.Sim3d(sim.scale, pycolmap.Rotation3d(sim.rotation), sim.translation))
@@ -634,7 +642,10 @@ def check_inputs(photo_names, priors: PosePriors) -> None:
 def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
     """Move ``rec`` into the priors' ENU frame (levelled when attitudes exist), in place.
 
-    Returns (registered names in ``names`` order, the similarity applied, tilt removed in degrees or None).
+    The tags' along-track offset is fitted first where the flight pattern makes it observable
+    (:func:`recon.tag_offset.fit_tag_offset`), and the registration is to the tags moved back by it.
+    Returns (registered names in ``names`` order, the similarity applied, tilt removed in degrees or None,
+    the :class:`~recon.tag_offset.TagOffset`, the priors the model was registered to).
     """
     poses = camera_poses(rec)
     registered = [n for n in names if n in poses]
@@ -642,9 +653,14 @@ def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
         raise SfmError(f"only {len(registered)} photo(s) registered: the photos do not overlap")
     centres = np.array([poses[n][:3, 3] for n in registered])
     rotations = np.array([poses[n][:3, :3] for n in registered])
-    sim, tilt = georegister(centres, rotations, priors.subset(registered))
+    used = priors.subset(registered)
+    _, offset = fit_tag_offset(centres, used.positions_enu, used.sigma_m)
+    if offset.applied:
+        directions = travel_directions(used.positions_enu, used.sigma_m)
+        used = dataclasses.replace(used, positions_enu=used.positions_enu - offset.offset_m * directions)
+    sim, tilt = georegister(centres, rotations, used)
     apply_similarity(rec, sim)
-    return registered, sim, tilt
+    return registered, sim, tilt, offset, used
 
 
 def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, work_dir: Path,
@@ -711,10 +727,11 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, 
                         f"({seed.focal_px:.0f} -> {focal_final:.0f} px): check the camera profile")
     t0 = time.perf_counter()
     step("georegister")
-    registered, sim, tilt = georegister_model(rec, photo_names, priors)
+    registered, sim, tilt, tag_offset, registered_to = georegister_model(rec, photo_names, priors)
     seconds["georegister"] = round(time.perf_counter() - t0, 2)
     poses = camera_poses(rec)
-    residual = np.array([poses[n][:3, 3] for n in registered]) - priors.subset(registered).positions_enu
+    centres = np.array([poses[n][:3, 3] for n in registered])
+    residual = centres - priors.subset(registered).positions_enu
     report = SfmReport(
         num_photos=len(photo_names),
         mapped_every_kth=every_kth,
@@ -722,7 +739,8 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, 
         unregistered=[n for n in photo_names if n not in poses],
         num_points3d=rec.num_points3D(),
         mean_reprojection_error_px=float(rec.compute_mean_reprojection_error()),
-        residual_rms_enu_m=np.sqrt(np.mean(residual**2, axis=0)).round(4).tolist(),
+        residual_rms_enu_m=rms_enu(residual),
+        residual_rms_enu_m_offset_removed=rms_enu(centres - registered_to.positions_enu),
         residual_max_m=float(np.linalg.norm(residual, axis=1).max()),
         focal_seed_px=seed.focal_px,
         focal_seed_source=seed.source,
@@ -733,7 +751,8 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, 
         loop_pair_inliers=loop_inliers,
         tilt_correction_deg=tilt,
         georegistration={"scale": sim.scale, "rotation_deg": sim.rotation_angle_deg(),
-                         "translation_m": sim.translation.tolist(), "priors": priors.source},
+                         "translation_m": sim.translation.tolist(), "priors": priors.source,
+                         "tag_offset": tag_offset.summary()},
         seconds=seconds,
         warnings=warnings,
     )

@@ -1,10 +1,11 @@
 """``aerostereo-render``: render stereo datasets from a scene, compare renders with photos, fly the virtual drone.
 
 ``aerostereo-render [options]`` renders a dataset (the default command, :mod:`sim.render_cli`);
-``aerostereo-render compare ...`` and ``aerostereo-render fly ...`` are subcommands, listed in the dataset
-render's ``--help``. Their parsers are assembled from small ``add_<command>_parser(subparsers)`` functions listed
-in :data:`SUBCOMMANDS` (the one place where subcommands are named); each sets ``handler(args) -> int``. Bad input
-(and an output that names an input) ends with a one-line message on stderr and exit code 2, Ctrl-C with 130.
+``aerostereo-render compare ...``, ``aerostereo-render fly ...`` and ``aerostereo-render export ...`` are
+subcommands, listed in the dataset render's ``--help``. Their parsers are assembled from small
+``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where subcommands are
+named); each sets ``handler(args) -> int``. Bad input (and an output that names an input) ends with a one-line
+message on stderr and exit code 2, Ctrl-C with 130.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from capture.track import parse_utc
 from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
 from sim import render_cli
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
+from sim.export_cli import add_export_parser
 from sim.render_cli import PROG, add_compare_parser
 from sim.render_dataset import is_demo_scene, resolve_scene_dir
 from sim.scene import load_scene
@@ -56,7 +58,7 @@ def add_fly_parser(subparsers) -> None:
 
 
 #: Subcommands; anything else on the command line goes to the dataset renderer (the default command).
-SUBCOMMANDS = (add_fly_parser, add_compare_parser)
+SUBCOMMANDS = (add_fly_parser, add_compare_parser, add_export_parser)
 
 
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:

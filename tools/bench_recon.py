@@ -177,17 +177,20 @@ def print_p4m_rtk_table(rows, size: int, factory_focal: tuple[float, float]) -> 
     print(f"\np4m_rtk, 32 photos 1600x1300, SfM {size} px; truth: RTK positions (sigma ~1/1/2 cm) and "
           f"the XMP gimbal attitude; factory focal: DewarpData {factory_focal[0]:.1f} px (mean fx, fy), "
           f"CalibratedFocalLength {factory_focal[1]:.1f} px")
-    print("| SfM | camera seed | total s | registered | reproj px | position RMS E/N/U m | "
-          "rotation to XMP min / median / max deg | focal px |")
-    print("|---|---|---|---|---|---|---|---|", flush=True)
+    print("| SfM | camera seed | total s | registered | reproj px | position RMS E/N/U m | tag offset m | "
+          "RMS E/N/U m, offset removed | rotation to XMP min / median / max deg | focal px |")
+    print("|---|---|---|---|---|---|---|---|---|---|", flush=True)
     for row in rows:
         start = f"| {row['label']} | {row['seed'].model} {row['seed'].focal_px:.0f} px | {row['total']:.1f} |"
         if "error" in row:
-            print(f"{start} failed: {row['error']} | | | | |", flush=True)
+            print(f"{start} failed: {row['error']} | | | | | | |", flush=True)
             continue
         r, rot = row["report"], row["rotation_deg"]
+        offset = r.georegistration["tag_offset"]["along_track_offset_m"]
         print(f"{start} {len(r.registered)}/{r.num_photos} | {r.mean_reprojection_error_px:.2f} | "
               f"{' / '.join(f'{v:.3f}' for v in row['rms_enu'])} | "
+              f"{'not observable' if offset is None else f'{offset:+.3f}'} | "
+              f"{' / '.join(f'{v:.3f}' for v in r.residual_rms_enu_m_offset_removed)} | "
               f"{rot.min():.2f} / {np.median(rot):.2f} / {rot.max():.2f} | {r.focal_final_px:.1f} |", flush=True)
 
 

@@ -7,6 +7,8 @@ Conventions (see docs/dataset-format.md):
   (exactly 0 where depth is ``+inf``);
 * KITTI disparity PNG: uint16 ``round(d * 256)``, 0 = invalid, valid values clipped to
   ``[1, 65535]`` so that a valid pixel never reads as invalid;
+* KITTI depth PNG (depth completion/prediction): uint16 ``round(z * 256)``, 0 = invalid (a miss, or beyond
+  65535 / 256 = 255.996 m, which it cannot store);
 * VKITTI-style depth PNG: uint16 centimetres ``round(z * 100)``, clipped to 65535 (655.35 m),
   which is also the value of a miss (VKITTI2 stores the sky that way).
 
@@ -27,6 +29,9 @@ from flightplan.atomic import atomic_path, write_bytes_atomic
 
 EXR_CHANNEL = "Y"
 KITTI_DISPARITY_SCALE = 256.0
+KITTI_DEPTH_SCALE = 256.0
+#: JPEG quality of Virtual KITTI 2-style colour images (that layout names them ``.jpg``).
+JPEG_QUALITY = 95
 VKITTI_DEPTH_SCALE = 100.0
 UINT16_MAX = 65535
 
@@ -69,6 +74,17 @@ def read_png(path: Path) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB) if image.ndim == 3 else image
 
 
+def write_jpeg(path: Path, rgb: np.ndarray, quality: int = JPEG_QUALITY) -> None:
+    """Encode an (H, W, 3) uint8 **RGB** image as JPEG (OpenCV, deterministic; full-resolution colour, no 4:2:0
+    chroma subsampling, which blurs colour edges) and write it atomically."""
+    rgb = _check_image(rgb, "JPEG image")
+    params = [cv2.IMWRITE_JPEG_QUALITY, quality, cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
+    ok, buffer = cv2.imencode(".jpg", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), params)
+    if not ok:
+        raise RuntimeError(f"OpenCV could not encode a {rgb.dtype} {rgb.shape} image as JPEG")
+    write_bytes_atomic(path, buffer.tobytes())
+
+
 def rgb_to_grey(rgb: np.ndarray) -> np.ndarray:
     """ITU-R BT.601 luma of an (H, W, 3) uint8 RGB image, as OpenCV computes it (uint8)."""
     return cv2.cvtColor(_check_image(rgb, "RGB image"), cv2.COLOR_RGB2GRAY)
@@ -105,8 +121,20 @@ def kitti_disparity_png(disparity_px: np.ndarray) -> np.ndarray:
     """KITTI 16-bit disparity ``round(d * 256)``: 0 where invalid (d <= 0, not finite), valid clipped to [1, 65535]."""
     disparity_px = np.asarray(disparity_px, dtype=np.float64)
     valid = np.isfinite(disparity_px) & (disparity_px > 0)
-    scaled = np.clip(np.rint(np.where(valid, disparity_px, 0.0) * KITTI_DISPARITY_SCALE), 1, UINT16_MAX)
-    return np.where(valid, scaled, 0).astype(np.uint16)
+    return _kitti_uint16(disparity_px * KITTI_DISPARITY_SCALE, valid)
+
+
+def kitti_depth_png(depth_m: np.ndarray) -> np.ndarray:
+    """KITTI 16-bit depth ``round(z * 256)`` (metres): 0 where invalid (a miss, z <= 0, or too far for 16 bits,
+    z > 255.996 m), valid values at least 1 so that no valid pixel reads as invalid."""
+    scaled = np.asarray(depth_m, dtype=np.float64) * KITTI_DEPTH_SCALE
+    return _kitti_uint16(scaled, np.isfinite(scaled) & (scaled > 0) & (np.rint(scaled) <= UINT16_MAX))
+
+
+def _kitti_uint16(scaled: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """``round(scaled)`` as uint16 where ``valid`` (clipped to [1, 65535]), 0 elsewhere."""
+    values = np.clip(np.rint(np.where(valid, scaled, 0.0)), 1, UINT16_MAX)
+    return np.where(valid, values, 0).astype(np.uint16)
 
 
 def vkitti_depth_png(depth_m: np.ndarray) -> np.ndarray:

@@ -50,6 +50,8 @@ from sim.dataset.kitti import (
 )
 
 DATASET_FORMAT = "aerostereo-dataset/1"
+#: What readers of ``dataset.json`` (finalize, resume, --overwrite, export) rely on.
+REQUIRED_KEYS = ("sequence", "frame_count", "cameras", "formats", "kitti_projections")
 FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png")
 DEFAULT_FORMATS = ("depth_exr", "disparity_png", "disparity_exr")
 STEREO_VIEWS = (0, 1)
@@ -199,6 +201,9 @@ def read_dataset_json(root: Path) -> dict:
         raise DatasetError(f"{path}: expected a JSON object, got a {type(description).__name__}")
     if description.get("format") != DATASET_FORMAT:
         raise DatasetError(f"{path}: format is {description.get('format')!r}, expected {DATASET_FORMAT!r}")
+    missing = [key for key in REQUIRED_KEYS if key not in description]
+    if missing:
+        raise DatasetError(f"{path}: no {', '.join(missing)}; not a complete {DATASET_FORMAT} description")
     return description
 
 

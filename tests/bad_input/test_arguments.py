@@ -41,6 +41,7 @@ CAPTURE = Files({"x.duml": b"\x55\x0d\x04\x33 raw bytes", "x.duml.idx": b"index 
 GEOTAGS = Files({**PHOTOS.contents, "geotags.csv": b"image_name\n", "geotags.json": b"{}\n"})
 SCENE = Files({"scene/scene.json": b'{"mesh": "terrain.glb"}\n', "scene/terrain.glb": b"glTF"})
 MESHES = Files({"a.ply": b"ply A", "b.ply": b"ply B", "pairs.txt": b"0 0 0 0 0 0\n"})
+DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'})
 MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
 FOLDER = Files({}, folders=("folder",))
 
@@ -170,6 +171,18 @@ CASES = [
     Case("compare-real-is-a-file", RENDER, ["compare", "{tmp}/flight.csv", "{tmp}/folder"],
          r"flight\.csv: is a file; expected a folder of images",
          Files(LOG.contents, folders=("folder",))),
+    # aerostereo-render export
+    Case("export-no-layout", RENDER, ["export", "{tmp}/dataset", "--out", "{tmp}/e"],
+         r"^aerostereo-render export: .*required: --layout", DATASET),
+    Case("export-bad-layout", RENDER, ["export", "{tmp}/dataset", "--layout", "kitti2012", "--out", "{tmp}/e"],
+         r"--layout: unknown layouts \['kitti2012'\]", DATASET),
+    Case("export-out-is-dataset", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out", "{tmp}/dataset"],
+         r"--out .*dataset: overlaps the source dataset", DATASET),
+    Case("export-incomplete-dataset-json", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out", "{tmp}/e"],
+         r"dataset\.json: no sequence, frame_count, cameras, formats, kitti_projections; not a complete", DATASET),
+    Case("export-out-inside-dataset", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out",
+                                               "{tmp}/dataset/tum"], r"--out .*tum: overlaps the source dataset",
+         DATASET),
     # aerostereo-render fly
     Case("fly-no-mission", RENDER, ["fly", "--out", "{tmp}/f"], r"^aerostereo-render fly: .*required: --mission"),
     Case("fly-bad-link", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--link", "radio"],
@@ -215,7 +228,8 @@ def test_refused(case, tmp_path):
 def test_every_program_and_subcommand_has_cases():
     covered = {(case.program, case.argv[0] if case.argv and not case.argv[0].startswith("-") else "")
                for case in CASES}
-    expected = {(MISSION, ""), (RECON, ""), (RECON, "merge"), (RENDER, ""), (RENDER, "compare"), (RENDER, "fly")}
+    expected = {(MISSION, ""), (RECON, ""), (RECON, "merge"), (RENDER, ""), (RENDER, "compare"), (RENDER, "fly"),
+                (RENDER, "export")}
     expected |= {(INGEST, command) for command in ("record", "decode", "geotag", "track", "list")}
     assert expected <= covered
 
@@ -228,7 +242,7 @@ def test_version_is_one_line_and_exit_0(program, tmp_path):
 
 
 @pytest.mark.parametrize("program, argv, commands", [
-    (RENDER, ["--help"], ["fly", "compare"]),
+    (RENDER, ["--help"], ["fly", "compare", "export"]),
     (INGEST, ["--help"], ["record", "decode", "geotag", "track", "list"]),
 ])
 def test_help_lists_the_commands(program, argv, commands, tmp_path):

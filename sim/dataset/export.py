@@ -1,0 +1,50 @@
+"""Export a finished dataset folder into the layouts that other tools read unchanged, without rendering again.
+
+``export_dataset(SOURCE, OUT, ["kitti2015", "tum"])`` reads SOURCE (a finalized KITTI-odometry-layout dataset)
+and writes each layout under OUT. Every layout writer follows one protocol: built from the
+:class:`~sim.dataset.source.DatasetSource` and OUT it checks what it needs and writes nothing yet,
+``write_frame(frame)`` writes one frame's files, ``finish()`` writes the files of the whole sequence and returns a
+one-line summary. The source is only read: OUT may not be SOURCE, lie inside it or contain it. Every file is
+written atomically and deterministically, so an interrupted export is simply run again.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+from sim.dataset.kitti2015 import Kitti2015Writer
+from sim.dataset.kitti_depth import KittiDepthWriter
+from sim.dataset.source import DatasetSource
+from sim.dataset.tum import TumWriter
+from sim.dataset.vkitti2 import Vkitti2Writer
+from sim.dataset.writer import DatasetError
+
+LAYOUT_WRITERS = {writer.name: writer for writer in (Kitti2015Writer, KittiDepthWriter, Vkitti2Writer, TumWriter)}
+LAYOUTS = tuple(LAYOUT_WRITERS)
+
+
+def _refuse_overlap(source: Path, out: Path) -> None:
+    """Refuse an output folder that is the source, lies inside it or contains it."""
+    source_key, out_key = Path(os.path.realpath(source)), Path(os.path.realpath(out))
+    if out_key == source_key or source_key in out_key.parents or out_key in source_key.parents:
+        raise DatasetError(f"--out {out}: overlaps the source dataset {source}; an export never writes into its "
+                           "source, choose a folder outside it")
+
+
+def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> list[str]:
+    """Write ``layouts`` (names of :data:`LAYOUTS`) of the dataset in ``source_dir`` under ``out_dir``.
+
+    Everything is checked before the first file is written. Returns one summary line per layout.
+    """
+    unknown = [name for name in layouts if name not in LAYOUT_WRITERS]
+    if unknown or not layouts:
+        raise DatasetError(f"unknown layouts {unknown}; choose from {', '.join(LAYOUTS)}")
+    _refuse_overlap(Path(source_dir), Path(out_dir))
+    source = DatasetSource(Path(source_dir))
+    writers = [LAYOUT_WRITERS[name](source, Path(out_dir)) for name in dict.fromkeys(layouts)]
+    for frame in source.frames():
+        for writer in writers:
+            writer.write_frame(frame)
+    return [writer.finish() for writer in writers]

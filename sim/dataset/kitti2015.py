@@ -1,0 +1,102 @@
+"""The KITTI 2015 stereo layout, which stereo-network loaders (PSMNet, GwcNet, RAFT-Stereo...) read unchanged.
+
+Layout written under ``OUT/training/`` (frame ``i`` is KITTI "scene" ``i``; its image pair is the ``_10`` one)::
+
+    image_2/NNNNNN_10.png              left colour, the source PNG byte for byte
+    image_3/NNNNNN_10.png              right colour
+    disp_occ_0/NNNNNN_10.png           left disparity, uint16 round(d * 256), 0 = invalid: every pixel that hit
+    disp_noc_0/NNNNNN_10.png           the same, but 0 also where the point is not visible in the right view
+    calib_cam_to_cam/NNNNNN.txt        S_rect_02/03 (image size) and P_rect_02/03 (rectified projections)
+
+``d = fx * B / z`` from the left depth map. A left pixel is **non-occluded** when its point is visible in the
+right view (:func:`visible_in_right`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from flightplan.atomic import write_text_atomic
+from sim.dataset import images
+from sim.dataset.kitti import format_numbers, projection_matrices
+from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame
+
+#: A left point counts as visible in the right view when its depth exceeds the right view's depth there by at most
+#: this fraction. The right depth is compared at the pixel centres on either side of the point's right-view
+#: column (the one pixel when the column falls on a centre) and the larger is taken: on any surface whose depth
+#: is monotone across that pixel the point's depth lies between them, so the tolerance only has to absorb float32
+#: depth (1e-7 relative) and creases inside one pixel, where depth changes by at most tan(incidence) / (2 fx) of
+#: itself over half a pixel: 0.37 % at 80 deg incidence for the default camera (1280 px, 80 deg field of view,
+#: fx = 763 px). An occluder at least 0.5 % of the distance in front of the point (0.5 m at 100 m) hides it.
+#: tools/bench_export.py: the occluded share is flat from 0.2 % to 2 % on the demo world.
+NOC_RELATIVE_TOLERANCE = 0.005
+PAIR_SUFFIX = "_10"
+
+
+def visible_in_right(depth_left: np.ndarray, depth_right: np.ndarray, disparity_left: np.ndarray,
+                     tolerance: float = NOC_RELATIVE_TOLERANCE) -> np.ndarray:
+    """(H, W) bool: the point of each left pixel is seen by the right camera of a rectified pair.
+
+    The left pixel ``(u, v)`` with planar depth ``z`` (metres; the same in both cameras of a rectified pair) and
+    disparity ``d`` projects to the right pixel ``(u - d, v)``. It is visible when that column lies inside the
+    image and ``z <= (1 + tolerance) * max(z_right[v, floor(u - d)], z_right[v, ceil(u - d)])``; pixels that hit
+    nothing are not visible.
+    """
+    height, width = depth_left.shape
+    column = np.arange(width, dtype=np.float64) - np.asarray(disparity_left, dtype=np.float64)
+    hit = np.isfinite(depth_left) & np.isfinite(column)
+    inside = hit & (column >= 0) & (column <= width - 1)
+    column = np.where(inside, column, 0.0)
+    left_column = np.floor(column).astype(np.intp)
+    right_column = np.where(column > left_column, np.minimum(left_column + 1, width - 1), left_column)
+    rows = np.arange(height)[:, None]
+    seen_depth = np.maximum(depth_right[rows, left_column], depth_right[rows, right_column]).astype(np.float64)
+    return inside & (depth_left <= seen_depth * (1.0 + tolerance))
+
+
+def cam_to_cam_text(frame: SourceFrame) -> str:
+    """KITTI ``calib_cam_to_cam`` lines of the stereo pair: ``S_rect_0C`` (width height) and ``P_rect_0C`` (3x4,
+    left-camera coordinates to pixels; ``P_rect_03[0, 3] = -fx * B``) for colour cameras C = 2, 3."""
+    cameras = [SimpleNamespace(**frame.camera(view)) for view in (LEFT, RIGHT)]
+    projections = projection_matrices(cameras, frame.source.T_rig_cams[:2])
+    lines = []
+    for view, camera in enumerate(cameras):
+        lines.append(f"S_rect_0{view + 2}: {format_numbers([camera.width, camera.height])}")
+        lines.append(f"P_rect_0{view + 2}: {format_numbers(projections[f'P{view + 2}'])}")
+    return "\n".join(lines) + "\n"
+
+
+class Kitti2015Writer:
+    """Writes the KITTI 2015 stereo layout of a :class:`DatasetSource` (needs depth and a rectified pinhole pair)."""
+
+    name = "kitti2015"
+
+    def __init__(self, source: DatasetSource, out: Path):
+        source.require_depth(self.name)
+        source.require_pinhole(self.name)
+        self.baseline_m = source.baseline_m(self.name)
+        self.root = Path(out) / "training"
+        self.frames = self.valid = self.occluded = 0
+
+    def write_frame(self, frame: SourceFrame) -> None:
+        name = f"{frame.index:06d}{PAIR_SUFFIX}.png"
+        depth_left = frame.depth(LEFT)
+        disparity = images.disparity_from_depth(depth_left, frame.camera(LEFT)["fx"], self.baseline_m)
+        occ = images.kitti_disparity_png(disparity)
+        noc = np.where(visible_in_right(depth_left, frame.depth(RIGHT), disparity), occ, 0).astype(np.uint16)
+        for view in (LEFT, RIGHT):
+            frame.copy_colour(view, self.root / f"image_{view + 2}" / name)
+        images.write_png(self.root / "disp_occ_0" / name, occ)
+        images.write_png(self.root / "disp_noc_0" / name, noc)
+        write_text_atomic(self.root / "calib_cam_to_cam" / f"{frame.index:06d}.txt", cam_to_cam_text(frame))
+        self.frames += 1
+        self.valid += int(np.count_nonzero(occ))
+        self.occluded += int(np.count_nonzero(occ) - np.count_nonzero(noc))
+
+    def finish(self) -> str:
+        share = 100.0 * self.occluded / self.valid if self.valid else 0.0
+        return (f"kitti2015: {self.frames} stereo pairs -> {self.root} (image_2, image_3, disp_occ_0, disp_noc_0, "
+                f"calib_cam_to_cam); {share:.2f} % of valid left pixels are not visible in the right view")

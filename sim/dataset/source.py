@@ -1,0 +1,130 @@
+"""Read a finished (finalized) dataset folder for export into other layouts; the folder is only ever read.
+
+:class:`DatasetSource` opens ``dataset.json`` and ``frames.jsonl`` and checks what a layout needs (depth maps,
+pinhole cameras, a rectified pair); :class:`SourceFrame` hands each frame's record, colour PNGs, depth maps
+(planar z in metres, float32, +inf on miss, read once) and camera poses to the layout writers.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from flightplan.atomic import write_bytes_atomic
+from sim.dataset import images
+from sim.dataset.kitti import KittiLayout, frame_file_name, stereo_baseline_m
+from sim.dataset.writer import DatasetError, read_dataset_json
+
+LEFT, RIGHT = 0, 1
+
+
+class DatasetSource:
+    """A finalized dataset folder: its description, per-frame records and file paths."""
+
+    def __init__(self, root: Path):
+        self.root = Path(root)
+        self.description = read_dataset_json(self.root)
+        self.layout = KittiLayout(self.root, self.description["sequence"])
+        self.records = self._read_records()
+        self.T_rig_cams = [np.asarray(camera["T_rig_cam"], dtype=np.float64) for camera in self.description["cameras"]]
+
+    def _read_records(self) -> list[dict]:
+        path = self.layout.frames_jsonl
+        frame_count = int(self.description["frame_count"])
+        if not path.is_file():
+            raise DatasetError(f"{path}: not found; the dataset is not finalized (rerun the render until every frame "
+                               "is written)")
+        records = [_record(path, number, line)
+                   for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)]
+        if [record.get("frame") for record in records] != list(range(frame_count)):
+            raise DatasetError(f"{path}: expected the records of frames 0..{frame_count - 1} in order; "
+                               "rerun the render to finalize the dataset")
+        return records
+
+    @property
+    def sequence(self) -> str:
+        return self.layout.sequence
+
+    @property
+    def view_count(self) -> int:
+        return len(self.description["cameras"])
+
+    def require_depth(self, layout: str) -> None:
+        """Refuse a layout that needs depth when the dataset was rendered without depth EXRs."""
+        if "depth_exr" not in self.description["formats"]:
+            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs the depth maps, but this "
+                               f"dataset has formats {self.description['formats']}; render it with --formats "
+                               "including depth_exr")
+
+    def require_pinhole(self, layout: str) -> None:
+        """Refuse a layout whose readers assume undistorted pinhole images when a camera has lens distortion."""
+        lenses = [*self.description["cameras"], *(r["camera"] for r in self.records if "camera" in r)]
+        if any(lens.get("dist") or lens.get("model", "pinhole") != "pinhole" for lens in lenses):
+            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs undistorted pinhole images, "
+                               "but the dataset's cameras have lens distortion")
+
+    def baseline_m(self, layout: str) -> float:
+        """Baseline of rig cameras 0 and 1 (metres); refuses a pair that is not rectified."""
+        try:
+            return stereo_baseline_m(self.T_rig_cams[LEFT], self.T_rig_cams[RIGHT])
+        except ValueError:
+            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs a rectified stereo pair "
+                               "(right camera at +B along the left camera's x axis, same orientation)") from None
+
+    def frames(self) -> Iterator["SourceFrame"]:
+        """The frames in order."""
+        for record in self.records:
+            yield SourceFrame(self, int(record["frame"]), record)
+
+
+def _record(path: Path, number: int, line: str) -> dict:
+    """Line ``number`` of ``frames.jsonl`` as a JSON object, or an error naming the file and line."""
+    try:
+        record = json.loads(line)
+    except json.JSONDecodeError as error:
+        raise DatasetError(f"{path}: line {number} is not JSON ({error.msg}); rerun the render to finalize the "
+                           "dataset again") from None
+    if not isinstance(record, dict):
+        raise DatasetError(f"{path}: line {number} is not a JSON object")
+    return record
+
+
+@dataclass
+class SourceFrame:
+    """One frame of a :class:`DatasetSource`."""
+
+    source: DatasetSource
+    index: int
+    record: dict
+    _depth: dict = field(default_factory=dict, repr=False)
+
+    def colour_png(self, view: int) -> Path:
+        """The 8-bit RGB PNG of rig camera ``view``."""
+        return self.source.layout.colour_dir(view) / frame_file_name(self.index, ".png")
+
+    def copy_colour(self, view: int, target: Path) -> None:
+        """Copy the colour PNG of rig camera ``view`` byte for byte to ``target`` (atomically; a copy, not a link,
+        so editing the export never edits the source)."""
+        write_bytes_atomic(target, self.colour_png(view).read_bytes())
+
+    def depth(self, view: int) -> np.ndarray:
+        """Planar depth of rig camera ``view`` (H, W) float32 metres, +inf on miss (read once per frame)."""
+        if view not in self._depth:
+            path = self.source.layout.depth_dir(view) / frame_file_name(self.index, ".exr")
+            self._depth[view] = images.read_exr(path)
+        return self._depth[view]
+
+    def camera(self, view: int) -> dict:
+        """Intrinsics (``fx, fy, cx, cy`` pixels, ``width, height``) of rig camera ``view`` in this frame: the
+        frame's own lens for a replay of a scene's cameras, else the dataset's."""
+        return self.record.get("camera") or self.source.description["cameras"][view]
+
+    def T_world_cam(self, view: int) -> np.ndarray:
+        """Camera-to-world pose (4x4, ENU world, OpenCV camera axes) of rig camera ``view``."""
+        T_world_left = np.asarray(self.record["T_world_cam"], dtype=np.float64)
+        T_rig_cams = self.source.T_rig_cams
+        return T_world_left @ np.linalg.inv(T_rig_cams[LEFT]) @ T_rig_cams[view]

@@ -1,0 +1,41 @@
+"""``aerostereo-render export DATASET --layout L[,L...] --out OUT``: a rendered dataset in the layouts other tools
+read (KITTI 2015 stereo, KITTI depth, Virtual KITTI 2, TUM trajectories), without rendering it again."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from sim.dataset.export import LAYOUTS, export_dataset
+
+
+def _layouts(text: str) -> tuple[str, ...]:
+    names = tuple(name.strip() for name in text.split(",") if name.strip())
+    unknown = [name for name in names if name not in LAYOUTS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f"unknown layouts {unknown}; choose from {', '.join(LAYOUTS)}")
+    return names
+
+
+def add_export_parser(subparsers) -> argparse.ArgumentParser:
+    """Add ``export DATASET --layout ... --out OUT`` to an ``add_subparsers()`` object."""
+    parser = subparsers.add_parser(
+        "export", help="convert a rendered dataset to KITTI 2015 stereo, KITTI depth, Virtual KITTI 2 or TUM layouts",
+        description="Write a finalized dataset folder (as aerostereo-render wrote it) in the layouts other tools read "
+                    "unchanged: kitti2015 (OUT/training: image_2/3, disp_occ_0, disp_noc_0), kitti_depth "
+                    "(OUT/aerostereo/..._sync: proj_depth/groundtruth), vkitti2 (OUT/SceneNN/clone), tum "
+                    "(OUT/tum/NN.txt). Refuses an OUT that overlaps DATASET, and layouts the dataset cannot fill "
+                    "(no depth EXRs, lens distortion, no rectified pair).")
+    parser.add_argument("dataset", type=Path, metavar="DATASET", help="dataset folder (dataset.json, sequences/NN/...)")
+    parser.add_argument("--layout", required=True, type=_layouts,
+                        help=f"comma-separated layouts: {', '.join(LAYOUTS)}")
+    parser.add_argument("--out", required=True, type=Path, help="output folder (outside the dataset)")
+    parser.set_defaults(handler=run_export)
+    return parser
+
+
+def run_export(args: argparse.Namespace) -> int:
+    """Export ``args.dataset`` in ``args.layout`` under ``args.out``; print one summary line per layout."""
+    for line in export_dataset(args.dataset, args.out, args.layout):
+        print(line)
+    return 0
