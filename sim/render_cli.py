@@ -15,10 +15,9 @@ from pathlib import Path
 from capture.geotag_io import sidecar_path
 from flightplan.cli_support import EXIT_INTERRUPTED, BadInput, Parser, folder_inputs, refuse_clobbering
 from sim.contact_sheet import check_depth_written, write_contact_sheet
-from sim.dataset import FORMATS, DatasetError, parse_shard
+from sim.dataset import FORMATS, parse_shard
 from sim.metrics import compare_folders, summary_table
-from sim.frame_renderer import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderInputError,
-                                 RenderOptions)
+from sim.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
 from sim.render_dataset import is_demo_scene, render_dataset
 
 PROG = "aerostereo-render"
@@ -90,7 +89,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--spp", type=int, default=defaults.spp, help="samples per pixel (anti-aliasing)")
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=defaults.workers, help="render processes (each builds the scene once)")
-    add("--shard", type=_shard, default=defaults.shard, help="render only frames I, I+N, I+2N... (I/N; default 0/1: every frame)")
+    add("--shard", type=_shard, default=defaults.shard,
+        help="render only frames I, I+N, I+2N... (I/N; default 0/1: every frame)")
     add("--formats", type=_formats, default=None,
         help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; replay of the scene's cameras: "
              f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")

@@ -8,8 +8,8 @@ import os
 import pytest
 
 from flightplan.cli_support import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, folder_inputs,
-                                    format_bytes, path_problem, refuse_clobbering, require_disk, require_memory, run_cli,
-                                    stdout_to_stderr)
+                                    format_bytes, path_problem, refuse_clobbering, require_disk, require_memory,
+                                    run_cli, stdout_to_stderr)
 
 
 def test_parser_errors_are_one_line_with_exit_2(capsys):
