@@ -25,7 +25,8 @@ from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
 from flightplan.argtypes import positive_number
-from flightplan.cli_support import BadInput, Parser, add_version, path_problem, refuse_clobbering, run_cli
+from flightplan.cli_support import (BadInput, Parser, add_version, path_problem, refuse_clobbering, refuse_folders,
+                                    run_cli)
 
 PROGRAM = "aerostereo-ingest"
 
@@ -118,6 +119,7 @@ def run_decode(args) -> int:
     if problem := path_problem(args.input, folder=False):
         raise BadInput(f"{args.input}: {problem}; expected a raw capture NAME.duml or a .pcap file")
     refuse_clobbering({"INPUT": cli_logs.log_inputs([args.input])}, {"--out": args.out})
+    refuse_folders({"--out": args.out})
     if not is_pcap(args.input) and not index_path(args.input).exists():
         print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
     problems: list[str] = []

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from flightplan.argtypes import finite_number, positive_number
-from flightplan.cli_support import BadInput, folder_inputs, refuse_clobbering
+from flightplan.cli_support import BadInput, folder_inputs, path_problem, refuse_clobbering, refuse_folders
 
 from .geotag import DEFAULT_MAX_GAP_S, geotag_photos
 from .geotag_io import geotag_paths, load_geotags, write_colmap_reference, write_exif_copies, write_geotags
@@ -89,10 +89,13 @@ def read_logs(args) -> list:
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset (stderr), the result line (stdout)."""
     csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
+    if problem := path_problem(args.photos, folder=True):
+        raise BadInput(f"--photos {args.photos}: {problem}; expected a folder of JPEG photos")
     exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
+    files = {"--out": csv_path, "--out's sidecar": json_path, "--colmap-ref": args.colmap_ref}
     refuse_clobbering({"--photos": folder_inputs(args.photos), "--log": log_inputs(args.log)},
-                      {"--out": csv_path, "--out's sidecar": json_path, "--colmap-ref": args.colmap_ref,
-                       "--exif-dir": exif_dir if args.write_exif else None})
+                      {**files, "--exif-dir": exif_dir if args.write_exif else None})
+    refuse_folders(files)
     tracks = read_logs(args)
     photos, photo_report = read_photos(args.photos)
     if not photos:
@@ -132,7 +135,9 @@ def run_track(args) -> int:
     """Read one log, print its report (stderr), export CSV and/or KML, print the result line (stdout)."""
     if not args.out and not args.kml:
         raise BadInput("give --out track.csv and/or --kml track.kml")
-    refuse_clobbering({"FILE": log_inputs([args.file])}, {"--out": args.out, "--kml": args.kml})
+    outputs = {"--out": args.out, "--kml": args.kml}
+    refuse_clobbering({"FILE": log_inputs([args.file])}, outputs)
+    refuse_folders(outputs)
     track = read_track(args.file, kind=args.kind, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset)
     if args.out:
         track.write_csv(args.out)

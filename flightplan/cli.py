@@ -16,7 +16,7 @@ from flightplan import checks, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
 from flightplan.argtypes import finite_number
 from flightplan.atomic import write_text_atomic
-from flightplan.cli_support import BadInput, Parser, add_version, refuse_clobbering, run_cli
+from flightplan.cli_support import BadInput, Parser, add_version, refuse_clobbering, refuse_folders, run_cli
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.litchi import write_mission_csv
 from flightplan.orbit import (
@@ -176,6 +176,7 @@ def output_paths(args: argparse.Namespace) -> dict[str, Path | None]:
 def run(args: argparse.Namespace) -> int:
     """Plan, check and write the mission of ``args``; print the summary (stdout) and warnings (stderr)."""
     refuse_clobbering({}, output_paths(args))
+    refuse_folders(output_paths(args))
     plan = plan_orbit(request_from_args(args), DJI_MINI_SE)
     findings = checks.check_mission(plan.mission, DJI_MINI_SE, plan.flight_time_s, args.legal_height)
     warnings = checks.raise_on_errors(findings)

@@ -7,7 +7,8 @@ name an input, and size checks before any work starts.
   errors (``OSError``: missing, unwritable, full or read-only disk), ``MemoryError``, ``RecursionError`` and Ctrl-C
   into one line on stderr and an exit code, never a traceback.
 - :func:`refuse_clobbering` refuses an output path that names an input or another output (an existing file in
-  an input folder counts as an input: :func:`folder_inputs`).
+  an input folder counts as an input: :func:`folder_inputs`); :func:`refuse_folders` an output file that is a
+  folder, and :func:`path_problem` says why a path is not the file or folder asked for.
 - :func:`stdout_to_stderr` sends everything written to stdout (Python and C libraries alike) to stderr while a
   command works, so its stdout carries only its result.
 - :func:`require_memory` and :func:`require_disk` compare what a run would need with what the machine has.
@@ -138,6 +139,13 @@ def refuse_clobbering(inputs: Mapping[str, Path | Iterable[Path] | None],
             if _same_file(path, other):
                 raise BadInput(f"{name} {path}: is the same file as {other_name}; choose another output")
         seen[key] = name
+
+
+def refuse_folders(outputs: Mapping[str, Path | None]) -> None:
+    """Raise :class:`BadInput` if an output that should be a file (``--out track.csv``) is an existing folder."""
+    for name, path in outputs.items():
+        if path is not None and Path(path).is_dir():
+            raise BadInput(f"{name} {path}: is a folder; expected the name of a file to write")
 
 
 def path_problem(path: Path, folder: bool) -> str | None:

@@ -25,7 +25,8 @@ import trimesh
 from capture.geotag_io import sidecar_path
 from recon.dense import DenseError, DenseOptions
 from flightplan.atomic import atomic_path
-from flightplan.cli_support import Parser, add_version, folder_inputs, refuse_clobbering, run_cli, stdout_to_stderr
+from flightplan.cli_support import (Parser, add_version, folder_inputs, refuse_clobbering, refuse_folders, run_cli,
+                                    stdout_to_stderr)
 from recon.merge import estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import MESHES, TEXTURES, ReconOptions, Recon
 from recon.sfm import SfmError, SfmOptions
@@ -112,6 +113,7 @@ def load_mesh(path: Path) -> trimesh.Trimesh:
 def run_merge(argv) -> int:
     args = build_merge_parser().parse_args(argv)
     refuse_clobbering({"A": args.a, "B": args.b, "--pairs": args.pairs}, {"--out": args.out})
+    refuse_folders({"--out": args.out})
     result = estimate_merge(read_pairs(args.pairs))
     merged = merge_meshes(load_mesh(args.a), load_mesh(args.b), result.transform)
     with atomic_path(args.out) as tmp:

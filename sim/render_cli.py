@@ -13,7 +13,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from capture.geotag_io import sidecar_path
-from flightplan.cli_support import EXIT_INTERRUPTED, BadInput, Parser, folder_inputs, refuse_clobbering
+from flightplan.cli_support import (EXIT_INTERRUPTED, BadInput, Parser, folder_inputs, refuse_clobbering,
+                                    refuse_folders)
 from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
 from sim.metrics import compare_folders, summary_table
@@ -115,11 +116,12 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:
     """Refuse (:class:`BadInput`) a ``--out`` or ``--contact-sheet`` that names the scene (or a file in it), the
-    geotags (or their sidecar) or the other output."""
+    geotags (or their sidecar) or the other output, and a ``--contact-sheet`` that is a folder."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     geotags = None if args.geotags is None else [args.geotags, sidecar_path(args.geotags)]
     refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags},
                       {"--out": args.out, "--contact-sheet": args.contact_sheet})
+    refuse_folders({"--contact-sheet": args.contact_sheet})
 
 
 def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> int:

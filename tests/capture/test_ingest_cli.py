@@ -156,8 +156,8 @@ def test_decode_onto_a_folder_names_the_target(tmp_path, capsys):
     capture.write_bytes(frame("7_osd_general_p3x"))
     (tmp_path / "t.csv").mkdir()
     assert cli.main(["decode", str(capture), "--out", str(tmp_path / "t.csv")]) == 2
-    error = capsys.readouterr().err.splitlines()[-1]  # after the note that live.duml.idx is missing
-    assert error.endswith(f"{tmp_path / 't.csv'}: Is a directory")  # not the temporary's name
+    [error] = capsys.readouterr().err.splitlines()  # refused before the note that live.duml.idx is missing
+    assert error.endswith(f"--out {tmp_path / 't.csv'}: is a folder; expected the name of a file to write")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["live.duml", "t.csv"]  # no temporary left
 
 
