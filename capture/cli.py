@@ -2,7 +2,9 @@
 
 The parser is assembled from small ``add_<command>_parser(subparsers)`` functions listed in
 :data:`SUBCOMMANDS` (the one place where subcommands are named); ``geotag`` and ``track`` come from
-:mod:`capture.cli_logs`. Each sets ``handler(args) -> int``.
+:mod:`capture.cli_logs`. Each sets ``handler(args) -> int``. Results go to stdout, progress and notes to stderr;
+bad input (and an output that would overwrite an input) is one line ``aerostereo-ingest COMMAND: error: ...`` on
+stderr with exit code 2, Ctrl-C exit code 130 (:func:`flightplan.cli_support.run_cli`).
 """
 
 from __future__ import annotations
@@ -18,15 +20,15 @@ from serial.tools import list_ports
 from capture import cli_logs
 from capture.decode import decode_to_csv
 from capture.messages import default_registry
-from capture.raw import CaptureIndexError, RawCaptureWriter, index_path
+from capture.raw import RawCaptureWriter, index_path
 from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
 from flightplan.argtypes import positive_number
+from flightplan.cli_support import (BadInput, Parser, add_version, path_problem, refuse_clobbering, refuse_folders,
+                                    run_cli)
 
-
-class CliError(Exception):
-    """Bad user input: printed as one line, exit code 2."""
+PROGRAM = "aerostereo-ingest"
 
 
 def add_record_parser(subparsers) -> None:
@@ -57,21 +59,26 @@ SUBCOMMANDS = (add_record_parser, add_decode_parser, add_list_parser, cli_logs.r
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="aerostereo-ingest",
-        description="Record DJI DUML telemetry from a live link, decode captures to CSV, list devices.")
-    subparsers = parser.add_subparsers(dest="command", required=True)
+    parser = Parser(
+        prog=PROGRAM,
+        description="Record DJI DUML telemetry from a live link, decode captures to CSV, geotag photos, export "
+                    "flight logs, list devices.")
+    add_version(parser)
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for add_parser in SUBCOMMANDS:
         add_parser(subparsers)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return args.handler(args)
-    except (CliError, TransportError, CaptureIndexError, OSError) as error:
-        return cli_logs.report_error(args.command, error)
+    """``aerostereo-ingest COMMAND ...`` -> exit code (0 ok, 2 bad input, 130 Ctrl-C)."""
+    parser = build_parser()
+    return run_cli(PROGRAM, lambda: run_command(parser.parse_args(argv)))
+
+
+def run_command(args: argparse.Namespace) -> int:
+    """Run the parsed subcommand; its errors are reported as ``aerostereo-ingest COMMAND: error: ...``."""
+    return run_cli(f"{PROGRAM} {args.command}", lambda: args.handler(args), bad_input=(TransportError,))
 
 
 def open_source(port: str, baud: int):
@@ -92,7 +99,7 @@ def _parse_ids(port: str, ids: str, allow_empty: bool) -> tuple[int, int | None]
     try:
         vendor, product = (int(part, 16) for part in ids.split(":"))
     except ValueError:
-        raise CliError(f"--port {port!r}: expected {kind}:VID:PID with hex ids, e.g. {kind}:2ca3:001f") from None
+        raise BadInput(f"--port {port!r}: expected {kind}:VID:PID with hex ids, e.g. {kind}:2ca3:001f") from None
     return vendor, product
 
 
@@ -109,15 +116,17 @@ def run_record(args) -> int:
 
 
 def run_decode(args) -> int:
-    if not args.input.is_file():
-        raise CliError(f"{args.input}: no such file")
+    if problem := path_problem(args.input, folder=False):
+        raise BadInput(f"{args.input}: {problem}; expected a raw capture NAME.duml or a .pcap file")
+    refuse_clobbering({"INPUT": cli_logs.log_inputs([args.input])}, {"--out": args.out})
+    refuse_folders({"--out": args.out})
     if not is_pcap(args.input) and not index_path(args.input).exists():
         print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
     problems: list[str] = []
     summary = decode_to_csv(replay_file(args.input, problems), args.out, default_registry())
     if summary.bytes_read and not summary.packets:
         args.out.unlink(missing_ok=True)
-        raise CliError(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
+        raise BadInput(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
     print(f"{args.input}: {summary.bytes_read} bytes, {summary.packets} packets, {summary.rows} telemetry rows "
           f"-> {args.out}")
     print("messages: " + ", ".join(f"{kind} {count}" for kind, count in summary.message_counts.items()))

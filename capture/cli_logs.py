@@ -1,8 +1,10 @@
-"""``aerostereo-ingest geotag`` and ``aerostereo-ingest track``: subcommands registered on capture's CLI.
+"""``aerostereo-ingest geotag``, ``export`` and ``track``: subcommands registered on capture's CLI.
 
-``register(subparsers)`` adds both, and ``export`` (geotags.csv -> GPX, ODM geo.txt, COLMAP reference); each
-sets ``handler`` to a function taking the parsed args and returning an exit code (0 ok, 2 bad input: one line on
-stderr, nothing written). :func:`report_error` writes that line for every ``aerostereo-ingest`` subcommand.
+``register(subparsers)`` adds them (``export``: geotags.csv -> GPX, ODM geo.txt, COLMAP reference); each sets
+``handler`` to a function taking the parsed args and returning an exit code. Bad input raises
+:class:`~flightplan.cli_support.BadInput` (or a ``ValueError``/``OSError``), which ``aerostereo-ingest`` reports as
+one line on stderr with exit code 2, nothing written. Outputs that name an input (a photo, a log) or each other
+are refused before anything is read. The readers' reports go to stderr, the result lines to stdout.
 """
 
 from __future__ import annotations
@@ -12,16 +14,15 @@ import sys
 from pathlib import Path
 
 from flightplan.argtypes import finite_number, positive_number
-from flightplan.cli_support import refuse_clobbering
+from flightplan.cli_support import BadInput, folder_inputs, path_problem, refuse_clobbering, refuse_folders
 
 from .geotag import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, geotag_photos
 from .geotag_export import check_line_names, write_exports, write_track_gpx
 from .geotag_io import geotag_paths, sidecar_path, write_exif_copies, write_geotags
 from .logs import KINDS, read_track
-from .logs.photos import list_photos, read_photos
-from .track import LogFormatError, ReadReport, parse_utc
-
-EXIT_BAD_INPUT = 2
+from .logs.photos import read_photos
+from .raw import index_path
+from .track import ReadReport, parse_utc
 
 
 def register(subparsers) -> None:
@@ -32,7 +33,7 @@ def register(subparsers) -> None:
                         help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) or pcap, "
                              "or a folder of photos); repeatable")
     geotag.add_argument("--clock-offset", default="auto", type=parse_clock_offset,
-                        help="'auto' (default) or seconds to add to the camera clock to get telemetry UTC")
+                        help="'auto' or seconds to add to the camera clock to get telemetry UTC")
     geotag.add_argument("--max-gap", type=positive_number, default=DEFAULT_MAX_GAP_S,
                         help="longest telemetry gap (s) to interpolate across (default %(default)s)")
     geotag.add_argument("--max-misfit", type=positive_number, default=DEFAULT_MAX_MISFIT_M,
@@ -105,10 +106,9 @@ def parse_time_arg(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected an ISO 8601 time like 2021-09-06T02:23:48Z, got {text!r}") from None
 
 
-def report_error(command: str, message) -> int:
-    """Print ``aerostereo-ingest COMMAND: error: MESSAGE`` (argparse's own form) on stderr; the exit code."""
-    print(f"aerostereo-ingest {command}: error: {message}", file=sys.stderr)
-    return EXIT_BAD_INPUT
+def log_inputs(paths) -> list[Path]:
+    """What flight log arguments read: each file and its ``.idx`` (a DUML capture), or a folder and its files."""
+    return [input_path for path in map(Path, paths) for input_path in (*folder_inputs(path), index_path(path))]
 
 
 def read_logs(args) -> list:
@@ -116,36 +116,34 @@ def read_logs(args) -> list:
 
 
 def run_geotag(args) -> int:
-    """Geotag the photos; print a per-source summary and the clock offset."""
-    try:
-        csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
-        refuse_clobbering({"--photos": list_photos(args.photos), "--log": [Path(log) for log in args.log]},
-                          {"--out": csv_path, "--out's sidecar": json_path, **export_outputs(args)})
-        tracks = read_logs(args)
-        photos, photo_report = read_photos(args.photos)
-        if not photos:
-            return report_error(args.command, f"{args.photos}: no readable JPEG photos")
-        result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap,
-                               max_misfit_m=args.max_misfit)
-        if len(result.from_photos) == len(result.tags):
-            reasons = "; ".join(f"{name}: {reason}" for name, reason in (result.untagged + result.from_photos)[:3])
-            return report_error(args.command, f"no photo could be geotagged from the logs ({reasons})")
-        exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
-        if args.write_exif and exif_dir.resolve() == Path(args.photos).resolve():
-            return report_error(args.command, f"{exif_dir}: refusing to overwrite the original photos; "
-                                              "choose another --exif-dir")
-        if args.odm_geo or args.colmap_ref:
-            check_line_names([tag.image_name for tag in result.tags])  # before anything is written
-        csv_path, json_path = write_geotags(result, args.out)
-        export_notes = write_exports(csv_path, args.gpx, args.odm_geo, args.colmap_ref)
-        if args.write_exif:
-            write_exif_copies(result, args.photos, exif_dir)
-    except (LogFormatError, ValueError, OSError) as error:
-        return report_error(args.command, error)
-    for report in result.sources:  # the summary is a log: stderr; the result line goes to stdout
-        print_report(report, shown_rejects=0, file=sys.stderr)  # counts per reason; `track` lists a log's rejects
+    """Geotag the photos; print a per-source summary and the clock offset (stderr), the result line (stdout)."""
+    csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
+    if problem := path_problem(args.photos, folder=True):
+        raise BadInput(f"--photos {args.photos}: {problem}; expected a folder of JPEG photos")
+    exif_dir = Path(args.exif_dir) if args.exif_dir else Path(args.out).resolve().parent / "geotagged"
+    files = {"--out": csv_path, "--out's sidecar": json_path, **export_outputs(args)}
+    refuse_clobbering({"--photos": folder_inputs(args.photos), "--log": log_inputs(args.log)},
+                      {**files, "--exif-dir": exif_dir if args.write_exif else None})
+    refuse_folders(files)
+    tracks = read_logs(args)
+    photos, photo_report = read_photos(args.photos)
+    if not photos:
+        raise BadInput(f"{args.photos}: no readable JPEG photos")
+    result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap,
+                           max_misfit_m=args.max_misfit)
+    if len(result.from_photos) == len(result.tags):
+        reasons = "; ".join(f"{name}: {reason}" for name, reason in (result.untagged + result.from_photos)[:3])
+        raise BadInput(f"no photo could be geotagged from the logs ({reasons})")
+    if args.odm_geo or args.colmap_ref:
+        check_line_names([tag.image_name for tag in result.tags])  # before anything is written
+    write_geotags(result, csv_path)
+    export_notes = write_exports(csv_path, args.gpx, args.odm_geo, args.colmap_ref)
+    if args.write_exif:
+        write_exif_copies(result, args.photos, exif_dir)
+    for report in result.sources:
+        print_report(report, shown_rejects=0)  # counts per reason; `track` lists a log's rejects
     if photo_report.source not in {report.source for report in result.sources}:
-        print_report(photo_report, file=sys.stderr)  # which photos could not be read or had unusable values
+        print_report(photo_report)  # which photos could not be read or had unusable values
     print(result.clock.summary(), file=sys.stderr)
     for note in result.notes + export_notes:
         print(f"note: {note}", file=sys.stderr)
@@ -158,16 +156,13 @@ def run_geotag(args) -> int:
 
 
 def run_export(args) -> int:
-    """Write the requested exports of a geotags.csv; one line per file written."""
+    """Write the requested exports of a geotags.csv; one line per file written (stdout), notes on stderr."""
     outputs = export_outputs(args)
     if not any(outputs.values()):
-        return report_error(args.command, "give at least one of --gpx, --odm-geo, --colmap-ref")
-    try:
-        refuse_clobbering({"geotags": args.geotags, "(sidecar)": sidecar_path(args.geotags)}, outputs)
-        notes = write_exports(args.geotags, args.gpx, args.odm_geo, args.colmap_ref)
-    except (ValueError, OSError) as error:
-        return report_error(args.command, error)
-    for note in notes:
+        raise BadInput("give at least one of --gpx, --odm-geo, --colmap-ref")
+    refuse_clobbering({"geotags": args.geotags, "(sidecar)": sidecar_path(args.geotags)}, outputs)
+    refuse_folders(outputs)
+    for note in write_exports(args.geotags, args.gpx, args.odm_geo, args.colmap_ref):
         print(f"note: {note}", file=sys.stderr)
     for option, path in outputs.items():
         if path:
@@ -175,35 +170,29 @@ def run_export(args) -> int:
     return 0
 
 
-def print_report(report: ReadReport, shown_rejects: int = 20, file=None) -> None:
-    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line, on
-    ``file`` (default stdout)."""
-    print(report.summary(), file=file)
-    for note in report.notes:
-        print(f"  note: {note}", file=file)
-    for problem in report.rejected[:shown_rejects]:
-        print(f"  rejected {problem}", file=file)
+def print_report(report: ReadReport, shown_rejects: int = 20) -> None:
+    """A reader's summary (rejects counted per reason), its notes and its first rejects with file:line (stderr)."""
+    lines = [report.summary(), *(f"  note: {note}" for note in report.notes),
+             *(f"  rejected {problem}" for problem in report.rejected[:shown_rejects])]
     if len(report.rejected) > shown_rejects:
-        print(f"  ... and {len(report.rejected) - shown_rejects} more rejected", file=file)
+        lines.append(f"  ... and {len(report.rejected) - shown_rejects} more rejected")
+    print("\n".join(lines), file=sys.stderr)
 
 
 def run_track(args) -> int:
-    """Read one log, print its report, export CSV, KML and/or GPX."""
+    """Read one log, print its report (stderr), export CSV, KML and/or GPX, print the result line (stdout)."""
     if not (args.out or args.kml or args.gpx):
-        return report_error(args.command, "give --out track.csv, --kml track.kml and/or --gpx track.gpx")
-    try:
-        refuse_clobbering({"FILE": Path(args.file)}, {"--out": args.out and Path(args.out),
-                                                      "--kml": args.kml and Path(args.kml), "--gpx": args.gpx})
-        track = read_track(args.file, kind=args.kind, start_time_s=args.start_time,
-                           srt_utc_offset_h=args.srt_utc_offset)
-        if args.gpx:
-            write_track_gpx(track, args.gpx)
-        if args.out:
-            track.write_csv(args.out)
-        if args.kml:
-            track.write_kml(args.kml)
-    except (LogFormatError, ValueError, OSError) as error:
-        return report_error(args.command, error)
+        raise BadInput("give --out track.csv, --kml track.kml and/or --gpx track.gpx")
+    outputs = {"--out": args.out, "--kml": args.kml, "--gpx": args.gpx}
+    refuse_clobbering({"FILE": log_inputs([args.file])}, outputs)
+    refuse_folders(outputs)
+    track = read_track(args.file, kind=args.kind, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset)
+    if args.gpx:
+        write_track_gpx(track, args.gpx)
+    if args.out:
+        track.write_csv(args.out)
+    if args.kml:
+        track.write_kml(args.kml)
     print_report(track.report)
     print(f"{len(track)} rows, {len(track.photo_times_s)} photo events, clock {track.clock}, "
           f"fields: {', '.join(sorted(track.fields))}")

@@ -1,8 +1,8 @@
 """``aerostereo-mission``: plan a circular orbit and export it as a Litchi Mission Hub CSV.
 
 Heights are metres above the take-off point; the centre is WGS84 degrees. Prints a summary (waypoints, path
-length, flight time, photos, GSD, overlap, deviation from the circle, warnings). Bad input or a plan that fails
-the checks: one line on stderr, exit code 2.
+length, flight time, photos, GSD, overlap, deviation from the circle) on stdout and the plan's warnings on stderr.
+Bad input, a plan that fails the checks or an output that names another output: one line on stderr, exit code 2.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from flightplan import checks, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
 from flightplan.argtypes import finite_number
 from flightplan.atomic import write_text_atomic
+from flightplan.cli_support import BadInput, Parser, add_version, refuse_clobbering, refuse_folders, run_cli
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.litchi import write_mission_csv
 from flightplan.orbit import (
@@ -33,15 +34,6 @@ from flightplan.orbit import (
 PROGRAM = "aerostereo-mission"
 
 
-class UsageError(Exception):
-    """Bad command-line input; reported as one line on stderr with exit code 2."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # argparse would print the usage block and exit; we want one line
-        raise UsageError(message)
-
-
 def _ring(text: str) -> Ring:
     """``RADIUS:HEIGHT`` or ``RADIUS:HEIGHT:PITCH`` (metres, metres above take-off, degrees)."""
     parts = text.split(":")
@@ -55,12 +47,13 @@ def _ring(text: str) -> Ring:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser; its ``error`` raises :class:`UsageError` instead of exiting."""
-    parser = _Parser(
+    """The argument parser (one-line errors, defaults in ``--help``, ``--version``)."""
+    parser = Parser(
         prog=PROGRAM,
         description="Plan a circular orbit and export it as a Litchi Mission Hub CSV. "
         "Heights are metres above take-off.",
     )
+    add_version(parser)
     where = parser.add_argument_group("centre (WGS84 degrees)")
     where.add_argument("--lat", type=finite_number, metavar="DEG", help="latitude of the orbit centre / POI")
     where.add_argument("--lon", type=finite_number, metavar="DEG", help="longitude of the orbit centre / POI")
@@ -93,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="M",
         help="max deviation of the flown path from the circle (default 0.25)",
     )
-    orbit.add_argument("--direction", choices=("cw", "ccw"), default="cw")
+    orbit.add_argument("--direction", choices=("cw", "ccw"), default="cw", help="seen from above")
     orbit.add_argument("--start-bearing", type=finite_number, default=0.0, metavar="DEG", help="of the first waypoint (default 0)")
     orbit.add_argument("--poi-height", type=finite_number, default=0.0, metavar="M", help="above take-off (default 0)")
     orbit.add_argument(
@@ -109,17 +102,17 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def request_from_args(args: argparse.Namespace) -> OrbitRequest:
-    """Turn parsed arguments into an :class:`OrbitRequest` (``UsageError``/``ValueError`` on bad input)."""
+    """Turn parsed arguments into an :class:`OrbitRequest` (:class:`BadInput`/``ValueError`` on bad input)."""
     if args.demo:
         if args.lat is not None or args.lon is not None:
-            raise UsageError("--demo sets the centre; leave out --lat/--lon")
+            raise BadInput("--demo sets the centre; leave out --lat/--lon")
         lat, lon = DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg
     elif args.lat is None or args.lon is None:
-        raise UsageError("--lat and --lon are required (or --demo)")
+        raise BadInput("--lat and --lon are required (or --demo)")
     else:
         lat, lon = args.lat, args.lon
     if args.rings and (args.radius is not None or args.height is not None):
-        raise UsageError("--rings replaces --radius/--height; give one or the other")
+        raise BadInput("--rings replaces --radius/--height; give one or the other")
     radius = DEFAULT_RADIUS_M if args.radius is None else args.radius
     height = DEFAULT_HEIGHT_M if args.height is None else args.height
     rings = tuple(args.rings) if args.rings else (Ring(radius, height),)
@@ -137,8 +130,8 @@ def request_from_args(args: argparse.Namespace) -> OrbitRequest:
     )
 
 
-def summary_text(plan: OrbitPlan, warnings: list[str]) -> str:
-    """The human-readable summary printed by the CLI."""
+def summary_text(plan: OrbitPlan) -> str:
+    """The human-readable summary printed by the CLI on stdout (the warnings go to stderr)."""
     request = plan.request
     lines = [
         f"orbit centre {request.center_lat_deg:.7f}, {request.center_lon_deg:.7f}  "
@@ -156,7 +149,6 @@ def summary_text(plan: OrbitPlan, warnings: list[str]) -> str:
             f"overlap {100 * ring.overlap_consecutive:.1f} %, heading error <= {ring.max_heading_error_deg:.3f} deg"
         )
     lines += [f"note: {note}" for note in plan.notes]
-    lines += [f"warning: {warning}" for warning in warnings]
     return "\n".join(lines)
 
 
@@ -175,20 +167,27 @@ def _write_outputs(args: argparse.Namespace, plan: OrbitPlan, warnings: list[str
     return written
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; returns the exit code (0 ok, 2 bad input, failed checks or unwritable output)."""
-    try:
-        args = build_parser().parse_args(argv)
-        plan = plan_orbit(request_from_args(args), DJI_MINI_SE)
-        findings = checks.check_mission(plan.mission, DJI_MINI_SE, plan.flight_time_s, args.legal_height)
-        warnings = checks.raise_on_errors(findings)
-        written = _write_outputs(args, plan, warnings)
-    except (UsageError, ValueError) as error:
-        print(f"{PROGRAM}: error: {error}", file=sys.stderr)
-        return 2
-    except OSError as error:
-        print(f"{PROGRAM}: error: cannot write {error.filename or ''}: {error.strerror or error}", file=sys.stderr)
-        return 2
-    print(summary_text(plan, warnings))
+def output_paths(args: argparse.Namespace) -> dict[str, Path | None]:
+    """Every file the command writes, by option."""
+    return {"--out": args.out, "--kml": args.kml, "--geojson": args.geojson, "--plot": args.plot,
+            "--summary-json": args.summary_json}
+
+
+def run(args: argparse.Namespace) -> int:
+    """Plan, check and write the mission of ``args``; print the summary (stdout) and warnings (stderr)."""
+    refuse_clobbering({}, output_paths(args))
+    refuse_folders(output_paths(args))
+    plan = plan_orbit(request_from_args(args), DJI_MINI_SE)
+    findings = checks.check_mission(plan.mission, DJI_MINI_SE, plan.flight_time_s, args.legal_height)
+    warnings = checks.raise_on_errors(findings)
+    written = _write_outputs(args, plan, warnings)
+    print(summary_text(plan))
+    for warning in warnings:
+        print(f"warning: {warning}", file=sys.stderr)
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; returns the exit code (0 ok, 2 bad input, failed checks or unwritable output, 130 Ctrl-C)."""
+    return run_cli(PROGRAM, lambda: run(build_parser().parse_args(argv)))

@@ -6,13 +6,19 @@ name an input, and size checks before any work starts.
 - :func:`run_cli` runs a command's body and turns bad input (:class:`BadInput`, ``ValueError``), file-system
   errors (``OSError``: missing, unwritable, full or read-only disk), ``MemoryError``, ``RecursionError`` and Ctrl-C
   into one line on stderr and an exit code, never a traceback.
-- :func:`refuse_clobbering` refuses an output path that names an input or another output.
+- :func:`refuse_clobbering` refuses an output path that names an input or another output (an existing file in
+  an input folder counts as an input: :func:`folder_inputs`); :func:`refuse_folders` an output file that is a
+  folder, and :func:`path_problem` says why a path is not the file or folder asked for.
+- :func:`stdout_to_stderr` sends everything written to stdout (Python and C libraries alike) to stderr while a
+  command works, so its stdout carries only its result.
 - :func:`require_memory` and :func:`require_disk` compare what a run would need with what the machine has.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import ctypes
 import os
 import shutil
 import sys
@@ -34,11 +40,22 @@ class BadInput(ValueError):
     """
 
 
+class DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Appends ``(default: X)`` to an option's help unless the help already says its default, the option is
+    required, or there is no default to show (``None``, or ``False`` of a flag)."""
+
+    def _get_help_string(self, action):
+        help_text = action.help or ""
+        if "default" in help_text or action.required or action.default is None or action.default is False:
+            return help_text
+        return super()._get_help_string(action)
+
+
 class Parser(argparse.ArgumentParser):
     """An argument parser with one-line errors and defaults shown in ``--help``."""
 
     def __init__(self, *args, **kwargs):
-        kwargs.setdefault("formatter_class", argparse.ArgumentDefaultsHelpFormatter)
+        kwargs.setdefault("formatter_class", DefaultsFormatter)
         super().__init__(*args, **kwargs)
 
     def error(self, message: str):
@@ -76,10 +93,13 @@ def run_cli(prog: str, body: Callable[[], int], bad_input: tuple[type[BaseExcept
 
     ``bad_input`` adds the command's own exception types (beyond :class:`BadInput` and ``ValueError``) whose
     message is meant for the user. ``OSError``, ``MemoryError`` and ``RecursionError`` also give exit code 2;
-    Ctrl-C gives 130. Other exceptions are bugs and keep their traceback.
+    Ctrl-C gives 130; argparse's exits inside ``body`` (errors, ``--help``, ``--version``) return their code.
+    Other exceptions are bugs and keep their traceback.
     """
     try:
         return body()
+    except SystemExit as stop:
+        return stop.code if isinstance(stop.code, int) else (EXIT_OK if stop.code is None else EXIT_BAD_INPUT)
     except (BadInput, ValueError, *bad_input) as error:
         return _report(prog, str(error) or type(error).__name__)
     except OSError as error:
@@ -119,6 +139,62 @@ def refuse_clobbering(inputs: Mapping[str, Path | Iterable[Path] | None],
             if _same_file(path, other):
                 raise BadInput(f"{name} {path}: is the same file as {other_name}; choose another output")
         seen[key] = name
+
+
+def refuse_folders(outputs: Mapping[str, Path | None]) -> None:
+    """Raise :class:`BadInput` if an output that should be a file (``--out track.csv``) is an existing folder."""
+    for name, path in outputs.items():
+        if path is not None and Path(path).is_dir():
+            raise BadInput(f"{name} {path}: is a folder; expected the name of a file to write")
+
+
+def path_problem(path: Path, folder: bool) -> str | None:
+    """Why ``path`` is not the existing folder (``folder=True``) or file asked for: ``"not found"``, ``"is a
+    file"``, ``"is a folder"``; ``None`` when it is what was asked for."""
+    path = Path(path)
+    if not path.exists():
+        return "not found"
+    if path.is_dir() != folder:
+        return "is a folder" if path.is_dir() else "is a file"
+    return None
+
+
+def folder_inputs(path: Path | None) -> list[Path]:
+    """What a command reading ``path`` must never overwrite: the path itself and, for a folder, the existing files
+    directly in it (``[]`` for ``None``)."""
+    if path is None:
+        return []
+    path = Path(path)
+    return [path, *(child for child in path.iterdir() if child.is_file())] if path.is_dir() else [path]
+
+
+@contextlib.contextmanager
+def stdout_to_stderr():
+    """Within the block, write whatever goes to stdout -- Python's ``sys.stdout`` and file descriptor 1, where C
+    libraries print -- to stderr instead; restore both afterwards."""
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no file descriptor 1: only Python's stream can be redirected
+        saved = None
+    try:
+        if saved is not None:
+            os.dup2(2, 1)
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+    finally:
+        if saved is not None:
+            sys.stdout.flush()
+            _flush_c_stdio()  # what C code buffered in the block belongs to stderr too
+            os.dup2(saved, 1)
+            os.close(saved)
+
+
+def _flush_c_stdio() -> None:
+    try:
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):  # no C library to load by name (not Linux/macOS)
+        pass
 
 
 def _paths(value: Path | Iterable[Path] | None) -> list[Path]:

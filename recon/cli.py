@@ -7,7 +7,9 @@
                      [--texel M] [--texture atlas|ortho|none] [--hold-out K] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
-Bad input -> one line on stderr, exit code 2.
+The scene summary (JSON) is the only thing on stdout; stage lines, progress and COLMAP's own log go to stderr, so
+``aerostereo-recon ... | jq`` works. Bad input, and an output that names an input (``--out`` inside ``--photos``, on
+``--geotags``; ``merge --out`` on A, B or the pairs file) -> one line on stderr, exit code 2, before any work.
 """
 
 from __future__ import annotations
@@ -20,15 +22,20 @@ from pathlib import Path
 import pycolmap
 import trimesh
 
+from capture.geotag_io import sidecar_path
 from recon.dense import DenseError, DenseOptions
 from flightplan.atomic import atomic_path
-from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
+from flightplan.cli_support import (Parser, add_version, folder_inputs, refuse_clobbering, refuse_folders, run_cli,
+                                    stdout_to_stderr)
+from recon.merge import estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import MESHES, TEXTURES, ReconOptions, Recon
-from recon.priors import PriorsError
 from recon.sfm import SfmError, SfmOptions
 from recon.atlas import AtlasOptions
 from recon.texture import TextureOptions
 from sim.mesh_file import check_mesh_file
+
+
+PROGRAM = "aerostereo-recon"
 
 
 def positive_int(text: str) -> int:
@@ -39,9 +46,11 @@ def positive_int(text: str) -> int:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="aerostereo-recon", description="Photos + geotags -> georeferenced textured scene folder "
-                                                "(SfM, dense stereo, mesh, texture; resumable). "
-                                                "'aerostereo-recon merge --help': control-point merge of two meshes.")
+    parser = Parser(prog=PROGRAM, description="Photos + geotags -> georeferenced textured scene folder "
+                                              "(SfM, dense stereo, mesh, texture; resumable). Other command: "
+                                              "'aerostereo-recon merge A B --pairs P --out C' (control-point merge "
+                                              "of two meshes; 'aerostereo-recon merge --help').")
+    add_version(parser)
     parser.add_argument("--photos", type=Path, required=True, help="folder of photos")
     parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
     parser.add_argument("--out", type=Path, required=True, help="scene folder to write (resumable)")
@@ -63,8 +72,11 @@ def build_parser() -> argparse.ArgumentParser:
                              "(default: from the photo spacing, about 5 deg apart seen from the flight height)")
     parser.add_argument("--neighbors", type=positive_int, default=12, help="spatial matching: nearest photos")
     parser.add_argument("--sequential", type=int, default=0, help="also match each photo with the next N (0: off)")
-    parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental")
-    parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto")
+    parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental",
+                        help="incremental or global SfM mapping")
+    parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto",
+                        help="focal length: keep the seeded one (fixed), let bundle adjustment move it (refine), or "
+                             "refine it only when the viewing directions spread widely, as in an oblique orbit (auto)")
     parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
     parser.add_argument("--texture", choices=TEXTURES, default=ReconOptions.texture,
                         help="atlas: each face from its best photo; ortho: a true orthophoto (for --mesh 2.5d); "
@@ -79,8 +91,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def build_merge_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="aerostereo-recon merge",
-                                     description="merge mesh B into mesh A's frame from control-point pairs")
+    parser = Parser(prog=f"{PROGRAM} merge", description="merge mesh B into mesh A's frame from control-point pairs")
     parser.add_argument("a", type=Path, help="reference mesh")
     parser.add_argument("b", type=Path, help="mesh to move onto A")
     parser.add_argument("--pairs", type=Path, required=True, help="text file: x y z x' y' z' per line (B then A)")
@@ -103,6 +114,8 @@ def load_mesh(path: Path) -> trimesh.Trimesh:
 
 def run_merge(argv) -> int:
     args = build_merge_parser().parse_args(argv)
+    refuse_clobbering({"A": args.a, "B": args.b, "--pairs": args.pairs}, {"--out": args.out})
+    refuse_folders({"--out": args.out})
     result = estimate_merge(read_pairs(args.pairs))
     merged = merge_meshes(load_mesh(args.a), load_mesh(args.b), result.transform)
     with atomic_path(args.out) as tmp:
@@ -114,6 +127,9 @@ def run_merge(argv) -> int:
 
 def run_recon(argv) -> int:
     args = build_parser().parse_args(argv)
+    geotags = args.geotags and [args.geotags, sidecar_path(args.geotags)]
+    refuse_clobbering({"--photos": folder_inputs(args.photos), "--geotags": geotags},
+                      {"--out": args.out})
     if not args.verbose:
         pycolmap.logging.minloglevel = 2
     options = ReconOptions(
@@ -126,7 +142,8 @@ def run_recon(argv) -> int:
         texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
     )
-    scene = Recon(args.photos, args.geotags, args.out, options).run()
+    with stdout_to_stderr():  # COLMAP's C++ log and any library print are not the result
+        scene = Recon(args.photos, args.geotags, args.out, options).run()
     print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],
                       "ground_height_range_m": scene["ground_height_range_m"],
                       "valid_area_m": scene["valid_area_m"]}, indent=2))
@@ -134,14 +151,11 @@ def run_recon(argv) -> int:
 
 
 def main(argv=None) -> int:
+    """``aerostereo-recon ...`` or ``aerostereo-recon merge ...`` -> exit code (0 ok, 2 bad input, 130 Ctrl-C)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    try:
-        if argv[:1] == ["merge"]:
-            return run_merge(argv[1:])
-        return run_recon(argv)
-    except (PriorsError, SfmError, DenseError, PairsFileError, FileNotFoundError, ValueError) as exc:
-        print(f"aerostereo-recon: error: {exc}", file=sys.stderr)
-        return 2
+    if argv[:1] == ["merge"]:
+        return run_cli(f"{PROGRAM} merge", lambda: run_merge(argv[1:]))
+    return run_cli(PROGRAM, lambda: run_recon(argv), bad_input=(SfmError, DenseError))
 
 
 if __name__ == "__main__":

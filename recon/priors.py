@@ -24,6 +24,7 @@ from capture.geotag_io import load_geotags, sidecar_path
 from capture.logs.photos import FactoryCalibration, PhotoInfo, parse_dji_xmp, read_camera_xmp, read_exif_gps
 from capture.track import LogFormatError
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
+from flightplan.cli_support import path_problem
 from flightplan.geodesy import LocalFrame
 from flightplan.jsonfile import read_json
 
@@ -74,8 +75,8 @@ class PosePriors:
 def list_photos(photo_dir: Path) -> list[str]:
     """Sorted photo file names in ``photo_dir`` (by suffix, case-insensitive)."""
     photo_dir = Path(photo_dir)
-    if not photo_dir.is_dir():
-        raise PriorsError(f"{photo_dir}: photo folder not found")
+    if problem := path_problem(photo_dir, folder=True):
+        raise PriorsError(f"{photo_dir}: {problem}; expected a folder of photos")
     return sorted(p.name for p in photo_dir.iterdir() if p.is_file() and p.suffix.lower() in PHOTO_SUFFIXES)
 
 

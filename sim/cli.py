@@ -2,10 +2,10 @@
 
 ``aerostereo-render [options]`` renders a dataset (the default command, :mod:`sim.render_cli`);
 ``aerostereo-render compare ...``, ``aerostereo-render fly ...`` and ``aerostereo-render export ...`` are
-subcommands. Their parser is assembled
-from small ``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where
-subcommands are named); each sets ``handler(args) -> int``. Bad input ends with a one-line message on stderr
-and exit code 2.
+subcommands, listed in the dataset render's ``--help``. Their parsers are assembled from small
+``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where subcommands are
+named); each sets ``handler(args) -> int``. Bad input (and an output that names an input) ends with a one-line
+message on stderr and exit code 2, Ctrl-C with 130.
 """
 
 from __future__ import annotations
@@ -16,17 +16,14 @@ import sys
 from pathlib import Path
 
 from capture.track import parse_utc
-from flightplan.litchi import LitchiFormatError
 from flightplan.argtypes import finite_number
+from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
+from sim import render_cli
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
 from sim.export_cli import add_export_parser
-from sim.render_cli import add_compare_parser, render_main
-from sim.render_dataset import resolve_scene_dir
-from sim.scene import SceneError, load_scene
-
-
-class CliError(Exception):
-    """Bad user input: printed as one line, exit code 2."""
+from sim.render_cli import PROG, add_compare_parser
+from sim.render_dataset import is_demo_scene, resolve_scene_dir
+from sim.scene import load_scene
 
 
 def utc_time(text: str) -> dt.datetime:
@@ -68,36 +65,59 @@ def add_fly_parser(subparsers) -> None:
 SUBCOMMANDS = (add_fly_parser, add_compare_parser, add_export_parser)
 
 
-def build_parser() -> tuple[argparse.ArgumentParser, set[str]]:
-    """The parser of the subcommands in :data:`SUBCOMMANDS`, and their names."""
-    parser = argparse.ArgumentParser(
-        prog="aerostereo-render",
-        description="Render stereo datasets from scenes, and fly the virtual drone over them.")
-    subparsers = parser.add_subparsers(dest="command", required=True)
+def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
+    """The dataset render's parser, with ``--version`` and the subcommands of :data:`SUBCOMMANDS` listed in its
+    help; and the subcommands' parsers by name."""
+    parser = render_cli.build_parser()
+    parser.usage = "%(prog)s [options] --out DATASET_DIR  (render a dataset)\n       %(prog)s COMMAND ..."
+    add_version(parser)
+    subparsers = parser.add_subparsers(title="commands (instead of the dataset render)", dest="command", prog=PROG,
+                                       metavar="COMMAND", help="'aerostereo-render COMMAND --help' for its options")
     for add_parser in SUBCOMMANDS:
         add_parser(subparsers)
-    return parser, set(subparsers.choices)
+    return parser, dict(subparsers.choices)
 
 
 def main(argv: list[str] | None = None) -> int:
     """``aerostereo-render ...`` -> exit code: a subcommand, or the dataset render for any other arguments."""
     argv = list(sys.argv[1:] if argv is None else argv)
     parser, subcommands = build_parser()
-    if not argv or argv[0] not in subcommands:
-        return render_main(argv)
-    args = parser.parse_args(argv)
-    try:
-        return args.handler(args)
-    except (CliError, LitchiFormatError, SceneError, ValueError, OSError) as error:
-        print(f"aerostereo-render {args.command}: error: {error}", file=sys.stderr)
-        return 2
+    if argv[:1] and argv[0] in subcommands:  # the dataset render's required --out does not apply
+        return run_cli(PROG, lambda: run_subcommand(argv[0], subcommands[argv[0]].parse_args(argv[1:])))
+    return run_cli(PROG, lambda: render_or_subcommand(parser.parse_args(argv), argv))
+
+
+def render_or_subcommand(args: argparse.Namespace, argv: list[str]) -> int:
+    """The dataset render, or the subcommand named after the render's options."""
+    if args.command is not None:
+        return run_subcommand(args.command, args)
+    return render_cli.run(args, command_line=[PROG, *argv])
+
+
+def run_subcommand(name: str, args: argparse.Namespace) -> int:
+    """Run a parsed subcommand; its errors are reported as ``aerostereo-render NAME: error: ...``."""
+    return run_cli(f"{PROG} {name}", lambda: args.handler(args))
+
+
+def refuse_clobbering_fly(args) -> None:
+    """Refuse (:class:`BadInput`) an ``--out`` folder that is, or holds, the mission or the scene: fly writes
+    fixed names (photos/, flight.duml, truth.json...) into it."""
+    scene = None if is_demo_scene(args.scene) else Path(args.scene)
+    inputs = {"--mission": args.mission, "--scene": folder_inputs(scene)}
+    refuse_clobbering(inputs, {"--out": args.out})
+    out = args.out.resolve()
+    for name, path in (("--mission", args.mission), ("--scene", scene)):
+        if path is not None and out in path.resolve().parents:
+            raise BadInput(f"--out {args.out}: holds {name} {path}, which the flight's outputs could overwrite; "
+                           "choose an --out folder outside it")
 
 
 def run_fly(args) -> int:
-    if not args.mission.is_file():
-        raise CliError(f"{args.mission}: no such mission file")
+    if problem := path_problem(args.mission, folder=False):
+        raise BadInput(f"{args.mission}: {problem}; expected a Litchi mission CSV")
     if args.photo_limit is not None and args.photo_limit < 0:
-        raise CliError(f"--photos {args.photo_limit}: expected a count >= 0")
+        raise BadInput(f"--photos {args.photo_limit}: expected a count >= 0")
+    refuse_clobbering_fly(args)
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[args.noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation)

@@ -31,6 +31,7 @@ import cv2
 import numpy as np
 from skimage.metrics import structural_similarity
 
+from flightplan.cli_support import path_problem
 from sim.dataset.images import read_exr
 from sim.dataset.replay import replay_frames
 from sim.shade import SRGB8_TO_LINEAR, to_srgb8
@@ -146,8 +147,8 @@ def read_rgb(path: Path) -> np.ndarray:
 
 def _images_by_stem(folder: Path) -> dict[str, Path]:
     folder = Path(folder)
-    if not folder.is_dir():
-        raise ValueError(f"{folder}: not a folder")
+    if problem := path_problem(folder, folder=True):
+        raise ValueError(f"{folder}: {problem}; expected a folder of images")
     images = {}
     for path in sorted(folder.iterdir()):
         if path.suffix.lower() in IMAGE_SUFFIXES and not path.name.startswith("."):  # hidden: temporaries

@@ -1,8 +1,8 @@
 """``aerostereo-render``: scene (or the built-in demo world) -> KITTI-layout stereo dataset; ``compare``.
 
 Entry points for ``sim/cli.py``: :func:`build_parser` + :func:`run` (the dataset render, the default
-command), :func:`add_compare_parser` + :func:`run_compare` (``compare REAL_DIR RENDERED_DIR``), and
-:func:`render_main` (``argv -> exit code``). Bad input gives a one-line message on stderr and exit code 2.
+command) and :func:`add_compare_parser` + :func:`run_compare` (``compare REAL_DIR RENDERED_DIR``). Bad input
+raises a ``ValueError`` naming the file or option, which ``sim/cli.py`` reports as one line with exit code 2.
 """
 
 from __future__ import annotations
@@ -12,16 +12,15 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
+from capture.geotag_io import sidecar_path
+from flightplan.cli_support import (EXIT_INTERRUPTED, BadInput, Parser, folder_inputs, refuse_clobbering,
+                                    refuse_folders)
 from sim.contact_sheet import check_depth_written, write_contact_sheet
-from sim.dataset import FORMATS, DatasetError, parse_shard
+from sim.dataset import FORMATS, parse_shard
 from sim.metrics import compare_folders, summary_table
-from sim.frame_renderer import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderInputError,
-                                 RenderOptions)
-from sim.render_dataset import render_dataset
-from sim.scene import SceneError
+from sim.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
+from sim.render_dataset import is_demo_scene, render_dataset
 
-EXIT_BAD_INPUT = 2
-EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report Ctrl-C
 PROG = "aerostereo-render"
 
 
@@ -52,18 +51,18 @@ def _distortion(text: str) -> tuple[float, ...]:
 
 def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.ArgumentParser:
     """Options of the dataset render (added to ``parser`` if given, e.g. a subparser)."""
-    parser = parser or argparse.ArgumentParser(
+    parser = parser or Parser(
         prog=PROG, description="Render a stereo dataset (KITTI odometry layout + depth, disparity, poses) from a "
-                               "scene folder or the built-in demo world.",
-        epilog="Other commands: 'aerostereo-render fly --help' (fly a Litchi mission with the virtual drone), "
-               "'aerostereo-render compare --help' (photorealism of renders against photos), "
-               "'aerostereo-render export --help' (a rendered dataset in KITTI 2015, KITTI depth, VKITTI2 or TUM "
-               "layouts).")
+                               "scene folder or the built-in demo world.")
     add = parser.add_argument
     defaults = RenderOptions()
     add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
                                       "demo world (default: demo)")
-    add("--out", required=True, type=Path, help="dataset folder (created; an existing one is resumed)")
+    add("--out", required=True, type=Path, help="dataset folder (created; an existing one with the same settings "
+                                                "is resumed)")
+    add("--overwrite", action="store_true",
+        help="if --out holds a dataset with other settings, delete that dataset's files and render anew (only the "
+             "files the dataset wrote; anything else in the folder is kept)")
     add("--frames", type=int, default=defaults.frames, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default=defaults.mode,
         help="random poses (the paper), a trajectory, or replay: the reconstructed scene's own cameras "
@@ -91,7 +90,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--spp", type=int, default=defaults.spp, help="samples per pixel (anti-aliasing)")
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=defaults.workers, help="render processes (each builds the scene once)")
-    add("--shard", type=_shard, default=defaults.shard, help="render only frames I, I+N, I+2N... (I/N)")
+    add("--shard", type=_shard, default=defaults.shard,
+        help="render only frames I, I+N, I+2N... (I/N; default 0/1: every frame)")
     add("--formats", type=_formats, default=None,
         help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; replay of the scene's cameras: "
              f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")
@@ -114,42 +114,37 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          margin_m=args.margin, max_sky_fraction=args.max_sky)
 
 
-def _bad_input(message: str) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    return EXIT_BAD_INPUT
+def refuse_clobbering_render(args: argparse.Namespace) -> None:
+    """Refuse (:class:`BadInput`) a ``--out`` or ``--contact-sheet`` that names the scene (or a file in it), the
+    geotags (or their sidecar) or the other output, and a ``--contact-sheet`` that is a folder."""
+    scene = None if is_demo_scene(args.scene) else Path(args.scene)
+    geotags = None if args.geotags is None else [args.geotags, sidecar_path(args.geotags)]
+    refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags},
+                      {"--out": args.out, "--contact-sheet": args.contact_sheet})
+    refuse_folders({"--contact-sheet": args.contact_sheet})
 
 
 def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> int:
-    """Render the dataset described by ``args``; print a summary. Returns the exit code."""
+    """Render the dataset described by ``args``; print a summary. Returns the exit code (Ctrl-C: 130)."""
+    refuse_clobbering_render(args)
+    options = options_from_args(args)
+    if args.contact_sheet is not None:
+        check_depth_written(options.formats, f"{args.out} (--formats)")
     try:
-        options = options_from_args(args)
-        if args.contact_sheet is not None:
-            check_depth_written(options.formats, f"{args.out} (--formats)")
-        summary = render_dataset(args.scene, args.out, options,
+        summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite,
                                  command_line=sys.argv if command_line is None else command_line,
                                  progress=not args.quiet)
-        print(summary.text())
-        if args.contact_sheet is not None:
-            if not summary.finalized:
-                return _bad_input(f"{args.contact_sheet}: a contact sheet needs the whole dataset; "
-                                  f"{summary.remaining} frames are missing")
-            write_contact_sheet(args.out, args.contact_sheet)
-            print(f"contact sheet: {args.contact_sheet}")
-    except (RenderInputError, SceneError, DatasetError) as error:
-        return _bad_input(str(error))
-    except OSError as error:
-        return _bad_input(f"{error.filename or args.out}: {error.strerror}")
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted: rerun the same command to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
+    print(summary.text())
+    if args.contact_sheet is not None:
+        if not summary.finalized:
+            raise BadInput(f"{args.contact_sheet}: a contact sheet needs the whole dataset; "
+                           f"{summary.remaining} frames are missing")
+        write_contact_sheet(args.out, args.contact_sheet)
+        print(f"contact sheet: {args.contact_sheet}")
     return 0
-
-
-def render_main(argv: Sequence[str] | None = None) -> int:
-    """``aerostereo-render [options]`` -> exit code."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    args = build_parser().parse_args(argv)
-    return run(args, command_line=[PROG, *argv])
 
 
 def add_compare_parser(subparsers) -> argparse.ArgumentParser:
@@ -164,9 +159,6 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run_compare(args: argparse.Namespace) -> int:
-    """Print the comparison table of ``args.real_dir`` against ``args.rendered_dir``."""
-    try:
-        print(summary_table(compare_folders(args.real_dir, args.rendered_dir)))
-    except ValueError as error:
-        return _bad_input(str(error))
+    """Print the comparison table of ``args.real_dir`` against ``args.rendered_dir`` (writes no file)."""
+    print(summary_table(compare_folders(args.real_dir, args.rendered_dir)))
     return 0

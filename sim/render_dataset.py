@@ -33,6 +33,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
+from flightplan.cli_support import path_problem
 from sim.dataset import (
     AsyncFrameWriter,
     DatasetError,
@@ -106,9 +107,14 @@ class Job:
     threads: int
 
 
+def is_demo_scene(scene: str | os.PathLike | None) -> bool:
+    """Whether ``scene`` names the built-in demo world: ``None``, ``"demo"`` or ``"demo:VARIANT"``."""
+    return scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":")
+
+
 def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
-    """The scene folder: ``None``, ``"demo"`` or ``"demo:VARIANT"`` is the built-in demo world (built once, cached)."""
-    if scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":"):
+    """The scene folder: the built-in demo world (:func:`is_demo_scene`; built once, cached) or a folder."""
+    if is_demo_scene(scene):
         from sim.worlds import demo_scene_dir
 
         variant = str(scene or DEMO_SCENE).partition(":")[2] or "default"
@@ -117,8 +123,8 @@ def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
         except ValueError as error:
             raise RenderInputError(str(error)) from None
     path = Path(scene)
-    if not path.is_dir():
-        raise RenderInputError(f"{path}: scene folder not found")
+    if problem := path_problem(path, folder=True):
+        raise RenderInputError(f"{path}: {problem}; expected a scene folder (scene.json + mesh)")
     return path
 
 
@@ -179,9 +185,9 @@ def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, 
         raise RenderInputError(str(error)) from None
 
 
-def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
+def _open_writer(out_dir: Path, spec: DatasetSpec, overwrite: bool) -> KittiDatasetWriter:
     try:
-        return KittiDatasetWriter(out_dir, spec)
+        return KittiDatasetWriter(out_dir, spec, overwrite)
     except (DatasetError, ValueError) as error:
         raise RenderInputError(str(error)) from None
     except OSError as error:
@@ -189,10 +195,12 @@ def _open_writer(out_dir: Path, spec: DatasetSpec) -> KittiDatasetWriter:
 
 
 def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, options: RenderOptions,
-                   command_line: Sequence[str] | None = None, progress: bool = True) -> RenderSummary:
+                   command_line: Sequence[str] | None = None, progress: bool = True,
+                   overwrite: bool = False) -> RenderSummary:
     """Render (or resume) the dataset of ``options`` from ``scene`` into ``out_dir``; see the module docstring.
 
-    Raises :class:`RenderInputError` for bad input before anything is rendered.
+    A dataset of other settings already in ``out_dir`` is refused, or with ``overwrite`` deleted first (only its
+    own files). Raises :class:`RenderInputError` for bad input before anything is rendered.
     """
     start = time.perf_counter()
     _check_options(options)
@@ -205,7 +213,7 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
         spec = dataset_spec(renderer, scene_dir, options, sys.argv if command_line is None else command_line)
         shard = shard_frames(spec.frame_count, *options.shard)
         _check_resources(renderer, spec, out_dir, shard)
-        writer = _open_writer(out_dir, spec)
+        writer = _open_writer(out_dir, spec, overwrite)
         pending = writer.pending(shard)
         shard_size = len(shard)
         bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,

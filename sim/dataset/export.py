@@ -41,8 +41,8 @@ def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> l
     unknown = [name for name in layouts if name not in LAYOUT_WRITERS]
     if unknown or not layouts:
         raise DatasetError(f"unknown layouts {unknown}; choose from {', '.join(LAYOUTS)}")
-    source = DatasetSource(Path(source_dir))
     _refuse_overlap(Path(source_dir), Path(out_dir))
+    source = DatasetSource(Path(source_dir))
     writers = [LAYOUT_WRITERS[name](source, Path(out_dir)) for name in dict.fromkeys(layouts)]
     for frame in source.frames():
         for writer in writers:

@@ -13,6 +13,11 @@ together). The global files that depend on all frames -- ``frames.jsonl``, ``pos
 ``times.txt`` -- are written by :func:`finalize_dataset` once every frame exists; it is
 deterministic and can be run again at any time. ``dataset.json`` and ``calib.txt`` depend only
 on the rig and the run's settings and are written when the writer opens the folder.
+
+Other settings. A folder whose ``dataset.json`` describes another dataset is refused, unless the writer is
+opened with ``overwrite=True``: then :func:`remove_dataset` first deletes the files that dataset owns (its
+layout's folders and files, ``dataset.json`` last, so an interrupted removal is still refused or removed again)
+and nothing else in the folder.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import dataclasses
 import functools
 import json
 import os
+import shutil
 import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -46,6 +52,8 @@ from sim.dataset.kitti import (
 )
 
 DATASET_FORMAT = "aerostereo-dataset/1"
+#: What readers of ``dataset.json`` (finalize, resume, --overwrite, export) rely on.
+REQUIRED_KEYS = ("sequence", "frame_count", "cameras", "formats", "kitti_projections")
 FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png")
 DEFAULT_FORMATS = ("depth_exr", "disparity_png", "disparity_exr")
 STEREO_VIEWS = (0, 1)
@@ -168,16 +176,20 @@ def _dumps(record: Mapping) -> str:
     return json.dumps(record, indent=2, allow_nan=False) + "\n"
 
 
-def _open_description(layout: KittiLayout, description: dict) -> dict:
-    """Write ``dataset.json`` if absent; otherwise check it describes the same dataset (command line aside)."""
+def _open_description(layout: KittiLayout, description: dict, overwrite: bool = False) -> dict:
+    """Write ``dataset.json`` if absent; otherwise check it describes the same dataset (command line aside).
+
+    A different dataset is refused, or with ``overwrite`` removed (:func:`remove_dataset`) and replaced."""
     if layout.dataset_json.exists():
         existing = read_dataset_json(layout.root)
         differing = sorted(key for key in description.keys() | existing.keys()
                            if key != "command_line" and description.get(key) != existing.get(key))
-        if differing:
+        if not differing:
+            return existing
+        if not overwrite:
             raise DatasetError(f"{layout.dataset_json}: the folder holds a different dataset (differs in "
-                               f"{', '.join(differing)}); use another --out or delete it")
-        return existing
+                               f"{', '.join(differing)}); pass --overwrite to replace it, or choose another --out")
+        remove_dataset(layout.root)
     layout.dataset_json.parent.mkdir(parents=True, exist_ok=True)
     write_text_atomic(layout.dataset_json, _dumps(description))
     return description
@@ -198,7 +210,29 @@ def read_dataset_json(root: Path) -> dict:
         raise DatasetError(f"{path}: expected a JSON object, got a {type(description).__name__}")
     if description.get("format") != DATASET_FORMAT:
         raise DatasetError(f"{path}: format is {description.get('format')!r}, expected {DATASET_FORMAT!r}")
+    missing = [key for key in REQUIRED_KEYS if key not in description]
+    if missing:
+        raise DatasetError(f"{path}: no {', '.join(missing)}; not a complete {DATASET_FORMAT} description")
     return description
+
+
+def remove_dataset(root: Path) -> None:
+    """Delete the dataset in ``root``: the folders and files its ``dataset.json`` says it wrote (frames of every
+    camera and format, frame records, replay names, calib/times/poses/frames.jsonl, their temporaries), then
+    ``dataset.json``, then the layout's folders if left empty. Files the dataset did not write are kept."""
+    description = read_dataset_json(Path(root))
+    layout = KittiLayout(Path(root), description["sequence"])
+    views = range(len(description["cameras"]))
+    folders = {path.parent for view in views for path in view_files(layout, description["formats"], view, 0)}
+    folders |= {layout.frame_meta_dir, *(layout.replay_dir(view) for view in views)}
+    for folder in sorted(folders):
+        shutil.rmtree(folder, ignore_errors=True)
+    for path in (layout.calib_txt, layout.times_txt, layout.frames_jsonl, layout.poses_txt, layout.dataset_json):
+        remove_stale_temps(path)
+        path.unlink(missing_ok=True)
+    for folder in (layout.sequence_dir, layout.sequence_dir.parent, layout.poses_txt.parent):
+        if folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def view_files(layout: KittiLayout, formats: Sequence[str], view: int, index: int) -> dict[Path, str]:
@@ -240,11 +274,12 @@ def recorded_frames(layout: KittiLayout) -> set[int]:
 class KittiDatasetWriter:
     """Writes frames of one sequence; opening an existing folder resumes it (same settings required)."""
 
-    def __init__(self, out_dir: Path, spec: DatasetSpec):
+    def __init__(self, out_dir: Path, spec: DatasetSpec, overwrite: bool = False):
+        """Open (create, resume, or with ``overwrite`` replace a dataset of other settings in) ``out_dir``."""
         self.spec = spec
         self.layout = KittiLayout(Path(out_dir), spec.sequence)
         try:
-            self.description = _open_description(self.layout, dataset_description(spec))
+            self.description = _open_description(self.layout, dataset_description(spec), overwrite)
             self.layout.sequence_dir.mkdir(parents=True, exist_ok=True)
         except OSError as error:
             raise DatasetError(f"{out_dir}: cannot write the dataset there ({error.strerror})") from None

@@ -328,7 +328,7 @@ def test_geotag_with_a_pcap_without_fix_is_a_clear_error(shared_data, tmp_path, 
 def test_track_command_on_a_capture(capture, tmp_path, capsys):
     path, truth = capture
     assert main(["track", str(path), "--out", str(tmp_path / "t.csv"), "--kml", str(tmp_path / "t.kml")]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err  # the reader's report is a log: stderr
     assert "[duml]:" in printed and "10 no GPS fix" in printed
     rows = list(csv.DictReader((tmp_path / "t.csv").open()))
     assert sum(row["photo_event"] == "1" for row in rows) == len(truth["events"])

@@ -7,8 +7,9 @@ import os
 
 import pytest
 
-from flightplan.cli_support import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, format_bytes,
-                                    refuse_clobbering, require_disk, require_memory, run_cli)
+from flightplan.cli_support import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, folder_inputs,
+                                    format_bytes, path_problem, refuse_clobbering, require_disk, require_memory,
+                                    run_cli, stdout_to_stderr)
 
 
 def test_parser_errors_are_one_line_with_exit_2(capsys):
@@ -88,3 +89,46 @@ def test_size_checks_name_what_and_how_much(tmp_path):
     with pytest.raises(BadInput, match=r"needs about 8.88e\+05 PiB on disk"):
         require_disk(tmp_path, 1e21, "1e9 frames")
     assert format_bytes(1536 * 1024 ** 2) == "1.5 GiB"
+
+
+def test_help_shows_real_defaults_once(capsys):
+    parser = Parser(prog="tool")
+    parser.add_argument("--size", type=int, default=0, help="pixels")
+    parser.add_argument("--mode", default="fast", help="how (default fast, or slow)")
+    parser.add_argument("--name", help="optional, no default")
+    parser.add_argument("--out", required=True, help="where")
+    parser.add_argument("--quiet", action="store_true", help="say less")
+    text = " ".join(parser.format_help().split())
+    assert "pixels (default: 0)" in text  # 0 is a default worth showing, not a missing one
+    assert "how (default fast, or slow) --name" in text and "no default --out" in text
+    assert "where --quiet" in text and "say less" in text and "(default: False)" not in text
+
+
+def test_run_cli_returns_argparse_exit_codes(capsys):
+    parser = Parser(prog="tool")
+    parser.add_argument("--n", type=int)
+    add_version(parser)
+    assert run_cli("tool", lambda: parser.parse_args(["--n", "x"])) == EXIT_BAD_INPUT
+    assert run_cli("tool", lambda: parser.parse_args(["--version"])) == 0
+    assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_stdout_to_stderr_moves_python_and_c_level_writes(capfd):
+    print("before")
+    with stdout_to_stderr():
+        print("python inside")
+        os.write(1, b"fd 1 inside\n")
+    print("after")
+    out, err = capfd.readouterr()
+    assert out == "before\nafter\n" and err == "python inside\nfd 1 inside\n"
+
+
+def test_path_problem_and_folder_inputs(tmp_path):
+    (tmp_path / "a.jpg").write_bytes(b"x")
+    (tmp_path / "sub").mkdir()
+    assert path_problem(tmp_path, folder=True) is None and path_problem(tmp_path / "a.jpg", folder=False) is None
+    assert path_problem(tmp_path / "a.jpg", folder=True) == "is a file"
+    assert path_problem(tmp_path, folder=False) == "is a folder"
+    assert path_problem(tmp_path / "none", folder=True) == "not found"
+    assert folder_inputs(tmp_path) == [tmp_path, tmp_path / "a.jpg"]  # not the subfolder
+    assert folder_inputs(tmp_path / "a.jpg") == [tmp_path / "a.jpg"] and folder_inputs(None) == []

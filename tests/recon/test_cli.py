@@ -1,6 +1,7 @@
 """aerostereo-recon: clear errors on bad input, and (slow) the real DJI set end to end."""
 
 import json
+import os
 import shutil
 
 import numpy as np
@@ -12,6 +13,7 @@ from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm import SfmOptions
+from recon.stages import STAGES
 from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import HEIGHT, WIDTH, make_texture, write_nadir_photos
 
@@ -166,3 +168,44 @@ def test_partial_registration_names_the_photos_left_out(tmp_path):
     report = json.loads((recon.work / "sfm_report.json").read_text())
     assert report["registered"] == [f"view_{i}.png" for i in range(6)] and report["unregistered"] == ["z_blank.png"]
     assert "[sfm] WARNING: 1 photo(s) not registered: z_blank.png" in logs
+
+
+def test_stdout_is_only_the_json_result(tmp_path, capfd, monkeypatch):
+    """Stage lines, progress and what C libraries print (COLMAP writes to file descriptor 1) go to stderr, so
+    ``aerostereo-recon ... | python -c 'import json,sys; json.load(sys.stdin)'`` works. The stages are replaced at
+    their seam (``Recon.stage_*``) by ones that log and print the way the real ones do, the last writing
+    scene.json; everything else (priors, stamps, the CLI) is the real code."""
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])])
+    scene = {"mesh": "terrain.glb", "ground_height_range_m": [-1.0, 2.0], "valid_area_m": [[0, 0], [1, 0], [1, 1]]}
+
+    def noisy_stage(name):
+        def stage(recon):
+            recon.log(f"[{name}] working")
+            print(f"{name}: a library's print")
+            os.write(1, f"{name}: COLMAP's C++ log\n".encode())
+            if name == "scene":
+                (recon.scene_dir / "scene.json").write_text(json.dumps(scene))
+        return stage
+
+    for name in STAGES:
+        monkeypatch.setattr(Recon, f"stage_{name}", noisy_stage(name))
+    assert main(["--photos", str(tmp_path / "photos"), "--geotags", str(geotags), "--out", str(tmp_path / "s")]) == 0
+    out, err = capfd.readouterr()
+    result = json.loads(out)
+    assert result["scene"] == str(tmp_path / "s" / "scene.json") and result["mesh"] == "terrain.glb"
+    for name in STAGES:
+        assert f"[{name}] working" in err and f"{name}: a library's print" in err and f"{name}: COLMAP's C++" in err
+
+
+@pytest.mark.parametrize("outputs", [["--out", "{photos}"], ["--out", "{photos}/a.jpg"], ["--out", "{geotags}"]])
+def test_out_naming_an_input_is_refused_before_any_work(tmp_path, capsys, outputs):
+    blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
+    geotags = write_geotags(tmp_path, [geotag_row(n, (i, 0, 30), (1, 0, 0, 0)) for i, n in
+                                       enumerate(["a.jpg", "b.jpg", "c.jpg"])])
+    before = {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()}
+    out = [arg.format(photos=tmp_path / "photos", geotags=geotags) for arg in outputs]
+    code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", geotags, *out], capsys)
+    assert code == 2 and err.count("\n") == 1 and "--out" in err and "is also --" in err
+    assert {path: path.read_bytes() for path in tmp_path.rglob("*") if path.is_file()} == before

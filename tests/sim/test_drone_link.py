@@ -232,7 +232,7 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "scene.json not found" in err
     assert main(["fly", "--mission", str(tmp_path / "missing.csv"), "--out", str(tmp_path / "o")]) == 2
-    assert "missing.csv: no such mission file" in capsys.readouterr().err
+    assert "missing.csv: not found; expected a Litchi mission CSV" in capsys.readouterr().err
 
 
 def test_flight_logs_read_back_as_the_telemetry_sent(mission_csv, tmp_path):

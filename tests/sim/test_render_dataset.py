@@ -29,7 +29,7 @@ from sim.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
 from sim.frame_renderer import FrameRenderer, RenderOptions
 from sim.cli import main as cli_main
-from sim.render_cli import build_parser, options_from_args, render_main
+from sim.render_cli import build_parser, options_from_args
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR, camera_rotation
 
@@ -202,7 +202,7 @@ def _first_partial_frame(dataset: Path) -> int | None:
 def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_dir, tmp_path):
     killed = tmp_path / "killed"
     argv = _argv(scene_dir, killed, **KILL_OPTIONS)
-    code = f"import sys; from sim.render_cli import build_parser, options_from_args, render_main; sys.exit(render_main({argv!r}))"
+    code = f"import sys; from sim.cli import main; sys.exit(main({argv!r}))"
     process = subprocess.Popen([sys.executable, "-c", code], cwd=REPO_ROOT,
                                env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
     deadline, partial = time.monotonic() + 60, None
@@ -214,9 +214,9 @@ def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_d
     assert partial is not None, "the run ended before a frame was caught half-written"
     # One writer thread writes frames in order, so the frame after the half-written one is certainly unfinished.
     assert not (killed / f"sequences/00/frame_meta/{partial + 1:06d}.json").exists()
-    assert render_main(argv) == 0
+    assert cli_main(argv) == 0
     uninterrupted = tmp_path / "uninterrupted"
-    assert render_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
+    assert cli_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
     assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
     assert not [p for p in killed.rglob(".*.tmp*")]
 
@@ -224,7 +224,7 @@ def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_d
 def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
     out = tmp_path / "orbit"
     argv = _argv(scene_dir, out, mode="trajectory", frames=5, width=48, height=32, speed=4.0, rate=2.0, altitude=30)
-    assert render_main(argv) == 0
+    assert cli_main(argv) == 0
     records = frame_records(out)
     positions = np.array([r["position_enu_m"] for r in records])
     steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
@@ -236,7 +236,7 @@ def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
 @pytest.mark.parametrize("path", ["lawnmower", "loop"])
 def test_terrain_following_trajectories_keep_speed_and_height(scene_dir, tmp_path, path):
     out = tmp_path / path
-    assert render_main(_argv(scene_dir, out, mode="trajectory", trajectory=path, frames=4, width=32, height=24,
+    assert cli_main(_argv(scene_dir, out, mode="trajectory", trajectory=path, frames=4, width=32, height=24,
                              speed=6.0, rate=3.0, altitude=40)) == 0
     records = frame_records(out)
     steps = np.linalg.norm(np.diff([r["position_enu_m"] for r in records], axis=0)[:, :2], axis=1)
@@ -270,7 +270,7 @@ def test_replay_renders_exactly_where_the_photos_were_taken(scene_dir, tmp_path)
     positions = [(0.0, -5.0, 60.0), (3.0, -5.0, 61.0), (6.0, -4.0, 62.0)]
     geotags = _write_geotags(tmp_path, ORIGIN, positions)
     out = tmp_path / "replay"
-    assert render_main(_argv(scene_dir, out, mode="replay", geotags=geotags, width=48, height=32)) == 0
+    assert cli_main(_argv(scene_dir, out, mode="replay", geotags=geotags, width=48, height=32)) == 0
     records = frame_records(out)
     np.testing.assert_allclose([r["position_enu_m"] for r in records], positions, atol=1e-6)
     np.testing.assert_allclose(np.array(records[1]["T_world_cam"])[:3, :3], R_WORLD_NADIR, atol=1e-9)
@@ -283,7 +283,7 @@ def test_replay_renders_exactly_where_the_photos_were_taken(scene_dir, tmp_path)
 def test_without_a_scene_it_renders_the_demo_world(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # the demo world is built into this cache
     out = tmp_path / "demo"
-    assert render_main(["--scene", "demo:small", "--out", str(out), "--frames", "2", "--width", "64", "--height", "36",
+    assert cli_main(["--scene", "demo:small", "--out", str(out), "--frames", "2", "--width", "64", "--height", "36",
                         "--quiet"]) == 0
     description = json.loads((out / "dataset.json").read_text())
     assert description["scene"]["provenance"]["variant"] == "small"
@@ -295,13 +295,13 @@ def test_cli_writes_a_contact_sheet(reference, scene_dir, tmp_path):
     sheet = tmp_path / "sheet.png"
     out = tmp_path / "dataset"
     shutil.copytree(reference[0], out)
-    assert render_main(_argv(scene_dir, out, **SMALL) + ["--contact-sheet", str(sheet)]) == 0
+    assert cli_main(_argv(scene_dir, out, **SMALL) + ["--contact-sheet", str(sheet)]) == 0
     image = read_png(sheet)
     assert image.ndim == 3 and image.shape[1] > image.shape[0] > 100 and image.std() > 10
 
 
 def _error_of(capsys, argv: list[str]) -> str:
-    assert render_main(argv) == 2
+    assert cli_main(argv) == 2
     message = capsys.readouterr().err.strip()
     assert message.count("\n") == 0 and "Traceback" not in message
     return message
@@ -319,15 +319,13 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
     assert str(blocker / "out") in _error_of(capsys, _argv(scene_dir, blocker / "out", frames=1, width=16, height=8))
     assert "replay needs --geotags FILE, or a reconstructed scene" in _error_of(
         capsys, _argv(scene_dir, tmp_path / "d", mode="replay"))  # a scene without cameras.json
-    assert render_main(_argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8)) == 0
+    assert cli_main(_argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8)) == 0
     assert "differs in sampling" in _error_of(capsys, _argv(scene_dir, tmp_path / "f", frames=1, width=16, height=8,
                                                            seed=9))
     islet = write_scene(tmp_path / "islet", valid_half_size_m=25.0, ground_half_size_m=15.0)  # every view sees sky
     assert "sky/miss pixels" in _error_of(capsys, _argv(islet, tmp_path / "g", frames=2, width=16, height=8,
                                                         workers=2))
-    with pytest.raises(SystemExit) as exit_info:
-        render_main(_argv(scene_dir, tmp_path / "e", shard="2/2"))
-    assert exit_info.value.code == 2
+    assert "--shard must look like I/N" in _error_of(capsys, _argv(scene_dir, tmp_path / "e", shard="2/2"))
 
 
 def test_cli_defaults_are_the_render_options_defaults():
@@ -358,10 +356,10 @@ def test_ctrl_c_is_one_line_exit_130_and_a_rerun_resumes(scene_dir, tmp_path, ca
         return record(renderer, index)
 
     monkeypatch.setattr(FrameRenderer, "record", interrupted_at_frame_1)
-    assert render_main(argv) == 130
+    assert cli_main(argv) == 130
     assert capsys.readouterr().err.strip() == "aerostereo-render: interrupted: rerun the same command to resume"
     monkeypatch.setattr(FrameRenderer, "record", record)
-    assert render_main(argv) == 0
+    assert cli_main(argv) == 0
     assert "rendered 2 frames" in capsys.readouterr().out  # frame 0 was kept
 
 
@@ -378,7 +376,7 @@ def test_compare_prints_the_photorealism_table(reference, tmp_path, capsys):
 
 def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
     out = tmp_path / "three"
-    assert render_main(_argv(scene_dir, out, cameras=3, frames=2, width=40, height=24, baseline=0.3)) == 0
+    assert cli_main(_argv(scene_dir, out, cameras=3, frames=2, width=40, height=24, baseline=0.3)) == 0
     calib = {line.split(":")[0]: np.array(line.split()[1:], float).reshape(3, 4)
              for line in (out / "sequences/00/calib.txt").read_text().splitlines()}
     assert calib["P4"][0, 3] == pytest.approx(-calib["P4"][0, 0] * 0.6)  # third camera 2 x 0.3 m to the right
@@ -394,7 +392,7 @@ def test_lens_distortion_renders_through_the_distorted_lens(scene_dir, tmp_path,
     distortion = "-0.25,0.05,0.001,-0.002,0"
     argv = _argv(scene_dir, out, mode="replay", geotags=geotags, width=64, height=48, distortion=distortion)
     assert "disparity needs rectified" in _error_of(capsys, argv)
-    assert render_main(argv + ["--formats", "depth_exr"]) == 0
+    assert cli_main(argv + ["--formats", "depth_exr"]) == 0
     camera = json.loads((out / "dataset.json").read_text())["cameras"][0]
     assert camera["dist"] == [float(k) for k in distortion.split(",")]  # dataset.json states the lens
     lens = PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], 64, 48, dist=tuple(camera["dist"]))
@@ -442,3 +440,28 @@ def test_the_memory_estimate_counts_every_array_a_view_keeps(scene_dir):
     assert kept == render_memory_bytes([40 * 30] * len(views), 1, 1) == VIEW_BYTES_PER_PIXEL * 40 * 30 * len(views)
     # Supersampling adds each thread's sample pattern: 2 bytes per sample and pixel, twice while permuted.
     assert render_memory_bytes([40 * 30] * 2, 16, 3) - kept == 3 * 4 * 16 * 40 * 30
+
+
+def test_overwrite_replaces_a_dataset_of_other_settings_and_keeps_other_files(scene_dir, tmp_path, capsys):
+    """Other settings on an existing dataset are refused (one line naming --overwrite); with --overwrite the old
+    dataset's files go, files it did not write stay, and the result equals a fresh render byte for byte."""
+    out, fresh = tmp_path / "d", tmp_path / "fresh"
+    kept = [out / "notes.txt", out / "sequences" / "00" / "notes.txt"]
+    for path in kept:
+        path.parent.mkdir(parents=True)
+        path.write_text("the user's")
+    tiny = dict(width=16, height=8)
+    assert cli_main(_argv(scene_dir, out, frames=3, seed=1, **tiny)) == 0
+    before = dataset_bytes(out)
+    message = _error_of(capsys, _argv(scene_dir, out, frames=2, seed=2, **tiny))
+    assert "differs in frame_count, sampling" in message and "pass --overwrite" in message
+    assert dataset_bytes(out) == before
+    assert cli_main(_argv(scene_dir, out, frames=2, seed=2, **tiny) + ["--overwrite"]) == 0
+    assert cli_main(_argv(scene_dir, fresh, frames=2, seed=2, **tiny)) == 0
+    assert all(path.read_text() == "the user's" for path in kept)
+    for path in kept:
+        path.unlink()
+    assert dataset_bytes(out) == dataset_bytes(fresh)  # no frame 2 left over, nothing of seed 1
+    capsys.readouterr()
+    assert cli_main(_argv(scene_dir, out, frames=2, seed=2, **tiny) + ["--overwrite"]) == 0
+    assert "rendered 0 frames" in capsys.readouterr().out  # the same settings resume, even with --overwrite

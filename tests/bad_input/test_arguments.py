@@ -1,0 +1,302 @@
+"""The bad-input suite's argument cases: every CLI and subcommand refuses bad command lines with exit code 2 and
+one stderr line naming the argument or file, writes nothing, and never overwrites an input.
+
+Areas of their own files in this folder (numeric limits, telemetry and log files, geotag sanity, full disks) are
+not repeated here. Every case is refused before any work starts, so the table runs in a few seconds.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from tests.bad_input.harness import PROGRAMS, Case, Result, assert_refused, run_case
+
+MISSION, INGEST, RECON, RENDER = "aerostereo-mission", "aerostereo-ingest", "aerostereo-recon", "aerostereo-render"
+
+
+@dataclass(frozen=True)
+class Files:
+    """A case's setup: files (relative path -> bytes) and folders written into the case's folder; the test checks
+    afterwards that every file still holds its bytes (an output never overwrote it)."""
+
+    contents: dict[str, bytes]
+    folders: tuple[str, ...] = ()
+
+    def __call__(self, tmp: Path) -> None:
+        for name in self.folders:
+            (tmp / name).mkdir(parents=True, exist_ok=True)
+        for name, data in self.contents.items():
+            (tmp / name).parent.mkdir(parents=True, exist_ok=True)
+            (tmp / name).write_bytes(data)
+
+
+JPEG = b"\xff\xd8\xff\xe0 stands in for a photo; refused before it is read"
+PHOTOS = Files({f"photos/DJI_000{i}.JPG": JPEG for i in range(1, 4)})
+LOG = Files({"flight.csv": b"latitude,longitude\n40.1,44.5\n"})
+CAPTURE = Files({"x.duml": b"\x55\x0d\x04\x33 raw bytes", "x.duml.idx": b"index line\n"})
+GEOTAGS = Files({**PHOTOS.contents, "geotags.csv": b"image_name\n", "geotags.json": b"{}\n"})
+SCENE = Files({"scene/scene.json": b'{"mesh": "terrain.glb"}\n', "scene/terrain.glb": b"glTF"})
+MESHES = Files({"a.ply": b"ply A", "b.ply": b"ply B", "pairs.txt": b"0 0 0 0 0 0\n"})
+DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'})
+MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
+FOLDER = Files({}, folders=("folder",))
+
+CASES = [
+    # aerostereo-mission
+    Case("mission-no-out", MISSION, ["--demo"], r"required: --out"),
+    Case("mission-unknown-option", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--bogus"], r"unrecognized .*--bogus"),
+    Case("mission-bad-direction", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--direction", "up"],
+         r"--direction: invalid choice: 'up'"),
+    Case("mission-radius-not-a-number", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--radius", "far"],
+         r"--radius: expected a finite number, got 'far'"),
+    Case("mission-waypoints-not-an-int", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--waypoints", "1.5"],
+         r"--waypoints: invalid int value: '1.5'"),
+    Case("mission-ring-not-numbers", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--rings", "a:b"],
+         r"--rings: a ring is RADIUS:HEIGHT"),
+    Case("mission-out-is-a-folder", MISSION, ["--demo", "--out", "{tmp}/folder"],
+         r"--out .*folder: is a folder; expected the name of a file", FOLDER),
+    Case("mission-kml-is-a-folder", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--kml", "{tmp}/folder"],
+         r"--kml .*folder: is a folder", FOLDER),
+    Case("mission-kml-is-out", MISSION, ["--demo", "--out", "{tmp}/a.csv", "--kml", "{tmp}/a.csv"],
+         r"--kml .*a\.csv: is also --out"),
+    Case("mission-summary-is-plot", MISSION, ["--demo", "--out", "{tmp}/a.csv", "--plot", "{tmp}/p",
+                                              "--summary-json", "{tmp}/sub/../p"],
+         r"--summary-json .*: is also --plot"),
+    # aerostereo-ingest
+    Case("ingest-no-command", INGEST, [], r"aerostereo-ingest: error: .*required: COMMAND"),
+    Case("ingest-unknown-command", INGEST, ["frobnicate"], r"invalid choice: 'frobnicate'"),
+    Case("record-no-port", INGEST, ["record", "--out", "{tmp}/x.duml"], r"^aerostereo-ingest record: .*--port"),
+    Case("record-baud-not-a-number", INGEST, ["record", "--port", "loop://", "--baud", "fast", "--out",
+                                              "{tmp}/x.duml"], r"--baud: invalid int value: 'fast'"),
+    Case("decode-no-input", INGEST, ["decode", "--out", "{tmp}/t.csv"], r"required: input"),
+    Case("decode-input-missing", INGEST, ["decode", "{tmp}/none.duml", "--out", "{tmp}/t.csv"],
+         r"none\.duml: not found; expected a raw capture"),
+    Case("decode-input-is-a-folder", INGEST, ["decode", "{tmp}/folder", "--out", "{tmp}/t.csv"],
+         r"folder: is a folder; expected a raw capture", FOLDER),
+    Case("decode-out-is-a-folder", INGEST, ["decode", "{tmp}/x.duml", "--out", "{tmp}/folder"],
+         r"--out .*folder: is a folder; expected the name of a file", Files(CAPTURE.contents, folders=("folder",))),
+    Case("decode-out-is-input", INGEST, ["decode", "{tmp}/x.duml", "--out", "{tmp}/x.duml"],
+         r"--out .*x\.duml: is also INPUT", CAPTURE),
+    Case("decode-out-is-its-index", INGEST, ["decode", "{tmp}/x.duml", "--out", "{tmp}/x.duml.idx"],
+         r"--out .*x\.duml\.idx: is also INPUT", CAPTURE),
+    Case("geotag-no-photos", INGEST, ["geotag", "--log", "{tmp}/flight.csv", "--out", "{tmp}/g.csv"],
+         r"^aerostereo-ingest geotag: .*--photos", LOG),
+    Case("geotag-photos-is-a-file", INGEST, ["geotag", "--photos", "{tmp}/photos/DJI_0001.JPG", "--log",
+                                             "{tmp}/photos", "--out", "{tmp}/g.csv"],
+         r"--photos .*DJI_0001\.JPG: is a file; expected a folder of JPEG photos", PHOTOS),
+    Case("geotag-photos-missing", INGEST, ["geotag", "--photos", "{tmp}/none", "--log", "{tmp}/flight.csv",
+                                           "--out", "{tmp}/g.csv"], r"--photos .*none: not found", LOG),
+    Case("geotag-out-is-a-folder", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/photos",
+                                            "--out", "{tmp}/folder"], r"--out .*folder: is a folder",
+         Files(PHOTOS.contents, folders=("folder",))),
+    Case("geotag-clock-offset-word", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/flight.csv",
+                                              "--out", "{tmp}/g.csv", "--clock-offset", "soon"],
+         r"--clock-offset: expected 'auto' or a finite number", PHOTOS),
+    Case("geotag-out-is-a-photo", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/photos",
+                                           "--out", "{tmp}/photos/DJI_0001.JPG"],
+         r"--out .*DJI_0001\.JPG: is also --photos", PHOTOS),
+    Case("geotag-out-is-the-log", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/flight.csv",
+                                           "--out", "{tmp}/flight.csv"], r"--out .*flight\.csv: is also --log",
+         Files({**PHOTOS.contents, **LOG.contents})),
+    Case("geotag-sidecar-is-the-log", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/flight.json",
+                                               "--out", "{tmp}/flight.csv"], r"sidecar .*flight\.json: is also --log",
+         Files({**PHOTOS.contents, "flight.json": b"{}"})),
+    Case("geotag-colmap-ref-is-out", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/photos",
+                                              "--out", "{tmp}/g.csv", "--colmap-ref", "{tmp}/g.csv"],
+         r"--colmap-ref .*g\.csv: is also --out", PHOTOS),
+    Case("geotag-exif-dir-is-photos", INGEST, ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/photos",
+                                               "--out", "{tmp}/g.csv", "--write-exif", "--exif-dir", "{tmp}/photos"],
+         r"--exif-dir .*photos: is also --photos", PHOTOS),
+    Case("track-no-file", INGEST, ["track", "--out", "{tmp}/t.csv"], r"^aerostereo-ingest track: .*required: file"),
+    Case("track-bad-kind", INGEST, ["track", "{tmp}/flight.csv", "--kind", "gpx", "--out", "{tmp}/t.csv"],
+         r"--kind: invalid choice: 'gpx'", LOG),
+    Case("track-file-missing", INGEST, ["track", "{tmp}/none.csv", "--out", "{tmp}/t.csv"],
+         r"none\.csv: no such file"),
+    Case("track-out-is-input", INGEST, ["track", "{tmp}/flight.csv", "--out", "{tmp}/flight.csv"],
+         r"--out .*flight\.csv: is also FILE", LOG),
+    Case("track-kml-is-a-folder", INGEST, ["track", "{tmp}/flight.csv", "--kml", "{tmp}/folder"],
+         r"--kml .*folder: is a folder", Files(LOG.contents, folders=("folder",))),
+    Case("track-kml-is-out", INGEST, ["track", "{tmp}/flight.csv", "--out", "{tmp}/t", "--kml", "{tmp}/t"],
+         r"--kml .*t: is also --out", LOG),
+    Case("track-out-in-photo-folder", INGEST, ["track", "{tmp}/photos", "--out", "{tmp}/photos/DJI_0002.JPG"],
+         r"--out .*DJI_0002\.JPG: is also FILE", PHOTOS),
+    Case("list-unknown-option", INGEST, ["list", "--all"], r"unrecognized arguments: --all"),
+    # aerostereo-recon
+    Case("recon-no-photos", RECON, ["--out", "{tmp}/s"], r"required: --photos"),
+    Case("recon-bad-mesh", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--mesh", "nurbs"],
+         r"--mesh: invalid choice: 'nurbs'", PHOTOS),
+    Case("recon-image-size-word", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--image-size", "big"],
+         r"--image-size: invalid positive_int value: 'big'", PHOTOS),
+    Case("recon-photos-missing", RECON, ["--photos", "{tmp}/none", "--out", "{tmp}/s"],
+         r"none: not found; expected a folder of photos"),
+    Case("recon-photos-is-a-file", RECON, ["--photos", "{tmp}/photos/DJI_0001.JPG", "--out", "{tmp}/s"],
+         r"DJI_0001\.JPG: is a file; expected a folder of photos", PHOTOS),
+    Case("recon-out-is-photos", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/photos"],
+         r"--out .*photos: is also --photos", PHOTOS),
+    Case("recon-out-is-a-photo", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/photos/DJI_0003.JPG"],
+         r"--out .*DJI_0003\.JPG: is also --photos", PHOTOS),
+    Case("recon-out-is-geotags", RECON, ["--photos", "{tmp}/photos", "--geotags", "{tmp}/geotags.csv",
+                                         "--out", "{tmp}/geotags.csv"], r"--out .*geotags\.csv: is also --geotags",
+         GEOTAGS),
+    Case("recon-out-is-geotags-sidecar", RECON, ["--photos", "{tmp}/photos", "--geotags", "{tmp}/geotags.csv",
+                                                 "--out", "{tmp}/geotags.json"],
+         r"--out .*geotags\.json: is also --geotags", GEOTAGS),
+    Case("merge-no-pairs", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--out", "{tmp}/c.ply"],
+         r"^aerostereo-recon merge: .*required: --pairs", MESHES),
+    Case("merge-out-is-a", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt",
+                                   "--out", "{tmp}/a.ply"], r"--out .*a\.ply: is also A", MESHES),
+    Case("merge-out-is-b", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt",
+                                   "--out", "{tmp}/./b.ply"], r"--out .*b\.ply: is also B", MESHES),
+    Case("merge-out-is-pairs", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt",
+                                       "--out", "{tmp}/pairs.txt"], r"--out .*pairs\.txt: is also --pairs", MESHES),
+    Case("merge-out-is-a-folder", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt",
+                                          "--out", "{tmp}/folder"], r"--out .*folder: is a folder",
+         Files(MESHES.contents, folders=("folder",))),
+    Case("merge-pairs-is-a-folder", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/folder",
+                                            "--out", "{tmp}/c.ply"], r"folder: Is a directory",
+         Files(MESHES.contents, folders=("folder",))),
+    # aerostereo-render: the dataset render
+    Case("render-no-out", RENDER, ["--scene", "{tmp}/scene"], r"required: --out", SCENE),
+    Case("render-unknown-command", RENDER, ["frobnicate", "--out", "{tmp}/d"], r"invalid choice: 'frobnicate'"),
+    Case("render-bad-mode", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--mode", "movie"],
+         r"--mode: invalid choice: 'movie'", SCENE),
+    Case("render-frames-word", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--frames", "many"],
+         r"--frames: invalid int value: 'many'", SCENE),
+    Case("render-bad-formats", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--formats", "jpeg"],
+         r"--formats: unknown formats \['jpeg'\]", SCENE),
+    Case("render-scene-missing", RENDER, ["--scene", "{tmp}/none", "--out", "{tmp}/d"],
+         r"none: not found; expected a scene folder"),
+    Case("render-scene-is-a-file", RENDER, ["--scene", "{tmp}/scene/scene.json", "--out", "{tmp}/d"],
+         r"scene\.json: is a file; expected a scene folder", SCENE),
+    Case("render-out-is-scene", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/scene"],
+         r"--out .*scene: is also --scene", SCENE),
+    Case("render-out-is-the-mesh", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/scene/terrain.glb"],
+         r"--out .*terrain\.glb: is also --scene", SCENE),
+    Case("render-out-is-geotags", RENDER, ["--scene", "{tmp}/scene", "--mode", "replay", "--geotags",
+                                           "{tmp}/geotags.csv", "--out", "{tmp}/geotags.json"],
+         r"--out .*geotags\.json: is also --geotags", Files({**SCENE.contents, **GEOTAGS.contents})),
+    Case("render-sheet-is-out", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--contact-sheet", "{tmp}/d"],
+         r"--contact-sheet .*d: is also --out", SCENE),
+    Case("render-sheet-is-a-folder", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--contact-sheet",
+                                              "{tmp}/scene"], r"--contact-sheet .*scene: is also --scene", SCENE),
+    Case("render-sheet-is-another-folder", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--contact-sheet",
+                                                    "{tmp}/folder"], r"--contact-sheet .*folder: is a folder",
+         Files(SCENE.contents, folders=("folder",))),
+    Case("render-sheet-is-the-mesh", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--contact-sheet",
+                                              "{tmp}/scene/terrain.glb"],
+         r"--contact-sheet .*: is also --scene", SCENE),
+    # aerostereo-render compare
+    Case("compare-no-folders", RENDER, ["compare"], r"^aerostereo-render compare: .*required: real_dir"),
+    Case("compare-real-missing", RENDER, ["compare", "{tmp}/none", "{tmp}/folder"],
+         r"none: not found; expected a folder of images", FOLDER),
+    Case("compare-real-is-a-file", RENDER, ["compare", "{tmp}/flight.csv", "{tmp}/folder"],
+         r"flight\.csv: is a file; expected a folder of images",
+         Files(LOG.contents, folders=("folder",))),
+    # aerostereo-render export
+    Case("export-no-layout", RENDER, ["export", "{tmp}/dataset", "--out", "{tmp}/e"],
+         r"^aerostereo-render export: .*required: --layout", DATASET),
+    Case("export-bad-layout", RENDER, ["export", "{tmp}/dataset", "--layout", "kitti2012", "--out", "{tmp}/e"],
+         r"--layout: unknown layouts \['kitti2012'\]", DATASET),
+    Case("export-out-is-dataset", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out", "{tmp}/dataset"],
+         r"--out .*dataset: overlaps the source dataset", DATASET),
+    Case("export-incomplete-dataset-json", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out", "{tmp}/e"],
+         r"dataset\.json: no sequence, frame_count, cameras, formats, kitti_projections; not a complete", DATASET),
+    Case("export-out-inside-dataset", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out",
+                                               "{tmp}/dataset/tum"], r"--out .*tum: overlaps the source dataset",
+         DATASET),
+    # aerostereo-render fly
+    Case("fly-no-mission", RENDER, ["fly", "--out", "{tmp}/f"], r"^aerostereo-render fly: .*required: --mission"),
+    Case("fly-bad-link", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--link", "radio"],
+         r"--link: invalid choice: 'radio'", MISSION_CSV),
+    Case("fly-photo-size-word", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f",
+                                         "--photo-size", "big", "600"], r"--photo-size: invalid int value: 'big'",
+         MISSION_CSV),
+    Case("fly-start-utc-word", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f",
+                                        "--start-utc", "noon"], r"--start-utc: 'noon' is not an ISO 8601 time",
+         MISSION_CSV),
+    Case("fly-mission-missing", RENDER, ["fly", "--mission", "{tmp}/none.csv", "--out", "{tmp}/f"],
+         r"none\.csv: not found; expected a Litchi mission CSV"),
+    Case("fly-mission-is-a-folder", RENDER, ["fly", "--mission", "{tmp}/folder", "--out", "{tmp}/f"],
+         r"folder: is a folder; expected a Litchi mission CSV", FOLDER),
+    Case("fly-out-is-mission", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--scene", "{tmp}/scene",
+                                        "--out", "{tmp}/mission.csv"], r"--out .*mission\.csv: is also --mission",
+         MISSION_CSV),
+    Case("fly-out-holds-mission", RENDER, ["fly", "--mission", "{tmp}/out/mission.csv", "--scene", "{tmp}/scene",
+                                           "--out", "{tmp}/out"], r"--out .*out: holds --mission", MISSION_CSV),
+    Case("fly-out-is-scene", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--scene", "{tmp}/scene",
+                                      "--out", "{tmp}/scene"], r"--out .*scene: is also --scene", MISSION_CSV),
+]
+
+
+def _assert_inputs_untouched(case: Case, tmp: Path) -> None:
+    if isinstance(case.setup, Files):
+        changed = [name for name, data in case.setup.contents.items() if (tmp / name).read_bytes() != data]
+        assert not changed, f"{case.id}: inputs overwritten: {changed}"
+
+
+def _assert_no_result_on_stdout(result: Result, case: Case) -> None:
+    assert not result.out.strip(), f"{case.id}: stdout on a refusal: {result.out!r}"
+
+
+@pytest.mark.parametrize("case", CASES, ids=lambda c: c.id)
+def test_refused(case, tmp_path):
+    result = run_case(case, tmp_path)
+    assert_refused(result, case, tmp_path)
+    _assert_no_result_on_stdout(result, case)
+    _assert_inputs_untouched(case, tmp_path)
+
+
+def test_every_program_and_subcommand_has_cases():
+    covered = {(case.program, case.argv[0] if case.argv and not case.argv[0].startswith("-") else "")
+               for case in CASES}
+    expected = {(MISSION, ""), (RECON, ""), (RECON, "merge"), (RENDER, ""), (RENDER, "compare"), (RENDER, "fly"),
+                (RENDER, "export")}
+    expected |= {(INGEST, command) for command in ("record", "decode", "geotag", "track", "list")}
+    assert expected <= covered
+
+
+@pytest.mark.parametrize("program", sorted(PROGRAMS))
+def test_version_is_one_line_and_exit_0(program, tmp_path):
+    result = run_case(Case(f"{program}-version", program, ["--version"], ""), tmp_path)
+    assert result.code == 0 and result.err == ""
+    assert re.fullmatch(rf"{program} \S+\n", result.out), result.out
+
+
+@pytest.mark.parametrize("program, argv, commands", [
+    (RENDER, ["--help"], ["fly", "compare", "export"]),
+    (INGEST, ["--help"], ["record", "decode", "geotag", "track", "list"]),
+])
+def test_help_lists_the_commands(program, argv, commands, tmp_path):
+    result = run_case(Case(f"{program}-help", program, argv, ""), tmp_path)
+    assert result.code == 0
+    listed = re.findall(r"^\s{4}(\w+)\s", result.out, flags=re.MULTILINE)
+    assert set(commands) <= set(listed), result.out
+
+
+@pytest.mark.parametrize("program, argv, option, default", [
+    (RENDER, ["--help"], "--fov", "80.0"),
+    (RENDER, ["--help"], "--seed", "0"),
+    (RENDER, ["--help"], "--workers", "1"),
+    (RENDER, ["fly", "--help"], "--scene", "demo"),
+    (RECON, ["--help"], "--max-features", "8192"),
+    (RECON, ["--help"], "--mapper", "incremental"),
+    (RECON, ["merge", "--help"], "--out", None),
+    (MISSION, ["--help"], "--direction", "cw"),
+    (INGEST, ["record", "--help"], "--baud", "115200"),
+    (INGEST, ["geotag", "--help"], "--clock-offset", "auto"),
+])
+def test_help_shows_defaults(program, argv, option, default, tmp_path):
+    """Each option's help paragraph names its default (``None`` for required options: they have none)."""
+    result = run_case(Case(f"{program}-help", program, argv, ""), tmp_path)
+    assert result.code == 0
+    paragraph = re.search(rf"^\s+{re.escape(option)}\b.*?(?=^\s+-|\Z)", result.out, flags=re.MULTILINE | re.DOTALL)
+    assert paragraph, result.out
+    text = " ".join(paragraph.group(0).split())
+    if default is None:
+        assert "default" not in text, text
+    else:
+        assert re.search(rf"default:? {re.escape(default)}\b", text), text
