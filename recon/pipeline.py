@@ -305,10 +305,10 @@ class Recon:
             if self.options.texture == "atlas":
                 textured = texture_atlas(surface, photos, self.options.atlas_options, count,
                                          log=lambda message: self.log(f"[texture] {message}"))
-                encoded, texel_m, coverage = textured.glb(), textured.texel_m, textured.coverage
+                encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
             else:
                 textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
-                encoded, texel_m, coverage = texturing.textured_glb(surface, textured), textured.texels.texel_m, \
+                encoded, texel_m, coverage = texturing.textured_glb(surface, textured, self.priors.origin), textured.texels.texel_m, \
                     textured.coverage
         with atomic_path(self.work / "terrain.glb") as tmp:
             tmp.write_bytes(encoded)
