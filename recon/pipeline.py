@@ -49,6 +49,7 @@ from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
+from sim.worlds.glb import GEOREF_FORMAT
 
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
@@ -180,10 +181,13 @@ class Recon:
         self.held_out = frozenset(self.names[k - 1::k] if k else ())
 
     def inputs(self) -> dict[str, dict]:
-        """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags)."""
+        """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags;
+        texture: the glTF convention it writes, so a terrain.glb written before the +Y-up GLBs is redone, not
+        taken for one)."""
         geotags = "exif" if self.geotags_csv is None else {
             path.name: file_sha256(path) for path in (self.geotags_csv, sidecar_path(self.geotags_csv))}
-        return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags}}
+        return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags},
+                "texture": {"glb": GEOREF_FORMAT}}
 
     def run(self) -> dict:
         """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.
