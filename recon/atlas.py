@@ -33,6 +33,7 @@ import xatlas
 from PIL import Image
 from scipy import ndimage, sparse
 
+from flightplan.geodesy import LocalFrame
 from recon.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
 from sim.camera import project_world_points, row_dots
 from sim.raycast import occluded
@@ -97,11 +98,12 @@ class Atlas:
     coverage: float
     texel_m: float
 
-    def glb(self, generator: str = "recon.atlas") -> bytes:
-        """Binary glTF of the textured mesh (ENU metres as stored), the atlas embedded as JPEG."""
+    def glb(self, origin: LocalFrame, generator: str = "recon.atlas") -> bytes:
+        """Binary glTF of the textured mesh (ENU metres at ``origin``, stored +Y up and georeferenced by
+        sim/worlds/glb.py), the atlas embedded as JPEG."""
         buffer = io.BytesIO()
         Image.fromarray(self.image).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
-        return encode_textured_glb(self.vertices, self.faces, self.uv, buffer.getvalue(), generator)
+        return encode_textured_glb(self.vertices, self.faces, self.uv, buffer.getvalue(), generator, origin)
 
 
 # ---------------------------------------------------------------- 1. candidate views

@@ -81,9 +81,10 @@ def relative_pose(ref: View, src: View) -> tuple[np.ndarray, np.ndarray]:
     return rotation, src.t - rotation @ ref.t
 
 
-def sgbm_disparity(left: np.ndarray, right: np.ndarray, min_disp: int, num_disp: int, block: int) -> np.ndarray:
-    """Semi-global matching disparity (float32 pixels, NaN where invalid) of a rectified grey pair."""
-    sgbm = cv2.StereoSGBM_create(
+def sgbm_matcher(min_disp: int, num_disp: int, block: int) -> cv2.StereoSGBM:
+    """OpenCV's semi-global matcher as this stage configures it (disparities ``min_disp`` .. ``min_disp + num_disp``
+    pixels, ``block`` x ``block`` matching window)."""
+    return cv2.StereoSGBM_create(
         minDisparity=min_disp,
         numDisparities=num_disp,
         blockSize=block,
@@ -95,17 +96,22 @@ def sgbm_disparity(left: np.ndarray, right: np.ndarray, min_disp: int, num_disp:
         speckleRange=2,
         mode=cv2.STEREO_SGBM_MODE_SGBM_3WAY,
     )
-    disparity = sgbm.compute(left, right).astype(np.float32) / 16.0
+
+
+def sgbm_disparity(left: np.ndarray, right: np.ndarray, min_disp: int, num_disp: int, block: int) -> np.ndarray:
+    """Semi-global matching disparity (float32 pixels, NaN where invalid) of a rectified grey pair."""
+    disparity = sgbm_matcher(min_disp, num_disp, block).compute(left, right).astype(np.float32) / 16.0
     disparity[disparity < min_disp] = np.nan
     return disparity
 
 
 def pair_depth(ref_img: np.ndarray, src_img: np.ndarray, ref: View, src: View,
-               depth_range: tuple[float, float], block: int = 5) -> np.ndarray:
+               depth_range: tuple[float, float], block: int = 5, disparity=sgbm_disparity) -> np.ndarray:
     """Planar depth (H, W) float32 of the reference view from one source view; NaN where unknown.
 
     Images are grey uint8 of the same size. ``depth_range`` (metres, min < max) bounds the disparity search.
-    Handles horizontal and vertical rectifications and either ordering of the two cameras.
+    Handles horizontal and vertical rectifications and either ordering of the two cameras. ``disparity``: the
+    matcher, called like :func:`sgbm_disparity` on the rectified pair (tools/bench_dense_filter.py tries others).
     """
     h, w = ref_img.shape
     rotation, translation = relative_pose(ref, src)
@@ -130,11 +136,11 @@ def pair_depth(ref_img: np.ndarray, src_img: np.ndarray, ref: View, src: View,
     d_near, d_far = focal_baseline / depth_range[0], focal_baseline / depth_range[1]
     min_disp = int(np.floor(d_far)) - 2
     num_disp = int(np.ceil((d_near - min_disp + 2) / 16.0)) * 16
-    disparity = sgbm_disparity(np.ascontiguousarray(to_canonical(rect_ref)),
+    rect_disparity = disparity(np.ascontiguousarray(to_canonical(rect_ref)),
                                np.ascontiguousarray(to_canonical(rect_src)), min_disp, num_disp, block)
-    disparity = disparity[:, ::-1] if offset > 0 else disparity
-    disparity = disparity.T if vertical else disparity
-    rect_depth = focal_baseline / disparity
+    rect_disparity = rect_disparity[:, ::-1] if offset > 0 else rect_disparity
+    rect_disparity = rect_disparity.T if vertical else rect_disparity
+    rect_depth = focal_baseline / rect_disparity
     return rectified_to_view_depth(rect_depth, ref.K, r1, p1)
 
 

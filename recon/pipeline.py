@@ -50,6 +50,7 @@ from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
+from sim.worlds.glb import GEOREF_FORMAT
 
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
@@ -184,10 +185,13 @@ class Recon:
         self.held_out = frozenset(self.names[k - 1::k] if k else ())
 
     def inputs(self) -> dict[str, dict]:
-        """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags)."""
+        """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags;
+        texture: the glTF convention it writes, so a terrain.glb written before the +Y-up GLBs is redone, not
+        taken for one)."""
         geotags = "exif" if self.geotags_csv is None else {
             path.name: file_sha256(path) for path in (self.geotags_csv, sidecar_path(self.geotags_csv))}
-        return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags}}
+        return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags},
+                "texture": {"glb": GEOREF_FORMAT}}
 
     def run(self) -> dict:
         """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.
@@ -328,10 +332,10 @@ class Recon:
                 textured = texture_atlas(surface, photos, self.options.atlas_options, count,
                                          log=lambda message: self.log(f"[texture] {message}"),
                                          held_out=self.held_out_photos())
-                encoded, texel_m, coverage = textured.glb(), textured.texel_m, textured.coverage
+                encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
             else:
                 textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
-                encoded, texel_m, coverage = texturing.textured_glb(surface, textured), textured.texels.texel_m, \
+                encoded, texel_m, coverage = texturing.textured_glb(surface, textured, self.priors.origin), textured.texels.texel_m, \
                     textured.coverage
         with atomic_path(self.work / "terrain.glb") as tmp:
             tmp.write_bytes(encoded)

@@ -38,14 +38,15 @@ def scene_cameras(model: pycolmap.Reconstruction, gains: Mapping[str, float],
 
 
 def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, provenance: dict) -> dict:
-    """``scene.json`` content for an ENU mesh (no vertex offset): height range and valid area from the mesh."""
+    """``scene.json`` content for an ENU mesh (no vertex offset): height range and valid area from the mesh; a GLB
+    (ours: sim/worlds/glb.py) is stored +Y up, a PLY as ENU."""
     v = np.asarray(mesh.vertices, dtype=np.float64)
     return {
         "format": SCENE_FORMAT,
         "mesh": mesh_name,
         "origin": origin.to_dict(),
         "units": "m",
-        "up_axis": "z",
+        "up_axis": "y" if mesh_name.endswith(".glb") else "z",
         "frame": "enu",
         "vertex_offset_m": [0.0, 0.0, 0.0],
         "ground_height_range_m": [float(v[:, 2].min()), float(v[:, 2].max())],

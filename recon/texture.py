@@ -31,6 +31,7 @@ import trimesh
 from PIL import Image
 from scipy import ndimage
 
+from flightplan.geodesy import LocalFrame
 from recon.sfm import camera_from_colmap, camera_poses
 from sim.camera import PinholeCamera, project_world_points
 from sim.raycast import default_workers, intersect, occluded
@@ -303,13 +304,14 @@ def fill_uncovered(image: np.ndarray, covered: np.ndarray) -> np.ndarray:
     return image[tuple(nearest)]
 
 
-def textured_glb(mesh: trimesh.Trimesh, ortho: Orthophoto, generator: str = "recon.texture") -> bytes:
-    """Binary glTF of ``mesh`` (ENU metres, z up as stored) with UVs into the orthophoto, embedded as JPEG."""
+def textured_glb(mesh: trimesh.Trimesh, ortho: Orthophoto, origin: LocalFrame, generator: str = "recon.texture") -> bytes:
+    """Binary glTF of ``mesh`` (ENU metres at ``origin``; stored +Y up and georeferenced by sim/worlds/glb.py) with
+    UVs into the orthophoto, embedded as JPEG."""
     buffer = io.BytesIO()
     Image.fromarray(ortho.image).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
     vertices = np.asarray(mesh.vertices, dtype=np.float64)
     return encode_textured_glb(vertices, np.asarray(mesh.faces), ortho.texels.uv(vertices[:, :2]),
-                               buffer.getvalue(), generator)
+                               buffer.getvalue(), generator, origin)
 
 
 def load_photos(model, image_dir, read_rgb) -> list[Photo]:

@@ -2,7 +2,8 @@
 
 A scene folder holds ``scene.json``, the mesh it names and, for a reconstruction, the ``cameras.json`` it names
 (its registered photos, sim/scene_cameras.py; see docs/interfaces.md). Vertices are converted
-in float64 (``ENU = stored - vertex_offset_m``, glTF y-up rotated to z-up), then *recentred* on the
+in float64 (``ENU = stored - vertex_offset_m``, glTF +Y-up rotated to ENU: our GLBs say so in their
+``scenes[0].extras`` georeference, sim/worlds/glb.py; other meshes by scene.json's ``up_axis``), then *recentred* on the
 mesh's bounding-box centre and only then cast to float32 for embree: float32 has ~0.5 m spacing at
 UTM northings, a few micrometres near the origin.
 """
@@ -25,10 +26,9 @@ from flightplan.jsonfile import loads_json
 from sim.mesh_file import check_mesh_file
 from sim.scene_cameras import CamerasError, SceneCamera, read_cameras
 from sim.shade import MAX_TEXTURE_SIDE, linear_texture
+from sim.worlds.glb import GEOREF_FORMAT, GEOREF_KEY, enu_from_gltf
 
 SCENE_FORMAT = "aerostereo-scene/1"
-#: glTF "y up" (x east, y up, z south) -> ENU (east, north, up).
-_Y_UP_TO_ENU = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
 
 
 @functools.cache
@@ -228,16 +228,36 @@ def read_scene_cameras(scene_dir: Path, meta: dict) -> tuple[SceneCamera, ...]:
 
 
 def read_scene_mesh_enu(scene_dir: Path, meta: dict) -> tuple[np.ndarray, np.ndarray, Surface]:
-    """The mesh of a scene folder in the scene's ENU metres (``up_axis`` and ``vertex_offset_m`` of its
-    ``scene.json`` ``meta`` applied): float64 vertices, faces and :class:`Surface`."""
-    vertices, faces, surface = read_mesh(Path(scene_dir) / meta["mesh"])
-    if meta.get("up_axis", "z") == "y":
-        vertices = vertices @ _Y_UP_TO_ENU.T
+    """The mesh of a scene folder in the scene's ENU metres (its up axis, see :func:`mesh_up_axis`, and the
+    ``vertex_offset_m`` of its ``scene.json`` ``meta`` applied): float64 vertices, faces and :class:`Surface`."""
+    path = Path(scene_dir) / meta["mesh"]
+    vertices, faces, surface, georef = read_mesh(path)
+    if mesh_up_axis(meta, georef, path) == "y":
+        vertices = enu_from_gltf(vertices)
     return vertices - np.asarray(meta.get("vertex_offset_m", [0, 0, 0]), dtype=np.float64), faces, surface
 
 
-def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface]:
-    """Read a mesh file with trimesh -> float64 vertices (as stored), faces, and its :class:`Surface`."""
+def mesh_up_axis(meta: dict, georef: dict | None, path: Path) -> str:
+    """"y" (glTF: x east, y up, z south) or "z" (ENU) for the mesh file at ``path``: a GLB with our georeference
+    ``georef`` is +Y up; a mesh without one (older demo worlds and reconstructions: ENU, z up; foreign files) is
+    what scene.json's ``up_axis`` says (default "z"). Raise :class:`SceneError` where the two disagree."""
+    if georef is None:
+        return meta.get("up_axis", "z")
+    if not isinstance(georef, dict) or georef.get("format") != GEOREF_FORMAT:
+        raise SceneError(f"{path}: scenes[0].extras.{GEOREF_KEY} must have \"format\": \"{GEOREF_FORMAT}\", "
+                         f"got {georef!r}")
+    if meta.get("up_axis", "y") != "y":
+        raise SceneError(f"{path}: the GLB says it is +Y up ({GEOREF_KEY}) but scene.json says "
+                         f"\"up_axis\": {meta['up_axis']!r}")
+    if georef.get("origin") != meta["origin"]:
+        raise SceneError(f"{path}: the GLB's georeference origin {georef.get('origin')} is not scene.json's "
+                         f"origin {meta['origin']}")
+    return "y"
+
+
+def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface, dict | None]:
+    """Read a mesh file with trimesh -> float64 vertices (as stored), faces, its :class:`Surface` and its
+    aerostereo georeference (``scenes[0].extras`` of a GLB written by sim/worlds/glb.py; None for other files)."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
@@ -246,12 +266,14 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface]:
     except BadInput as error:  # declares more than can be loaded, or more than this machine's memory holds
         raise SceneError(str(error)) from None
     try:
-        mesh = trimesh.load(path, force="mesh", process=False)
+        loaded = trimesh.load(path, force="scene", process=False)
+        mesh = loaded.to_mesh()
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise SceneError(f"{path}: trimesh cannot read this mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise SceneError(f"{path}: no triangles found")
-    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces), _surface_of(mesh, path)
+    georef = loaded.metadata.get(GEOREF_KEY)
+    return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces), _surface_of(mesh, path), georef
 
 
 def _surface_of(mesh: trimesh.Trimesh, path: Path) -> Surface:

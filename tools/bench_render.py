@@ -5,9 +5,13 @@ and samples per pixel against image error.
 
 Scene: a ``2 * cells**2``-triangle height field over 1 km (default 2 M triangles, 1 m cells) and, with
 ``--scene``, any scene folder (e.g. the demo world written by ``sim.worlds``). Camera: 1280x720,
-fx = fy = 1100 px, 400 m above the ground pitched 45 degrees down, stereo baseline 1 m, sun at 35 degrees
-(the research notes' set-up, so Mray/s compare with their embreex / Open3D / Blender figures).
+fx = fy = 1100 px, 400 m above the ground pitched 45 degrees down, stereo baseline 1 m, sun at 35 degrees.
 Each table prints time and error side by side; ratios are against a baseline measured in the same run.
+
+Peers are measured in the same run, on the same scene (``--peers-scene``, default the demo world's mesh), camera,
+resolution and thread count, when installed (the ``bench`` extra): Open3D's ``RaycastingScene.cast_rays`` and
+Blender's Cycles through ``bpy`` (1 spp, the scene's GLB imported as it is: +Y up becomes Blender's ENU), each
+against our embree caster's planar depth; "not installed" otherwise.
 """
 
 from __future__ import annotations
@@ -17,29 +21,26 @@ import multiprocessing
 import os
 import statistics
 import sys
+import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
+import OpenEXR  # noqa: E402
 
 from sim.camera import PinholeCamera, Rig, camera_rays, look_at  # noqa: E402
-from sim.raycast import default_workers, intersect  # noqa: E402
+from sim.raycast import default_workers, intersect, map_blocks  # noqa: E402
 from sim.render import StageTimes, Sun, render  # noqa: E402
-from sim.scene import load_scene  # noqa: E402
+from sim.scene import Scene, load_scene, read_scene_json  # noqa: E402
 from sim.synthetic import height_field_scene  # noqa: E402
+from sim.worlds import demo_scene_dir  # noqa: E402
 
 CAMERA = PinholeCamera(1100.0, 1100.0, 639.5, 359.5, 1280, 720)
 SUN = Sun(azimuth_deg=135.0, elevation_deg=35.0)
-#: Research-note figures for 1280x720 at 2 M triangles on this 2-core machine (raycast-peers.md).
-PEERS = (
-    ("embreex run(), 1 thread (notes)", 4.45),
-    ("embreex ThreadPool(2), 8 row blocks (notes)", 8.6),
-    ("Open3D 0.20 cast_rays, 2 threads (notes)", 9.0),
-)
-BLENDER_S_PER_VIEW = 0.98
 
 
 def oblique_pose(scene, height_m=400.0, pitch_deg=45.0):
@@ -63,8 +64,7 @@ def stereo_frame_table(scene, frames: int) -> float:
         stages.append(timings)
     total = statistics.median(totals)
     print(f"\n1280x720 stereo frame, 1 spp, {default_workers()} threads, median of {frames}: {1000 * total:.0f} ms "
-          f"(target <= 500, stretch 350; Blender Cycles: {1000 * 2 * BLENDER_S_PER_VIEW:.0f} ms for two views, "
-          f"{2 * BLENDER_S_PER_VIEW / total:.1f}x)")
+          f"(target <= 500, stretch 350; Blender: see the peers table)")
     # Every block runs all stages on one thread, so stages overlap in time: split the frame's wall time by
     # each stage's share of the summed thread time.
     names = ("rays", "cast", "shadows", "shade", "film")
@@ -101,7 +101,7 @@ def _cast_rows(block):
 
 
 def throughput_table(scene) -> None:
-    """Mray/s: 1 thread, the thread pool, a fork process pool, against the research figures."""
+    """Mray/s: 1 thread, the thread pool, a fork process pool (peers: :func:`peers_table`)."""
     rays = camera_rays(CAMERA, oblique_pose(scene))
     workers = default_workers()
     single = cast_rate(scene, rays, pool=ThreadPoolExecutor(1))
@@ -118,9 +118,154 @@ def throughput_table(scene) -> None:
     print(f"\nprimary rays (closest hit + barycentrics + normals), {len(scene.faces) / 1e6:.2f} M triangles")
     print(f"{'caster':<46} {'Mray/s':>7} {'vs 1 thread':>12}")
     rows = [("sim.raycast.intersect, 1 thread", single), (f"sim.raycast.intersect, {workers} threads", threaded),
-            (f"embree DISTANCE, {workers} fork processes", processes)] + list(PEERS)
+            (f"embree DISTANCE, {workers} fork processes", processes)]
     for name, rate in rows:
         print(f"{name:<46} {rate:>7.2f} {rate / single:>11.2f}x")
+
+
+@dataclass(frozen=True)
+class PeerRun:
+    """One caster's run on the peers' view: setup seconds (scene build or import), median seconds per view, and
+    planar depth (H*W,) float32 metres in image order, +inf on miss."""
+
+    setup_s: float
+    view_s: float
+    depth: np.ndarray
+
+
+def median_seconds(function, runs: int = 5) -> float:
+    """Median wall time of ``runs`` calls of ``function()`` after one warm-up call."""
+    function()
+    seconds = []
+    for _ in range(runs):
+        start = time.perf_counter()
+        function()
+        seconds.append(time.perf_counter() - start)
+    return statistics.median(seconds)
+
+
+def ours_run(scene, rays, workers: int) -> PeerRun:
+    """Our caster (:func:`sim.raycast.intersect`: embree via embreex; closest hit, barycentrics, normals, misses
+    cast again) on ``rays``, ``workers`` threads; setup: building the :class:`Scene` (embree BVH) again."""
+    start = time.perf_counter()
+    Scene(scene.vertices, scene.faces, scene.surface)
+    setup_s = time.perf_counter() - start
+    with ThreadPoolExecutor(workers) as pool:
+        seconds = median_seconds(lambda: intersect(scene, rays.origin, rays.directions, pool))
+        t = intersect(scene, rays.origin, rays.directions, pool).t
+    return PeerRun(setup_s, seconds, t * rays.depth_scale)
+
+
+def embree_distance_run(scene, rays, workers: int) -> PeerRun:
+    """embreex's bare ``DISTANCE`` query (t only, no normals, no second cast of misses) in ``workers`` threads:
+    the caster under :func:`ours_run`, for a like-for-like time against the peers."""
+    origins = np.broadcast_to(scene.to_local(rays.origin), rays.directions.shape)
+    t = np.empty(len(rays.directions), np.float32)
+
+    def cast(block: slice) -> None:
+        t[block] = scene.embree.run(origins[block], rays.directions[block], query="DISTANCE")
+
+    with ThreadPoolExecutor(workers) as pool:
+        seconds = median_seconds(lambda: map_blocks(cast, len(t), pool))
+    t[t >= 1e37] = np.inf  # embree's miss value
+    return PeerRun(0.0, seconds, t * rays.depth_scale)
+
+
+def open3d_run(scene, rays, workers: int) -> PeerRun | str:
+    """Open3D's ``RaycastingScene.cast_rays`` on the same recentred float32 triangles and rays, ``workers``
+    threads; or why it was not measured."""
+    try:
+        import open3d as o3d
+    except (ImportError, OSError) as error:  # OSError: a system library it links is missing
+        return f"not installed ({type(error).__name__}: {error})"
+    start = time.perf_counter()
+    raycaster = o3d.t.geometry.RaycastingScene()
+    raycaster.add_triangles(o3d.core.Tensor(scene.to_local(scene.vertices)),
+                            o3d.core.Tensor(scene.faces.astype(np.uint32)))
+    origins = np.broadcast_to(scene.to_local(rays.origin), rays.directions.shape)
+    tensor = o3d.core.Tensor(np.ascontiguousarray(np.hstack([origins, rays.directions]), dtype=np.float32))
+    raycaster.cast_rays(tensor[:1], nthreads=workers)  # Open3D builds its BVH on the first cast
+    setup_s = time.perf_counter() - start
+    seconds = median_seconds(lambda: raycaster.cast_rays(tensor, nthreads=workers))
+    t = raycaster.cast_rays(tensor, nthreads=workers)["t_hit"].numpy()
+    return PeerRun(setup_s, seconds, t * rays.depth_scale)
+
+
+def blender_run(scene_dir: Path, pose: np.ndarray, workers: int) -> PeerRun | str:
+    """Blender Cycles through ``bpy``: the scene's GLB imported as it is (Blender turns glTF's +Y up into its
+    +Z up, so its world is our ENU), a camera with :data:`CAMERA`'s intrinsics at ``pose``, 1 sample per pixel,
+    ``workers`` threads, the depth pass read from a multilayer EXR; or why it was not measured."""
+    try:
+        import bpy
+        from mathutils import Matrix
+    except ImportError as error:
+        return f"not installed ({type(error).__name__}: {error})"
+    start = time.perf_counter()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    bpy.ops.import_scene.gltf(filepath=str(Path(scene_dir) / read_scene_json(scene_dir)["mesh"]))
+    render_scene = bpy.context.scene
+    camera = bpy.data.cameras.new("camera")
+    camera.sensor_fit, camera.sensor_width, camera.clip_end = "HORIZONTAL", 36.0, 1e5
+    camera.lens = CAMERA.fx * camera.sensor_width / CAMERA.width  # square pixels, centred principal point
+    camera_object = bpy.data.objects.new("camera", camera)
+    render_scene.collection.objects.link(camera_object)
+    camera_object.matrix_world = Matrix((pose @ np.diag([1.0, -1.0, -1.0, 1.0])).tolist())  # OpenCV -> Blender axes
+    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    render_scene.collection.objects.link(sun)
+    sun.rotation_euler = (np.radians(90.0 - SUN.elevation_deg), 0.0, np.radians(180.0 - SUN.azimuth_deg))
+    render_scene.camera = camera_object
+    render_scene.render.engine = "CYCLES"
+    render_scene.cycles.samples = 1
+    render_scene.render.threads_mode, render_scene.render.threads = "FIXED", workers
+    render_scene.render.use_persistent_data = True
+    render_scene.render.resolution_x, render_scene.render.resolution_y = CAMERA.width, CAMERA.height
+    render_scene.render.resolution_percentage = 100
+    render_scene.view_layers[0].use_pass_z = True
+    render_scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    render_scene.render.image_settings.color_depth = "32"
+    setup_s = time.perf_counter() - start
+    with tempfile.TemporaryDirectory() as folder:
+        render_scene.render.filepath = str(Path(folder) / "blender.exr")
+        seconds = median_seconds(lambda: bpy.ops.render.render(write_still=True))
+        with OpenEXR.File(render_scene.render.filepath) as exr:
+            channels = exr.channels()
+            depth = next(channels[name].pixels for name in channels if name.endswith("Depth.Z"))
+    depth = np.where(depth >= camera.clip_end, np.inf, depth).astype(np.float32)
+    return PeerRun(setup_s, seconds, depth.reshape(-1))
+
+
+def depth_agreement(ours: np.ndarray, theirs: np.ndarray) -> tuple[float, float, float]:
+    """(percent of pixels where one hits and the other misses, median and 99th-percentile |depth difference| in
+    millimetres where both hit)."""
+    ours_hit, theirs_hit = np.isfinite(ours), np.isfinite(theirs)
+    both = ours_hit & theirs_hit
+    difference = 1000.0 * np.abs(ours[both].astype(np.float64) - theirs[both])
+    return 100.0 * float(np.mean(ours_hit != theirs_hit)), float(np.median(difference)), \
+        float(np.percentile(difference, 99))
+
+
+def peers_table(scene_dir: Path, height_m: float = 80.0) -> None:
+    """Our caster against Open3D and Blender on one 1280x720 depth view of ``scene_dir``: time, ratio, agreement."""
+    scene = load_scene(scene_dir)
+    pose = oblique_pose(scene, height_m=height_m)
+    rays = camera_rays(CAMERA, pose)
+    workers = default_workers()
+    ours = ours_run(scene, rays, workers)
+    print(f"\npeers: depth of one 1280x720 view of {scene_dir} ({len(scene.faces) / 1e6:.2f} M triangles), "
+          f"{height_m:g} m above the centre pitched 45 deg, {workers} threads, median of 5 after a warm-up, "
+          f"load average {os.getloadavg()[0]:.1f}")
+    print(f"{'caster':<34}{'setup s':>8}{'ms/view':>9}{'vs ours':>8}{'hit/miss differ %':>18}"
+          f"{'|dz| median mm':>15}{'p99 mm':>8}")
+    print(f"{'ours (sim.raycast.intersect)':<34}{ours.setup_s:>8.2f}{1000 * ours.view_s:>9.0f}{1.0:>7.2f}x")
+    for name, run in (("embreex DISTANCE query only", embree_distance_run(scene, rays, workers)),
+                      ("Open3D RaycastingScene.cast_rays", open3d_run(scene, rays, workers)),
+                      ("Blender Cycles 1 spp (bpy)", blender_run(scene_dir, pose, workers))):
+        if isinstance(run, str):
+            print(f"{name:<34}{run}")
+            continue
+        differ, median_mm, p99_mm = depth_agreement(ours.depth, run.depth)
+        print(f"{name:<34}{run.setup_s:>8.2f}{1000 * run.view_s:>9.0f}{run.view_s / ours.view_s:>7.2f}x"
+              f"{differ:>18.3f}{median_mm:>15.3f}{p99_mm:>8.2f}")
 
 
 def srgb_error_percent(a, b) -> float:
@@ -149,13 +294,21 @@ def main(argv=None) -> int:
     parser.add_argument("--cells", type=int, default=1000, help="height-field cells per side (2*cells^2 triangles)")
     parser.add_argument("--frames", type=int, default=3, help="stereo frames to time")
     parser.add_argument("--scene", help="also benchmark this scene folder (e.g. the demo world)")
+    parser.add_argument("--peers-scene", default="demo",
+                        help="scene folder of the peers' table ('demo': the demo world, built once into its cache)")
+    parser.add_argument("--peers-only", action="store_true", help="print only the peers' table")
     args = parser.parse_args(argv)
+    peers_dir = demo_scene_dir() if args.peers_scene == "demo" else Path(args.peers_scene)
+    if args.peers_only:
+        peers_table(peers_dir)
+        return 0
     print(f"machine: {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f} (other jobs share these cores)")
     start = time.perf_counter()
     scene = height_field_scene(args.cells)
     print(f"height field: {len(scene.faces) / 1e6:.2f} M triangles, built in {time.perf_counter() - start:.1f} s")
     stereo_frame_table(scene, args.frames)
     throughput_table(scene)
+    peers_table(peers_dir)
     spp_table(scene)
     if args.scene:
         start = time.perf_counter()

@@ -1,8 +1,9 @@
 """Build the built-in demo world as an ordinary scene folder, and keep one built copy per variant in a cache.
 
 The world is generated around ``flightplan.demo_location.DEMO_ORIGIN``: ENU metres, z up, the ground at z = 0
-under the origin. The folder holds ``world.glb`` (binary glTF: positions in ENU metres as stored, z up, one
-JPEG texture atlas with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see docs/interfaces.md) and nothing else.
+under the origin. The folder holds ``world.glb`` (binary glTF, +Y up as the spec says: ENU metres stored as
+``x = E, y = U, z = -N`` with the georeference in ``scenes[0].extras``, sim/worlds/glb.py; one JPEG texture atlas
+with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see docs/interfaces.md) and nothing else.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from sim.worlds.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 
-GENERATOR_VERSION = 5
+GENERATOR_VERSION = 6
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
@@ -61,10 +62,12 @@ def generate_world(variant: str = "default", seed: int = 0) -> tuple[Layout, Par
 
 
 def encode_glb(mesh: Part, atlas: np.ndarray) -> bytes:
-    """Binary glTF of the mesh (positions as given, no axis change) with the atlas as one embedded JPEG."""
+    """Binary glTF of the ENU mesh (stored +Y up, georeferenced at the demo origin) with the atlas as one
+    embedded JPEG."""
     buffer = io.BytesIO()
     Image.fromarray(atlas).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
-    return encode_textured_glb(mesh.vertices, mesh.faces, mesh.uv, buffer.getvalue(), generator="sim.worlds.demo")
+    return encode_textured_glb(mesh.vertices, mesh.faces, mesh.uv, buffer.getvalue(), generator="sim.worlds.demo",
+                               origin=DEMO_ORIGIN)
 
 
 def ground_height_range(layout: Layout, mesh: Part) -> tuple[float, float]:
@@ -89,10 +92,9 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
     return {
         "format": "aerostereo-scene/1",
         "mesh": MESH_NAME,
-        "origin": {"lat0_deg": DEMO_ORIGIN.lat0_deg, "lon0_deg": DEMO_ORIGIN.lon0_deg,
-                   "h0_ellipsoid_m": DEMO_ORIGIN.h0_m},
+        "origin": DEMO_ORIGIN.to_dict(),
         "units": "m",
-        "up_axis": "z",
+        "up_axis": "y",
         "frame": "enu",
         "vertex_offset_m": [0.0, 0.0, 0.0],
         "ground_height_range_m": _rounded_outwards(ground_height_range(layout, mesh)),

@@ -64,8 +64,11 @@ def world():
     return mesh, scene, take_photos(scene, oblique_poses(8, 30.0, 28.0))
 
 
+ORIGIN = LocalFrame(47.0, 8.0, 400.0)
+
+
 def write_textured(folder, mesh, glb: bytes):
-    write_scene(folder, mesh, LocalFrame(47.0, 8.0, 400.0), {"generator": "test"}, "terrain.glb", encoded=glb)
+    write_scene(folder, mesh, ORIGIN, {"generator": "test"}, "terrain.glb", encoded=glb)
     return load_scene(folder)
 
 
@@ -89,8 +92,8 @@ def test_walls_get_their_own_texels_from_the_oblique_photos(world, tmp_path):
     mesh, truth, photos = world
     atlas = texture_atlas(mesh, photos)
     assert atlas.coverage > 0.9
-    twin = write_textured(tmp_path / "atlas", mesh, atlas.glb())
-    ortho = write_textured(tmp_path / "ortho", mesh, textured_glb(mesh, orthophoto(mesh, photos)))
+    twin = write_textured(tmp_path / "atlas", mesh, atlas.glb(ORIGIN))
+    ortho = write_textured(tmp_path / "ortho", mesh, textured_glb(mesh, orthophoto(mesh, photos), ORIGIN))
     new_views = oblique_poses(3, 26.0, 22.0, phase_deg=20.0)  # between the photos' azimuths, lower
     atlas_errors = wall_pixel_errors(twin, truth, new_views)
     ortho_errors = wall_pixel_errors(ortho, truth, new_views)

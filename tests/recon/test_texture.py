@@ -78,8 +78,8 @@ def test_textured_scene_rerendered_from_a_photo_pose_matches_the_photo(world, tm
     assert ortho.coverage > 0.95
     # one ground pixel: ~47 m from the cameras to the terrain at the image centre, f = 277 px
     assert ortho.texels.texel_m == pytest.approx(47.0 / CAMERA.fx, rel=0.1)
-    write_scene(tmp_path, mesh, LocalFrame(47.0, 8.0, 400.0), {"generator": "test"}, "terrain.glb",
-                encoded=textured_glb(mesh, ortho))
+    origin = LocalFrame(47.0, 8.0, 400.0)
+    write_scene(tmp_path, mesh, origin, {"generator": "test"}, "terrain.glb", encoded=textured_glb(mesh, ortho, origin))
     textured = load_scene(tmp_path)
     assert textured.surface.texture is not None
     errors, flat_errors = [], []

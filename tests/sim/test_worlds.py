@@ -10,6 +10,7 @@ import trimesh
 import sim.worlds.demo as demo
 from flightplan.demo_location import DEMO_ORIGIN
 from sim.worlds import build_demo_world, demo_scene_dir
+from sim.worlds.glb import enu_from_gltf
 from sim.worlds.layout import VARIANTS
 
 
@@ -21,9 +22,11 @@ def small_world(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def small_scene(small_world):
-    """(scene.json dict, loaded trimesh.Trimesh) of the small world."""
+    """(scene.json dict, loaded trimesh.Trimesh with its +Y-up glTF positions turned back to ENU) of the small world."""
     meta = json.loads((small_world / "scene.json").read_text(encoding="utf-8"))
-    return meta, trimesh.load(small_world / meta["mesh"], force="mesh")
+    mesh = trimesh.load(small_world / meta["mesh"], force="mesh")
+    mesh.vertices = enu_from_gltf(mesh.vertices)
+    return meta, mesh
 
 
 def _folder_bytes(folder):
@@ -41,7 +44,7 @@ def test_scene_json_follows_the_interface(small_scene, small_world):
     meta, _ = small_scene
     assert sorted(p.name for p in small_world.iterdir()) == ["scene.json", "world.glb"]
     assert meta["format"] == "aerostereo-scene/1"
-    assert (meta["units"], meta["up_axis"], meta["frame"]) == ("m", "z", "enu")
+    assert (meta["units"], meta["up_axis"], meta["frame"]) == ("m", "y", "enu")
     assert meta["vertex_offset_m"] == [0.0, 0.0, 0.0]
     assert meta["origin"] == {"lat0_deg": DEMO_ORIGIN.lat0_deg, "lon0_deg": DEMO_ORIGIN.lon0_deg,
                               "h0_ellipsoid_m": DEMO_ORIGIN.h0_m}
