@@ -60,15 +60,13 @@ def frame_records(dataset: Path) -> list[dict]:
     return [json.loads(line) for line in (dataset / "sequences/00/frames.jsonl").read_text().splitlines()]
 
 
-def dataset_bytes(dataset: Path) -> dict[str, bytes]:
-    """Every file of a dataset by relative path; records without the measured render time, no command line."""
+def dataset_bytes(dataset: Path, command_line: bool = False) -> dict[str, bytes]:
+    """Every file of a dataset by relative path, as it is (the run logs in ``logs/`` are not the dataset's);
+    ``dataset.json`` without the command line unless ``command_line``."""
     files = {}
-    for path in sorted(p for p in dataset.rglob("*") if p.is_file()):
+    for path in sorted(p for p in dataset.rglob("*") if p.is_file() and p.relative_to(dataset).parts[0] != "logs"):
         name = str(path.relative_to(dataset))
-        if (path.suffix == ".json" and "frame_meta" in name) or path.name == "frames.jsonl":
-            records = [json.loads(line) for line in path.read_text().splitlines()]
-            files[name] = json.dumps([{k: v for k, v in r.items() if k != "render_time_s"} for r in records]).encode()
-        elif path.name == "dataset.json":
+        if path.name == "dataset.json" and not command_line:
             description = json.loads(path.read_text())
             files[name] = json.dumps({k: v for k, v in description.items() if k != "command_line"}).encode()
         else:
