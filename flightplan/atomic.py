@@ -53,9 +53,10 @@ def _temp_suffix(target: Path) -> str:
 
 
 def remove_stale_temps(path: str | Path) -> None:
-    """Delete the temporary files that interrupted writes of ``path`` left behind (any process)."""
+    """Delete the temporary files that interrupted writes of ``path`` left behind (any process), and the files a
+    writer put beside its temporary under the temporary's name (COLMAP's fusion writes ``TEMP.vis``)."""
     target = Path(path)
-    for stale in target.parent.glob(f".{target.name}.*{_temp_suffix(target)}"):
+    for stale in target.parent.glob(f".{target.name}.*{_temp_suffix(target)}*"):
         stale.unlink(missing_ok=True)
 
 

@@ -17,11 +17,13 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pycolmap
 import trimesh
 
 from recon.dense import DenseError, DenseOptions
 from flightplan.atomic import atomic_path
+from flightplan.cli_support import describe_os_error
 from recon.merge import PairsFileError, estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import MESHES, TEXTURES, ReconOptions, Recon
 from recon.priors import PriorsError
@@ -88,6 +90,8 @@ def build_merge_parser() -> argparse.ArgumentParser:
 
 
 def load_mesh(path: Path) -> trimesh.Trimesh:
+    """A mesh file as a trimesh; ValueError naming the file if it is unreadable, has no triangles or has a
+    vertex that is not finite (a merge would carry NaN into its output)."""
     if not path.is_file():
         raise FileNotFoundError(f"{path}: mesh file not found")
     try:
@@ -96,6 +100,10 @@ def load_mesh(path: Path) -> trimesh.Trimesh:
         raise ValueError(f"{path}: not a readable mesh ({type(error).__name__}: {error})") from None
     if len(loaded.faces) == 0:
         raise ValueError(f"{path}: no triangles in this mesh")
+    bad = int(np.sum(~np.isfinite(loaded.vertices).all(axis=1)))
+    if bad:
+        raise ValueError(f"{path}: {bad} of {len(loaded.vertices)} vertices are not finite numbers (NaN or inf); "
+                         f"expected a mesh with real coordinates")
     return loaded
 
 
@@ -139,6 +147,9 @@ def main(argv=None) -> int:
         return run_recon(argv)
     except (PriorsError, SfmError, DenseError, PairsFileError, FileNotFoundError, ValueError) as exc:
         print(f"aerostereo-recon: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a full or read-only disk: one line naming the path (issue 18)
+        print(f"aerostereo-recon: error: {describe_os_error(exc)}", file=sys.stderr)
         return 2
 
 
