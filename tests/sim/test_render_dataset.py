@@ -33,6 +33,7 @@ from sim.render_cli import build_parser, options_from_args, render_main
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR, camera_rotation
 
+from dataset_helpers import dataset_bytes
 from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -59,20 +60,6 @@ def reference(scene_dir, tmp_path_factory):
 
 def frame_records(dataset: Path) -> list[dict]:
     return [json.loads(line) for line in (dataset / "sequences/00/frames.jsonl").read_text().splitlines()]
-
-
-def dataset_bytes(dataset: Path, command_line: bool = False) -> dict[str, bytes]:
-    """Every file of a dataset by relative path, as it is (the run logs in ``logs/`` are not the dataset's);
-    ``dataset.json`` without the command line unless ``command_line``."""
-    files = {}
-    for path in sorted(p for p in dataset.rglob("*") if p.is_file() and p.relative_to(dataset).parts[0] != "logs"):
-        name = str(path.relative_to(dataset))
-        if path.name == "dataset.json" and not command_line:
-            description = json.loads(path.read_text())
-            files[name] = json.dumps({k: v for k, v in description.items() if k != "command_line"}).encode()
-        else:
-            files[name] = path.read_bytes()
-    return files
 
 
 def pixel_rays(P: np.ndarray, width: int, height: int) -> np.ndarray:
