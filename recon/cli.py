@@ -7,7 +7,7 @@
                      [--texel M] [--texture atlas|ortho|none] [--hold-out K] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
 
-Bad input -> one line on stderr, exit code 2.
+Bad input, a full or read-only disk, a truncated photo -> one line on stderr, exit code 2 (docs/recon.md).
 """
 
 from __future__ import annotations
