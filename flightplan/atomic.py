@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import errno
 import os
+import shutil
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -52,15 +53,32 @@ def _temp_suffix(target: Path) -> str:
 
 
 def remove_stale_temps(path: str | Path) -> None:
-    """Delete the temporary files that interrupted writes of ``path`` left behind (any process)."""
+    """Delete the temporary files that interrupted writes of ``path`` left behind (any process), and the files a
+    writer put beside its temporary under the temporary's name (COLMAP's fusion writes ``TEMP.vis``)."""
     target = Path(path)
-    for stale in target.parent.glob(f".{target.name}.*{_temp_suffix(target)}"):
+    for stale in target.parent.glob(f".{target.name}.*{_temp_suffix(target)}*"):
         stale.unlink(missing_ok=True)
 
 
 def _naming(error: OSError, target: Path) -> OSError:
     """The same error, but naming the file the caller asked for rather than the temporary one."""
     return type(error)(error.errno, error.strerror or str(error), str(target))
+
+
+#: Free space (bytes) below which a library's failed write is taken for a full disk (see :func:`write_failed`).
+NEARLY_FULL_BYTES = 1024 ** 2
+
+
+def write_failed(path: str | Path, detail: str) -> OSError:
+    """The ``OSError`` naming ``path`` for a write that a library (OpenEXR, COLMAP) reported only as a message or
+    not at all: ``ENOSPC`` when the disk holding ``path`` has (almost) no free space left, else ``EIO`` saying
+    ``detail``. Call it before the partial file is deleted, so the full disk still shows."""
+    folder = Path(path).parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if shutil.disk_usage(folder).free < NEARLY_FULL_BYTES:
+        return OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+    return OSError(errno.EIO, detail, str(path))
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:

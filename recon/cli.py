@@ -9,7 +9,8 @@
 
 The scene summary (JSON) is the only thing on stdout; stage lines, progress and COLMAP's own log go to stderr, so
 ``aerostereo-recon ... | jq`` works. Bad input, and an output that names an input (``--out`` inside ``--photos``, on
-``--geotags``; ``merge --out`` on A, B or the pairs file) -> one line on stderr, exit code 2, before any work.
+``--geotags``; ``merge --out`` on A, B or the pairs file) -> one line on stderr, exit code 2, before any work;
+so do a full or read-only disk and a truncated photo (docs/recon.md).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
 import pycolmap
 import trimesh
 
@@ -100,6 +102,8 @@ def build_merge_parser() -> argparse.ArgumentParser:
 
 
 def load_mesh(path: Path) -> trimesh.Trimesh:
+    """A mesh file as a trimesh; ValueError naming the file if it is unreadable, has no triangles or has a
+    vertex that is not finite (a merge would carry NaN into its output)."""
     if not path.is_file():
         raise FileNotFoundError(f"{path}: mesh file not found")
     check_mesh_file(path)
@@ -109,6 +113,10 @@ def load_mesh(path: Path) -> trimesh.Trimesh:
         raise ValueError(f"{path}: not a readable mesh ({type(error).__name__}: {error})") from None
     if len(loaded.faces) == 0:
         raise ValueError(f"{path}: no triangles in this mesh")
+    bad = int(np.sum(~np.isfinite(loaded.vertices).all(axis=1)))
+    if bad:
+        raise ValueError(f"{path}: {bad} of {len(loaded.vertices)} vertices are not finite numbers (NaN or inf); "
+                         f"expected a mesh with real coordinates")
     return loaded
 
 

@@ -8,6 +8,10 @@ Depths from the neighbours that agree (relative tolerance) are kept and averaged
 reference image is flat. Depth + normal maps are written in COLMAP's format into the workspace made by
 ``pycolmap.undistort_images`` and fused with ``pycolmap.stereo_fusion``.
 
+COLMAP's writers report no error when the disk is full: they leave files cut short (0-byte maps). So every
+file they write here is read back or measured before it counts (under its final name, atomically), and a
+short one is an ``OSError`` naming it (``ENOSPC`` on a full disk, see :func:`flightplan.atomic.write_failed`).
+
 Units: metres (model units after geo-registration); depth = z along the optical axis (OpenCV camera).
 """
 
@@ -22,7 +26,13 @@ import cv2
 import numpy as np
 import pycolmap
 
-from flightplan.atomic import atomic_path, write_text_atomic
+from flightplan.atomic import atomic_path, remove_stale_temps, write_failed, write_text_atomic
+from recon.mesh import read_binary_ply_vertices
+from recon.priors import decode_problem
+
+
+#: Channels of COLMAP's map of each kind (folder under ``stereo``).
+MAP_CHANNELS = {"depth_maps": 1, "normal_maps": 3}
 
 
 class DenseError(RuntimeError):
@@ -270,8 +280,27 @@ def spaced_views(centres: np.ndarray, depths: np.ndarray, min_angle_deg: float) 
     return taken
 
 
+def map_path(workspace: Path, folder: str, name: str) -> Path:
+    """``stereo/<folder>/<name>.geometric.bin``: the map of image ``name`` of kind ``folder`` (:data:`MAP_CHANNELS`)."""
+    return workspace / "stereo" / folder / f"{name}.geometric.bin"
+
+
+def map_bytes(width: int, height: int, channels: int) -> int:
+    """Size of a COLMAP ``.bin`` map: its ASCII header ``width&height&channels&``, then float32 values."""
+    return len(f"{width}&{height}&{channels}&") + 4 * width * height * channels
+
+
+def maps_complete(workspace: Path, name: str, width: int, height: int) -> bool:
+    """Whether both maps of image ``name`` exist whole (the size of a ``width`` x ``height`` map each): a map cut
+    short by a full disk is not done."""
+    return all(path.is_file() and path.stat().st_size == map_bytes(width, height, channels)
+               for path, channels in ((map_path(workspace, folder, name), channels)
+                                      for folder, channels in MAP_CHANNELS.items()))
+
+
 def write_colmap_maps(workspace: Path, name: str, depth: np.ndarray, normals: np.ndarray) -> None:
-    """Write ``stereo/{depth,normal}_maps/<name>.geometric.bin`` (invalid depth = 0).
+    """Write ``stereo/{depth,normal}_maps/<name>.geometric.bin`` (invalid depth = 0), each checked whole before
+    it takes its name (``OSError`` naming it otherwise: COLMAP's writer fails silently on a full disk).
 
     pycolmap 4.2.1's ``NormalMap.from_array`` copies its buffer as channel-planar, so the (H, W, 3) array is
     handed over as planar data reshaped to (H, W, 3).
@@ -284,10 +313,26 @@ def write_colmap_maps(workspace: Path, name: str, depth: np.ndarray, normals: np
     planar = np.ascontiguousarray(normals.transpose(2, 0, 1)).reshape(h, w, 3)
     for folder, data in (("depth_maps", pycolmap.DepthMap.from_array(clean, d_min, d_max)),
                          ("normal_maps", pycolmap.NormalMap.from_array(planar))):
-        target = workspace / "stereo" / folder / f"{name}.geometric.bin"
+        target = map_path(workspace, folder, name)
         target.parent.mkdir(parents=True, exist_ok=True)
         with atomic_path(target) as tmp:
             data.write(str(tmp))
+            expected, written = map_bytes(w, h, MAP_CHANNELS[folder]), tmp.stat().st_size
+            if written != expected:
+                raise write_failed(target, f"COLMAP wrote {written} of {expected} bytes")
+
+
+def check_model_written(folder: Path, expected: pycolmap.Reconstruction, name: Path | None = None) -> None:
+    """``OSError`` naming ``name`` (default ``folder``) unless the COLMAP model in ``folder`` reads back with the
+    registered images and points of ``expected`` (COLMAP's model writer reports no error on a full disk)."""
+    try:
+        model = pycolmap.Reconstruction(folder)
+        counts = (model.num_reg_images(), model.num_points3D())
+    except (RuntimeError, IndexError, ValueError) as error:  # pycolmap's readers on short files
+        raise write_failed(name or folder, f"COLMAP's model is incomplete ({error})") from None
+    if counts != (expected.num_reg_images(), expected.num_points3D()):
+        raise write_failed(name or folder, f"COLMAP's model holds {counts[0]} images and {counts[1]} points of "
+                                           f"{expected.num_reg_images()} and {expected.num_points3D()}")
 
 
 def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: DenseOptions,
@@ -299,24 +344,38 @@ def undistort(sparse_dir: Path, photo_dir: Path, workspace: Path, options: Dense
     """
     undistort_options = pycolmap.UndistortCameraOptions()
     undistort_options.max_image_size = options.max_image_size
+    model = pycolmap.Reconstruction(sparse_dir)
     with tempfile.TemporaryDirectory(dir=workspace.parent) as kept:
         if leave_out:
-            model = pycolmap.Reconstruction(sparse_dir)
             for image in list(model.images.values()):
                 if image.name in leave_out and image.has_pose:
                     model.deregister_frame(image.frame_id)
             model.write(kept)
+            check_model_written(Path(kept), model)
             sparse_dir = Path(kept)
         pycolmap.undistort_images(workspace, sparse_dir, photo_dir, undistort_options=undistort_options,
                                   num_threads=options.num_threads)
+    check_undistorted(workspace, model)
+
+
+def check_undistorted(workspace: Path, model: pycolmap.Reconstruction) -> None:
+    """``OSError`` naming the first file of ``workspace`` that ``pycolmap.undistort_images`` left incomplete (its
+    model, or an image that does not decode whole): it reports no error on a full disk."""
+    check_model_written(workspace / "sparse", model)
+    for image in model.images.values():
+        if image.has_pose:
+            path = workspace / "images" / image.name
+            problem = decode_problem(path)
+            if problem:
+                raise write_failed(path, f"COLMAP's undistorted image is incomplete ({problem})")
 
 
 def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda it: it) -> dict[str, float]:
     """Depth + normal maps for the undistorted views :func:`spaced_views` picks (in name order); returns the
     valid-pixel fraction per image name. ``stereo/fusion.cfg`` is rewritten to list exactly those views.
 
-    Images whose maps exist already are skipped (resumable). :class:`DenseError` when no view has a stereo
-    neighbour (the photos are too far apart), before anything is written.
+    Images whose maps exist whole already are skipped (resumable; :func:`maps_complete`). :class:`DenseError` when
+    no view has a stereo neighbour (the photos are too far apart), before anything is written.
     """
     rec = pycolmap.Reconstruction(workspace / "sparse")
     views = views_from_model(rec)
@@ -340,8 +399,8 @@ def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda i
         return grey[image_id]
 
     for ref_id in progress(refs):
-        name = rec.images[ref_id].name
-        if (workspace / "stereo" / "normal_maps" / f"{name}.geometric.bin").exists():
+        name, camera = rec.images[ref_id].name, rec.images[ref_id].camera
+        if maps_complete(workspace, name, camera.width, camera.height):
             continue
         near_far = depth_range(depths[ref_id])
         estimates = [pair_depth(load(ref_id), load(src), views[ref_id], views[src], near_far, options.block_size)
@@ -362,11 +421,14 @@ def compute_depth_maps(workspace: Path, options: DenseOptions, progress=lambda i
 def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
     """``pycolmap.stereo_fusion`` of the geometric maps -> coloured PLY (points in model units); point count.
 
-    :class:`DenseError` (and no PLY written) when no point is consistent in enough views."""
+    :class:`DenseError` (and no PLY written) when no point is consistent in enough views; ``OSError`` naming the
+    PLY when it does not hold every fused point (a full disk). The ``.vis`` file pycolmap writes beside the
+    temporary PLY is deleted, and so is one a killed run left (:func:`flightplan.atomic.remove_stale_temps`)."""
     fusion = pycolmap.StereoFusionOptions()
     fusion.min_num_pixels = options.fusion_min_pixels
     fusion.max_normal_error = options.fusion_max_normal_error_deg
     fusion.num_threads = options.num_threads
+    remove_stale_temps(output_ply)
     with atomic_path(output_ply) as tmp:
         try:
             fused = pycolmap.stereo_fusion(tmp, workspace, input_type="geometric", options=fusion, output_type="ply")
@@ -375,4 +437,10 @@ def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
         if fused.num_points3D() == 0:
             raise DenseError(f"fusion found no point seen consistently in {options.fusion_min_pixels} depth maps: "
                              f"the photos overlap too little")
+        try:
+            written = len(read_binary_ply_vertices(tmp)[1])
+        except ValueError:  # the header or the points cut short
+            written = 0
+        if written != fused.num_points3D():
+            raise write_failed(output_ply, f"COLMAP wrote {written} of {fused.num_points3D()} fused points")
     return int(fused.num_points3D())

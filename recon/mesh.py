@@ -25,7 +25,7 @@ import pycolmap
 import trimesh
 from scipy import ndimage, sparse
 
-from flightplan.atomic import atomic_path
+from flightplan.atomic import atomic_path, write_failed
 from flightplan.cli_support import require_memory
 from recon.observed import inside, observed_area
 
@@ -163,6 +163,7 @@ def poisson_mesh(fused_ply: Path, output_ply: Path, depth: int = 10, trim: float
     options.trim = depth - 3 if trim is None else trim
     with atomic_path(output_ply) as tmp:
         pycolmap.poisson_meshing(fused_ply, tmp, options)
+        check_ply_written(tmp, output_ply)
 
 
 def decimate(input_ply: Path, output_ply: Path, max_error_m: float, min_face_ratio: float = 0.01) -> None:
@@ -173,6 +174,16 @@ def decimate(input_ply: Path, output_ply: Path, max_error_m: float, min_face_rat
     options.max_error = max_error_m**2
     with atomic_path(output_ply) as tmp:
         pycolmap.simplify_mesh(input_ply, tmp, options)
+        check_ply_written(tmp, output_ply)
+
+
+def check_ply_written(written: Path, target: Path) -> None:
+    """``OSError`` naming ``target`` unless trimesh reads the PLY mesh COLMAP wrote to ``written`` whole: COLMAP's
+    PLY writers report no error, and a full disk leaves the file cut short."""
+    try:
+        trimesh.load(written, process=False)
+    except (ValueError, IndexError, KeyError) as error:  # trimesh's PLY reader on a short or empty file
+        raise write_failed(target, f"COLMAP's PLY is incomplete ({error})") from None
 
 
 def read_point_cloud(ply: Path) -> tuple[np.ndarray, np.ndarray | None]:

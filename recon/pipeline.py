@@ -43,12 +43,13 @@ from recon.atlas import AtlasOptions, texture_atlas
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
 from flightplan.atomic import atomic_path, write_text_atomic
+from flightplan.cli_support import require_disk
 from flightplan.jsonfile import read_json
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
-from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm
+from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.worlds.glb import GEOREF_FORMAT
 
@@ -116,17 +117,20 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
     photo's sigma from its own receiver (RTK fixed in its XMP, else consumer GPS).
 
     Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out; a photo
-    that is not a readable image is a :class:`PriorsError` naming it.
+    that is not a readable image, or whose image data is cut short (a truncated JPEG), is a :class:`PriorsError`
+    naming it (:func:`recon.priors.check_readable`).
     """
     names = list_photos(photo_dir)
     if len(names) < MIN_PHOTOS:
         raise PriorsError(f"{photo_dir}: need at least {MIN_PHOTOS} photos, found {len(names)}")
     if geotags_csv is None:
-        return names, priors_from_exif(photo_dir, names)  # reads every photo's EXIF and XMP
-    priors = read_geotags(geotags_csv)
-    names = [n for n in names if n not in set(priors.untagged)]
+        priors = priors_from_exif(photo_dir, names)  # reads every photo's EXIF and XMP
+    else:
+        geotags = read_geotags(geotags_csv)
+        names = [n for n in names if n not in set(geotags.untagged)]
+        priors = with_receiver_sigmas(geotags, photo_dir)
     check_readable(photo_dir, names)
-    return names, with_receiver_sigmas(priors, photo_dir)
+    return names, priors
 
 
 def read_rgb(path: Path) -> np.ndarray:
@@ -138,11 +142,17 @@ def read_rgb(path: Path) -> np.ndarray:
 
 
 def write_model_atomic(rec: pycolmap.Reconstruction, target: Path) -> None:
-    """Write a COLMAP model folder under a temporary name, then rename it into place."""
+    """Write a COLMAP model folder under a temporary name, check that it reads back whole (``OSError`` naming
+    ``target`` otherwise, e.g. on a full disk; the temporary is deleted), then rename it into place."""
     tmp = target.with_name(f".{target.name}.tmp")
     shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    rec.write(tmp)
+    try:
+        tmp.mkdir(parents=True)
+        rec.write(tmp)
+        dense.check_model_written(tmp, rec, target)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
     shutil.rmtree(target, ignore_errors=True)
     os.replace(tmp, target)
 
@@ -196,10 +206,12 @@ class Recon:
     def run(self) -> dict:
         """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.
         ``self.seconds``: wall time per stage in this run (0 for a stage already done)."""
-        self.work.mkdir(parents=True, exist_ok=True)
         records = stage_records(self.options, self.inputs())
         stamps = StageStamps(self.work / "stages")
         plan = stamps.plan(records, lambda stage: (self.scene_dir / OLD_MARKERS[stage]).exists())
+        self.work.mkdir(parents=True, exist_ok=True)  # a read-only disk says so here, before any size check
+        if "sfm" in plan.todo:
+            self.check_room_for_sfm()
         for stage in STAGES[:len(STAGES) - len(plan.todo)]:
             self.seconds[stage] = 0.0
             self.log(f"[{stage}] already done")
@@ -223,6 +235,14 @@ class Recon:
         if self.progress is None:
             return StepProgress(stage, self.log)
         return nullcontext(partial(self.progress, stage))
+
+    def check_room_for_sfm(self):
+        """:class:`~flightplan.cli_support.BadInput` when the disk of the scene folder has less free space than
+        SfM may need (:func:`recon.sfm.sfm_disk_bytes`): COLMAP would abort the process when its database cannot
+        grow."""
+        features = self.options.sfm.max_num_features
+        require_disk(self.work, sfm_disk_bytes(len(self.names), features),
+                     f"SfM of {len(self.names)} photos at up to {features} features each (--max-features)")
 
     def stage_sfm(self):
         seed = camera_seed(self.photo_dir / self.names[0])

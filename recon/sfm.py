@@ -32,6 +32,10 @@ from recon.tag_offset import fit_tag_offset, travel_directions
 from sim.camera import PinholeCamera
 
 MIN_PHOTOS = 3
+#: Disk space SfM needs per feature of a photo (features, matches, SQLite's journal): 6 photos at 2048 features
+#: made a 8.4 MB database that needed over 14 MB while growing. COLMAP aborts the whole process (no Python error)
+#: when its database cannot grow, so the space is checked before SfM starts (:func:`sfm_disk_bytes`).
+SFM_BYTES_PER_FEATURE = 1536
 LOOP_MIN_INLIERS = 15
 STRONG_GEOMETRY_DEG = 20.0  # viewing-direction spread above which the focal length is observable
 FOCAL_CHANGE_WARN = 0.05
@@ -661,6 +665,12 @@ def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
     sim, tilt = georegister(centres, rotations, used)
     apply_similarity(rec, sim)
     return registered, sim, tilt, offset, used
+
+
+def sfm_disk_bytes(photos: int, max_features: int) -> int:
+    """Bytes of disk the SfM stage may need for ``photos`` photos at up to ``max_features`` features each (an
+    estimate on the high side: every photo at its maximum feature count)."""
+    return photos * max_features * SFM_BYTES_PER_FEATURE
 
 
 def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, work_dir: Path,

@@ -291,8 +291,7 @@ class FrameRenderer:
         elapsed = time.perf_counter() - start
         views = [ViewImages(view.rgb, view.depth) for view in frame.views]
         record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
-                             time_s=sample.time_s, seed=self.options.seed, sun=sun, render_time_s=elapsed,
-                             extra=extra)
+                             time_s=sample.time_s, seed=self.options.seed, sun=sun, extra=extra)
         return record, FrameStats(index, sample.rejected, elapsed)
 
     def close(self) -> None:

@@ -16,15 +16,24 @@ The pipeline (what ``aerostereo-render`` runs):
    otherwise the summary says how many frames other shards still have to render.
 
 Every file is written atomically and a frame counts as done only when its record exists, so a run
-killed at any moment and started again with the same arguments completes to the same bytes.
+killed at any moment and started again with the same arguments completes to the same bytes. Worker
+processes die with the run (Linux: ``PR_SET_PDEATHSIG``): killing the run stops every write. A run that
+fails (a full disk) deletes the frame it was writing; if it created the dataset folder and completed no
+frame, it deletes the folder too. No dataset file holds a wall-clock time: each run's timings go to its run
+log, ``OUT/logs/render-<UTC start>-<pid>.jsonl`` (:func:`write_run_log`).
 """
 
 from __future__ import annotations
 
+import ctypes
+import datetime as dt
+import json
 import math
 import multiprocessing
 import os
 import queue
+import shutil
+import signal
 import sys
 import time
 from collections.abc import Sequence
@@ -34,6 +43,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from flightplan.cli_support import path_problem
+from flightplan.atomic import write_text_atomic
 from sim.dataset import (
     AsyncFrameWriter,
     DatasetError,
@@ -61,6 +71,10 @@ from sim.scene import read_scene_json
 DEMO_SCENE = "demo"
 #: Seconds between checks on the worker processes while waiting for their reports.
 POLL_S = 0.5
+#: Folder of the run logs, inside the dataset folder (not part of the dataset: its files differ run by run).
+RUN_LOGS = "logs"
+#: prctl(2) option: the signal the kernel sends this process when its parent dies.
+PR_SET_PDEATHSIG = 1
 
 
 @dataclass
@@ -105,6 +119,7 @@ class Job:
     options: RenderOptions
     spec: DatasetSpec
     threads: int
+    parent_pid: int
 
 
 def is_demo_scene(scene: str | os.PathLike | None) -> bool:
@@ -202,15 +217,17 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     A dataset of other settings already in ``out_dir`` is refused, or with ``overwrite`` deleted first (only its
     own files). Raises :class:`RenderInputError` for bad input before anything is rendered.
     """
-    start = time.perf_counter()
+    start, started_utc = time.perf_counter(), dt.datetime.now(dt.timezone.utc)
     _check_options(options)
     out_dir = Path(out_dir)
+    created = not out_dir.exists()
     scene_dir = resolve_scene_dir(scene)
     workers = options.workers
     threads = max(1, default_workers() // workers)  # casting threads per process
     renderer = FrameRenderer(scene_dir, options, threads)
+    command_line = list(sys.argv if command_line is None else command_line)
     try:
-        spec = dataset_spec(renderer, scene_dir, options, sys.argv if command_line is None else command_line)
+        spec = dataset_spec(renderer, scene_dir, options, command_line)
         shard = shard_frames(spec.frame_count, *options.shard)
         _check_resources(renderer, spec, out_dir, shard)
         writer = _open_writer(out_dir, spec, overwrite)
@@ -223,16 +240,47 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
                 stats = _render_here(renderer, writer, pending, _Progress(bar, start))
             else:
                 renderer.close()  # the workers build their own; this one only checked the input
-                job = Job(scene_dir, out_dir, options, spec, threads)
+                job = Job(scene_dir, out_dir, options, spec, threads, os.getpid())
                 stats = _render_in_processes(job, pending, min(workers, len(pending)), _Progress(bar, start))
+    except BaseException:
+        if created:
+            _remove_without_frames(out_dir)
+        raise
     finally:
         renderer.close()
     remaining = len(writer.pending(range(spec.frame_count)))
     if remaining == 0:
         finalize_dataset(out_dir)
-    return RenderSummary(out_dir, spec.frame_count, len(stats), shard_size - len(pending),
-                         sum(s.rejected for s in stats), time.perf_counter() - start, remaining == 0, remaining,
-                         sorted(stats, key=lambda s: s.index))
+    summary = RenderSummary(out_dir, spec.frame_count, len(stats), shard_size - len(pending),
+                            sum(s.rejected for s in stats), time.perf_counter() - start, remaining == 0, remaining,
+                            sorted(stats, key=lambda s: s.index))
+    write_run_log(summary, started_utc, command_line, workers)
+    return summary
+
+
+def _remove_without_frames(out_dir: Path) -> None:
+    """Delete the dataset folder a failed run created, unless it completed a frame (kept for the rerun)."""
+    if not any(out_dir.glob("sequences/*/frame_meta/*.json")):
+        shutil.rmtree(out_dir, ignore_errors=True)
+
+
+def write_run_log(summary: RenderSummary, started_utc: dt.datetime, command_line: Sequence[str],
+                  workers: int) -> Path:
+    """Write the run's timings to ``OUT/logs/render-<UTC start>-<pid>.jsonl`` (atomically); return its path.
+
+    The first line is ``{"run": {...}}`` (start time, command line, workers, frames rendered/skipped, rejected
+    poses, wall time in s, finalized); then one line per frame rendered in this run: ``frame``, ``render_s``
+    (seconds to render it), ``done_s`` (seconds from the start of the run until the parent heard of it),
+    ``rejected_poses``. These are the only wall-clock values of a render; the dataset's own files hold none.
+    """
+    path = summary.out_dir / RUN_LOGS / f"render-{started_utc:%Y%m%dT%H%M%SZ}-{os.getpid()}.jsonl"
+    run = {"started_utc": started_utc.isoformat(timespec="seconds"), "command_line": list(command_line),
+           "workers": workers, "rendered": summary.rendered, "skipped": summary.skipped,
+           "rejected_poses": summary.rejected_poses, "elapsed_s": round(summary.elapsed_s, 3),
+           "finalized": summary.finalized}
+    frames = [{"frame": s.index, "render_s": round(s.render_s, 4), "done_s": round(s.done_s, 4),
+               "rejected_poses": s.rejected} for s in summary.frames]
+    return write_text_atomic(path, "".join(json.dumps(line) + "\n" for line in [{"run": run}, *frames]))
 
 
 class _Progress:
@@ -257,8 +305,18 @@ def _render_here(renderer: FrameRenderer, writer: KittiDatasetWriter, pending: S
     return progress.stats
 
 
+def _die_with_parent(parent_pid: int) -> None:
+    """Have the kernel SIGKILL this worker when the render process dies (Linux ``PR_SET_PDEATHSIG``; kill -9
+    included), so no worker goes on writing frames that nobody will finalize; exit now if it already died."""
+    if sys.platform.startswith("linux"):
+        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    if os.getppid() != parent_pid:
+        os._exit(1)
+
+
 def _worker(job: Job, tasks, results) -> None:
     """Worker process: build the scene once, render the frames it pulls, write them, report each one."""
+    _die_with_parent(job.parent_pid)
     try:
         renderer = FrameRenderer(job.scene_dir, job.options, job.threads)
         writer = KittiDatasetWriter(job.out_dir, job.spec)
@@ -269,6 +327,8 @@ def _worker(job: Job, tasks, results) -> None:
                 results.put(("frame", frame_stats))
         renderer.close()
         results.put(("done", None))
+    except OSError as error:  # a full disk: the parent raises it again, naming the file
+        results.put(("oserror", (error.errno, error.strerror, error.filename)))
     except BaseException as error:  # noqa: BLE001 -- reported to the parent, which raises it
         results.put(("error", (isinstance(error, RenderInputError), f"{type(error).__name__}: {error}")))
 
@@ -294,6 +354,8 @@ def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progres
                 if dead:
                     raise RuntimeError(f"a render worker died (exit code {dead[0].exitcode})") from None
                 continue
+            if kind == "oserror":
+                raise OSError(*payload)
             if kind == "error":
                 bad_input, message = payload
                 raise (RenderInputError if bad_input else RuntimeError)(f"a render worker failed: {message}")

@@ -3,7 +3,8 @@
 PNG encoding (OpenCV) and EXR writing (OpenEXR) release the GIL, so a writer thread encodes
 frame ``i`` while the main thread renders frame ``i + 1``. The queue is bounded so a slow
 disk slows the renderer down instead of filling the memory. The first error raised by a
-writer thread is re-raised in the caller at the next ``submit`` or at ``close``.
+writer thread is re-raised in the caller at the next ``submit`` or at ``close`` (an ``OSError``, such as
+a full disk, as it is; anything else wrapped in a ``RuntimeError``).
 """
 
 from __future__ import annotations
@@ -56,6 +57,8 @@ class AsyncFrameWriter:
                     self._error = self._error or error
 
     def _raise_pending_error(self) -> None:
+        if isinstance(self._error, OSError):  # it names the file (a full disk): the caller reports it as it is
+            raise self._error
         if self._error is not None:
             raise RuntimeError(f"writing a frame failed: {self._error}") from self._error
 
@@ -85,5 +88,5 @@ class AsyncFrameWriter:
             return
         try:
             self.close()
-        except RuntimeError:
+        except (RuntimeError, OSError):
             pass  # the exception already in flight is the one to report

@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from flightplan.atomic import atomic_path, write_bytes_atomic
+from flightplan.atomic import atomic_path, write_bytes_atomic, write_failed
 
 EXR_CHANNEL = "Y"
 KITTI_DISPARITY_SCALE = 256.0
@@ -91,13 +91,19 @@ def rgb_to_grey(rgb: np.ndarray) -> np.ndarray:
 
 
 def write_exr(path: Path, values: np.ndarray) -> None:
-    """Write an (H, W) array as a lossless float32 EXR, single channel ``Y``, ZIP compression, atomically."""
+    """Write an (H, W) array as a lossless float32 EXR, single channel ``Y``, ZIP compression, atomically.
+
+    OpenEXR reports a failed write (a full disk) as a ``RuntimeError``: it is raised as an ``OSError`` naming
+    ``path``."""
     values = np.ascontiguousarray(values, dtype=np.float32)
     if values.ndim != 2:
         raise ValueError(f"{path}: EXR writer expects an (H, W) array, got shape {values.shape}")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     with atomic_path(path) as temporary, OpenEXR.File(header, {EXR_CHANNEL: values}) as exr:
-        exr.write(str(temporary))
+        try:
+            exr.write(str(temporary))
+        except RuntimeError as error:
+            raise write_failed(path, str(error)) from error
 
 
 def read_exr(path: Path) -> np.ndarray:

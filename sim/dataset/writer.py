@@ -4,8 +4,9 @@ Resumability. Each frame's files are written to temporary names and renamed; its
 ``frame_meta/NNNNNN.json`` is written **last**, so a frame is complete exactly when that record
 and all its files exist. A rerun skips complete frames and rewrites the others from scratch
 (removing leftover temporary files first). All encodings are deterministic, so a run killed
-at any moment and rerun ends with the same bytes as an uninterrupted run; the only values
-that differ between runs are the measured ``render_time_s`` fields of the frame records.
+at any moment and rerun ends with the same bytes as an uninterrupted run. No file of the dataset
+holds a wall-clock time, so two runs of the same command give identical files (the timings of a run
+go to its run log, ``logs/``, see :func:`sim.render_dataset.write_run_log`).
 
 Shards. Frames are independent files, so shards (``shard_frames(total, i, n)``) write
 disjoint frames into one folder (or into copies that are merged by copying the folders
@@ -121,7 +122,6 @@ class FrameRecord:
     time_s: float
     seed: int
     sun: object = None
-    render_time_s: float | None = None
     extra: Mapping = field(default_factory=dict)
 
 
@@ -310,17 +310,30 @@ class KittiDatasetWriter:
         return [index for index in indices if index not in recorded or not self.is_complete(index)]
 
     def write_frame(self, record: FrameRecord) -> None:
-        """Encode and write all files of one frame, then its record. Safe to call again after a crash."""
+        """Encode and write all files of one frame, then its record. Safe to call again after a crash.
+
+        If a write fails (a full disk), the frame's files written so far are deleted before the error is
+        raised: nothing of an incomplete frame stays behind, and a rerun writes it again."""
         self._check_record(record)
         self.layout.frame_meta(record.index).unlink(missing_ok=True)
-        for view, data in enumerate(record.views):
-            encoded = self._encodings(view, data)
-            for path, kind in self._files(view, record.index).items():
-                remove_stale_temps(path)
-                encoded[kind](path)
-        meta = self.layout.frame_meta(record.index)
-        remove_stale_temps(meta)
-        write_text_atomic(meta, json.dumps(self.frame_line(record), allow_nan=False) + "\n")
+        try:
+            for view, data in enumerate(record.views):
+                encoded = self._encodings(view, data)
+                for path, kind in self._files(view, record.index).items():
+                    remove_stale_temps(path)
+                    encoded[kind](path)
+            meta = self.layout.frame_meta(record.index)
+            remove_stale_temps(meta)
+            write_text_atomic(meta, json.dumps(self.frame_line(record), allow_nan=False) + "\n")
+        except BaseException:
+            self.remove_frame(record.index)
+            raise
+
+    def remove_frame(self, index: int) -> None:
+        """Delete every file of frame ``index`` and their temporaries (the record first: the frame is undone)."""
+        for path in reversed(self.frame_files(index)):
+            path.unlink(missing_ok=True)
+            remove_stale_temps(path)
 
     def _encodings(self, view: int, data) -> dict:
         """Writers of each file kind for one view (lazy, so unused kinds cost nothing)."""
@@ -356,7 +369,7 @@ class KittiDatasetWriter:
                                    f"got {depth.dtype} {depth.shape}")
 
     def frame_line(self, record: FrameRecord) -> dict:
-        """The frame's record (a line of ``frames.jsonl``): pose in ENU and geodetic, sun, seed, timing."""
+        """The frame's record (a line of ``frames.jsonl``): pose in ENU and geodetic, sun, seed (no timing)."""
         T = np.asarray(record.T_world_cam, dtype=np.float64)
         east, north, up = T[:3, 3]
         lat, lon, height = self.spec.origin.to_geodetic(east, north, up)
@@ -368,7 +381,6 @@ class KittiDatasetWriter:
             "position_enu_m": [float(east), float(north), float(up)],
             "geodetic": {"lat_deg": float(lat), "lon_deg": float(lon), "h_ellipsoid_m": float(height)},
             "sun": _sun_description(record.sun),
-            "render_time_s": None if record.render_time_s is None else float(record.render_time_s),
             **dict(record.extra),
         }
 

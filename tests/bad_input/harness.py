@@ -15,6 +15,9 @@ Each ``tests/bad_input/test_<area>.py`` holds a table of :class:`Case` and one p
 
 ``{tmp}`` in an argument is the case's folder; ``{data}`` is the real sample data
 (``tests.conftest.SHARED_DATA``); ``setup(tmp)`` writes the case's input files before the run.
+
+Full-disk cases run in a small tmpfs mounted with :func:`small_disk` (skipped, with the reason, where the test
+may not mount one: not root, no CAP_SYS_ADMIN).
 """
 
 from __future__ import annotations
@@ -22,10 +25,13 @@ from __future__ import annotations
 import contextlib
 import io
 import re
+import subprocess
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import pytest
 
 from capture.cli import main as ingest_main
 from flightplan.cli import main as mission_main
@@ -99,3 +105,29 @@ def assert_refused(result: Result, case: Case, tmp: Path) -> None:
 
 def _files(folder: Path) -> set[Path]:
     return {path for path in folder.rglob("*") if path.is_file()}
+
+
+@contextlib.contextmanager
+def small_disk(folder: Path, size: str, read_only: bool = False) -> Iterator[Path]:
+    """Mount a tmpfs of ``size`` (``mount -o size=``: ``64k``, ``2m``; ``read_only``: mounted read-only) on the new
+    folder ``folder`` for the block; :func:`grow_disk` frees space. Skips the test where mounting is not
+    permitted."""
+    folder.mkdir(parents=True)
+    options = f"size={size}{',ro' if read_only else ''}"
+    try:
+        mounted = subprocess.run(["mount", "-t", "tmpfs", "-o", options, "tmpfs", str(folder)],
+                                 capture_output=True, text=True)
+    except FileNotFoundError:
+        pytest.skip("cannot mount a tmpfs to fill up: no mount command on this machine")
+    if mounted.returncode != 0:
+        pytest.skip(f"cannot mount a {size} tmpfs to fill up (needs root or CAP_SYS_ADMIN): "
+                    f"{mounted.stderr.strip() or mounted.returncode}")
+    try:
+        yield folder
+    finally:
+        subprocess.run(["umount", "--lazy", str(folder)], check=True)
+
+
+def grow_disk(folder: Path, size: str) -> None:
+    """Give the tmpfs of :func:`small_disk` mounted on ``folder`` the new ``size`` (space freed)."""
+    subprocess.run(["mount", "-o", f"remount,size={size}", str(folder)], check=True)

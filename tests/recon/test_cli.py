@@ -134,6 +134,24 @@ def test_unreadable_photo_is_named(tmp_path, capsys):
         assert "Traceback" not in err
 
 
+def test_truncated_jpeg_is_refused_naming_it(shared_data, tmp_path, capsys):
+    """A real DJI photo cut short (a copy from the card that stopped) opens, and OpenCV decodes it with a grey
+    bottom; recon refuses it before SfM, naming it, with geotags and with the photos' own GPS."""
+    source = sorted((shared_data / "brighton_beach" / "images").glob("*.JPG"))[:3]
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for photo in source:
+        shutil.copy(photo, photos / photo.name)
+    cut = photos / source[1].name
+    cut.write_bytes(source[1].read_bytes()[: 2 * source[1].stat().st_size // 3])
+    geotags = write_geotags(tmp_path, [geotag_row(p.name, (i, 0, 30), (1, 0, 0, 0)) for i, p in enumerate(source)])
+    for priors in (["--geotags", geotags], []):
+        code, err = run_cli(["--photos", photos, *priors, "--out", tmp_path / "scene"], capsys)
+        assert code == 2 and err.count("\n") == 1, err
+        assert f"{cut}: the image data is cut short or corrupt (image file is truncated" in err
+    assert not (tmp_path / "scene").exists()
+
+
 def test_missing_geotags_file(tmp_path, capsys):
     blank_photos(tmp_path / "photos", ["a.jpg", "b.jpg", "c.jpg"])
     code, err = run_cli(["--photos", tmp_path / "photos", "--geotags", tmp_path / "nope.csv",

@@ -1,11 +1,14 @@
 """Dense SGBM depth on a synthetic textured plane seen by two known cameras (truth: ray-plane depth)."""
 
+import errno
+
 import numpy as np
 import pycolmap
 import pytest
 
-from recon.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, normals_from_depth,
-                         pair_depth, spaced_views, textureless, write_colmap_maps)
+from recon.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, map_bytes, map_path,
+                         maps_complete, normals_from_depth, pair_depth, spaced_views, textureless, write_colmap_maps)
+from tests.bad_input.harness import grow_disk, small_disk
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth
 
 @pytest.fixture(scope="module")
@@ -119,3 +122,38 @@ def test_photos_without_a_stereo_pair_stop_before_any_depth_map(tmp_path):
     with pytest.raises(DenseError, match="no stereo pair among the 3 registered photos.*too far apart"):
         compute_depth_maps(tmp_path, DenseOptions())
     assert sorted(p.name for p in tmp_path.iterdir()) == ["sparse"]
+
+
+def test_maps_cut_short_by_a_full_disk_are_an_error_and_never_count_as_done(tmp_path):
+    """COLMAP's writer leaves 0-byte maps on a full disk and says nothing: the write is an ENOSPC naming the map,
+    no map takes its final name short, a map from before the check (0 bytes) is not done, and once space is
+    freed the same write completes."""
+    width, height = 40, 30  # 8 KiB + 16 KiB of tmpfs pages a view: 64 KiB hold two views and a depth map
+    depth = np.full((height, width), 6.0, np.float32)
+    normals = np.zeros((height, width, 3), np.float32)
+    normals[..., 2] = -1.0
+    with small_disk(tmp_path / "disk", "64k") as workspace:
+        written, failure = [], None
+        for index in range(6):
+            try:
+                write_colmap_maps(workspace, f"v{index}.png", depth, normals)
+                written.append(index)
+            except OSError as error:
+                failure = (index, error)
+                break
+        assert failure is not None and written == [0, 1]
+        index, error = failure
+        assert error.errno == errno.ENOSPC and error.filename == str(map_path(workspace, "normal_maps", "v2.png"))
+        assert all(maps_complete(workspace, f"v{i}.png", width, height) for i in written)
+        assert not maps_complete(workspace, "v2.png", width, height)
+        short = [p for p in workspace.rglob("*") if p.is_file() and p.stat().st_size not in
+                 (map_bytes(width, height, 1), map_bytes(width, height, 3))]
+        assert not short, f"maps cut short under their final names: {short}"
+        assert not list(workspace.rglob(".*")), "temporaries left"
+        grow_disk(workspace, "1m")
+        write_colmap_maps(workspace, "v2.png", depth, normals)
+        assert maps_complete(workspace, "v2.png", width, height)
+    stale = tmp_path / "stale"
+    write_colmap_maps(stale, "v.png", depth, normals)
+    map_path(stale, "normal_maps", "v.png").write_bytes(b"")  # as an earlier version left it on a full disk
+    assert not maps_complete(stale, "v.png", width, height)

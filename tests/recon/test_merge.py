@@ -107,6 +107,22 @@ def test_merge_cli_corrupt_mesh_is_named(tmp_path, capsys):
     assert not (tmp_path / "c.ply").exists()
 
 
+def test_merge_cli_refuses_a_mesh_with_nan_vertices(tmp_path, capsys):
+    """A NaN vertex would come out as NaN in the merged mesh: refused, naming the file and how many."""
+    trimesh.creation.box().export(tmp_path / "a.ply")
+    b = trimesh.creation.box()
+    b.vertices[[2, 5]] = np.nan
+    b.export(tmp_path / "b.ply")
+    assert np.isnan(trimesh.load(tmp_path / "b.ply", process=False).vertices).any()  # PLY keeps the NaN
+    (tmp_path / "pairs.txt").write_text("0 0 0 0 0 0\n1 0 0 1 0 0\n0 1 0 0 1 0\n")
+    code = main(["merge", str(tmp_path / "a.ply"), str(tmp_path / "b.ply"), "--pairs", str(tmp_path / "pairs.txt"),
+                 "--out", str(tmp_path / "c.ply")])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1, err
+    assert f"{tmp_path / 'b.ply'}: 2 of 8 vertices are not finite numbers" in err
+    assert not (tmp_path / "c.ply").exists()
+
+
 def test_merge_meshes_keeps_reference():
     a = trimesh.creation.icosphere()
     merged = merge_meshes(a, a.copy(), Similarity(1.0, np.eye(3), np.array([5.0, 0, 0])))

@@ -6,7 +6,9 @@ and the pixel of any ground point are known exactly.
 
 from __future__ import annotations
 
+import json
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -74,9 +76,23 @@ def render_plane_view(camera: PinholeCamera, T_world_cam: np.ndarray) -> View:
     return View(rgb=rgb, depth=depth.astype(np.float32))
 
 
-def frame_record(index: int, camera_count: int = 2, render_time_s: float = 0.25) -> FrameRecord:
+def frame_record(index: int, camera_count: int = 2) -> FrameRecord:
     """The record a renderer would produce for frame ``index`` of the analytic scene."""
     T_world_left = looking_down_pose(index)
     views = [render_plane_view(CAMERA, T_world_left @ T) for T in rig_transforms(camera_count)]
     return FrameRecord(index=index, views=views, T_world_cam=T_world_left, time_s=0.1 * index, seed=7,
-                       sun=Sun(120.0 + index, 45.0, 7.5), render_time_s=render_time_s)
+                       sun=Sun(120.0 + index, 45.0, 7.5))
+
+
+def dataset_bytes(dataset: Path, command_line: bool = False) -> dict[str, bytes]:
+    """Every file of a dataset by relative path, as it is (the run logs in ``logs/`` are not the dataset's);
+    ``dataset.json`` without the command line unless ``command_line``."""
+    files = {}
+    for path in sorted(p for p in dataset.rglob("*") if p.is_file() and p.relative_to(dataset).parts[0] != "logs"):
+        name = str(path.relative_to(dataset))
+        if path.name == "dataset.json" and not command_line:
+            description = json.loads(path.read_text())
+            files[name] = json.dumps({k: v for k, v in description.items() if k != "command_line"}).encode()
+        else:
+            files[name] = path.read_bytes()
+    return files

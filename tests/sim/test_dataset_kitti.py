@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import shutil
 import signal
@@ -16,9 +17,10 @@ import pykitti
 import pytest
 
 from dataset_helpers import BASELINE_M, CAMERA, ORIGIN, frame_record, looking_down_pose, spec
+from tests.bad_input.harness import small_disk
 from sim.dataset import FORMATS as ALL_FORMATS
 from sim.dataset import AsyncFrameWriter, DatasetError, DatasetSpec, KittiDatasetWriter, finalize_dataset, shard_frames
-from sim.dataset.images import read_exr, read_png
+from sim.dataset.images import read_exr, read_png, write_exr
 from sim.dataset.writer import dataset_description
 
 FRAMES = 4
@@ -255,6 +257,30 @@ def test_async_writer_reports_a_failed_frame(tmp_path):
     with pytest.raises(RuntimeError, match="frame 1 view 1: depth must be float \\(48, 64\\)"):
         frames.close()
     assert writer.is_complete(0) and not writer.is_complete(1)
+
+
+def test_an_exr_that_does_not_fit_is_an_os_error_naming_it_and_leaves_nothing(tmp_path):
+    """OpenEXR reports a full disk as a RuntimeError with a message: it becomes ENOSPC naming the file."""
+    noise = np.random.default_rng(2).random((256, 256), dtype=np.float32)  # 256 KiB that ZIP cannot shrink much
+    with small_disk(tmp_path / "disk", "64k") as disk:
+        with pytest.raises(OSError) as raised:
+            write_exr(disk / "depth.exr", noise)
+        assert raised.value.errno == errno.ENOSPC and raised.value.filename == str(disk / "depth.exr")
+        assert not list(disk.iterdir())
+
+
+def test_a_frame_that_does_not_fit_leaves_no_file_and_the_error_names_the_file(tmp_path):
+    with small_disk(tmp_path / "disk", "160k") as disk:
+        writer = KittiDatasetWriter(disk, spec(FRAMES, formats=ALL_FORMATS))
+        with pytest.raises(OSError) as raised, AsyncFrameWriter(writer) as frames:
+            for index in range(FRAMES):
+                frames.submit(frame_record(index))
+        assert raised.value.errno == errno.ENOSPC and Path(raised.value.filename).is_relative_to(disk)
+        complete = [index for index in range(FRAMES) if writer.is_complete(index)]
+        assert complete == list(range(len(complete))) and len(complete) < FRAMES
+        partial = [path for index in range(len(complete), FRAMES) for path in writer.frame_files(index)
+                   if path.exists()]
+        assert not partial and not list(disk.rglob(".*.tmp*"))
 
 
 def test_extra_rig_cameras_get_their_own_folders_and_calib_lines(tmp_path):

@@ -7,6 +7,7 @@ on worker count, shards or a kill in the middle of a frame; bad input exits with
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
 import math
@@ -33,6 +34,7 @@ from sim.render_cli import build_parser, options_from_args
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR, camera_rotation
 
+from dataset_helpers import dataset_bytes
 from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
@@ -59,22 +61,6 @@ def reference(scene_dir, tmp_path_factory):
 
 def frame_records(dataset: Path) -> list[dict]:
     return [json.loads(line) for line in (dataset / "sequences/00/frames.jsonl").read_text().splitlines()]
-
-
-def dataset_bytes(dataset: Path) -> dict[str, bytes]:
-    """Every file of a dataset by relative path; records without the measured render time, no command line."""
-    files = {}
-    for path in sorted(p for p in dataset.rglob("*") if p.is_file()):
-        name = str(path.relative_to(dataset))
-        if (path.suffix == ".json" and "frame_meta" in name) or path.name == "frames.jsonl":
-            records = [json.loads(line) for line in path.read_text().splitlines()]
-            files[name] = json.dumps([{k: v for k, v in r.items() if k != "render_time_s"} for r in records]).encode()
-        elif path.name == "dataset.json":
-            description = json.loads(path.read_text())
-            files[name] = json.dumps({k: v for k, v in description.items() if k != "command_line"}).encode()
-        else:
-            files[name] = path.read_bytes()
-    return files
 
 
 def pixel_rays(P: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -219,6 +205,56 @@ def test_a_run_killed_in_the_middle_of_a_frame_resumes_to_the_same_bytes(scene_d
     assert cli_main(_argv(scene_dir, uninterrupted, **KILL_OPTIONS)) == 0
     assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
     assert not [p for p in killed.rglob(".*.tmp*")]
+
+
+def test_two_runs_of_one_command_give_identical_files_and_timings_go_to_the_run_log(scene_dir, tmp_path):
+    out = tmp_path / "dataset"
+    argv = _argv(scene_dir, out, frames=3, width=48, height=32, seed=4)
+    assert cli_main(argv) == 0
+    first = out.rename(tmp_path / "first")
+    assert cli_main(argv) == 0
+    assert dataset_bytes(out, command_line=True) == dataset_bytes(first, command_line=True)  # byte for byte
+    assert all("render_time_s" not in record for record in frame_records(out))
+    logs = list((out / "logs").glob("render-*.jsonl"))
+    assert len(logs) == 1
+    run, *frames = [json.loads(line) for line in logs[0].read_text().splitlines()]
+    assert run["run"]["command_line"] == ["aerostereo-render", *argv] and run["run"]["rendered"] == 3
+    assert [frame["frame"] for frame in frames] == [0, 1, 2]
+    assert all(0 < frame["render_s"] <= frame["done_s"] <= run["run"]["elapsed_s"] for frame in frames)
+
+
+def _files_and_sizes(folder: Path) -> dict[str, tuple[int, int]]:
+    """Every file under ``folder`` (temporaries included): size and modification time."""
+    return {str(p): (p.stat().st_size, p.stat().st_mtime_ns) for p in folder.rglob("*") if p.is_file()}
+
+
+@pytest.mark.slow
+def test_killing_the_parent_of_two_workers_stops_every_write_and_a_rerun_resumes(scene_dir, tmp_path):
+    options = dict(width=480, height=300, frames=24, seed=5)
+    killed = tmp_path / "killed"
+    argv = _argv(scene_dir, killed, workers=2, **options)
+    code = f"import sys; from sim.cli import main; sys.exit(main({argv!r}))"
+    process = subprocess.Popen([sys.executable, "-c", code], cwd=REPO_ROOT, start_new_session=True,
+                               env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
+    try:
+        deadline = time.monotonic() + 120
+        while not list(killed.glob("sequences/00/frame_meta/*.json")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        process.send_signal(signal.SIGKILL)  # the parent only: its workers are left to the kernel
+        process.wait()
+        time.sleep(1.0)
+        settled = _files_and_sizes(killed)
+        time.sleep(1.5)
+        assert _files_and_sizes(killed) == settled, "a worker kept writing after its parent was killed"
+    finally:
+        with contextlib.suppress(ProcessLookupError):  # no process left of the run: what the test expects
+            os.killpg(process.pid, signal.SIGKILL)
+    complete = len(list(killed.glob("sequences/00/frame_meta/*.json")))
+    assert 1 <= complete < options["frames"]
+    assert cli_main(argv) == 0
+    uninterrupted = tmp_path / "uninterrupted"
+    assert cli_main(_argv(scene_dir, uninterrupted, **options)) == 0
+    assert dataset_bytes(killed) == dataset_bytes(uninterrupted)
 
 
 def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
