@@ -160,23 +160,39 @@ class SerialSource(LiveSource):
         self.description = f"serial port {url}"
 
     def _open(self):
-        return serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.read_timeout_s)
+        """Open the port keeping what arrives while it opens: pyserial's ``open()`` ends by discarding the input
+        buffer, which on ``socket://`` means every byte the sender streamed since the connection was made."""
+        port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=self.read_timeout_s,
+                                     do_not_open=True)
+        port.reset_input_buffer = _keep_input
+        port.open()
+        return port
 
     def _read(self, port) -> bytes:
-        """Wait up to the timeout for a byte, then take everything already waiting (socket:// reports 1).
+        """Wait up to the read timeout for a first byte, then take at once everything already waiting.
 
-        A disconnect after some bytes arrived returns those bytes; the next read reports the disconnect.
+        The rest is one non-blocking read (pyserial's ``timeout = 0``) of up to ``max_chunk_bytes``: it returns
+        what the OS has buffered, so every chunk reaches the caller (and the capture file) as soon as it
+        arrived, whatever ``in_waiting`` says (``socket://`` reports 1 for any amount). A disconnect after some
+        bytes arrived returns those bytes; the next read reports the disconnect.
         """
-        data = port.read(max(1, port.in_waiting))
+        data = port.read(1)
+        if not data:
+            return data
         try:
-            while data and port.in_waiting and len(data) < self.max_chunk_bytes:
-                data += port.read(port.in_waiting)
+            port.timeout = 0
+            data += port.read(self.max_chunk_bytes - 1)
+            port.timeout = self.read_timeout_s
         except self.disconnect_errors:
             pass
         return data
 
     def _close(self, port) -> None:
         port.close()
+
+
+def _keep_input() -> None:
+    """Stands in for a port's ``reset_input_buffer`` while it opens: received bytes are never thrown away."""
 
 
 class _UsbLink(NamedTuple):
