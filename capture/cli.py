@@ -42,8 +42,8 @@ def add_record_parser(subparsers) -> None:
 
 
 def add_decode_parser(subparsers) -> None:
-    parser = subparsers.add_parser("decode", help="decode a raw capture (.duml) or a pcap to telemetry CSV")
-    parser.add_argument("input", type=Path, help="INPUT.duml (with INPUT.duml.idx for times) or INPUT.pcap")
+    parser = subparsers.add_parser("decode", help="decode a raw capture (.duml), a pcap or a pcapng to telemetry CSV")
+    parser.add_argument("input", type=Path, help="INPUT.duml (with INPUT.duml.idx for times), INPUT.pcap or INPUT.pcapng")
     parser.add_argument("--out", required=True, type=Path, help="telemetry.csv, one row per decoded message")
     parser.set_defaults(handler=run_decode)
 
@@ -109,13 +109,14 @@ def run_record(args) -> int:
 
 
 def run_decode(args) -> int:
-    if not args.input.is_file():
-        raise CliError(f"{args.input}: no such file")
-    if not is_pcap(args.input) and not index_path(args.input).exists():
-        print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
     problems: list[str] = []
-    summary = decode_to_csv(replay_file(args.input, problems), args.out, default_registry())
-    if summary.bytes_read and not summary.packets:
+    chunks = replay_file(args.input, problems)
+    if args.input.stat().st_size == 0:
+        raise CliError(f"{args.input}: empty file (0 bytes), expected a DUML capture")
+    if not is_pcap(args.input) and not index_path(args.input).exists():
+        problems.append(f"{index_path(args.input)} not found, utc_time and monotonic_s are left empty")
+    summary = decode_to_csv(chunks, args.out, default_registry())
+    if not summary.packets:
         args.out.unlink(missing_ok=True)
         raise CliError(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
     print(f"{args.input}: {summary.bytes_read} bytes, {summary.packets} packets, {summary.rows} telemetry rows "

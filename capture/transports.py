@@ -12,6 +12,7 @@ device factory, so tests use ``loop://``, :mod:`capture.fakeusb` and injected ob
 from __future__ import annotations
 
 import datetime as dt
+import io
 import struct
 import threading
 import time
@@ -19,6 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator, NamedTuple
 
+import dpkt
+import numpy as np
 import serial
 import usb.core
 import usb.util
@@ -305,36 +308,55 @@ def hidapi_opener(vendor_id: int, product_id: int) -> Callable[[], object]:
 
 
 def replay_file(path: str | Path, problems: list[str] | None = None) -> Iterator[Chunk]:
-    """Chunks of a raw capture (``.duml`` + ``.idx``) or a pcap with link type 150, as they were received.
+    """Chunks of a raw capture (``.duml`` + ``.idx``), a pcap or a pcapng with link type 150, as received.
 
-    A pcap's cut-short last record is passed on as far as it goes and described in ``problems`` (when given).
+    Damage that still leaves data to read (a cut-short last record, a corrupt record length) is described in
+    ``problems`` (when given) and read past; see :func:`read_pcap` and :func:`read_pcapng`.
     """
     path = Path(path)
+    if path.is_dir():
+        raise TransportError(f"{path}: is a directory, expected a capture file (.duml, .pcap or .pcapng)")
     if not path.is_file():
         raise TransportError(f"{path}: no such file")
-    if is_pcap(path):
+    kind = capture_format(path)
+    if kind == "pcap":
         return read_pcap(path, problems)
+    if kind == "pcapng":
+        return read_pcapng(path, problems)
     return (Chunk(*chunk) for chunk in read_capture_chunks(path))
 
 
-def is_pcap(path: str | Path) -> bool:
-    """Whether ``path`` starts with a classic pcap magic number (either byte order, us or ns)."""
+def capture_format(path: str | Path) -> str:
+    """``pcap`` or ``pcapng`` by the file's magic number, else ``raw`` (a ``.duml`` raw capture)."""
     with open(path, "rb") as handle:
-        return handle.read(4) in _PCAP_MAGIC
+        magic = handle.read(4)
+    return "pcap" if magic in _PCAP_MAGIC else "pcapng" if magic == _PCAPNG_MAGIC else "raw"
 
 
+def is_pcap(path: str | Path) -> bool:
+    """Whether ``path`` is a packet capture (classic pcap or pcapng), so it carries its own times."""
+    return capture_format(path) != "raw"
+
+
+_PCAPNG_MAGIC = b"\x0a\x0d\x0d\x0a"  # section header block type
 _PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6),
                b"\x4d\x3c\xb2\xa1": ("<", 1e-9), b"\xa1\xb2\x3c\x4d": (">", 1e-9)}
 _PCAP_HEADER_BYTES = 24
-_PCAP_RECORD = {"<": struct.Struct("<4I"), ">": struct.Struct(">4I")}  # seconds, fraction, captured, original
+_PCAP_RECORD_BYTES = 16  # seconds, fraction, captured length, original length (u32 each)
+_PCAP_MAX_SNAPLEN = 262144  # libpcap's largest; a header snap length of 0 means "no limit" up to it
 
 
 def read_pcap(path: str | Path, problems: list[str] | None = None) -> Iterator[Chunk]:
     """Records of a classic pcap holding DUML (link type 150); the monotonic time counts from the first.
 
-    A file cut short inside its last record (a capture killed mid-write) yields that record's bytes that are
-    there, then stops, and appends one line saying so to ``problems``. TransportError for a file that is not
-    a pcap, whose header is cut short, or whose link type is not DUML.
+    A record header is valid when its fraction is below one second and its captured length is at most the file's
+    snap length and the original length. A file cut short inside its last record (a capture killed mid-write)
+    yields that record's bytes that are there, then stops. A record with an invalid header (a corrupt length)
+    is counted as corrupt: reading resumes at the next valid record header (one whose record ends at the end of
+    the file or at another valid header), and the bytes in between are passed on without times, so no
+    telemetry is lost. Each such event appends one line naming the byte offset to ``problems``. This reader is
+    kept by hand because library readers (dpkt, scapy) trust a corrupt length and swallow the rest of the file.
+    TransportError for a file that is not a pcap, whose header is cut short, or whose link type is not DUML.
     """
     data = Path(path).read_bytes()
     endian, tick = _PCAP_MAGIC.get(data[:4], (None, None))
@@ -342,26 +364,112 @@ def read_pcap(path: str | Path, problems: list[str] | None = None) -> Iterator[C
         raise TransportError(f"{path}: not a pcap file (magic {data[:4].hex()})")
     if len(data) < _PCAP_HEADER_BYTES:
         raise TransportError(f"{path}: pcap file header cut short ({len(data)} of {_PCAP_HEADER_BYTES} bytes)")
-    linktype = struct.unpack_from(endian + "I", data, 20)[0]
+    snaplen, linktype = struct.unpack_from(endian + "2I", data, 16)
     if linktype != PCAP_LINKTYPE_DUML:
         raise TransportError(f"{path}: pcap link type {linktype}, expected {PCAP_LINKTYPE_DUML} (DUML, DLT_USER3)")
-    record = _PCAP_RECORD[endian]
-    position, first = _PCAP_HEADER_BYTES, None
+    headers = _PcapHeaders(data, endian, round(1 / tick), min(snaplen or _PCAP_MAX_SNAPLEN, _PCAP_MAX_SNAPLEN))
+    return _pcap_chunks(path, data, headers, tick, problems)
+
+
+class _PcapHeaders:
+    """Record headers of a pcap's bytes at any offset, and whether they are valid (see :func:`read_pcap`)."""
+
+    def __init__(self, data: bytes, endian: str, fractions_per_s: int, snaplen: int) -> None:
+        self.data, self.endian, self.fractions_per_s, self.snaplen = data, endian, fractions_per_s, snaplen
+        self.unpack = struct.Struct(endian + "4I").unpack_from
+
+    def valid(self, position: int) -> bool:
+        _, fraction, captured, original = self.unpack(self.data, position)
+        return fraction < self.fractions_per_s and captured <= min(self.snaplen, original)
+
+    def fits(self, position: int) -> bool:
+        """A valid header whose record ends exactly at the end of the data or at another valid header."""
+        if position + _PCAP_RECORD_BYTES > len(self.data) or not self.valid(position):
+            return False
+        end = position + _PCAP_RECORD_BYTES + self.unpack(self.data, position)[2]
+        return end == len(self.data) or (end + _PCAP_RECORD_BYTES <= len(self.data) and self.valid(end))
+
+    def next_fitting(self, after: int, last_seconds: int | None) -> int | None:
+        """The first offset past ``after`` that :meth:`fits`, holds at least one byte and, when a record was read
+        before (``last_seconds``), a time from one second before it to a day after; numpy finds candidates."""
+        words = self._words_at_every_offset(after + 1)
+        count = max(0, len(words) - 12)
+        seconds, fraction, captured, original = (words[k:k + count] for k in (0, 4, 8, 12))
+        valid = (fraction < self.fractions_per_s) & (captured > 0) & (captured <= np.minimum(original, self.snaplen))
+        if last_seconds is not None:
+            valid &= (seconds + 1 >= last_seconds) & (seconds <= last_seconds + 86400)
+        return next((after + 1 + int(p) for p in np.flatnonzero(valid) if self.fits(after + 1 + int(p))), None)
+
+    def _words_at_every_offset(self, start: int) -> np.ndarray:
+        """The u32 (in the file's byte order) starting at each byte offset from ``start`` on."""
+        window = np.lib.stride_tricks.sliding_window_view(np.frombuffer(self.data, np.uint8, offset=start), 4)
+        weights = 256 ** np.arange(4, dtype=np.uint64)
+        return window @ (weights if self.endian == "<" else weights[::-1])
+
+
+def _pcap_chunks(path, data: bytes, headers: _PcapHeaders, tick: float, problems) -> Iterator[Chunk]:
+    position, first, last_seconds = _PCAP_HEADER_BYTES, None, None
     while position < len(data):
-        if position + record.size > len(data):
+        if position + _PCAP_RECORD_BYTES > len(data):
             _note(problems, f"{path}: truncated record at byte {position}: its header is cut short "
-                            f"({len(data) - position} of {record.size} bytes), dropped")
+                            f"({len(data) - position} of {_PCAP_RECORD_BYTES} bytes), dropped")
             return
-        seconds, fraction, captured, _ = record.unpack_from(data, position)
-        stamp = seconds + fraction * tick
+        seconds, fraction, captured, _ = headers.unpack(data, position)
+        body = position + _PCAP_RECORD_BYTES
+        if not headers.valid(position):
+            resume = headers.next_fitting(position, last_seconds)
+            end = len(data) if resume is None else resume
+            _note(problems, f"{path}: corrupt record at byte {position} (captured length {captured}, fraction "
+                            f"{fraction}; snap length {headers.snaplen}): "
+                            + (f"{end - body} bytes up to the next valid record at byte {resume} decoded without "
+                               "times" if resume is not None else
+                               f"no valid record after it, its last {end - body} bytes decoded without times"))
+            if end > body:
+                yield Chunk(None, None, data[body:end])
+            position = end
+            continue
+        stamp, last_seconds = seconds + fraction * tick, seconds
         first = stamp if first is None else first
-        payload = data[position + record.size:position + record.size + captured]
+        payload = data[body:body + captured]
         yield Chunk(dt.datetime.fromtimestamp(stamp, dt.timezone.utc), stamp - first, payload)
         if len(payload) < captured:
             _note(problems, f"{path}: truncated record at byte {position}: {len(payload)} of {captured} bytes "
                             "there, kept")
             return
-        position += record.size + captured
+        position = body + captured
+
+
+def read_pcapng(path: str | Path, problems: list[str] | None = None) -> Iterator[Chunk]:
+    """Packets of a pcapng (Wireshark's format) holding DUML, read with ``dpkt.pcapng.Reader``.
+
+    Each enhanced packet block becomes a chunk stamped with its timestamp (the interface's resolution and
+    offset applied); the monotonic time counts from the first. TransportError for a file whose section header
+    or interface description cannot be read or whose link type is not DUML (150). A block that cannot be read
+    (cut short by a kill, or corrupt) ends the reading; one line naming its byte offset goes to ``problems``.
+    """
+    data = Path(path).read_bytes()
+    stream = io.BytesIO(data)
+    try:
+        reader = dpkt.pcapng.Reader(stream)
+    except (ValueError, struct.error, dpkt.Error) as error:
+        raise TransportError(f"{path}: not a readable pcapng file ({str(error) or type(error).__name__})") from None
+    if reader.datalink() != PCAP_LINKTYPE_DUML:
+        raise TransportError(f"{path}: pcapng link type {reader.datalink()}, expected {PCAP_LINKTYPE_DUML} "
+                             "(DUML, DLT_USER3)")
+    return _pcapng_chunks(path, data, stream, reader, problems)
+
+
+def _pcapng_chunks(path, data: bytes, stream: io.BytesIO, reader, problems) -> Iterator[Chunk]:
+    position, first = stream.tell(), None
+    try:
+        for stamp, payload in reader:
+            first = stamp if first is None else first
+            yield Chunk(dt.datetime.fromtimestamp(stamp, dt.timezone.utc), stamp - first, bytes(payload))
+            position = stream.tell()
+    except (ValueError, struct.error, dpkt.Error) as error:
+        reason = "cut short" if isinstance(error, dpkt.NeedData) else str(error) or type(error).__name__
+        _note(problems, f"{path}: unreadable block at byte {position} ({reason}): the "
+                        f"{len(data) - position} bytes from there on are not read")
 
 
 def _note(problems: list[str] | None, problem: str) -> None:
