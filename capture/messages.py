@@ -336,6 +336,15 @@ class MessageRegistry:
         self.counts[spec.kind] += 1
         return spec.decode(packet.payload)
 
+    @property
+    def commands(self) -> list[tuple[int, int]]:
+        """The ``(cmd_set, cmd_id)`` pairs with a decoder: all other packets decode as undecoded."""
+        return list(self._by_command)
+
+    def count_undecoded(self, packets: int) -> None:
+        """Count ``packets`` that were never built because their command has no decoder (see ``commands``)."""
+        self.counts["undecoded"] = self.counts.get("undecoded", 0) + packets
+
     def _count(self, key: str) -> None:
         self.counts[key] = self.counts.get(key, 0) + 1
 
