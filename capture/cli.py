@@ -23,6 +23,7 @@ from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
 from flightplan.argtypes import positive_number
+from flightplan.cli_support import BadInput, refuse_clobbering
 
 
 class CliError(Exception):
@@ -70,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.handler(args)
-    except (CliError, TransportError, CaptureIndexError, OSError) as error:
+    except (CliError, BadInput, TransportError, CaptureIndexError, OSError) as error:
         return cli_logs.report_error(args.command, error)
 
 
@@ -97,6 +98,8 @@ def _parse_ids(port: str, ids: str, allow_empty: bool) -> tuple[int, int | None]
 
 
 def run_record(args) -> int:
+    if args.baud < 1:
+        raise CliError(f"--baud {args.baud}: expected a positive baud rate, e.g. 115200")
     source = open_source(args.port, args.baud)
     source.open()  # fail before creating any file
     stop = stop_after(args.duration)
@@ -109,6 +112,7 @@ def run_record(args) -> int:
 
 
 def run_decode(args) -> int:
+    refuse_clobbering({"INPUT": args.input, "INPUT's index": index_path(args.input)}, {"--out": args.out})
     problems: list[str] = []
     chunks = replay_file(args.input, problems)
     if args.input.stat().st_size == 0:

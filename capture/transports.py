@@ -106,7 +106,7 @@ class LiveSource:
         """Open the device now (``chunks`` does it if needed); TransportError when it cannot be opened."""
         try:
             self.connection = self._open()
-        except self.disconnect_errors as error:
+        except (*self.disconnect_errors, ValueError) as error:  # ValueError: a setting the port refuses
             raise TransportError(f"cannot open {self.description}: {error_text(error)}") from None
 
     def chunks(self, stop: threading.Event | None = None) -> Iterator[Chunk]:
