@@ -204,3 +204,19 @@ def test_decode_of_a_pcap_with_a_corrupt_record_length_keeps_every_row_and_names
     assert len(differing) <= 1  # the corrupt record's own message, if telemetry, lost its time only
     assert all(b["utc_time"] == "" and {**a, "utc_time": "", "monotonic_s": ""} == b for a, b in differing)
     assert len({r["utc_time"] for r in damaged_rows}) > 2000  # not one timestamp for everything after it
+
+
+def test_decode_of_a_wireshark_pcapng_gives_the_rows_and_times_of_the_same_pcap(shared_data, tmp_path):
+    import dpkt
+
+    from capture.transports import read_pcap
+
+    pcap = shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run1.pcap"
+    pcapng = tmp_path / "run1.pcapng"
+    with open(pcapng, "wb") as handle:
+        writer = dpkt.pcapng.Writer(handle, snaplen=65535, linktype=150)
+        for record in read_pcap(pcap):
+            writer.writepkt(record.data, ts=record.receive_time_utc.timestamp())
+    assert cli.main(["decode", str(pcap), "--out", str(tmp_path / "pcap.csv")]) == 0
+    assert cli.main(["decode", str(pcapng), "--out", str(tmp_path / "pcapng.csv")]) == 0
+    assert (tmp_path / "pcapng.csv").read_bytes() == (tmp_path / "pcap.csv").read_bytes()
