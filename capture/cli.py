@@ -44,7 +44,8 @@ def add_record_parser(subparsers) -> None:
 
 def add_decode_parser(subparsers) -> None:
     parser = subparsers.add_parser("decode", help="decode a raw capture (.duml), a pcap or a pcapng to telemetry CSV")
-    parser.add_argument("input", type=Path, help="INPUT.duml (with INPUT.duml.idx for times), INPUT.pcap or INPUT.pcapng")
+    parser.add_argument("input", type=Path,
+                        help="INPUT.duml (with INPUT.duml.idx for times), INPUT.pcap or INPUT.pcapng (by content)")
     parser.add_argument("--out", required=True, type=Path, help="telemetry.csv, one row per decoded message")
     parser.set_defaults(handler=run_decode)
 

@@ -343,10 +343,10 @@ class MessageRegistry:
 
     def count_undecoded(self, packets: int) -> None:
         """Count ``packets`` that were never built because their command has no decoder (see ``commands``)."""
-        self.counts["undecoded"] = self.counts.get("undecoded", 0) + packets
+        self._count("undecoded", packets)
 
-    def _count(self, key: str) -> None:
-        self.counts[key] = self.counts.get(key, 0) + 1
+    def _count(self, key: str, packets: int = 1) -> None:
+        self.counts[key] = self.counts.get(key, 0) + packets
 
 
 def default_specs() -> list[MessageSpec]:

@@ -147,7 +147,8 @@ def bench(size_mb: int, chunk_mb: float, seed: int) -> None:
     print("| stage | time (s) | CPU (s) | MB/s | MB/s of CPU | packets/s | vs USB 2.0 FS (1.5 MB/s) "
           "| vs 115200 baud (11.5 kB/s) |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|")
-    rows = [("deframe + both CRCs (FrameBatch)", deframe_s, deframe_cpu_s), ("  of which CRC16 (crc_hqx)", crc_timer.seconds, None),
+    rows = [("deframe + both CRCs (FrameBatch)", deframe_s, deframe_cpu_s),
+            ("  of which CRC16 (crc_hqx)", crc_timer.seconds, None),
             ("  of which framing (numpy scan, CRC8, greedy)", deframe_s - crc_timer.seconds, None),
             ("deframe + Packet objects", packets_s, None), ("decode records (registry)", decode_s, None),
             ("deframe + Packets + decode", packets_s + decode_s, None),

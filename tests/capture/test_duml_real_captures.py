@@ -178,8 +178,9 @@ def test_pcapng_cut_short_keeps_the_packets_before_the_cut(tmp_path, shared_data
     problems = []
     assert [c.data for c in replay_file(path, problems)] == [r.data for r in records[:2]]
     last_block = len(whole) - (32 + (len(records[2].data) + 3) // 4 * 4)
-    assert problems == [f"{path}: unreadable block at byte {last_block} (cut short): the {len(whole) - 10 - last_block} "
-                        "bytes from there on are not read"]
+    left = len(whole) - 10 - last_block
+    assert problems == [f"{path}: unreadable block at byte {last_block} (cut short): the {left} bytes from there on "
+                        "are not read"]
 
 
 def test_pcapng_with_another_link_type_or_garbage_is_refused(tmp_path, shared_data):
