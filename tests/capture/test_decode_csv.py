@@ -1,5 +1,5 @@
 """The fast decode path: frames of undecoded commands are counted but never built, and the CSV lines made with
-one ``str.format`` each are what the csv module writes and reads back."""
+one ``%`` formatting each are what the csv module writes and reads back."""
 
 import csv
 import dataclasses
@@ -81,12 +81,12 @@ class Note:
 
 
 def test_text_values_are_quoted_the_csv_way_and_bools_written_as_0_or_1():
-    spec = MessageSpec(0x20, 0x01, "note, with {braces}", Note, 0, 100, lambda b: Note(b.decode(), 3),
+    spec = MessageSpec(0x20, 0x01, "note, with {braces} and 100 %", Note, 0, 100, lambda b: Note(b.decode(), 3),
                        lambda r: r.text.encode(), 1, 2)
     rows = TelemetryRows(MessageRegistry([spec]))
     timed = TimedPacket(5, T0, 1.5, Packet(1, 2, 7, 0, 0x20, 0x01, b""))
     line = rows.line(timed, Note('a "quoted", text\nline', 3))
     parsed = next(csv.DictReader(io.StringIO(rows.header() + line)))
     assert parsed == {"utc_time": "2024-05-01T12:00:00.123456Z", "monotonic_s": "1.500000", "offset": "5",
-                      "kind": "note, with {braces}", "seq": "7", "sender": "1", "receiver": "2",
+                      "kind": "note, with {braces} and 100 %", "seq": "7", "sender": "1", "receiver": "2",
                       "text": 'a "quoted", text\nline', "level": "3", "loud": "1"}
