@@ -25,6 +25,7 @@ import numpy as np
 import serial
 import usb.core
 import usb.util
+from serial.urlhandler.protocol_socket import Serial as SocketSerial
 
 from capture.raw import read_capture_chunks
 
@@ -172,23 +173,31 @@ class SerialSource(LiveSource):
         return port
 
     def _read(self, port) -> bytes:
-        """Wait up to the read timeout for a first byte, then take at once everything already waiting.
+        """Wait up to the read timeout for a first byte, then take at once what is already waiting (up to
+        ``max_chunk_bytes`` in all), so every chunk reaches the caller (and the capture file) as it arrives.
 
-        The rest is one non-blocking read (pyserial's ``timeout = 0``) of up to ``max_chunk_bytes``: it returns
-        what the OS has buffered, so every chunk reaches the caller (and the capture file) as soon as it
-        arrived, whatever ``in_waiting`` says (``socket://`` reports 1 for any amount). A disconnect after some
-        bytes arrived returns those bytes; the next read reports the disconnect.
+        A disconnect after some bytes arrived returns those bytes; the next read reports the disconnect.
         """
         data = port.read(1)
         if not data:
             return data
         try:
-            port.timeout = 0
-            data += port.read(self.max_chunk_bytes - 1)
-            port.timeout = self.read_timeout_s
+            data += self._read_waiting(port, self.max_chunk_bytes - 1)
         except self.disconnect_errors:
             pass
         return data
+
+    def _read_waiting(self, port, limit: int) -> bytes:
+        """Up to ``limit`` bytes that need no waiting. ``in_waiting`` counts them, except on ``socket://``
+        where it only says 1 for any amount: there one non-blocking read (``timeout = 0``, which that handler
+        applies without any exchange) takes what the OS holds."""
+        if not isinstance(port, SocketSerial):
+            return port.read(min(port.in_waiting, limit))
+        port.timeout = 0
+        try:
+            return port.read(limit)
+        finally:
+            port.timeout = self.read_timeout_s
 
     def _close(self, port) -> None:
         port.close()
