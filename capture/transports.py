@@ -353,6 +353,7 @@ _PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6
 _PCAP_HEADER_BYTES = 24
 _PCAP_RECORD_BYTES = 16  # seconds, fraction, captured length, original length (u32 each)
 _PCAP_MAX_SNAPLEN = 262144  # libpcap's largest; a header snap length of 0 means "no limit" up to it
+_PCAP_RESYNC_WINDOW = 1 << 18  # offsets searched at once for the next valid record after a corrupt one
 
 
 def read_pcap(path: str | Path, problems: list[str] | None = None) -> Iterator[Chunk]:
@@ -400,20 +401,29 @@ class _PcapHeaders:
 
     def next_fitting(self, after: int, last_seconds: int | None) -> int | None:
         """The first offset past ``after`` that :meth:`fits`, holds at least one byte and, when a record was read
-        before (``last_seconds``), a time from one second before it to a day after; numpy finds candidates."""
-        words = self._words_at_every_offset(after + 1)
-        count = max(0, len(words) - 12)
-        seconds, fraction, captured, original = (words[k:k + count] for k in (0, 4, 8, 12))
-        valid = (fraction < self.fractions_per_s) & (captured > 0) & (captured <= np.minimum(original, self.snaplen))
-        if last_seconds is not None:
-            valid &= (seconds + 1 >= last_seconds) & (seconds <= last_seconds + 86400)
-        return next((after + 1 + int(p) for p in np.flatnonzero(valid) if self.fits(after + 1 + int(p))), None)
+        before (``last_seconds``), a time from one second before it to a day after. Candidates are found with
+        numpy, one window of :data:`_PCAP_RESYNC_WINDOW` offsets at a time (memory stays small)."""
+        start = after + 1
+        while start + _PCAP_RECORD_BYTES <= len(self.data):
+            words = self._words(start, min(len(self.data), start + _PCAP_RESYNC_WINDOW + _PCAP_RECORD_BYTES - 1))
+            count = len(words) - 12  # offsets whose whole 16-byte header is in the window
+            seconds, fraction, captured, original = (words[k:k + count] for k in (0, 4, 8, 12))
+            valid = ((fraction < self.fractions_per_s) & (captured > 0)
+                     & (captured <= np.minimum(original, self.snaplen)))
+            if last_seconds is not None:
+                valid &= (seconds.astype(np.int64) + 1 >= last_seconds) & (seconds <= last_seconds + 86400)
+            found = next((start + int(p) for p in np.flatnonzero(valid) if self.fits(start + int(p))), None)
+            if found is not None:
+                return found
+            start += count
+        return None
 
-    def _words_at_every_offset(self, start: int) -> np.ndarray:
-        """The u32 (in the file's byte order) starting at each byte offset from ``start`` on."""
-        window = np.lib.stride_tricks.sliding_window_view(np.frombuffer(self.data, np.uint8, offset=start), 4)
-        weights = 256 ** np.arange(4, dtype=np.uint64)
-        return window @ (weights if self.endian == "<" else weights[::-1])
+    def _words(self, start: int, stop: int) -> np.ndarray:
+        """The u32 (in the file's byte order) starting at each byte offset from ``start`` to ``stop - 4``."""
+        b = np.frombuffer(self.data, np.uint8, count=stop - start, offset=start).astype(np.uint32)
+        parts = (b[:-3], b[1:-2], b[2:-1], b[3:])
+        low_first = parts if self.endian == "<" else parts[::-1]
+        return low_first[0] | low_first[1] << 8 | low_first[2] << 16 | low_first[3] << 24
 
 
 def _pcap_chunks(path, data: bytes, headers: _PcapHeaders, tick: float, problems) -> Iterator[Chunk]:

@@ -9,6 +9,7 @@ import pytest
 from capture.decode import timed_packets
 from capture.duml import Deframer
 from capture.messages import DateTimeSet, GimbalParams, HomePoint, OsdGeneral, default_registry
+from capture import transports
 from capture.transports import Chunk, TransportError, read_pcap, replay_file
 
 RUNS = {"run1": 4651, "run3": 13024}
@@ -118,7 +119,11 @@ def _record_offsets(data: bytes) -> list[int]:
     return offsets
 
 
-def test_pcap_record_with_a_corrupt_length_is_named_and_nothing_after_it_is_lost(tmp_path, shared_data):
+@pytest.mark.parametrize("window", [None, 7])  # 7: the search for the next record crosses many windows
+def test_pcap_record_with_a_corrupt_length_is_named_and_nothing_after_it_is_lost(tmp_path, shared_data, window,
+                                                                                   monkeypatch):
+    if window:
+        monkeypatch.setattr(transports, "_PCAP_RESYNC_WINDOW", window)
     original = _pcap(shared_data, "run3")
     data = bytearray(original.read_bytes())
     offsets = _record_offsets(bytes(data))
