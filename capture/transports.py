@@ -353,6 +353,7 @@ _PCAP_MAGIC = {b"\xd4\xc3\xb2\xa1": ("<", 1e-6), b"\xa1\xb2\xc3\xd4": (">", 1e-6
 _PCAP_HEADER_BYTES = 24
 _PCAP_RECORD_BYTES = 16  # seconds, fraction, captured length, original length (u32 each)
 _PCAP_MAX_SNAPLEN = 262144  # libpcap's largest; a header snap length of 0 means "no limit" up to it
+_PCAP_MAX_GAP_S = 86400  # a record more than a day after the one before it is taken for corrupt bytes
 _PCAP_RESYNC_WINDOW = 1 << 18  # offsets searched at once for the next valid record after a corrupt one
 
 
@@ -361,11 +362,13 @@ def read_pcap(path: str | Path, problems: list[str] | None = None) -> Iterator[C
 
     A record header is valid when its fraction is below one second and its captured length is at most the file's
     snap length and the original length. A file cut short inside its last record (a capture killed mid-write)
-    yields that record's bytes that are there, then stops. A record with an invalid header (a corrupt length)
-    is counted as corrupt: reading resumes at the next valid record header (one whose record ends at the end of
-    the file or at another valid header), and the bytes in between are passed on without times, so no
-    telemetry is lost. Each such event appends one line naming the byte offset to ``problems``. This reader is
-    kept by hand because library readers (dpkt, scapy) trust a corrupt length and swallow the rest of the file.
+    yields that record's bytes that are there, then stops. A record is corrupt when its header is invalid, or
+    when its length ends where a whole header follows whose time is impossible (a wrong length that still
+    looked possible): reading resumes at the next valid record header after its header (one whose record ends
+    at the end of the file or at another valid header, at most a day after the last good record), and the bytes
+    in between are passed on without times, so no telemetry is lost and no bytes get another record's time.
+    Each such event appends one line naming the byte offset to ``problems``. This reader is kept by hand
+    because library readers (dpkt, scapy) trust a corrupt length and swallow the rest of the file.
     TransportError for a file that is not a pcap, whose header is cut short, or whose link type is not DUML.
     """
     data = Path(path).read_bytes()
@@ -392,6 +395,17 @@ class _PcapHeaders:
         _, fraction, captured, original = self.unpack(self.data, position)
         return fraction < self.fractions_per_s and captured <= min(self.snaplen, original)
 
+    def followed_well(self, position: int) -> bool:
+        """Whether the record at ``position`` ends at or past the end of the data (or of a header cut short
+        there), or where a header starts whose time is valid and within a day after this record's (its length
+        may still be corrupt: that is the next record's problem, not a sign that this length is wrong)."""
+        seconds, _, captured, _ = self.unpack(self.data, position)
+        end = position + _PCAP_RECORD_BYTES + captured
+        if end + _PCAP_RECORD_BYTES > len(self.data):
+            return True
+        next_seconds, next_fraction, _, _ = self.unpack(self.data, end)
+        return next_fraction < self.fractions_per_s and seconds - 1 <= next_seconds <= seconds + _PCAP_MAX_GAP_S
+
     def fits(self, position: int) -> bool:
         """A valid header whose record ends exactly at the end of the data or at another valid header."""
         if position + _PCAP_RECORD_BYTES > len(self.data) or not self.valid(position):
@@ -411,7 +425,7 @@ class _PcapHeaders:
             valid = ((fraction < self.fractions_per_s) & (captured > 0)
                      & (captured <= np.minimum(original, self.snaplen)))
             if last_seconds is not None:
-                valid &= (seconds.astype(np.int64) + 1 >= last_seconds) & (seconds <= last_seconds + 86400)
+                valid &= (seconds.astype(np.int64) + 1 >= last_seconds) & (seconds <= last_seconds + _PCAP_MAX_GAP_S)
             found = next((start + int(p) for p in np.flatnonzero(valid) if self.fits(start + int(p))), None)
             if found is not None:
                 return found
@@ -435,11 +449,13 @@ def _pcap_chunks(path, data: bytes, headers: _PcapHeaders, tick: float, problems
             return
         seconds, fraction, captured, _ = headers.unpack(data, position)
         body = position + _PCAP_RECORD_BYTES
-        if not headers.valid(position):
-            resume = headers.next_fitting(position, last_seconds)
+        if not headers.valid(position) or not headers.followed_well(position):
+            resume = headers.next_fitting(body - 1, last_seconds)
             end = len(data) if resume is None else resume
-            _note(problems, f"{path}: corrupt record at byte {position} (captured length {captured}, fraction "
-                            f"{fraction}; snap length {headers.snaplen}): "
+            why = (f"captured length {captured}, fraction {fraction}: impossible with snap length {headers.snaplen}"
+                   if not headers.valid(position) else
+                   f"captured length {captured} ends at byte {body + captured}, where no record header starts")
+            _note(problems, f"{path}: corrupt record at byte {position} ({why}): "
                             + (f"{end - body} bytes up to the next valid record at byte {resume} decoded without "
                                "times" if resume is not None else
                                f"no valid record after it, its last {end - body} bytes decoded without times"))

@@ -2,6 +2,7 @@
 
 import collections
 import datetime as dt
+import struct
 
 import dpkt
 import pytest
@@ -135,13 +136,33 @@ def test_pcap_record_with_a_corrupt_length_is_named_and_nothing_after_it_is_lost
     damaged = list(timed_packets(replay_file(path, problems), Deframer()))
     intact = list(timed_packets(replay_file(original), Deframer()))
     assert problems == [f"{path}: corrupt record at byte {corrupt} (captured length 3735928559, fraction "
-                        f"{int.from_bytes(data[corrupt + 4:corrupt + 8], 'little')}; snap length 65535): "
+                        f"{int.from_bytes(data[corrupt + 4:corrupt + 8], 'little')}: impossible with snap length "
+                        "65535): "
                         f"{offsets[len(offsets) // 2 + 1] - corrupt - 16} bytes up to the next valid record at byte "
                         f"{offsets[len(offsets) // 2 + 1]} decoded without times"]
     assert [t.packet for t in damaged] == [t.packet for t in intact]  # every frame, the corrupt record's too
     untimed = [i for i, t in enumerate(damaged) if t.receive_time_utc is None]
     assert untimed == [len(offsets) // 2]  # one DUML frame per record: only the corrupt record's lost its time
     assert all(d.receive_time_utc == i.receive_time_utc for d, i in zip(damaged, intact) if d.receive_time_utc)
+
+
+def test_pcap_record_whose_length_is_wrong_but_possible_is_found_by_what_follows_it(tmp_path, shared_data):
+    original = _pcap(shared_data, "run3")
+    data = bytearray(original.read_bytes())
+    offsets = _record_offsets(bytes(data))
+    k = next(i for i in range(len(offsets) // 2, len(offsets)) if offsets[i + 1] - offsets[i] > 40)
+    corrupt, length = offsets[k], offsets[k + 1] - offsets[k] - 16
+    data[corrupt + 8:corrupt + 16] = struct.pack("<2I", length - 5, length - 5)
+    path = tmp_path / "short_length.pcap"
+    path.write_bytes(bytes(data))
+    problems = []
+    damaged = list(timed_packets(replay_file(path, problems), Deframer()))
+    intact = list(timed_packets(replay_file(original), Deframer()))
+    assert problems == [f"{path}: corrupt record at byte {corrupt} (captured length {length - 5} ends at byte "
+                        f"{offsets[k + 1] - 5}, where no record header starts): {length} bytes up to the next valid "
+                        f"record at byte {offsets[k + 1]} decoded without times"]
+    assert [t.packet for t in damaged] == [t.packet for t in intact]
+    assert [i for i, t in enumerate(damaged) if t.receive_time_utc is None] == [k]
 
 
 def test_pcap_whose_only_record_is_corrupt_passes_its_bytes_on_untimed(tmp_path, shared_data):
