@@ -14,6 +14,7 @@ not one byte short; every chunk's ``.idx`` line lies inside the streaming window
 
 from __future__ import annotations
 
+import functools
 import inspect
 import os
 import signal
@@ -38,11 +39,16 @@ RATE_BPS = 10e6
 PIECE = 10_000  # bytes per send, one every millisecond at 10 MB/s
 MAX_CHUNK = inspect.signature(SerialSource).parameters["max_chunk_bytes"].default  # the most one read returns
 WRITE_SYSCALLS = {1, 20}  # x86_64 write, writev
-STREAM = np.random.default_rng(7).integers(0, 256, 64 << 20, dtype=np.uint8).tobytes()
+
+
+@functools.cache
+def stream() -> bytes:
+    """64 MiB of seeded random bytes: 6 s at 10 MB/s, more than the test streams (built on first use)."""
+    return np.random.default_rng(7).integers(0, 256, 64 << 20, dtype=np.uint8).tobytes()
 
 
 class Sender(threading.Thread):
-    """Streams :data:`STREAM` to one connection at :data:`RATE_BPS`; ``sent`` counts bytes the kernel took."""
+    """Streams :func:`stream` to one connection at :data:`RATE_BPS`; ``sent`` counts bytes the kernel took."""
 
     def __init__(self, connection: socket.socket) -> None:
         super().__init__(daemon=True)
@@ -50,14 +56,14 @@ class Sender(threading.Thread):
         self.connection.settimeout(0.01)
 
     def run(self) -> None:
-        start = time.monotonic()
-        while not self.stop.is_set() and self.sent < len(STREAM):
+        start, data = time.monotonic(), stream()
+        while not self.stop.is_set() and self.sent < len(data):
             due = int((time.monotonic() - start) * RATE_BPS)
             if self.sent >= due:
                 time.sleep(PIECE / RATE_BPS)
                 continue
             try:
-                self.sent += self.connection.send(STREAM[self.sent:min(due, self.sent + PIECE)])
+                self.sent += self.connection.send(data[self.sent:min(due, self.sent + PIECE)])
             except TimeoutError:
                 continue
 
@@ -111,6 +117,7 @@ def _settled_queues(sender_port: int, receiver_port: int) -> tuple[int, int]:
 @pytest.mark.skipif(sys.platform != "linux" or os.uname().machine != "x86_64", reason="x86_64 syscall numbers")
 def test_kill_9_while_streaming_10_mb_per_s_loses_no_byte_read(tmp_path):
     capture = tmp_path / "live.duml"
+    stream()  # built before the clock starts
     with socket.create_server(("127.0.0.1", 0)) as server:
         port = server.getsockname()[1]
         started = time.time()
@@ -137,7 +144,7 @@ def test_kill_9_while_streaming_10_mb_per_s_loses_no_byte_read(tmp_path):
 
     read_by_process = sender.sent - tx - rx
     data = capture.read_bytes()
-    assert data == STREAM[:len(data)], "the capture is not a prefix of the stream"
+    assert data == stream()[:len(data)], "the capture is not a prefix of the stream"
     assert len(data) == read_by_process, (f"{read_by_process - len(data)} bytes read by record were lost "
                                           f"(sent {sender.sent}, unacknowledged {tx}, unread {rx})")
     assert sender.sent > 5e6, f"only {sender.sent} bytes sent in 1 s (record too slow to keep up)"
