@@ -115,22 +115,21 @@ class TelemetryRows:
         return _csv_line(self.columns)
 
     def line(self, timed: TimedPacket, record) -> str:
-        layout = self._layouts.get(type(record)) or self._layout(type(record))
-        utc = timed.receive_time_utc
+        template, values_of, bool_positions, text_positions = (self._layouts.get(type(record))
+                                                               or self._layout(type(record)))
+        offset, utc, mono, packet = timed
         if utc is not self._time[0]:  # packets of one chunk share their time objects
-            mono = timed.receive_time_monotonic
             self._time = (utc, _iso(utc), "" if mono is None else f"{mono:.6f}")
-        values = layout.values(record)
-        if layout.bool_positions or layout.text_positions:
+        values = values_of(record)
+        if bool_positions or text_positions:
             values = list(values)
-            for position in layout.bool_positions:
+            for position in bool_positions:
                 values[position] = int(values[position])
-            for position in layout.text_positions:
+            for position in text_positions:
                 values[position] = _csv_line([values[position]])[:-2]
             values = tuple(values)
-        packet = timed.packet
-        return layout.template % ((self._time[1], self._time[2], timed.offset, packet.seq, packet.sender,
-                                   packet.receiver) + values)
+        _, iso, mono_text = self._time
+        return template % ((iso, mono_text, offset, packet.seq, packet.sender, packet.receiver) + values)
 
     def _layout(self, record_type: type) -> _RowLayout:
         names = _record_columns(record_type)
