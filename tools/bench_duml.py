@@ -7,8 +7,8 @@ written as a raw capture (``.duml`` + ``.idx``, 4 KiB chunks 10 ms apart, as ``r
 CSV by ``aerostereo-ingest decode``: in-process (``capture.cli.main``) and as a command (Python start and imports
 included). Time is wall-clock; CPU is the process's CPU time (the two differ when the machine is shared).
 
-    PYTHONPATH=. .venv/bin/python tools/bench_duml.py              # 100 MB, as reported in docs/ingest-duml.md
-    PYTHONPATH=. .venv/bin/python tools/bench_duml.py --size-mb 19  # the 19 MB of issue 18
+    PYTHONPATH=. .venv/bin/python tools/bench_duml.py              # 100 MB
+    PYTHONPATH=. .venv/bin/python tools/bench_duml.py --size-mb 19  # issue 18's 19 MB, as in docs/ingest-duml.md
 """
 
 from __future__ import annotations
