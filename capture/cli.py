@@ -44,8 +44,9 @@ def add_record_parser(subparsers) -> None:
 
 
 def add_decode_parser(subparsers) -> None:
-    parser = subparsers.add_parser("decode", help="decode a raw capture (.duml) or a pcap to telemetry CSV")
-    parser.add_argument("input", type=Path, help="INPUT.duml (with INPUT.duml.idx for times) or INPUT.pcap")
+    parser = subparsers.add_parser("decode", help="decode a raw capture (.duml), a pcap or a pcapng to telemetry CSV")
+    parser.add_argument("input", type=Path,
+                        help="INPUT.duml (with INPUT.duml.idx for times), INPUT.pcap or INPUT.pcapng (by content)")
     parser.add_argument("--out", required=True, type=Path, help="telemetry.csv, one row per decoded message")
     parser.set_defaults(handler=run_decode)
 
@@ -120,11 +121,14 @@ def run_decode(args) -> int:
         raise BadInput(f"{args.input}: {problem}; expected a raw capture NAME.duml or a .pcap file")
     refuse_clobbering({"INPUT": cli_logs.log_inputs([args.input])}, {"--out": args.out})
     refuse_folders({"--out": args.out})
-    if not is_pcap(args.input) and not index_path(args.input).exists():
-        print(f"note: {index_path(args.input)} not found, utc_time and monotonic_s are left empty", file=sys.stderr)
+    if args.input.stat().st_size == 0:
+        raise BadInput(f"{args.input}: empty file (0 bytes), expected a DUML capture")
     problems: list[str] = []
-    summary = decode_to_csv(replay_file(args.input, problems), args.out, default_registry())
-    if summary.bytes_read and not summary.packets:
+    chunks = replay_file(args.input, problems)
+    if not is_pcap(args.input) and not index_path(args.input).exists():
+        problems.append(f"{index_path(args.input)} not found, utc_time and monotonic_s are left empty")
+    summary = decode_to_csv(chunks, args.out, default_registry())
+    if not summary.packets:
         args.out.unlink(missing_ok=True)
         raise BadInput(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
     print(f"{args.input}: {summary.bytes_read} bytes, {summary.packets} packets, {summary.rows} telemetry rows "

@@ -169,6 +169,7 @@ class DeframerStats:
 
     bytes_fed: int = 0
     packets: int = 0
+    unbuilt_packets: int = 0  # intact frames of commands outside ``Deframer(commands=...)``: counted, not built
     packet_bytes: int = 0
     pending_bytes: int = 0
     skipped_bytes: dict[str, int] = field(default_factory=lambda: {r.name.lower(): 0 for r in SkipReason})
@@ -197,8 +198,11 @@ class Deframer:
     :meth:`flush` declares it truncated. Never yields a frame whose CRCs fail.
     """
 
-    def __init__(self, crc16_seed: int = CRC16_SEED) -> None:
+    def __init__(self, crc16_seed: int = CRC16_SEED, commands: Iterable[tuple[int, int]] | None = None) -> None:
+        """``commands``: ``(cmd_set, cmd_id)`` pairs to build Packets for (None: all); intact frames of other
+        commands are checked and counted in ``stats.packets`` and ``stats.unbuilt_packets`` only (faster)."""
         self.crc16_seed = crc16_seed
+        self._commands = None if commands is None else np.array(sorted(s << 8 | i for s, i in commands))
         self.stats = DeframerStats()
         self._pending = b""
         self._pending_offset = 0  # stream offset of self._pending[0]
@@ -227,9 +231,19 @@ class Deframer:
 
     def _process(self, buffer: bytes, final: bool) -> list[tuple[int, Packet]]:
         base = self._pending_offset
-        batch = self._scan_and_consume(buffer, final)
+        batch = self._wanted(buffer, self._scan_and_consume(buffer, final))
         offsets = (batch.starts + base).tolist()
         return list(zip(offsets, packets_from_frames(buffer, batch)))
+
+    def _wanted(self, buffer: bytes, batch: FrameBatch) -> FrameBatch:
+        """The frames of ``batch`` whose command was asked for; the others are counted as unbuilt."""
+        if self._commands is None or len(batch.starts) == 0:
+            return batch
+        array = np.frombuffer(buffer, dtype=np.uint8)
+        keys = array[batch.starts + 9].astype(np.int64) << 8 | array[batch.starts + 10]
+        wanted = np.isin(keys, self._commands)
+        self.stats.unbuilt_packets += int(len(wanted) - np.count_nonzero(wanted))
+        return FrameBatch(batch.starts[wanted], batch.lengths[wanted])
 
     def _scan_and_consume(self, buffer: bytes, final: bool) -> FrameBatch:
         scan = _scan(buffer, final, self.crc16_seed)

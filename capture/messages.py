@@ -336,8 +336,17 @@ class MessageRegistry:
         self.counts[spec.kind] += 1
         return spec.decode(packet.payload)
 
-    def _count(self, key: str) -> None:
-        self.counts[key] = self.counts.get(key, 0) + 1
+    @property
+    def commands(self) -> list[tuple[int, int]]:
+        """The ``(cmd_set, cmd_id)`` pairs with a decoder: all other packets decode as undecoded."""
+        return list(self._by_command)
+
+    def count_undecoded(self, packets: int) -> None:
+        """Count ``packets`` that were never built because their command has no decoder (see ``commands``)."""
+        self._count("undecoded", packets)
+
+    def _count(self, key: str, packets: int = 1) -> None:
+        self.counts[key] = self.counts.get(key, 0) + packets
 
 
 def default_specs() -> list[MessageSpec]:

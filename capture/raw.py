@@ -128,12 +128,13 @@ class ChunkIndex:
 _IDX_FIELDS = "'offset,utc_unix_s,monotonic_s,length'"
 
 
-def read_index(path: str | os.PathLike) -> ChunkIndex:
+def read_index(path: str | os.PathLike, data_bytes: int | None = None) -> ChunkIndex:
     """Parse a ``.duml.idx`` sidecar, tolerating a torn last line.
 
     Raises CaptureIndexError naming the file and line for a line that is not UTF-8, has the wrong fields, a
-    time that is not finite, a negative offset, a length below 1, or a chunk that starts before the previous
-    one ends. Gaps between chunks are allowed (bytes whose index line a kill cut off, then an appending rerun).
+    time that is not finite, a negative offset, a length below 1, a chunk that starts before the previous one
+    ends, or (``data_bytes`` given: the size of the capture's data) a chunk that runs past the data. Gaps between
+    chunks are allowed (bytes whose index line a kill cut off, then an appending rerun).
     """
     path = Path(path)
     lines = path.read_bytes().split(b"\n")[:-1]  # the piece after the last newline is torn (or empty)
@@ -148,16 +149,20 @@ def read_index(path: str | os.PathLike) -> ChunkIndex:
         if not line or line.startswith("#"):
             continue
         try:
-            row = _index_row(line, chunks_end)
+            row = _index_row(line, chunks_end, _MAX_STREAM_BYTES if data_bytes is None else data_bytes)
         except ValueError as error:
             raise CaptureIndexError(f"{path}:{number}: expected {_IDX_FIELDS}, got {line!r} ({error})") from None
         rows.append(row)
         chunks_end = row[0] + row[1]
-    table = np.array(rows, dtype=np.float64).reshape(-1, 4)
-    return ChunkIndex(table[:, 0].astype(np.int64), table[:, 1].astype(np.int64), table[:, 2], table[:, 3])
+    offsets, lengths, utc, mono = zip(*rows) if rows else ((),) * 4
+    return ChunkIndex(np.array(offsets, dtype=np.int64), np.array(lengths, dtype=np.int64),
+                      np.array(utc, dtype=np.float64), np.array(mono, dtype=np.float64))
 
 
-def _index_row(line: str, previous_end: int) -> tuple[int, int, float, float]:
+_MAX_STREAM_BYTES = 2 ** 53  # offsets and lengths stay exact in int64 and float64 below this
+
+
+def _index_row(line: str, previous_end: int, data_bytes: int) -> tuple[int, int, float, float]:
     """``(offset, length, utc_unix_s, monotonic_s)`` of one index line; ValueError saying what is wrong."""
     parts = line.split(",")
     if len(parts) != 4:
@@ -169,6 +174,8 @@ def _index_row(line: str, previous_end: int) -> tuple[int, int, float, float]:
         raise ValueError("offset must be >= 0 and length >= 1")
     if offset < previous_end:
         raise ValueError(f"the chunk starts before the previous one ends at offset {previous_end}")
+    if offset + length > data_bytes:
+        raise ValueError(f"the chunk ends at byte {offset + length}, past the end of the data ({data_bytes} bytes)")
     return offset, length, utc, mono
 
 
@@ -176,19 +183,17 @@ def read_capture_chunks(path: str | os.PathLike):
     """Yield ``(receive_time_utc | None, receive_time_monotonic | None, bytes)`` as the chunks were received.
 
     Bytes no index line covers (no sidecar, a gap a kill left before an appending rerun, or past the last
-    line) come as chunks with no times, in stream order. CaptureIndexError when an indexed chunk runs past the
-    end of the data.
+    line) come as chunks with no times, in stream order. CaptureIndexError (naming the ``.idx`` line) when an
+    indexed chunk runs past the end of the data.
     """
     path = Path(path)
-    index = read_index(index_path(path)) if index_path(path).exists() else ChunkIndex(*[np.empty(0)] * 4)
     with open(path, "rb") as handle:
         data = handle.read()
+    index = (read_index(index_path(path), len(data)) if index_path(path).exists()
+             else ChunkIndex(*[np.empty(0)] * 4))
     position = 0
     for offset, length, utc, mono in zip(index.offsets.tolist(), index.lengths.tolist(),
                                          index.utc_unix_s.tolist(), index.monotonic_s.tolist()):
-        if offset + length > len(data):
-            raise CaptureIndexError(f"{index_path(path)}: the chunk at offset {offset} ({length} bytes) runs past "
-                                    f"the end of {path} ({len(data)} bytes)")
         if offset > position:
             yield None, None, data[position:offset]
         yield dt.datetime.fromtimestamp(utc, dt.timezone.utc), mono, data[offset:offset + length]

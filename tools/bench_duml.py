@@ -1,24 +1,36 @@
-"""Benchmark: DUML deframing (with both CRCs) and telemetry decoding on a synthetic dump.
+"""Benchmark: DUML deframing (with both CRCs), telemetry decoding and the whole ``decode`` CLI on a synthetic dump.
 
 Traffic per simulated second, like a P3X FC/OFDM link: OSD General 10 Hz, Gimbal Params 50 Hz, Home Point 1 Hz,
 plus ~100 Hz of other chatter (random cmd ids, 1-60 byte payloads); then 1 % of all bytes are corrupted.
-A 1 MB block of such traffic is generated and repeated up to the requested size.
+A 1 MB block of such traffic is generated and repeated up to the requested size. For the CLI rows the dump is
+written as a raw capture (``.duml`` + ``.idx``, 4 KiB chunks 10 ms apart, as ``record`` writes them) and decoded to
+CSV by ``aerostereo-ingest decode``: in-process (``capture.cli.main``) and as a command (Python start and imports
+included). Time is wall-clock; CPU is the process's CPU time (the two differ when the machine is shared).
 
-    .venv/bin/python tools/bench_duml.py            # 100 MB, as reported in the README
-    .venv/bin/python tools/bench_duml.py --size-mb 10
+    PYTHONPATH=. .venv/bin/python tools/bench_duml.py              # 100 MB
+    PYTHONPATH=. .venv/bin/python tools/bench_duml.py --size-mb 19  # issue 18's 19 MB, as in docs/ingest-duml.md
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import datetime as dt
+import io
 import math
+import resource
+import subprocess
+import sys
+import tempfile
 import time
+from pathlib import Path
 
 import numpy as np
 
-from capture import duml
+from capture import cli, duml
 from capture.duml import Deframer, Packet, crc16
 from capture.messages import GimbalParams, HomePoint, OsdGeneral, default_registry, encode_message
+from capture.raw import atomic_capture
 
 USB_FULL_SPEED_BPS = 12e6 / 8  # bytes/s, USB 2.0 full speed signalling rate (an upper bound)
 UART_115200_BPS = 115200 / 10  # bytes/s, 8N1
@@ -84,12 +96,12 @@ def bench(size_mb: int, chunk_mb: float, seed: int) -> None:
     crc_timer = _Timed(duml._crc16_ok)
     duml._crc16_ok = crc_timer
     deframer = Deframer()
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     frames = 0
     for data in chunks:
         frames += len(deframer.feed_frames(data)[2].starts)
     frames += len(deframer.feed_frames(b"", final=True)[2].starts)
-    deframe_s = time.perf_counter() - start
+    deframe_s, deframe_cpu_s = time.perf_counter() - start, time.process_time() - cpu_start
     duml._crc16_ok = crc_timer.function
     stats = deframer.stats
     assert stats.packet_bytes + stats.total_skipped == len(stream)
@@ -118,18 +130,35 @@ def bench(size_mb: int, chunk_mb: float, seed: int) -> None:
     slow = _bytewise_crc16(sample)
     slow_s = time.perf_counter() - start
 
+    with tempfile.TemporaryDirectory() as folder:
+        capture = Path(folder) / "dump.duml"
+        with atomic_capture(capture) as writer:
+            for i in range(0, len(stream), 4096):
+                writer.append(dt.datetime(2024, 1, 1, tzinfo=dt.timezone.utc) + dt.timedelta(seconds=i / 409600),
+                              1000.0 + i / 409600, stream[i:i + 4096])
+        cli_in_process = _cpu_and_wall(lambda: cli.main(["decode", str(capture), "--out", f"{folder}/a.csv"]))
+        cli_command = _cpu_and_wall(lambda: subprocess.run(
+            [sys.executable, "-m", "capture", "decode", str(capture), "--out", f"{folder}/b.csv"],
+            check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL), children=True)
+
     print(f"synthetic dump: {megabytes:.1f} MB ({len(stream)} bytes), 1 % corrupted bytes, fed in {chunk_mb} MB "
           f"chunks; {frames} intact frames; skipped bytes {stats.skipped_bytes}")
     print()
-    print("| stage | time (s) | MB/s | packets/s | vs USB 2.0 FS (1.5 MB/s) | vs 115200 baud (11.5 kB/s) |")
-    print("|---|---:|---:|---:|---:|---:|")
-    rows = [("deframe + both CRCs (FrameBatch)", deframe_s), ("  of which CRC16 (crc_hqx)", crc_timer.seconds),
-            ("  of which framing (numpy scan, CRC8, greedy)", deframe_s - crc_timer.seconds),
-            ("deframe + Packet objects", packets_s), ("decode records (registry)", decode_s),
-            ("deframe + Packets + decode", packets_s + decode_s)]
-    for name, seconds in rows:
+    print("| stage | time (s) | CPU (s) | MB/s | MB/s of CPU | packets/s | vs USB 2.0 FS (1.5 MB/s) "
+          "| vs 115200 baud (11.5 kB/s) |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|")
+    rows = [("deframe + both CRCs (FrameBatch)", deframe_s, deframe_cpu_s),
+            ("  of which CRC16 (crc_hqx)", crc_timer.seconds, None),
+            ("  of which framing (numpy scan, CRC8, greedy)", deframe_s - crc_timer.seconds, None),
+            ("deframe + Packet objects", packets_s, None), ("decode records (registry)", decode_s, None),
+            ("deframe + Packets + decode", packets_s + decode_s, None),
+            ("whole CLI `decode` .duml+.idx -> CSV, in-process", cli_in_process[1], cli_in_process[0]),
+            ("whole CLI `decode` as a command (+ Python start, imports)", cli_command[1], cli_command[0])]
+    for name, seconds, cpu_s in rows:
         rate = len(stream) / seconds
-        print(f"| {name} | {seconds:.2f} | {rate / 1e6:.1f} | {frames / seconds:,.0f} | "
+        cpu = "" if cpu_s is None else f"{cpu_s:.2f}"
+        cpu_rate = "" if cpu_s is None else f"{len(stream) / cpu_s / 1e6:.1f}"
+        print(f"| {name} | {seconds:.2f} | {cpu} | {rate / 1e6:.1f} | {cpu_rate} | {frames / seconds:,.0f} | "
               f"{rate / USB_FULL_SPEED_BPS:.0f}x | {rate / UART_115200_BPS:,.0f}x |")
     print()
     print("| CRC16 over 1 MB | time (ms) | MB/s | result |")
@@ -141,6 +170,16 @@ def bench(size_mb: int, chunk_mb: float, seed: int) -> None:
     four_hours = UART_115200_BPS * 4 * 3600
     seconds = four_hours / (len(stream) / deframe_s)
     print(f"\na 4-hour 115200-baud log ({four_hours / 1e6:.0f} MB) deframes in {seconds:.1f} s")
+
+
+def _cpu_and_wall(run, children: bool = False) -> tuple[float, float]:
+    """``(CPU seconds, wall seconds)`` of ``run()`` (CPU of child processes when ``children``); stdout dropped."""
+    who = resource.RUSAGE_CHILDREN if children else resource.RUSAGE_SELF
+    before, start = resource.getrusage(who), time.perf_counter()
+    with contextlib.redirect_stdout(io.StringIO()):
+        run()
+    wall, after = time.perf_counter() - start, resource.getrusage(who)
+    return after.ru_utime + after.ru_stime - before.ru_utime - before.ru_stime, wall
 
 
 def _bytewise_crc16(data: bytes, seed: int = duml.CRC16_SEED) -> int:

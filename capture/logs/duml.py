@@ -120,7 +120,8 @@ class TrackBuilder:
         if timed.packet.is_response:
             return self.reject(f"response packet: {kind} {where} is an answer, not a telemetry push")
         if timed.receive_time_utc is None:
-            return self.reject(f"no arrival time: {kind} {where} has no index line (cut off by a kill)")
+            return self.reject(f"no arrival time: {kind} {where} has no index line (cut off by a kill) or pcap "
+                               "record time (a corrupt record)")
         time_s = timed.receive_time_utc.timestamp()
         if isinstance(record, OsdGeneral):
             self.add_osd(time_s, record, where)

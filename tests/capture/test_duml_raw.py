@@ -98,7 +98,20 @@ def test_index_running_past_the_data_is_an_error(tmp_path):
     path = tmp_path / "flight.duml"
     _write(path, [b"abc", b"de"])
     path.write_bytes(b"abcd")  # the data lost its last byte, the index did not
-    with pytest.raises(CaptureIndexError, match=r"flight.duml.idx: the chunk at offset 3 \(2 bytes\) runs past"):
+    with pytest.raises(CaptureIndexError, match=r"flight.duml.idx:3: .*the chunk ends at byte 5, past the end of "
+                                                 r"the data \(4 bytes\)"):
+        list(read_capture_chunks(path))
+
+
+@pytest.mark.parametrize("length", ["10000000000000000000000", "9007199254740993"])
+def test_index_line_with_a_huge_length_names_the_file_and_line(tmp_path, length):
+    path = tmp_path / "flight.duml"
+    _write(path, [b"abc"])
+    with open(index_path(path), "a") as handle:
+        handle.write(f"3,1.0,1.0,{length}\n")
+    with pytest.raises(CaptureIndexError, match=rf"flight.duml.idx:3: .*{length}.* past the end of the data"):
+        read_index(index_path(path))
+    with pytest.raises(CaptureIndexError, match=r"flight.duml.idx:3: .* past the end of the data \(3 bytes\)"):
         list(read_capture_chunks(path))
 
 

@@ -197,3 +197,36 @@ def test_a_baud_rate_that_is_not_a_positive_whole_number_is_refused_before_openi
     with pytest.raises(TransportError, match=f"serial port loop://: baud rate must be .* got {baudrate!r}"):
         SerialSource("loop://", baudrate=baudrate)
     assert SerialSource("loop://", baudrate=9600).baudrate == 9600
+
+
+def _first_chunks(source, count):
+    chunks = source.chunks()
+    try:
+        return [next(chunks).data for _ in range(count)]
+    finally:
+        chunks.close()
+
+
+def test_serial_reads_take_everything_waiting_at_once_up_to_the_chunk_limit():
+    source = SerialSource("loop://", read_timeout_s=0.01, max_chunk_bytes=1000)
+    source.open()
+    source.connection.write(bytes(range(250)) * 10)  # 2500 bytes already waiting (loop:// holds up to 4096)
+    assert [len(c) for c in _first_chunks(source, 3)] == [1000, 1000, 500]
+
+
+def test_socket_reads_take_what_the_os_holds_not_one_byte(tmp_path):
+    payload = bytes(range(256)) * 400  # 102400 bytes
+    with socket.create_server(("127.0.0.1", 0)) as server:
+        source = SerialSource(f"socket://127.0.0.1:{server.getsockname()[1]}", read_timeout_s=0.05)
+        source.open()
+        reads = []
+        port_read = source.connection.read
+        source.connection.read = lambda size: reads.append(size) or port_read(size)
+        connection, _ = server.accept()
+        with connection:
+            connection.sendall(payload)
+            time.sleep(0.1)  # all of it reaches the receiving socket's buffer
+            chunks = _first_chunks(source, 2)
+    assert chunks[0] + chunks[1] == payload[:65536 + len(chunks[1])]
+    assert len(chunks[0]) == 65536  # the whole limit at once although socket:// says in_waiting == 1
+    assert reads == [1, 65535, 1, 65535]  # a waiting read of one byte, then one read of all that waits

@@ -182,3 +182,40 @@ def test_decode_of_a_pcap_cut_short_keeps_its_records_and_notes_the_cut(shared_d
     captured = capsys.readouterr()
     assert "4650 packets" in captured.out  # the last frame lost its CRC bytes, the rest decode
     assert f"note: {pcap}: truncated record at byte " in captured.err
+
+
+def test_decode_of_a_pcap_with_a_corrupt_record_length_keeps_every_row_and_names_the_byte(shared_data, tmp_path,
+                                                                                          capsys):
+    original = shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run3.pcap"
+    data = bytearray(original.read_bytes())
+    record = 24 + 16 + int.from_bytes(data[24 + 8:24 + 12], "little")  # the second record's header
+    data[record + 8:record + 12] = (10 ** 9).to_bytes(4, "little")
+    pcap = tmp_path / "corrupt.pcap"
+    pcap.write_bytes(bytes(data))
+    assert cli.main(["decode", str(original), "--out", str(tmp_path / "intact.csv")]) == 0
+    assert cli.main(["decode", str(pcap), "--out", str(tmp_path / "t.csv")]) == 0
+    captured = capsys.readouterr()
+    assert f"note: {pcap}: corrupt record at byte {record} (captured length 1000000000" in captured.err
+    with open(tmp_path / "intact.csv", newline="") as intact, open(tmp_path / "t.csv", newline="") as damaged:
+        intact_rows, damaged_rows = list(csv.DictReader(intact)), list(csv.DictReader(damaged))
+    assert len(damaged_rows) == len(intact_rows) == 2330
+    differing = [(a, b) for a, b in zip(intact_rows, damaged_rows) if a != b]
+    assert len(differing) <= 1  # the corrupt record's own message, if telemetry, lost its time only
+    assert all(b["utc_time"] == "" and {**a, "utc_time": "", "monotonic_s": ""} == b for a, b in differing)
+    assert len({r["utc_time"] for r in damaged_rows}) > 2000  # not one timestamp for everything after it
+
+
+def test_decode_of_a_wireshark_pcapng_gives_the_rows_and_times_of_the_same_pcap(shared_data, tmp_path):
+    import dpkt
+
+    from capture.transports import read_pcap
+
+    pcap = shared_data / "dji" / "dji-packet-dumps__p3x_ofdm_to_center_run1.pcap"
+    pcapng = tmp_path / "run1.pcapng"
+    with open(pcapng, "wb") as handle:
+        writer = dpkt.pcapng.Writer(handle, snaplen=65535, linktype=150)
+        for record in read_pcap(pcap):
+            writer.writepkt(record.data, ts=record.receive_time_utc.timestamp())
+    assert cli.main(["decode", str(pcap), "--out", str(tmp_path / "pcap.csv")]) == 0
+    assert cli.main(["decode", str(pcapng), "--out", str(tmp_path / "pcapng.csv")]) == 0
+    assert (tmp_path / "pcapng.csv").read_bytes() == (tmp_path / "pcap.csv").read_bytes()
