@@ -37,13 +37,18 @@ def ate_rpe(truth: Sequence[np.ndarray], estimate: Sequence[np.ndarray], times_s
     """ATE after ``alignment`` (:data:`ALIGNMENTS`) and RPE between consecutive frames, by evo; with the Sim(3)
     scale applied (1 unless ``sim3``)."""
     from evo.core import metrics
+    from evo.core.geometry import GeometryException
 
     if alignment not in ALIGNMENTS:
         raise ValueError(f"alignment {alignment!r}: expected one of {', '.join(ALIGNMENTS)}")
     reference, estimated = _evo_trajectory(truth, times_s), _evo_trajectory(estimate, times_s)
     scale = 1.0
     if alignment != "none":
-        scale = float(estimated.align(reference, correct_scale=alignment == "sim3")[2])
+        try:
+            scale = float(estimated.align(reference, correct_scale=alignment == "sim3")[2])
+        except GeometryException:
+            raise ValueError(f"the positions (ground truth or estimate) lie in a line, so an {alignment} alignment is not unique "
+                             "(any rotation about the line fits); score with --align none") from None
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((reference, estimated))
     statistics = ape.get_all_statistics()
