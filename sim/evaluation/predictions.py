@@ -136,8 +136,8 @@ def _tum(path: Path, table: np.ndarray, lines: list[int]) -> TrajectoryFile:
                        "quaternion qx qy qz qw")
     backwards = np.nonzero(np.diff(table[:, 0]) <= 0)[0]
     if len(backwards):
-        raise BadInput(f"{path}: line {lines[backwards[0] + 1]}: time {table[backwards[0] + 1, 0]} does not follow "
-                       f"{table[backwards[0], 0]}; expected increasing times")
+        raise BadInput(f"{path}: line {lines[backwards[0] + 1]}: time {table[backwards[0] + 1, 0]:g} s does not "
+                       f"follow {table[backwards[0], 0]:g} s; expected increasing times")
     poses = np.tile(np.eye(4), (len(table), 1, 1))
     poses[:, :3, :3] = Rotation.from_quat(table[:, 4:]).as_matrix()
     poses[:, :3, 3] = table[:, 1:4]
@@ -166,7 +166,7 @@ def match_times(trajectory: TrajectoryFile, path: Path, frame_times_s: np.ndarra
     off = np.abs(trajectory.times_s - frame_times_s[nearest]) > MAX_TIME_DIFF_S
     if off.any():
         first = int(np.nonzero(off)[0][0])
-        raise BadInput(f"{path}: line {trajectory.lines[first]}: time {trajectory.times_s[first]} s is no frame's "
+        raise BadInput(f"{path}: line {trajectory.lines[first]}: time {trajectory.times_s[first]:g} s is no frame's "
                        f"time (times.txt: {frame_times_s[0]:.6g} .. {frame_times_s[-1]:.6g} s, within "
                        f"{MAX_TIME_DIFF_S} s)")
     repeated = np.nonzero(np.diff(nearest) == 0)[0]

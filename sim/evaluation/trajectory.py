@@ -47,8 +47,8 @@ def ate_rpe(truth: Sequence[np.ndarray], estimate: Sequence[np.ndarray], times_s
         try:
             scale = float(estimated.align(reference, correct_scale=alignment == "sim3")[2])
         except GeometryException:
-            raise ValueError(f"the positions (ground truth or estimate) lie in a line, so an {alignment} alignment is not unique "
-                             "(any rotation about the line fits); score with --align none") from None
+            raise ValueError(f"the positions (ground truth or estimate) lie in a line, so an {alignment} alignment "
+                             "is not unique (any rotation about the line fits); score with --align none") from None
     ape = metrics.APE(metrics.PoseRelation.translation_part)
     ape.process_data((reference, estimated))
     statistics = ape.get_all_statistics()
