@@ -75,7 +75,9 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=20)
     parser.add_argument("--width", type=int, default=1280)
     parser.add_argument("--height", type=int, default=720)
-    parser.add_argument("--num-disparities", type=int, default=128, help="SGBM search range, a multiple of 16")
+    parser.add_argument("--baseline", type=float, default=RenderOptions().baseline_m,
+                        help="stereo baseline rendered with --render, metres")
+    parser.add_argument("--num-disparities", type=int, default=64, help="SGBM search range, a multiple of 16")
     parser.add_argument("--block-size", type=int, default=5, help="SGBM block size, odd")
     parser.add_argument("--json", type=Path, help="the evaluate report as JSON")
     args = parser.parse_args(argv)
@@ -83,11 +85,11 @@ def main(argv=None) -> int:
     if dataset is None:
         dataset = args.render
         options = RenderOptions(mode="trajectory", trajectory=args.trajectory, frames=args.frames, width=args.width,
-                                height=args.height, seed=0, workers=1)
+                                height=args.height, baseline_m=args.baseline, seed=0, workers=1)
         start = time.perf_counter()
         render_dataset(args.scene, dataset, options, command_line=["tools/sgbm_baseline.py"], progress=False)
-        print(f"rendered {args.frames} frames {args.width}x{args.height} of {args.scene} ({args.trajectory}) in "
-              f"{time.perf_counter() - start:.1f} s", file=sys.stderr)
+        print(f"rendered {args.frames} frames {args.width}x{args.height} of {args.scene} ({args.trajectory}, "
+              f"baseline {args.baseline:g} m) in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     seconds = write_predictions(dataset, args.out, args.num_disparities, args.block_size)
     print(f"SGBM (3-way, {args.num_disparities} disparities, block {args.block_size}): {seconds * 1000:.0f} ms/frame")
     evaluate = ["evaluate", str(dataset), "--disparity", str(args.out / "disp"), "--depth", str(args.out / "depth")]

@@ -25,20 +25,26 @@ KITTI_STEP_FRAMES = 10
 ALIGNMENTS = ("se3", "sim3", "none")
 
 
-def _evo_trajectory(poses: Sequence[np.ndarray], times_s: Sequence[float]):
-    from evo.core.trajectory import PoseTrajectory3D  # evo: the 'evaluate' extra; imported when a trajectory is scored
+def _evo():
+    """evo's ``geometry``, ``metrics`` and ``trajectory`` modules: the optional ``evaluate`` extra, imported only
+    when a trajectory is scored; a ``ValueError`` saying how to install it when it is missing."""
+    try:
+        from evo.core import geometry, metrics, trajectory
+    except ImportError:
+        raise ValueError("scoring a trajectory needs evo: pip install 'aerostereo[evaluate]'") from None
+    return geometry, metrics, trajectory
 
-    return PoseTrajectory3D(poses_se3=[np.asarray(pose, dtype=np.float64) for pose in poses],
-                            timestamps=np.asarray(times_s, dtype=np.float64))
+
+def _evo_trajectory(poses: Sequence[np.ndarray], times_s: Sequence[float]):
+    return _evo()[2].PoseTrajectory3D(poses_se3=[np.asarray(pose, dtype=np.float64) for pose in poses],
+                                      timestamps=np.asarray(times_s, dtype=np.float64))
 
 
 def ate_rpe(truth: Sequence[np.ndarray], estimate: Sequence[np.ndarray], times_s: Sequence[float],
             alignment: str = "se3") -> dict[str, float]:
     """ATE after ``alignment`` (:data:`ALIGNMENTS`) and RPE between consecutive frames, by evo; with the Sim(3)
     scale applied (1 unless ``sim3``)."""
-    from evo.core import metrics
-    from evo.core.geometry import GeometryException
-
+    geometry, metrics, _ = _evo()
     if alignment not in ALIGNMENTS:
         raise ValueError(f"alignment {alignment!r}: expected one of {', '.join(ALIGNMENTS)}")
     reference, estimated = _evo_trajectory(truth, times_s), _evo_trajectory(estimate, times_s)
@@ -46,7 +52,7 @@ def ate_rpe(truth: Sequence[np.ndarray], estimate: Sequence[np.ndarray], times_s
     if alignment != "none":
         try:
             scale = float(estimated.align(reference, correct_scale=alignment == "sim3")[2])
-        except GeometryException:
+        except geometry.GeometryException:
             raise ValueError(f"the positions (ground truth or estimate) lie in a line, so an {alignment} alignment "
                              "is not unique (any rotation about the line fits); score with --align none") from None
     ape = metrics.APE(metrics.PoseRelation.translation_part)
