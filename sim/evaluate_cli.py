@@ -58,9 +58,11 @@ def add_evaluate_parser(subparsers) -> argparse.ArgumentParser:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    """Score, print the table and write ``--json``."""
-    inputs = {"DATASET": folder_inputs(args.dataset) if args.dataset.is_dir() else [args.dataset],
-              "--depth": args.depth, "--disparity": args.disparity, "--trajectory": args.trajectory}
+    """Score, print the table and write ``--json`` (refused when it names an input: any file of the dataset or a
+    prediction folder, or the trajectory)."""
+    dataset_files = [path for path in args.dataset.rglob("*") if path.is_file()] if args.dataset.is_dir() else []
+    inputs = {"DATASET": [args.dataset, *dataset_files], "--depth": folder_inputs(args.depth),
+              "--disparity": folder_inputs(args.disparity), "--trajectory": args.trajectory}
     refuse_clobbering(inputs, {"--json": args.json})
     refuse_folders({"--json": args.json})
     options = EvaluateOptions(depth=args.depth, disparity=args.disparity, trajectory=args.trajectory,

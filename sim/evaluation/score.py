@@ -13,10 +13,11 @@ from sim.dataset.images import disparity_from_depth
 from sim.dataset.kitti import relative_poses
 from sim.dataset.kitti2015 import visible_in_right
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
+from sim.dataset.writer import DatasetError
 from sim.evaluation import depth as depth_metrics
 from sim.evaluation import disparity as disparity_metrics
 from sim.evaluation import trajectory as trajectory_metrics
-from sim.evaluation.predictions import map_files, match_times, read_map, read_trajectory
+from sim.evaluation.predictions import TrajectoryFile, map_files, match_times, read_map, read_trajectory
 
 #: Fewest matched poses a trajectory is scored with (Umeyama alignment needs three).
 MIN_POSES = 3
@@ -37,31 +38,56 @@ class EvaluateOptions:
 
 
 def evaluate(dataset: Path, options: EvaluateOptions) -> dict:
-    """The report of every prediction named in ``options`` against the dataset in ``dataset``."""
+    """The report of every prediction named in ``options`` against the dataset in ``dataset``; every input is
+    checked (files present, named and matched) before the first is scored."""
     if options.depth is None and options.disparity is None and options.trajectory is None:
         raise BadInput("nothing to score: give --depth, --disparity and/or --trajectory")
     source = DatasetSource(Path(dataset))
+    depth_files = _map_inputs(source, options.depth, "--depth")
+    disparity_files = _map_inputs(source, options.disparity, "--disparity")
+    baseline_m = _baseline_m(source) if disparity_files else None
+    trajectory = _trajectory_input(source, options.trajectory) if options.trajectory is not None else None
     report = {"dataset": str(dataset), "frames": len(source.records)}
-    if options.depth is not None:
-        report["depth"] = evaluate_depth(source, options)
-    if options.disparity is not None:
-        report["disparity"] = evaluate_disparity(source, options.disparity)
-    if options.trajectory is not None:
-        report["trajectory"] = evaluate_trajectory(source, options)
+    if depth_files:
+        report["depth"] = evaluate_depth(source, depth_files, options)
+    if disparity_files:
+        report["disparity"] = evaluate_disparity(source, disparity_files, baseline_m)
+    if trajectory is not None:
+        report["trajectory"] = evaluate_trajectory(source, *trajectory, options)
     return report
 
 
-def _require_depth(source: DatasetSource, option: str) -> None:
+def _map_inputs(source: DatasetSource, folder: Path | None, option: str) -> list[Path]:
+    """The per-frame prediction files of ``folder`` (none without it), scored against the depth maps."""
+    if folder is None:
+        return []
     if "depth_exr" not in source.description["formats"]:
         raise BadInput(f"{source.layout.dataset_json}: {option} is scored against the depth maps, but this dataset "
                        f"has formats {source.description['formats']}; render it with --formats including depth_exr")
+    return map_files(folder, len(source.records), option)
 
 
-def evaluate_depth(source: DatasetSource, options: EvaluateOptions) -> dict:
-    """Eigen metrics of each frame's left depth prediction and their mean over frames."""
-    _require_depth(source, "--depth")
+def _baseline_m(source: DatasetSource) -> float:
+    try:
+        return source.baseline_m("disparity")
+    except DatasetError:
+        raise BadInput(f"{source.layout.dataset_json}: --disparity needs a rectified stereo pair (right camera at +B "
+                       "along the left camera's x axis, same orientation)") from None
+
+
+def _trajectory_input(source: DatasetSource, path: Path) -> tuple[Path, TrajectoryFile, list[int]]:
+    """The trajectory file read and each of its poses' frame."""
+    estimate = read_trajectory(path)
+    indices = match_times(estimate, path, np.array([float(record["time_s"]) for record in source.records]))
+    if len(indices) < MIN_POSES:
+        raise BadInput(f"{path}: {len(indices)} poses match the dataset's frames; at least {MIN_POSES} are needed")
+    return path, estimate, indices
+
+
+def evaluate_depth(source: DatasetSource, files: list[Path], options: EvaluateOptions) -> dict:
+    """Eigen metrics of each frame's left depth prediction (``files``, one per frame) and their mean."""
     frames = []
-    for frame, path in zip(source.frames(), map_files(options.depth, len(source.records), "--depth")):
+    for frame, path in zip(source.frames(), files):
         truth = frame.depth(LEFT)
         score = depth_metrics.score_depth(read_map(path, truth.shape), truth, options.median_scaling,
                                           options.min_depth_m, options.max_depth_m)
@@ -78,17 +104,11 @@ def evaluate_depth(source: DatasetSource, options: EvaluateOptions) -> dict:
             "per_frame": frames}
 
 
-def evaluate_disparity(source: DatasetSource, folder: Path) -> dict:
+def evaluate_disparity(source: DatasetSource, files: list[Path], baseline_m: float) -> dict:
     """EPE and D1 (all pixels, and those the right camera sees) of each frame's left disparity prediction, pooled
     over frames; ground truth ``fx * B / z`` from the left depth map."""
-    _require_depth(source, "--disparity")
-    try:
-        baseline_m = source.baseline_m("disparity")
-    except ValueError:
-        raise BadInput(f"{source.layout.dataset_json}: --disparity needs a rectified stereo pair (right camera at +B "
-                       "along the left camera's x axis, same orientation)") from None
     scores, frames = [], []
-    for frame, path in zip(source.frames(), map_files(folder, len(source.records), "--disparity")):
+    for frame, path in zip(source.frames(), files):
         depth_left = frame.depth(LEFT)
         truth = disparity_from_depth(depth_left, frame.camera(LEFT)["fx"], baseline_m)
         noc = visible_in_right(depth_left, frame.depth(RIGHT), truth)
@@ -98,26 +118,23 @@ def evaluate_disparity(source: DatasetSource, folder: Path) -> dict:
             raise BadInput(f"{path}: {error}") from None
         scores.append(score)
         frames.append({"frame": frame.index, **score.as_dict()})
-    return {"predictions": str(folder), "baseline_m": baseline_m, "pooled": disparity_metrics.pooled(scores),
-            "per_frame": frames}
+    return {"predictions": str(files[0].parent), "baseline_m": baseline_m,
+            "pooled": disparity_metrics.pooled(scores), "per_frame": frames}
 
 
-def evaluate_trajectory(source: DatasetSource, options: EvaluateOptions) -> dict:
-    """ATE, RPE and KITTI drift of a TUM or KITTI trajectory of the left camera. A KITTI file is compared with
-    the dataset's KITTI poses (relative to frame 0), a TUM file with the left camera's ENU poses."""
-    path = options.trajectory
-    estimate = read_trajectory(path)
-    times = np.array([float(record["time_s"]) for record in source.records])
-    indices = match_times(estimate, path, times)
-    if len(indices) < MIN_POSES:
-        raise BadInput(f"{path}: {len(indices)} poses match the dataset's frames; at least {MIN_POSES} are needed")
+def evaluate_trajectory(source: DatasetSource, path: Path, estimate: TrajectoryFile, indices: list[int],
+                        options: EvaluateOptions) -> dict:
+    """ATE, RPE and KITTI drift of a TUM or KITTI trajectory of the left camera (pose ``i`` of frame
+    ``indices[i]``). A KITTI file is compared with the dataset's KITTI poses (relative to frame 0), a TUM file
+    with the left camera's ENU poses."""
     truth = [frame.T_world_cam(LEFT) for frame in source.frames()]
     if estimate.kind == "kitti":
         truth = relative_poses(truth)
     truth = [truth[index] for index in indices]
+    times = [float(source.records[index]["time_s"]) for index in indices]
     return {"predictions": str(path), "format": estimate.kind, "poses": len(indices),
             "alignment": options.alignment,
-            **trajectory_metrics.ate_rpe(truth, estimate.poses, times[indices], options.alignment),
+            **trajectory_metrics.ate_rpe(truth, estimate.poses, times, options.alignment),
             "kitti_drift": trajectory_metrics.kitti_drift(truth, estimate.poses, options.drift_lengths_m)}
 
 

@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dataset_helpers import BASELINE_M, CAMERA, looking_down_pose, render_plane_view, rig_transforms, spec
+from dataset_helpers import BASELINE_M, CAMERA, ORIGIN, looking_down_pose, render_plane_view, rig_transforms, spec
 from sim.cli import main as cli_main
-from sim.dataset import FrameRecord, KittiDatasetWriter, finalize_dataset
+from sim.dataset import DatasetSpec, FrameRecord, KittiDatasetWriter, finalize_dataset
 from sim.dataset import images
 from sim.dataset.export import export_dataset
 from sim.shade import Sun
@@ -195,3 +195,25 @@ def test_nothing_to_score_a_json_that_names_an_input_and_a_dataset_without_depth
     finalize_dataset(no_depth)
     folder = write_maps(tmp_path / "pred", [truth_disparity(0)], ".npy")
     assert "depth_exr" in refused(capsys, [str(no_depth), "--disparity", str(folder)])
+
+
+def test_disparity_of_a_pair_that_is_not_rectified_is_refused_before_any_frame_is_read(tmp_path, capsys):
+    T_right = rig_transforms()[1].copy()
+    T_right[1, 3] = 0.2  # the right camera also 0.2 m below the left: epipolar lines are no longer rows
+    root = tmp_path / "dataset"
+    writer = KittiDatasetWriter(root, DatasetSpec(cameras=[CAMERA] * 2, T_rig_cams=[np.eye(4), T_right],
+                                                  origin=ORIGIN, frame_count=1, formats=("depth_exr",),
+                                                  command_line=["test"]))
+    writer.write_frame(record(0))
+    finalize_dataset(root)
+    folder = write_maps(tmp_path / "pred", [truth_disparity(0)], ".npy")
+    assert "--disparity needs a rectified stereo pair" in refused(capsys, [str(root), "--disparity", str(folder)])
+    report = evaluate(root, tmp_path, "--depth", str(write_maps(tmp_path / "depth", [truth_depth(0)], ".npy")))
+    assert report["depth"]["mean"]["abs_rel"] == 0.0  # depth needs no rectified pair
+
+
+def test_a_json_report_over_a_dataset_file_is_refused(dataset, tmp_path, capsys):
+    times = dataset / "sequences/00/times.txt"
+    before = times.read_bytes()
+    message = refused(capsys, [str(dataset), "--trajectory", str(dataset / "poses/00.txt"), "--json", str(times)])
+    assert "is also DATASET" in message and times.read_bytes() == before
