@@ -10,7 +10,7 @@ from pathlib import Path
 
 from flightplan.argtypes import positive_number
 from flightplan.atomic import write_text_atomic
-from flightplan.cli_support import folder_inputs, refuse_clobbering, refuse_folders
+from flightplan.cli_support import BadInput, folder_inputs, refuse_clobbering, refuse_folders
 from sim.evaluation.depth import MIN_DEPTH_M
 from sim.evaluation.score import EvaluateOptions, evaluate, report_table
 from sim.evaluation.trajectory import ALIGNMENTS, KITTI_LENGTHS_M
@@ -69,10 +69,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
                               median_scaling=args.median_scaling, min_depth_m=args.min_depth,
                               max_depth_m=math.inf if args.max_depth is None else args.max_depth,
                               alignment=args.align, drift_lengths_m=args.drift_lengths)
+    if options.max_depth_m <= options.min_depth_m:
+        raise BadInput(f"--max-depth {args.max_depth:g}: expected more than --min-depth {args.min_depth:g}")
     report = evaluate(args.dataset, options)
-    print(report_table(report))
     if args.json is not None:
         write_text_atomic(args.json, json.dumps(json_ready(report), indent=2, allow_nan=False) + "\n")
+    print(report_table(report))
     return 0
 
 

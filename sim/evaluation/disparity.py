@@ -16,7 +16,7 @@ pooled over all frames (KITTI divides the outliers of all images by their pixels
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -101,6 +101,6 @@ def score_disparity(predicted_px: np.ndarray, truth_px: np.ndarray, noc: np.ndar
 
 def pooled(scores: list[DisparityFrameScore]) -> dict[str, float]:
     """The frames' pixels pooled (KITTI's way): EPE, D1-all, EPE-noc, D1-noc and density over all frames."""
-    total = DisparityFrameScore(*(sum(getattr(score, name) for score in scores)
-                                  for name in DisparityFrameScore.__dataclass_fields__))
+    total = DisparityFrameScore(*(sum(getattr(score, column.name) for score in scores)
+                                  for column in fields(DisparityFrameScore)))
     return total.as_dict()

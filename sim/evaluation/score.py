@@ -3,7 +3,7 @@ camera. :func:`evaluate` returns the report (a JSON-ready dict), :func:`report_t
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +34,7 @@ class EvaluateOptions:
     min_depth_m: float = depth_metrics.MIN_DEPTH_M
     max_depth_m: float = float("inf")
     alignment: str = "se3"
-    drift_lengths_m: tuple[float, ...] = field(default=trajectory_metrics.KITTI_LENGTHS_M)
+    drift_lengths_m: tuple[float, ...] = trajectory_metrics.KITTI_LENGTHS_M
 
 
 def evaluate(dataset: Path, options: EvaluateOptions) -> dict:
