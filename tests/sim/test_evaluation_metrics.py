@@ -4,6 +4,7 @@ the devkit's hole filling), ATE/RPE by evo after a known offset, rotation and sc
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 import pytest
@@ -185,3 +186,9 @@ def test_kitti_drift_of_a_heading_that_turns_a_known_rate_too_fast():
 def test_rotation_angle_is_the_angle_of_the_rotation():
     assert rotation_angle_rad(pose(Rotation.from_rotvec([0.3, -0.2, 0.1]).as_matrix(), (0, 0, 0))) == \
         pytest.approx(math.sqrt(0.14))
+
+
+def test_without_evo_a_trajectory_is_refused_saying_how_to_install_it(monkeypatch):
+    monkeypatch.setitem(sys.modules, "evo.core", None)  # what an installation without the 'evaluate' extra sees
+    with pytest.raises(ValueError, match=r"needs evo: pip install 'aerostereo\[evaluate\]'"):
+        ate_rpe(helix(), helix(), np.arange(40) * 0.1)
