@@ -1,8 +1,8 @@
 """``aerostereo-render``: render stereo datasets from a scene, compare renders with photos, fly the virtual drone.
 
 ``aerostereo-render [options]`` renders a dataset (the default command, :mod:`sim.render_cli`);
-``aerostereo-render compare ...``, ``aerostereo-render fly ...`` and ``aerostereo-render export ...`` are
-subcommands, listed in the dataset render's ``--help``. Their parsers are assembled from small
+``aerostereo-render compare ...``, ``aerostereo-render fly ...``, ``aerostereo-render export ...`` and
+``aerostereo-render evaluate ...`` are subcommands, listed in the dataset render's ``--help``. Their parsers are assembled from small
 ``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where subcommands are
 named); each sets ``handler(args) -> int``. Bad input (and an output that names an input) ends with a one-line
 message on stderr and exit code 2, Ctrl-C with 130.
@@ -20,6 +20,7 @@ from flightplan.argtypes import finite_number
 from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
 from sim import render_cli
 from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
+from sim.evaluate_cli import add_evaluate_parser
 from sim.export_cli import add_export_parser
 from sim.render_cli import PROG, add_compare_parser
 from sim.render_dataset import is_demo_scene, resolve_scene_dir
@@ -62,7 +63,7 @@ def add_fly_parser(subparsers) -> None:
 
 
 #: Subcommands; anything else on the command line goes to the dataset renderer (the default command).
-SUBCOMMANDS = (add_fly_parser, add_compare_parser, add_export_parser)
+SUBCOMMANDS = (add_fly_parser, add_compare_parser, add_export_parser, add_evaluate_parser)
 
 
 def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:

@@ -18,7 +18,8 @@ gain applied, over the whole image and over the covered pixels only (where the r
 
 Depth metrics compare a predicted depth map with the ground truth over pixels where both are
 finite and positive: absolute relative error ``mean(|pred - gt| / gt)``, RMSE in metres, and
-the fraction with ``max(pred/gt, gt/pred) < 1.25``.
+the fraction with ``max(pred/gt, gt/pred) < 1.25`` (:func:`sim.evaluation.depth.eigen_errors`, which scores
+predicted depth maps for ``aerostereo-render evaluate``).
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ from skimage.metrics import structural_similarity
 from flightplan.cli_support import path_problem
 from sim.dataset.images import read_exr
 from sim.dataset.replay import replay_frames
+from sim.evaluation.depth import eigen_errors
 from sim.shade import SRGB8_TO_LINEAR, to_srgb8
 
 FULL_SCALE = 255.0
@@ -248,8 +250,6 @@ def depth_errors(predicted_m: np.ndarray, truth_m: np.ndarray) -> DepthErrors:
     valid = np.isfinite(predicted) & np.isfinite(truth) & (predicted > 0) & (truth > 0)
     if not valid.any():
         raise ValueError("no pixel has a finite positive depth in both maps")
-    predicted, truth = predicted[valid], truth[valid]
-    ratio = np.maximum(predicted / truth, truth / predicted)
-    return DepthErrors(abs_rel=float(np.mean(np.abs(predicted - truth) / truth)),
-                       rmse_m=float(np.sqrt(np.mean((predicted - truth) ** 2))),
-                       delta_1_25=float(np.mean(ratio < 1.25)), valid_pixels=int(valid.sum()))
+    errors = eigen_errors(predicted[valid], truth[valid])
+    return DepthErrors(abs_rel=errors["abs_rel"], rmse_m=errors["rmse"], delta_1_25=errors["a1"],
+                       valid_pixels=int(valid.sum()))

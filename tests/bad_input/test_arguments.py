@@ -208,6 +208,24 @@ CASES = [
     Case("export-out-inside-dataset", RENDER, ["export", "{tmp}/dataset", "--layout", "tum", "--out",
                                                "{tmp}/dataset/tum"], r"--out .*tum: overlaps the source dataset",
          DATASET),
+    # aerostereo-render evaluate
+    Case("evaluate-nothing-to-score", RENDER, ["evaluate", "{tmp}/dataset"], r"nothing to score: give --depth",
+         DATASET),
+    Case("evaluate-json-is-trajectory", RENDER, ["evaluate", "{tmp}/dataset", "--trajectory", "{tmp}/t.txt", "--json",
+                                                 "{tmp}/t.txt"], r"--json .*t\.txt: is also --trajectory",
+         Files({**DATASET.contents, "t.txt": b"0 0 0 0 0 0 0 1\n"})),
+    Case("evaluate-json-is-a-folder", RENDER, ["evaluate", "{tmp}/dataset", "--trajectory", "{tmp}/t.txt", "--json",
+                                               "{tmp}/folder"], r"--json .*folder: is a folder",
+         Files({**DATASET.contents, "t.txt": b"0 0 0 0 0 0 0 1\n"}, folders=("folder",))),
+    Case("evaluate-incomplete-dataset-json", RENDER, ["evaluate", "{tmp}/dataset", "--depth", "{tmp}/folder"],
+         r"dataset\.json: no sequence, frame_count", Files(DATASET.contents, folders=("folder",))),
+    Case("evaluate-depth-range-empty", RENDER, ["evaluate", "{tmp}/dataset", "--depth", "{tmp}/folder", "--min-depth",
+                                                "10", "--max-depth", "5"],
+         r"--max-depth 5: expected more than --min-depth 10", Files(DATASET.contents, folders=("folder",))),
+    Case("evaluate-bad-align", RENDER, ["evaluate", "{tmp}/dataset", "--align", "umeyama"],
+         r"--align: invalid choice: 'umeyama'", DATASET),
+    Case("evaluate-drift-lengths-word", RENDER, ["evaluate", "{tmp}/dataset", "--drift-lengths", "far"],
+         r"--drift-lengths: 'far': expected comma-separated positive lengths", DATASET),
     # aerostereo-render fly
     Case("fly-no-mission", RENDER, ["fly", "--out", "{tmp}/f"], r"^aerostereo-render fly: .*required: --mission"),
     Case("fly-bad-link", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--link", "radio"],
@@ -254,7 +272,7 @@ def test_every_program_and_subcommand_has_cases():
     covered = {(case.program, case.argv[0] if case.argv and not case.argv[0].startswith("-") else "")
                for case in CASES}
     expected = {(MISSION, ""), (RECON, ""), (RECON, "merge"), (RENDER, ""), (RENDER, "compare"), (RENDER, "fly"),
-                (RENDER, "export")}
+                (RENDER, "export"), (RENDER, "evaluate")}
     expected |= {(INGEST, command) for command in ("record", "decode", "geotag", "track", "list")}
     assert expected <= covered
 
@@ -267,7 +285,7 @@ def test_version_is_one_line_and_exit_0(program, tmp_path):
 
 
 @pytest.mark.parametrize("program, argv, commands", [
-    (RENDER, ["--help"], ["fly", "compare", "export"]),
+    (RENDER, ["--help"], ["fly", "compare", "export", "evaluate"]),
     (INGEST, ["--help"], ["record", "decode", "geotag", "track", "list"]),
 ])
 def test_help_lists_the_commands(program, argv, commands, tmp_path):

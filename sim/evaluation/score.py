@@ -1,0 +1,179 @@
+"""Score predictions against a finalized dataset folder: depth maps, disparities and/or a trajectory of the left
+camera. :func:`evaluate` returns the report (a JSON-ready dict), :func:`report_table` its text table."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from flightplan.cli_support import BadInput
+from sim.dataset.images import disparity_from_depth
+from sim.dataset.kitti import relative_poses
+from sim.dataset.kitti2015 import visible_in_right
+from sim.dataset.source import LEFT, RIGHT, DatasetSource
+from sim.dataset.writer import DatasetError
+from sim.evaluation import depth as depth_metrics
+from sim.evaluation import disparity as disparity_metrics
+from sim.evaluation import trajectory as trajectory_metrics
+from sim.evaluation.predictions import TrajectoryFile, map_files, match_times, read_map, read_trajectory
+
+#: Fewest matched poses a trajectory is scored with (Umeyama alignment needs three).
+MIN_POSES = 3
+
+
+@dataclass(frozen=True)
+class EvaluateOptions:
+    """What to score (prediction folders / file; ``None``: not scored) and how."""
+
+    depth: Path | None = None
+    disparity: Path | None = None
+    trajectory: Path | None = None
+    median_scaling: bool = False
+    min_depth_m: float = depth_metrics.MIN_DEPTH_M
+    max_depth_m: float = float("inf")
+    alignment: str = "se3"
+    drift_lengths_m: tuple[float, ...] = trajectory_metrics.KITTI_LENGTHS_M
+
+
+def evaluate(dataset: Path, options: EvaluateOptions) -> dict:
+    """The report of every prediction named in ``options`` against the dataset in ``dataset``; every input is
+    checked (files present, named and matched) before the first is scored."""
+    if options.depth is None and options.disparity is None and options.trajectory is None:
+        raise BadInput("nothing to score: give --depth, --disparity and/or --trajectory")
+    source = DatasetSource(Path(dataset))
+    depth_files = _map_inputs(source, options.depth, "--depth")
+    disparity_files = _map_inputs(source, options.disparity, "--disparity")
+    baseline_m = _baseline_m(source) if disparity_files else None
+    trajectory = _trajectory_input(source, options.trajectory) if options.trajectory is not None else None
+    report = {"dataset": str(dataset), "frames": len(source.records)}
+    if depth_files:
+        report["depth"] = evaluate_depth(source, depth_files, options)
+    if disparity_files:
+        report["disparity"] = evaluate_disparity(source, disparity_files, baseline_m)
+    if trajectory is not None:
+        report["trajectory"] = evaluate_trajectory(source, *trajectory, options)
+    return report
+
+
+def _map_inputs(source: DatasetSource, folder: Path | None, option: str) -> list[Path]:
+    """The per-frame prediction files of ``folder`` (none without it), scored against the depth maps."""
+    if folder is None:
+        return []
+    if "depth_exr" not in source.description["formats"]:
+        raise BadInput(f"{source.layout.dataset_json}: {option} is scored against the depth maps, but this dataset "
+                       f"has formats {source.description['formats']}; render it with --formats including depth_exr")
+    return map_files(folder, len(source.records), option)
+
+
+def _baseline_m(source: DatasetSource) -> float:
+    try:
+        return source.baseline_m("disparity")
+    except DatasetError:
+        raise BadInput(f"{source.layout.dataset_json}: --disparity needs a rectified stereo pair (right camera at +B "
+                       "along the left camera's x axis, same orientation)") from None
+
+
+def _trajectory_input(source: DatasetSource, path: Path) -> tuple[Path, TrajectoryFile, list[int]]:
+    """The trajectory file read and each of its poses' frame."""
+    estimate = read_trajectory(path)
+    indices = match_times(estimate, path, np.array([float(record["time_s"]) for record in source.records]))
+    if len(indices) < MIN_POSES:
+        raise BadInput(f"{path}: {len(indices)} poses match the dataset's frames; at least {MIN_POSES} are needed")
+    return path, estimate, indices
+
+
+def evaluate_depth(source: DatasetSource, files: list[Path], options: EvaluateOptions) -> dict:
+    """Eigen metrics of each frame's left depth prediction (``files``, one per frame) and their mean."""
+    frames = []
+    for frame, path in zip(source.frames(), files):
+        truth = frame.depth(LEFT)
+        score = depth_metrics.score_depth(read_map(path, truth.shape), truth, options.median_scaling,
+                                          options.min_depth_m, options.max_depth_m)
+        if score is None:
+            raise BadInput(f"{path}: no pixel has both a valid prediction and a ground-truth depth in "
+                           f"({options.min_depth_m:g}, {options.max_depth_m:g}) m")
+        frames.append({"frame": frame.index, **score.metrics, "scale": score.scale, "pixels": score.pixels,
+                       "density": score.density})
+    scales = np.array([frame["scale"] for frame in frames])
+    mean = {key: float(np.mean([frame[key] for frame in frames])) for key in (*depth_metrics.METRICS, "density")}
+    return {"predictions": str(options.depth), "median_scaling": options.median_scaling,
+            "min_depth_m": options.min_depth_m, "max_depth_m": options.max_depth_m, "mean": mean,
+            "scale_median": float(np.median(scales)), "scale_std": float(np.std(scales / np.median(scales))),
+            "per_frame": frames}
+
+
+def evaluate_disparity(source: DatasetSource, files: list[Path], baseline_m: float) -> dict:
+    """EPE and D1 (all pixels, and those the right camera sees) of each frame's left disparity prediction, pooled
+    over frames; ground truth ``fx * B / z`` from the left depth map."""
+    scores, frames = [], []
+    for frame, path in zip(source.frames(), files):
+        depth_left = frame.depth(LEFT)
+        truth = disparity_from_depth(depth_left, frame.camera(LEFT)["fx"], baseline_m)
+        noc = visible_in_right(depth_left, frame.depth(RIGHT), truth)
+        try:
+            score = disparity_metrics.score_disparity(read_map(path, truth.shape), truth, noc)
+        except ValueError as error:
+            raise BadInput(f"{path}: {error}") from None
+        scores.append(score)
+        frames.append({"frame": frame.index, **score.as_dict()})
+    return {"predictions": str(files[0].parent), "baseline_m": baseline_m,
+            "pooled": disparity_metrics.pooled(scores), "per_frame": frames}
+
+
+def evaluate_trajectory(source: DatasetSource, path: Path, estimate: TrajectoryFile, indices: list[int],
+                        options: EvaluateOptions) -> dict:
+    """ATE, RPE and KITTI drift of a TUM or KITTI trajectory of the left camera (pose ``i`` of frame
+    ``indices[i]``). A KITTI file is compared with the dataset's KITTI poses (relative to frame 0), a TUM file
+    with the left camera's ENU poses."""
+    truth = [frame.T_world_cam(LEFT) for frame in source.frames()]
+    if estimate.kind == "kitti":
+        truth = relative_poses(truth)
+    truth = [truth[index] for index in indices]
+    times = [float(source.records[index]["time_s"]) for index in indices]
+    return {"predictions": str(path), "format": estimate.kind, "poses": len(indices),
+            "alignment": options.alignment,
+            **trajectory_metrics.ate_rpe(truth, estimate.poses, times, options.alignment),
+            "kitti_drift": trajectory_metrics.kitti_drift(truth, estimate.poses, options.drift_lengths_m)}
+
+
+def _row(values, width: int = 10) -> str:
+    return " ".join(f"{value:>{width}}" if isinstance(value, str) else f"{value:>{width}.4f}" for value in values)
+
+
+def report_table(report: dict) -> str:
+    """The report as plain text: one block per scored prediction."""
+    lines = [f"dataset {report['dataset']}: {report['frames']} frames"]
+    if "depth" in report:
+        depth = report["depth"]
+        scaling = (f"median scaling (ratio median {depth['scale_median']:.3f}, std {depth['scale_std']:.3f})"
+                   if depth["median_scaling"] else "no scaling")
+        lines += ["", f"depth {depth['predictions']}: mean of {len(depth['per_frame'])} frames, {scaling}, "
+                      f"{100 * depth['mean']['density']:.1f} % of ground-truth pixels predicted",
+                  _row(depth_metrics.METRICS), _row(depth["mean"][key] for key in depth_metrics.METRICS)]
+    if "disparity" in report:
+        pooled = report["disparity"]["pooled"]
+        lines += ["", f"disparity {report['disparity']['predictions']}: {len(report['disparity']['per_frame'])} "
+                      f"frames pooled, {100 * pooled['density']:.1f} % of ground-truth pixels predicted "
+                      "(holes filled as the KITTI devkit does)",
+                  _row(("EPE px", "D1-all %", "EPE-noc px", "D1-noc %")),
+                  _row((pooled["epe"], 100 * pooled["d1_all"], pooled["epe_noc"], 100 * pooled["d1_noc"]))]
+    if "trajectory" in report:
+        lines += ["", *_trajectory_lines(report["trajectory"])]
+    return "\n".join(lines)
+
+
+def _trajectory_lines(trajectory: dict) -> list[str]:
+    lines = [f"trajectory {trajectory['predictions']} ({trajectory['format']}): {trajectory['poses']} poses, "
+             f"{trajectory['alignment']} alignment (scale {trajectory['alignment_scale']:.4f})",
+             _row(("ATE rmse m", "ATE mean m", "ATE max m", "RPE m", "RPE deg"), 11),
+             _row((trajectory[key] for key in ("ate_rmse_m", "ate_mean_m", "ate_max_m", "rpe_trans_rmse_m",
+                                               "rpe_rot_rmse_deg")), 11),
+             "KITTI drift " + _row(("length m", "segments", "t_err %", "r_err deg/100m"), 14)]
+    drift = trajectory["kitti_drift"]
+    for length, values in [*drift["per_length"].items(), ("all", drift)]:
+        label = length if isinstance(length, str) else f"{length:g}"
+        lines.append(" " * 12 + _row((label, str(values["segments"]), values["t_err_percent"],
+                                      values["r_err_deg_per_100m"]), 14))
+    return lines
