@@ -27,6 +27,7 @@ with motion blur (and with rolling shutter at one sample per pixel).
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -156,14 +157,18 @@ def render_in_time(scene, rig: Rig, pose_at: PoseAt, time_s: float, sun, effects
     return [total / len(offsets) for total in sums]
 
 
-def vignetting_gain(camera: PinholeCamera, vignetting: str | Sequence[float]) -> np.ndarray:
+@functools.lru_cache(maxsize=4)
+def vignetting_gain(camera: PinholeCamera, vignetting: str | tuple[float, ...]) -> np.ndarray:
     """Gain ``(H, W)`` float64 of each pixel (module docstring), from the undistorted normalised radius of its
-    centre (lens distortion included)."""
+    centre (lens distortion included); computed once per lens (read-only)."""
     r2 = np.square(camera.pixels_to_normalized(camera.pixel_centres())).sum(axis=1).reshape(camera.shape)
     if vignetting == "cos4":
-        return 1.0 / np.square(1.0 + r2)
-    k1, k2, k3 = vignetting
-    return 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+        gain = 1.0 / np.square(1.0 + r2)
+    else:
+        k1, k2, k3 = vignetting
+        gain = 1.0 + r2 * (k1 + r2 * (k2 + r2 * k3))
+    gain.flags.writeable = False
+    return gain
 
 
 def add_sensor_noise(linear: np.ndarray, full_well_e: float, read_noise_e: float,

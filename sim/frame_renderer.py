@@ -278,6 +278,7 @@ class FrameRenderer:
             raise RenderInputError(str(error)) from None
         self.threads = threads or default_workers()
         self.pool = ThreadPoolExecutor(self.threads)
+        self._meterings: dict[int, tuple[float, float]] = {}
 
     @property
     def frame_count(self) -> int:
@@ -338,21 +339,23 @@ class FrameRenderer:
         """Frame ``index``'s auto-exposure gain per channel: the virtual drone camera's model
         (:func:`sim.effects.auto_exposure_gain`) over the frames of the last :data:`AUTO_EXPOSURE_WINDOW_S` up to
         this one, each metered on a small render of its left view."""
-        window = [self.poses.pose(index)]
-        while window[0].index > 0:
-            earlier = self.poses.pose(window[0].index - 1)
-            if window[-1].time_s - earlier.time_s > AUTO_EXPOSURE_WINDOW_S:
-                break
-            window.insert(0, earlier)
-        metered = []
-        for sample in window:
-            rig, lighting, _ = self._rig_lighting(sample.index)
+        window = [index]
+        while window[0] > 0 and self._metering(index)[0] - self._metering(window[0] - 1)[0] <= AUTO_EXPOSURE_WINDOW_S:
+            window.insert(0, window[0] - 1)
+        self._meterings = {k: self._meterings[k] for k in self._meterings if k >= window[0]}
+        times, metered = zip(*(self._metering(k) for k in window))
+        noise = np.array([frame_rng(self.options.seed, k, EXPOSURE_STREAM).standard_normal(4) for k in window])
+        return auto_exposure_gain(times, metered, noise)
+
+    def _metering(self, index: int) -> tuple[float, float]:
+        """Frame ``index``'s time (s) and the metered luminance of its left view (a :data:`METERING_WIDTH` render),
+        computed once: consecutive frames share most of their auto-exposure windows."""
+        if index not in self._meterings:
+            sample, (rig, lighting, _) = self.poses.pose(index), self._rig_lighting(index)
             probe = Rig((rig.cameras[0].scaled(METERING_WIDTH),))
             view = render(self.scene, probe, sample.T_world_cam, pool=self.pool, **lighting).views[0]
-            metered.append(metered_luminance(SRGB8_TO_LINEAR[view.rgb]))
-        noise = np.array([frame_rng(self.options.seed, sample.index, EXPOSURE_STREAM).standard_normal(4)
-                          for sample in window])
-        return auto_exposure_gain([sample.time_s for sample in window], metered, noise)
+            self._meterings[index] = (sample.time_s, metered_luminance(SRGB8_TO_LINEAR[view.rgb]))
+        return self._meterings[index]
 
     def close(self) -> None:
         self.pool.shutdown()
