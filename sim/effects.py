@@ -116,6 +116,18 @@ class CameraEffects:
         return described
 
 
+#: Bytes per pixel of the effects: each view's linear image (float64 RGB) while the others are processed, and
+#: the temporaries of one view's photometric effects (tracemalloc measures 96 bytes per pixel with every effect on,
+#: 104 on the first frame, which also computes the vignetting gain).
+LINEAR_BYTES_PER_PIXEL, PHOTOMETRIC_BYTES_PER_PIXEL = 24, 120
+
+
+def effects_memory_bytes(pixels_per_view: Sequence[int]) -> int:
+    """Peak memory (bytes) the camera effects add to a frame's render (one linear image per view, one view's
+    photometric temporaries)."""
+    return LINEAR_BYTES_PER_PIXEL * sum(pixels_per_view) + PHOTOMETRIC_BYTES_PER_PIXEL * max(pixels_per_view)
+
+
 def row_times(height: int, time_s: float, line_delay_s: float) -> np.ndarray:
     """Exposure time (s) of each of ``height`` rows of a frame at ``time_s`` (centre row at ``time_s``)."""
     return time_s + (np.arange(height) - (height - 1) / 2.0) * line_delay_s

@@ -24,7 +24,7 @@ from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
 from sim.effects import (AUTO_EXPOSURE_WINDOW_S, EXPOSURE_STREAM, NOISE_STREAM, CameraEffects, apply_photometric,
-                         auto_exposure_gain, render_in_time)
+                         auto_exposure_gain, effects_memory_bytes, render_in_time)
 from sim.raycast import default_workers
 from sim.render import miss_fraction, render, render_memory_bytes
 from sim.sampling import (
@@ -286,11 +286,13 @@ class FrameRenderer:
 
     def memory_bytes(self) -> int:
         """Peak memory (bytes) of rendering and writing frames in this process: the render of the largest frame
-        plus the frames queued for writing (each view's rgb and depth: 7 bytes per pixel)."""
+        plus the frames queued for writing (each view's rgb and depth: 7 bytes per pixel), plus the camera effects'
+        images when any is on."""
         largest = max(camera.width * camera.height for camera in self.lenses or self.rig.cameras)
         pixels = [largest] * len(self.rig.cameras)
         queued = (MAX_PENDING_FRAMES + 1) * (3 + 4) * sum(pixels)
-        return render_memory_bytes(pixels, self.options.spp, self.threads) + queued
+        effects = effects_memory_bytes(pixels) if self.options.effects.enabled else 0
+        return render_memory_bytes(pixels, self.options.spp, self.threads) + queued + effects
 
     def record(self, index: int) -> tuple[FrameRecord, FrameStats]:
         """Render frame ``index`` (its pose, sun and jitter depend only on ``(seed, index)``)."""

@@ -4,6 +4,8 @@ its formula, and a dataset's ground truth (depth, poses) is byte for byte the sa
 
 from __future__ import annotations
 
+import tracemalloc
+
 import numpy as np
 import pytest
 import trimesh
@@ -11,7 +13,8 @@ from scipy.spatial.transform import Rotation
 
 from render_scene_helpers import write_scene
 from sim.camera import PinholeCamera, Rig, project_world_points
-from sim.effects import CameraEffects, add_sensor_noise, apply_photometric, render_in_time, vignetting_gain
+from sim.effects import (LINEAR_BYTES_PER_PIXEL, PHOTOMETRIC_BYTES_PER_PIXEL, CameraEffects, add_sensor_noise,
+                         apply_photometric, effects_memory_bytes, render_in_time, vignetting_gain)
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.render import render
 from sim.render_dataset import render_dataset
@@ -138,3 +141,18 @@ def test_rolling_shutter_and_blur_need_a_trajectory():
     for effects in (CameraEffects(line_delay_s=1e-4), CameraEffects(exposure_s=0.01)):
         with pytest.raises(RenderInputError, match="--mode trajectory"):
             RenderOptions(mode="random", effects=effects)
+
+
+def test_the_memory_estimate_covers_the_photometric_effects():
+    camera = PinholeCamera.from_fov(200, 120, 70.0)
+    linear = np.random.default_rng(0).random((120, 200, 3))
+    effects = CameraEffects(vignetting="cos4", full_well_e=1000.0, read_noise_e=3.0, auto_exposure=True)
+    tracemalloc.start()
+    try:
+        apply_photometric(linear, camera, effects, np.ones(3), np.random.default_rng(1))
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    pixels = camera.width * camera.height
+    assert 0.5 * PHOTOMETRIC_BYTES_PER_PIXEL * pixels < peak <= PHOTOMETRIC_BYTES_PER_PIXEL * pixels
+    assert effects_memory_bytes([pixels, pixels]) == (2 * LINEAR_BYTES_PER_PIXEL + PHOTOMETRIC_BYTES_PER_PIXEL) * pixels
