@@ -307,7 +307,10 @@ class FrameRenderer:
             extra["camera"] = camera_description(rig.cameras[0])
         colours = [view.rgb for view in frame.views]
         if self.options.effects.enabled:
-            colours = self._with_effects(index, sample, frame, rig, lighting)
+            gain = self._auto_exposure_gain(index) if self.options.effects.auto_exposure else None
+            if gain is not None:
+                extra["auto_exposure_gain"] = gain.tolist()
+            colours = self._with_effects(index, sample, frame, rig, lighting, gain)
         elapsed = time.perf_counter() - start
         views = [ViewImages(rgb, view.depth) for rgb, view in zip(colours, frame.views)]
         record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
@@ -323,9 +326,10 @@ class FrameRenderer:
             return self.rig, {"sun": frame_sun(sun)}, sun
         return build_rig(self.options, self.lenses[index]), UNLIT, None
 
-    def _with_effects(self, index: int, sample: PoseSample, frame, rig: Rig, lighting: dict) -> list[np.ndarray]:
-        """The 8-bit colour of every view of ``frame`` with the options' camera effects (sim/effects.py); the
-        frame's depth and pose stay as rendered."""
+    def _with_effects(self, index: int, sample: PoseSample, frame, rig: Rig, lighting: dict,
+                      gain: np.ndarray | None) -> list[np.ndarray]:
+        """The 8-bit colour of every view of ``frame`` with the options' camera effects (sim/effects.py) and the
+        auto-exposure ``gain`` per channel (None: off); the frame's depth and pose stay as rendered."""
         effects, seed = self.options.effects, self.options.seed
         if effects.in_time:
             linear = render_in_time(self.scene, rig, self.poses.pose_at, sample.time_s, effects=effects,
@@ -333,7 +337,6 @@ class FrameRenderer:
                                     rng=lambda: frame_rng(seed, index, RENDER_STREAM), **lighting)
         else:
             linear = [SRGB8_TO_LINEAR[view.rgb] for view in frame.views]
-        gain = self._auto_exposure_gain(index) if effects.auto_exposure else None
         noise = frame_rng(seed, index, NOISE_STREAM)
         return [apply_photometric(image, camera, effects, gain, noise) for image, camera in zip(linear, rig.cameras)]
 

@@ -4,6 +4,7 @@ its formula, and a dataset's ground truth (depth, poses) is byte for byte the sa
 
 from __future__ import annotations
 
+import json
 import tracemalloc
 
 import numpy as np
@@ -13,6 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from render_scene_helpers import write_scene
 from sim.camera import PinholeCamera, Rig, project_world_points
+from sim.dataset.images import read_png
 from sim.effects import (LINEAR_BYTES_PER_PIXEL, PHOTOMETRIC_BYTES_PER_PIXEL, CameraEffects, add_sensor_noise,
                          apply_photometric, effects_memory_bytes, render_in_time, vignetting_gain)
 from sim.frame_renderer import RenderInputError, RenderOptions
@@ -156,3 +158,19 @@ def test_the_memory_estimate_covers_the_photometric_effects():
     pixels = camera.width * camera.height
     assert 0.5 * PHOTOMETRIC_BYTES_PER_PIXEL * pixels < peak <= PHOTOMETRIC_BYTES_PER_PIXEL * pixels
     assert effects_memory_bytes([pixels, pixels]) == (2 * LINEAR_BYTES_PER_PIXEL + PHOTOMETRIC_BYTES_PER_PIXEL) * pixels
+
+
+def test_auto_exposure_scales_each_frame_by_its_recorded_gain(scene_dir, tmp_path):
+    base = dict(mode="trajectory", width=48, height=30, frames=4, seed=5, altitude_m=40.0, speed_m_s=40.0)
+    plain, drifting = tmp_path / "plain", tmp_path / "drift"
+    render_dataset(scene_dir, plain, RenderOptions(**base), command_line=["test"], progress=False)
+    render_dataset(scene_dir, drifting, RenderOptions(**base, effects=CameraEffects(auto_exposure=True)),
+                   command_line=["test"], progress=False)
+    records = [json.loads(line) for line in (drifting / "sequences/00/frames.jsonl").read_text().splitlines()]
+    gains = np.array([record["auto_exposure_gain"] for record in records])
+    assert np.all((gains > 0.5) & (gains < 2.0)) and np.ptp(gains[:, 1]) > 0.005  # it drifts from frame to frame
+    for index, gain in enumerate(gains):
+        for camera in (2, 3):
+            name = f"sequences/00/image_{camera}/{index:06d}.png"
+            expected = to_srgb8(SRGB8_TO_LINEAR[read_png(plain / name)] * gain.astype(np.float32))
+            assert np.abs(read_png(drifting / name).astype(int) - expected).max() <= 1
