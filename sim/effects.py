@@ -147,7 +147,8 @@ def row_camera(camera: PinholeCamera, row: int) -> PinholeCamera:
 
 
 def render_in_time(scene, rig: Rig, pose_at: PoseAt, time_s: float, sun, effects: CameraEffects,
-                   samples_per_pixel: int, rng: Callable[[], np.random.Generator], **render_options) -> list[np.ndarray]:
+                   samples_per_pixel: int, rng: Callable[[], np.random.Generator],
+                   **render_options) -> list[np.ndarray]:
     """Linear colour ``(H, W, 3)`` float64 of every rig camera exposed around ``time_s`` with the rolling shutter and
     motion blur of ``effects``; ``rng()`` gives the anti-aliasing generator of each render (the frame's, so that a
     camera at rest gives the frame's own image). ``render_options``: :func:`sim.render.render`'s keywords."""

@@ -23,6 +23,7 @@ from sim.camera import PinholeCamera, Rig
 from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
+from sim.drone.exposure import metered_luminance
 from sim.effects import (AUTO_EXPOSURE_WINDOW_S, EXPOSURE_STREAM, NOISE_STREAM, CameraEffects, apply_photometric,
                          auto_exposure_gain, effects_memory_bytes, render_in_time)
 from sim.raycast import default_workers
@@ -42,7 +43,6 @@ from sim.sampling import (
     scene_camera_poses,
 )
 from sim.scene import Scene, SceneError, load_scene
-from sim.drone.exposure import metered_luminance
 from sim.shade import SRGB8_TO_LINEAR, UNLIT, Sun
 
 MODES = ("random", "trajectory", "replay")
@@ -345,7 +345,8 @@ class FrameRenderer:
         (:func:`sim.effects.auto_exposure_gain`) over the frames of the last :data:`AUTO_EXPOSURE_WINDOW_S` up to
         this one, each metered on a small render of its left view."""
         window = [index]
-        while window[0] > 0 and self._metering(index)[0] - self._metering(window[0] - 1)[0] <= AUTO_EXPOSURE_WINDOW_S:
+        now = self._metering(index)[0]
+        while window[0] > 0 and now - self._metering(window[0] - 1)[0] <= AUTO_EXPOSURE_WINDOW_S:
             window.insert(0, window[0] - 1)
         self._meterings = {k: self._meterings[k] for k in self._meterings if k >= window[0]}
         times, metered = zip(*(self._metering(k) for k in window))

@@ -151,7 +151,8 @@ def effects_from_args(args: argparse.Namespace) -> CameraEffects:
                              full_well_e=args.full_well, read_noise_e=args.read_noise, vignetting=args.vignetting,
                              auto_exposure=args.auto_exposure)
     except ValueError as error:
-        raise BadInput(f"--line-delay/--exposure/--blur-samples/--full-well/--read-noise/--vignetting: {error}") from None
+        options = "--line-delay/--exposure/--blur-samples/--full-well/--read-noise/--vignetting"
+        raise BadInput(f"{options}: {error}") from None
 
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:

@@ -96,8 +96,8 @@ def plane_truth(index: int, to: int) -> tuple[np.ndarray, np.ndarray]:
     rays = np.stack([(u - CAMERA.cx) / CAMERA.fx, (v - CAMERA.cy) / CAMERA.fy, np.ones_like(u)], -1) @ T0[:3, :3].T
     with np.errstate(divide="ignore", invalid="ignore"):
         t = np.where(rays[..., 2] < 0, -T0[2, 3] / rays[..., 2], np.nan)
-    point = np.linalg.inv(T1) @ np.concatenate([T0[:3, 3] + t[..., None] * rays, np.ones_like(t)[..., None]], -1)[..., None]
-    x, y, z = point[..., 0, 0], point[..., 1, 0], point[..., 2, 0]
+    ground = np.concatenate([T0[:3, 3] + t[..., None] * rays, np.ones_like(t)[..., None]], -1)
+    x, y, z, _ = np.moveaxis(ground @ np.linalg.inv(T1).T, -1, 0)
     uv = np.stack([CAMERA.fx * x / z + CAMERA.cx - u, CAMERA.fy * y / z + CAMERA.cy - v], -1)
     return uv, np.isfinite(t)
 
