@@ -4,6 +4,8 @@ files read back, the way their consumers read them, to the flow computed (KITTI:
 
 from __future__ import annotations
 
+import dataclasses
+
 import cv2
 import numpy as np
 import pytest
@@ -149,3 +151,33 @@ def test_flo_files_read_by_opencv_hold_the_flow_and_backward_undoes_forward(plan
         assert np.abs(forward + back)[interior].max() < 0.05
     assert not (out / "flow_backward/cam0/000000.flo").exists()
     assert any(line.startswith("flo_backward:") for line in lines)
+
+
+def test_flow_through_a_distorted_lens_follows_the_distorted_pixels(terrain):
+    camera = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=(-0.2, 0.05, 0.001, -0.001, 0.0))
+    poses = [look_at([0.0, -60.0, 120.0], [0.0, 40.0, 0.0]), look_at([20.0, -45.0, 110.0], [12.0, 50.0, 0.0])]
+    views = [render(terrain, Rig((camera,)), T, Sun(120.0, 60.0)).views[0] for T in poses]
+    still = flow_between(views[0].depth, camera, poses[0], camera, poses[0], views[0].depth, NOC_RELATIVE_TOLERANCE)
+    assert np.abs(still.uv).max() < 1e-3 and still.visible[views[0].valid].mean() > 0.99  # undistort + distort
+    flow = flow_between(views[0].depth, camera, poses[0], camera, poses[1], views[1].depth, NOC_RELATIVE_TOLERANCE)
+    pinhole = dataclasses.replace(camera, dist=None)
+    wrong = flow_between(views[0].depth, pinhole, poses[0], pinhole, poses[1], views[1].depth, NOC_RELATIVE_TOLERANCE)
+    assert np.abs(flow.uv).max() > 15
+    assert reprojection_error_m(camera, poses, views, flow) < 0.1  # metres at ~150 m: 1 px there is ~1.7 m
+    assert reprojection_error_m(camera, poses, views, wrong) > 0.5  # the test can tell a flow that ignores the lens
+
+
+def reprojection_error_m(camera, poses, views, flow) -> float:
+    """Median distance (m) between the world point of each pixel visible in the next view and the point the next
+    view sees where the flow lands (its depth there, interpolated, along its ray through the distorted lens)."""
+    hit = flow.visible
+    landed = camera.pixel_centres().reshape(*camera.shape, 2)[hit] + flow.uv[hit]
+    depth_there = cv2.remap(views[1].depth, *(landed.astype(np.float32).T[:, :, None]), cv2.INTER_LINEAR)[:, 0]
+    points = []
+    for pose, pixels, depth in ((poses[0], camera.pixel_centres().reshape(*camera.shape, 2)[hit], views[0].depth[hit]),
+                                (poses[1], landed, depth_there)):
+        rays = camera.ray_directions(pixels)
+        with np.errstate(invalid="ignore"):  # sky (+inf depth) interpolated near the next view's horizon
+            points.append(pose[:3, :3] @ (rays / rays[:, 2:] * depth[:, None]).T + pose[:3, 3:])
+    distance = np.linalg.norm(points[1] - points[0], axis=0)
+    return float(np.median(distance[np.isfinite(distance)]))
