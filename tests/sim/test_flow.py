@@ -181,3 +181,15 @@ def reprojection_error_m(camera, poses, views, flow) -> float:
             points.append(pose[:3, :3] @ (rays / rays[:, 2:] * depth[:, None]).T + pose[:3, 3:])
     distance = np.linalg.norm(points[1] - points[0], axis=0)
     return float(np.median(distance[np.isfinite(distance)]))
+
+
+def test_flow_layouts_refuse_a_dataset_without_depth_and_write_nothing(tmp_path):
+    source = tmp_path / "dataset"
+    writer = KittiDatasetWriter(source, spec(2, formats=("disparity_png",)))
+    for index in range(2):
+        writer.write_frame(frame_record(index))
+    finalize_dataset(source)
+    for layout in ("kitti_flow", "flo", "flo_backward"):
+        with pytest.raises(ValueError, match=f"the {layout} layout needs the depth maps"):
+            export_dataset(source, tmp_path / "out", ["tum", layout])
+    assert not (tmp_path / "out").exists()
