@@ -71,14 +71,9 @@ def write_flo(path: Path, uv: np.ndarray, valid: np.ndarray) -> None:
     """Write flow ``uv`` (H, W, 2) as Middlebury ``.flo`` (OpenCV's writer), :data:`FLO_UNKNOWN` where not
     ``valid``, atomically."""
     flow = np.where(valid[..., None], uv, FLO_UNKNOWN).astype(np.float32)
-    with atomic_path(path) as temporary:
-        flo = temporary.with_name(temporary.name + ".flo")  # OpenCV picks the writer by the extension
-        try:
-            if not cv2.writeOpticalFlow(str(flo), flow):
-                raise OSError(f"{path}: OpenCV could not write the .flo file")
-            flo.replace(temporary)
-        finally:
-            flo.unlink(missing_ok=True)
+    with atomic_path(path) as temporary:  # the temporary keeps the .flo suffix, which OpenCV's writer checks
+        if not cv2.writeOpticalFlow(str(temporary), flow):
+            raise OSError(f"{path}: OpenCV could not write the .flo file")
 
 
 class KittiFlowWriter:
