@@ -81,6 +81,3 @@ def frame_record(index: int, camera_count: int = 2, render_time_s: float = 0.25)
     return FrameRecord(index=index, views=views, T_world_cam=T_world_left, time_s=0.1 * index, seed=7,
                        sun=Sun(120.0 + index, 45.0, 7.5), render_time_s=render_time_s)
 
-
-#: Frames of the analytic dataset the flow tests export (pairs 0-1, 1-2, 2-3).
-FRAME_COUNT_FOR_FLOW = 4

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from dataset_helpers import CAMERA, FRAME_COUNT_FOR_FLOW, frame_record, looking_down_pose, spec
+from dataset_helpers import CAMERA, frame_record, looking_down_pose, spec
 from sim.camera import PinholeCamera, Rig, look_at
 from sim.dataset import KittiDatasetWriter, finalize_dataset
 from sim.dataset.export import export_dataset
@@ -22,6 +22,8 @@ from sim.shade import Sun
 from sim.synthetic import height_field_scene
 
 WARP_CAMERA = PinholeCamera.from_fov(256, 160, 60.0)
+#: Frames of the analytic dataset (dataset_helpers) the layout tests export: pairs 0-1, 1-2, 2-3.
+FRAME_COUNT_FOR_FLOW = 4
 
 
 @pytest.fixture(scope="module")
