@@ -80,4 +80,3 @@ def frame_record(index: int, camera_count: int = 2, render_time_s: float = 0.25)
     views = [render_plane_view(CAMERA, T_world_left @ T) for T in rig_transforms(camera_count)]
     return FrameRecord(index=index, views=views, T_world_cam=T_world_left, time_s=0.1 * index, seed=7,
                        sun=Sun(120.0 + index, 45.0, 7.5), render_time_s=render_time_s)
-
