@@ -23,6 +23,9 @@ from sim.camera import PinholeCamera, Rig
 from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
+from sim.drone.exposure import metered_luminance
+from sim.effects import (AUTO_EXPOSURE_WINDOW_S, EXPOSURE_STREAM, NOISE_STREAM, CameraEffects, apply_photometric,
+                         auto_exposure_gain, effects_memory_bytes, render_in_time)
 from sim.raycast import default_workers
 from sim.render import miss_fraction, render, render_memory_bytes
 from sim.sampling import (
@@ -40,7 +43,7 @@ from sim.sampling import (
     scene_camera_poses,
 )
 from sim.scene import Scene, SceneError, load_scene
-from sim.shade import UNLIT, Sun
+from sim.shade import SRGB8_TO_LINEAR, UNLIT, Sun
 
 MODES = ("random", "trajectory", "replay")
 TRAJECTORIES = ("orbit", "lawnmower", "loop")
@@ -51,6 +54,8 @@ SCENE_REPLAY_FORMATS = ("depth_exr",)
 #: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
+#: Width (pixels) of the small render on which auto-exposure meters a view.
+METERING_WIDTH = 64
 
 
 class RenderInputError(ValueError):
@@ -67,7 +72,8 @@ class RenderOptions:
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
     disparity can be written). ``width``/``height`` None: :data:`DEFAULT_SIZE`, except a replay of the scene's
     cameras (replay without ``geotags``), which renders each photo's own lens at its own size, or at ``width``
-    (the lens scaled, ``height`` ignored) when given.
+    (the lens scaled, ``height`` ignored) when given. ``effects``: camera effects on the colour images
+    (sim/effects.py; rolling shutter and motion blur need ``mode="trajectory"``).
     """
 
     frames: int | None = None
@@ -90,6 +96,12 @@ class RenderOptions:
     distortion: tuple[float, ...] | None = None
     margin_m: float = 20.0
     max_sky_fraction: float = 0.02
+    effects: CameraEffects = CameraEffects()
+
+    def __post_init__(self) -> None:
+        if self.effects.in_time and self.mode != "trajectory":
+            raise RenderInputError("rolling shutter and motion blur need the camera's motion in time: use them with "
+                                   "--mode trajectory (random and replayed poses are single shots)")
 
     @property
     def replays_scene_cameras(self) -> bool:
@@ -113,6 +125,8 @@ class RenderOptions:
             description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
             description["geotags"] = Path(self.geotags).name
+        if self.effects.enabled:
+            description["effects"] = self.effects.description()
         return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
 
 
@@ -205,6 +219,10 @@ class PoseSource:
                                    f"{self.options.speed_m_s} m/s and {self.options.frame_rate_hz} Hz, not {count}")
         return count
 
+    def pose_at(self, time_s: float) -> np.ndarray:
+        """The left camera's ``T_world_cam`` at ``time_s`` seconds along the trajectory (trajectory mode only)."""
+        return self.path.pose_at(time_s)
+
     def pose(self, index: int) -> PoseSample:
         if self.replayed is not None:
             return self.replayed[index]
@@ -260,6 +278,7 @@ class FrameRenderer:
             raise RenderInputError(str(error)) from None
         self.threads = threads or default_workers()
         self.pool = ThreadPoolExecutor(self.threads)
+        self._meterings: dict[int, tuple[float, float]] = {}
 
     @property
     def frame_count(self) -> int:
@@ -267,11 +286,13 @@ class FrameRenderer:
 
     def memory_bytes(self) -> int:
         """Peak memory (bytes) of rendering and writing frames in this process: the render of the largest frame
-        plus the frames queued for writing (each view's rgb and depth: 7 bytes per pixel)."""
+        plus the frames queued for writing (each view's rgb and depth: 7 bytes per pixel), plus the camera effects'
+        images when any is on."""
         largest = max(camera.width * camera.height for camera in self.lenses or self.rig.cameras)
         pixels = [largest] * len(self.rig.cameras)
         queued = (MAX_PENDING_FRAMES + 1) * (3 + 4) * sum(pixels)
-        return render_memory_bytes(pixels, self.options.spp, self.threads) + queued
+        effects = effects_memory_bytes(pixels) if self.options.effects.enabled else 0
+        return render_memory_bytes(pixels, self.options.spp, self.threads) + queued + effects
 
     def record(self, index: int) -> tuple[FrameRecord, FrameStats]:
         """Render frame ``index`` (its pose, sun and jitter depend only on ``(seed, index)``)."""
@@ -279,20 +300,67 @@ class FrameRenderer:
         sample = self.poses.pose(index)
         rng = frame_rng(self.options.seed, index, RENDER_STREAM)
         extra = sample.record()
-        if self.lenses is None:
-            sun = random_sun(self.options.seed, index)
-            frame = render(self.scene, self.rig, sample.T_world_cam, frame_sun(sun), self.options.spp, rng=rng,
-                           pool=self.pool)
-        else:  # the photo's own lens, lit as the photo was (the texture's shading), see :data:`UNLIT`
-            sun, lens = None, self.lenses[index]
-            frame = render(self.scene, build_rig(self.options, lens), sample.T_world_cam,
-                           samples_per_pixel=self.options.spp, rng=rng, pool=self.pool, **UNLIT)
-            extra["camera"] = camera_description(lens)
+        rig, lighting, sun = self._rig_lighting(index)
+        frame = render(self.scene, rig, sample.T_world_cam, samples_per_pixel=self.options.spp, rng=rng,
+                       pool=self.pool, **lighting)
+        if self.lenses is not None:
+            extra["camera"] = camera_description(rig.cameras[0])
+        colours = [view.rgb for view in frame.views]
+        if self.options.effects.enabled:
+            gain = self._auto_exposure_gain(index) if self.options.effects.auto_exposure else None
+            if gain is not None:
+                extra["auto_exposure_gain"] = gain.tolist()
+            colours = self._with_effects(index, sample, frame, rig, lighting, gain)
         elapsed = time.perf_counter() - start
-        views = [ViewImages(view.rgb, view.depth) for view in frame.views]
+        views = [ViewImages(rgb, view.depth) for rgb, view in zip(colours, frame.views)]
         record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
                              time_s=sample.time_s, seed=self.options.seed, sun=sun, extra=extra)
         return record, FrameStats(index, sample.rejected, elapsed)
+
+    def _rig_lighting(self, index: int) -> tuple[Rig, dict, SunSample | None]:
+        """Frame ``index``'s rig, the lighting keywords of :func:`render` and the sampled sun (None for a replay of
+        the scene's cameras: each photo's own lens, lit as the photo was, by the texture's shading, :data:`UNLIT`)."""
+        if self.lenses is None:
+            sun = random_sun(self.options.seed, index)
+            return self.rig, {"sun": frame_sun(sun)}, sun
+        return build_rig(self.options, self.lenses[index]), UNLIT, None
+
+    def _with_effects(self, index: int, sample: PoseSample, frame, rig: Rig, lighting: dict,
+                      gain: np.ndarray | None) -> list[np.ndarray]:
+        """The 8-bit colour of every view of ``frame`` with the options' camera effects (sim/effects.py) and the
+        auto-exposure ``gain`` per channel (None: off); the frame's depth and pose stay as rendered."""
+        effects, seed = self.options.effects, self.options.seed
+        if effects.in_time:
+            linear = render_in_time(self.scene, rig, self.poses.pose_at, sample.time_s, effects=effects,
+                                    samples_per_pixel=self.options.spp, pool=self.pool,
+                                    rng=lambda: frame_rng(seed, index, RENDER_STREAM), **lighting)
+        else:
+            linear = [SRGB8_TO_LINEAR[view.rgb] for view in frame.views]
+        noise = frame_rng(seed, index, NOISE_STREAM)
+        return [apply_photometric(image, camera, effects, gain, noise) for image, camera in zip(linear, rig.cameras)]
+
+    def _auto_exposure_gain(self, index: int) -> np.ndarray:
+        """Frame ``index``'s auto-exposure gain per channel: the virtual drone camera's model
+        (:func:`sim.effects.auto_exposure_gain`) over the frames of the last :data:`AUTO_EXPOSURE_WINDOW_S` up to
+        this one, each metered on a small render of its left view."""
+        window = [index]
+        now = self._metering(index)[0]
+        while window[0] > 0 and now - self._metering(window[0] - 1)[0] <= AUTO_EXPOSURE_WINDOW_S:
+            window.insert(0, window[0] - 1)
+        self._meterings = {k: self._meterings[k] for k in self._meterings if k >= window[0]}
+        times, metered = zip(*(self._metering(k) for k in window))
+        noise = np.array([frame_rng(self.options.seed, k, EXPOSURE_STREAM).standard_normal(4) for k in window])
+        return auto_exposure_gain(times, metered, noise)
+
+    def _metering(self, index: int) -> tuple[float, float]:
+        """Frame ``index``'s time (s) and the metered luminance of its left view (a :data:`METERING_WIDTH` render),
+        computed once: consecutive frames share most of their auto-exposure windows."""
+        if index not in self._meterings:
+            sample, (rig, lighting, _) = self.poses.pose(index), self._rig_lighting(index)
+            probe = Rig((rig.cameras[0].scaled(METERING_WIDTH),))
+            view = render(self.scene, probe, sample.T_world_cam, pool=self.pool, **lighting).views[0]
+            self._meterings[index] = (sample.time_s, metered_luminance(SRGB8_TO_LINEAR[view.rgb]))
+        return self._meterings[index]
 
     def close(self) -> None:
         self.pool.shutdown()

@@ -17,6 +17,7 @@ from flightplan.cli_support import (EXIT_INTERRUPTED, BadInput, Parser, folder_i
                                     refuse_folders)
 from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
+from sim.effects import VIGNETTING_MODELS, CameraEffects
 from sim.metrics import compare_folders, summary_table
 from sim.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
 from sim.render_dataset import is_demo_scene, render_dataset
@@ -46,6 +47,19 @@ def _distortion(text: str) -> tuple[float, ...]:
         coefficients = ()
     if len(coefficients) != 5:
         raise argparse.ArgumentTypeError(f"expected five numbers k1,k2,p1,p2,k3, got {text!r}")
+    return coefficients
+
+
+def _vignetting(text: str) -> str | tuple[float, ...]:
+    if text in VIGNETTING_MODELS:
+        return text
+    try:
+        coefficients = tuple(float(value) for value in text.split(","))
+    except ValueError:
+        coefficients = ()
+    if len(coefficients) != 3:
+        raise argparse.ArgumentTypeError(f"expected {' or '.join(VIGNETTING_MODELS)} or three numbers k1,k2,k3, "
+                                         f"got {text!r}")
     return coefficients
 
 
@@ -95,6 +109,22 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--formats", type=_formats, default=None,
         help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; replay of the scene's cameras: "
              f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")
+    effects = parser.add_argument_group("camera effects (colour images only; depth and poses stay exact)")
+    effects.add_argument("--line-delay", type=float, default=0.0,
+                         help="rolling shutter: seconds between the exposures of neighbouring rows (0: global "
+                              "shutter; needs --mode trajectory)")
+    effects.add_argument("--exposure", type=float, default=0.0,
+                         help="motion blur: exposure time, seconds (0: none; needs --mode trajectory)")
+    effects.add_argument("--blur-samples", type=int, default=CameraEffects().blur_samples,
+                         help="motion blur: renders averaged over the exposure")
+    effects.add_argument("--full-well", type=float, default=0.0,
+                         help="sensor noise: electrons of a full-scale pixel (shot noise; 0: no noise)")
+    effects.add_argument("--read-noise", type=float, default=0.0, help="sensor noise: read noise, electrons")
+    effects.add_argument("--vignetting", type=_vignetting, default=None,
+                         help="cos4, or k1,k2,k3 of the gain 1 + k1 r^2 + k2 r^4 + k3 r^6 (r = tan of the angle "
+                              "off the optical axis)")
+    effects.add_argument("--auto-exposure", action="store_true",
+                         help="auto-exposure drift of the virtual drone's camera (gain per frame and channel)")
     add("--contact-sheet", type=Path, default=None, help="also write a PNG of left, right and depth of a few frames")
     add("--quiet", action="store_true", help="no progress bar")
     return parser
@@ -111,7 +141,18 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
-                         margin_m=args.margin, max_sky_fraction=args.max_sky)
+                         margin_m=args.margin, max_sky_fraction=args.max_sky, effects=effects_from_args(args))
+
+
+def effects_from_args(args: argparse.Namespace) -> CameraEffects:
+    """:class:`CameraEffects` of parsed arguments; :class:`BadInput` naming the options when they are invalid."""
+    try:
+        return CameraEffects(line_delay_s=args.line_delay, exposure_s=args.exposure, blur_samples=args.blur_samples,
+                             full_well_e=args.full_well, read_noise_e=args.read_noise, vignetting=args.vignetting,
+                             auto_exposure=args.auto_exposure)
+    except ValueError as error:
+        options = "--line-delay/--exposure/--blur-samples/--full-well/--read-noise/--vignetting"
+        raise BadInput(f"{options}: {error}") from None
 
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:

@@ -213,16 +213,27 @@ class Trajectory:
             raise ValueError(f"the {self.mode} path is {self.length_m:.0f} m long: {available} frames at "
                              f"{self.speed_m_s} m/s and {self.frame_rate_hz} Hz, frame {index} is beyond it")
         time_s = index / self.frame_rate_hz
+        T, heading = self._pose_heading(time_s)
+        details = {"mode": self.mode, "heading_deg": heading, "tilt_x_deg": self.tilt_deg, "tilt_y_deg": 0.0}
+        return PoseSample(index, T, time_s, _height_above_ground(ground, T[:3, 3]), 0, details)
+
+    def pose_at(self, time_s: float) -> np.ndarray:
+        """``T_world_cam`` at ``time_s`` seconds from the start (frame ``i`` at ``i / frame_rate_hz``; an open
+        path holds its end pose beyond its ends)."""
+        return self._pose_heading(time_s)[0]
+
+    def _pose_heading(self, time_s: float) -> tuple[np.ndarray, float]:
+        """The pose at ``time_s`` and its heading (degrees clockwise from north)."""
         s = self.speed_m_s * time_s
+        if not self.closed:
+            s = min(max(s, 0.0), self.length_m)
         position = self._position(np.array(s))
         if self.look_at_xy is not None:
             east, north = np.subtract(self.look_at_xy, position[:2])
         else:
             east, north = (self._position(np.array(s + PATH_STEP_M)) - self._position(np.array(s - PATH_STEP_M)))[:2]
         heading = math.degrees(math.atan2(east, north)) % 360.0
-        T = pose_from_position(position, camera_rotation(heading, self.tilt_deg))
-        details = {"mode": self.mode, "heading_deg": heading, "tilt_x_deg": self.tilt_deg, "tilt_y_deg": 0.0}
-        return PoseSample(index, T, time_s, _height_above_ground(ground, position), 0, details)
+        return pose_from_position(position, camera_rotation(heading, self.tilt_deg)), heading
 
 
 def _terrain_following(ground: GroundModel, xy: np.ndarray, height_m: float) -> np.ndarray:

@@ -23,6 +23,7 @@ from flightplan.atomic import write_text_atomic
 from sim.dataset import images
 from sim.dataset.kitti import format_numbers, projection_matrices
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame
+from sim.flow import visible_at
 
 #: A left point counts as visible in the right view when its depth exceeds the right view's depth there by at most
 #: this fraction. The right depth is compared at the pixel centres on either side of the point's right-view
@@ -47,14 +48,7 @@ def visible_in_right(depth_left: np.ndarray, depth_right: np.ndarray, disparity_
     """
     height, width = depth_left.shape
     column = np.arange(width, dtype=np.float64) - np.asarray(disparity_left, dtype=np.float64)
-    hit = np.isfinite(depth_left) & np.isfinite(column)
-    inside = hit & (column >= 0) & (column <= width - 1)
-    column = np.where(inside, column, 0.0)
-    left_column = np.floor(column).astype(np.intp)
-    right_column = np.where(column > left_column, np.minimum(left_column + 1, width - 1), left_column)
-    rows = np.arange(height)[:, None]
-    seen_depth = np.maximum(depth_right[rows, left_column], depth_right[rows, right_column]).astype(np.float64)
-    return inside & (depth_left <= seen_depth * (1.0 + tolerance))
+    return visible_at(depth_right, column, np.arange(height)[:, None], depth_left, tolerance)
 
 
 def cam_to_cam_text(frame: SourceFrame) -> str:
