@@ -25,11 +25,17 @@ from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
 from sim.raycast import default_workers
 from sim.render import miss_fraction, render, render_memory_bytes
+from sim.drone.flight import GRAVITY_MPS2
+from sim.motion.imu import EUROC_ADIS16448, NOISE_MODEL_NAME, T_body_cam0
+from sim.motion.rig_path import RigPath
+from sim.motion.trajectory import smooth_path
 from sim.sampling import (
+    IMU_STREAM,
     RENDER_STREAM,
     PoseSample,
     RandomPoseSettings,
     SunSample,
+    Trajectory,
     frame_rng,
     lawnmower,
     orbit,
@@ -90,6 +96,7 @@ class RenderOptions:
     distortion: tuple[float, ...] | None = None
     margin_m: float = 20.0
     max_sky_fraction: float = 0.02
+    imu_rate_hz: float | None = None
 
     @property
     def replays_scene_cameras(self) -> bool:
@@ -109,11 +116,23 @@ class RenderOptions:
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
+            if self.imu_rate_hz is not None:
+                description["imu"] = self.imu_description()
         elif self.replays_scene_cameras:
             description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
             description["geotags"] = Path(self.geotags).name
         return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
+
+    def imu_description(self) -> dict:
+        """What ``dataset.json`` says about the IMU: rate, noise figures and source, gravity, extrinsics."""
+        T_body_cam = T_body_cam0(self.baseline_m)
+        return {"rate_hz": self.imu_rate_hz, "file": "imu/NN.csv (NN = the sequence)",
+                "noise_model": NOISE_MODEL_NAME, "noise": EUROC_ADIS16448.to_dict(),
+                "noise_seed": f"numpy default_rng([seed, {IMU_STREAM}])", "gravity_m_s2": GRAVITY_MPS2,
+                "trajectory": "smooth (sim/motion): the body (IMU) frame follows the path; frames rendered on it",
+                "body_frame": "IMU axes: x along the left camera's optical axis, y to its left, z up in the image",
+                "T_body_cam": [(T_body_cam @ T_rig_cam).tolist() for T_rig_cam in build_rig(self).T_rig_cam]}
 
 
 class SceneGround:
@@ -179,7 +198,15 @@ class PoseSource:
             self.replayed = replay_poses(Path(options.geotags), scene.origin, self.ground)
         self.frame_count = self._frame_count()
 
-    def _trajectory(self):
+    def _trajectory(self) -> Trajectory | RigPath:
+        """The trajectory of the options: the polyline, or with an IMU its smooth version (sim/motion)."""
+        path = self._polyline()
+        if self.options.imu_rate_hz is None:
+            return path
+        return RigPath(smooth_path(path), T_body_cam0(self.options.baseline_m), path.frame_rate_hz, path.closed,
+                       path.mode)
+
+    def _polyline(self) -> Trajectory:
         o = self.options
         xmin, xmax, ymin, ymax = self.ground.valid_area
         if o.trajectory == "orbit":

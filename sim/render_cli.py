@@ -77,6 +77,12 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--altitude", type=float, default=defaults.altitude_m, help="trajectory height above the ground, metres")
     add("--speed", type=float, default=defaults.speed_m_s, help="trajectory speed, m/s")
     add("--rate", type=float, default=defaults.frame_rate_hz, help="trajectory frame rate, Hz")
+    add("--imu", action="store_true",
+        help="trajectory mode: fly the smooth (twice differentiable) version of the path and write its IMU record "
+             "(imu/NN.csv: gyroscope + accelerometer with EuRoC's ADIS16448 noise, the noise-free values, biases "
+             "and the true body state); export it with 'export --layout euroc'")
+    add("--imu-rate", type=float, default=200.0,
+        help="IMU samples per second with --imu (a whole multiple of --rate)")
     add("--width", type=int, default=defaults.width,
         help=f"image width, pixels (default {DEFAULT_SIZE[0]}; replay of the scene's cameras: each photo's own, "
              "or its lens scaled to this width)")
@@ -111,7 +117,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
-                         margin_m=args.margin, max_sky_fraction=args.max_sky)
+                         margin_m=args.margin, max_sky_fraction=args.max_sky,
+                         imu_rate_hz=args.imu_rate if args.imu else None)
 
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:

@@ -1,7 +1,8 @@
 """Benchmark: cost of exporting a rendered dataset to each layout, and how the non-occluded mask depends on its
 depth tolerance.
 
-Renders a small random-pose dataset of the demo world (or reads ``--dataset DIR``), then prints two tables:
+Renders a small orbit of the demo world with an IMU record (so that every layout, euroc included, can be written;
+or reads ``--dataset DIR``, rendered with ``--imu`` for euroc), then prints two tables:
 
 * per layout: milliseconds and bytes per frame of ``export_dataset`` (the source is read once per layout);
 * per tolerance of :func:`sim.dataset.kitti2015.visible_in_right`: the share of valid left pixels that are not
@@ -80,7 +81,8 @@ def main(argv=None) -> int:
         source = args.dataset
         if source is None:
             source = scratch / "dataset"
-            options = RenderOptions(frames=args.frames, width=args.width, height=args.height, seed=0, workers=1)
+            options = RenderOptions(frames=args.frames, mode="trajectory", width=args.width, height=args.height,
+                                    seed=0, workers=1, imu_rate_hz=200.0)  # an IMU record, for the euroc layout
             start = time.perf_counter()
             render_dataset(args.scene, source, options, command_line=["bench"], progress=False)
             print(f"rendered {args.frames} frames {args.width}x{args.height} of {args.scene} in "

@@ -189,6 +189,11 @@ CASES = [
     Case("render-sheet-is-the-mesh", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--contact-sheet",
                                               "{tmp}/scene/terrain.glb"],
          r"--contact-sheet .*: is also --scene", SCENE),
+    Case("render-imu-random-mode", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--imu"],
+         r"--imu needs --mode trajectory", SCENE),
+    Case("render-imu-rate-not-a-multiple", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--mode",
+                                                    "trajectory", "--imu", "--imu-rate", "15"],
+         r"IMU rate \(15\.0 Hz\) must be a whole multiple of the frame rate \(10\.0 Hz\)", SCENE),
     # aerostereo-render compare
     Case("compare-no-folders", RENDER, ["compare"], r"^aerostereo-render compare: .*required: real_dir"),
     Case("compare-real-missing", RENDER, ["compare", "{tmp}/none", "{tmp}/folder"],
