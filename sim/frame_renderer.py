@@ -28,7 +28,9 @@ from sim.render import miss_fraction, render, render_memory_bytes
 from sim.drone.flight import GRAVITY_MPS2
 from sim.motion.imu import EUROC_ADIS16448, NOISE_MODEL_NAME, T_body_cam0
 from sim.motion.rig_path import RigPath
-from sim.motion.trajectory import smooth_path
+from sim.drone import Imperfections
+from sim.drone.session import fly_litchi_mission
+from sim.motion.trajectory import flight_path, smooth_path
 from sim.sampling import (
     IMU_STREAM,
     RENDER_STREAM,
@@ -49,7 +51,7 @@ from sim.scene import Scene, SceneError, load_scene
 from sim.shade import UNLIT, Sun
 
 MODES = ("random", "trajectory", "replay")
-TRAJECTORIES = ("orbit", "lawnmower", "loop")
+TRAJECTORIES = ("orbit", "lawnmower", "loop", "flight")
 #: Image size (pixels) where none is given and none comes from a replayed photo.
 DEFAULT_SIZE = (1280, 720)
 #: Outputs of a replay at the scene's cameras unless asked otherwise: photos are not rectified (no disparity).
@@ -73,7 +75,11 @@ class RenderOptions:
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
     disparity can be written). ``width``/``height`` None: :data:`DEFAULT_SIZE`, except a replay of the scene's
     cameras (replay without ``geotags``), which renders each photo's own lens at its own size, or at ``width``
-    (the lens scaled, ``height`` ignored) when given.
+    (the lens scaled, ``height`` ignored) when given. ``imu_rate_hz``: fly the smooth version of the trajectory
+    (sim/motion) and write its IMU record at this rate (a whole multiple of ``frame_rate_hz``); None: no IMU, the
+    polyline trajectory. ``mission``: the Litchi CSV of the ``flight`` trajectory: the virtual drone flies it over
+    the scene with realistic gusts drawn from ``seed``, the frames follow its flown path from the first waypoint
+    to the last.
     """
 
     frames: int | None = None
@@ -97,6 +103,7 @@ class RenderOptions:
     margin_m: float = 20.0
     max_sky_fraction: float = 0.02
     imu_rate_hz: float | None = None
+    mission: Path | None = None
 
     @property
     def replays_scene_cameras(self) -> bool:
@@ -116,6 +123,10 @@ class RenderOptions:
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
+            if self.trajectory == "flight":
+                description["trajectory"] = {"path": "flight", "mission": Path(self.mission).name,
+                                             "imperfections": Imperfections.realistic().to_dict(),
+                                             "frame_rate_hz": self.frame_rate_hz}
             if self.imu_rate_hz is not None:
                 description["imu"] = self.imu_description()
         elif self.replays_scene_cameras:
@@ -199,12 +210,23 @@ class PoseSource:
         self.frame_count = self._frame_count()
 
     def _trajectory(self) -> Trajectory | RigPath:
-        """The trajectory of the options: the polyline, or with an IMU its smooth version (sim/motion)."""
+        """The trajectory of the options: the polyline, or with an IMU its smooth version (sim/motion); a virtual
+        flight is always smooth."""
+        if self.options.trajectory == "flight":
+            return self._flight()
         path = self._polyline()
         if self.options.imu_rate_hz is None:
             return path
         return RigPath(smooth_path(path), T_body_cam0(self.options.baseline_m), path.frame_rate_hz, path.closed,
                        path.mode)
+
+    def _flight(self) -> RigPath:
+        """The virtual drone's flown path of the mission (gusts from the seed), first to last waypoint."""
+        scene = self.ground.scene
+        flight = fly_litchi_mission(self.options.mission, scene, self.options.seed, Imperfections.realistic()).flight
+        passes = flight.waypoint_times_s()
+        path = flight_path(flight, passes[0], passes[-1], flight.frame.transform_to(scene.origin))
+        return RigPath(path, T_body_cam0(self.options.baseline_m), self.options.frame_rate_hz, False, "flight")
 
     def _polyline(self) -> Trajectory:
         o = self.options

@@ -73,7 +73,11 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         help="random mode: keep cameras this far inside the valid area, metres")
     add("--max-sky", type=float, default=defaults.max_sky_fraction,
         help="random mode: redraw a pose whose view has more sky/miss than this")
-    add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory, help="path flown in trajectory mode")
+    add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory,
+        help="path flown in trajectory mode (flight: the virtual drone flies --mission with gusts)")
+    add("--mission", type=Path, default=None,
+        help="--trajectory flight: the Litchi mission CSV flown (frames from its first waypoint to its last; "
+             "--altitude and --speed are the mission's)")
     add("--altitude", type=float, default=defaults.altitude_m, help="trajectory height above the ground, metres")
     add("--speed", type=float, default=defaults.speed_m_s, help="trajectory speed, m/s")
     add("--rate", type=float, default=defaults.frame_rate_hz, help="trajectory frame rate, Hz")
@@ -118,7 +122,7 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
                          margin_m=args.margin, max_sky_fraction=args.max_sky,
-                         imu_rate_hz=args.imu_rate if args.imu else None)
+                         imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
 
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:
@@ -126,7 +130,7 @@ def refuse_clobbering_render(args: argparse.Namespace) -> None:
     geotags (or their sidecar) or the other output, and a ``--contact-sheet`` that is a folder."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     geotags = None if args.geotags is None else [args.geotags, sidecar_path(args.geotags)]
-    refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags},
+    refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags, "--mission": args.mission},
                       {"--out": args.out, "--contact-sheet": args.contact_sheet})
     refuse_folders({"--contact-sheet": args.contact_sheet})
 

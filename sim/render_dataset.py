@@ -156,6 +156,8 @@ def _check_options(options: RenderOptions) -> None:
     if not 0 < options.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
     problems += _imu_problems(options)
+    if options.mode == "trajectory" and (options.trajectory == "flight") != (options.mission is not None):
+        problems.append("--trajectory flight needs --mission (a Litchi CSV), and --mission needs --trajectory flight")
     if options.distortion is not None and needs_disparity(options.formats):
         problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
                         "when rendering with --distortion")

@@ -36,7 +36,8 @@ FLIGHT_KNOT_S = 0.05
 @dataclass(frozen=True)
 class Kinematics:
     """State of the body frame at N times: ENU position (m), velocity (m/s), acceleration (m/s^2), each (N, 3);
-    the left camera's heading and tilt (rad) and their rates (rad/s), each (N,)."""
+    the left camera's heading and tilt (rad) and their rates (rad/s), each (N,), in the trajectory's own ENU
+    frame, which ``frame_rotation`` (world <- own, 3x3; None: the same) turns into the world's."""
 
     t_s: np.ndarray
     position: np.ndarray
@@ -46,17 +47,23 @@ class Kinematics:
     heading_rate: np.ndarray
     tilt: np.ndarray
     tilt_rate: np.ndarray
+    frame_rotation: np.ndarray | None = None
 
     def R_world_cam(self) -> np.ndarray:
         """(N, 3, 3) left camera-to-world rotations (OpenCV camera axes), as :func:`sim.sampling.camera_rotation`."""
         turn = Rotation.from_euler("z", -self.heading[:, None]).as_matrix()
         tilt = Rotation.from_euler("x", self.tilt[:, None]).as_matrix()
-        return turn @ R_WORLD_NADIR @ tilt
+        return self._to_world(turn @ R_WORLD_NADIR @ tilt)
+
+    def _to_world(self, vectors: np.ndarray) -> np.ndarray:
+        """(N, 3) vectors or (N, 3, 3) matrices of the trajectory's own frame in the world frame."""
+        if self.frame_rotation is None:
+            return vectors
+        return self.frame_rotation @ vectors if vectors.ndim == 3 else vectors @ self.frame_rotation.T
 
     def angular_velocity_world(self) -> np.ndarray:
         """(N, 3) angular velocity of the camera (and body) in the world frame, rad/s."""
-        up = np.zeros_like(self.position)
-        up[:, 2] = 1.0
+        up = self._to_world(np.tile([0.0, 0.0, 1.0], (len(self.t_s), 1)))
         return -self.heading_rate[:, None] * up + self.tilt_rate[:, None] * self.R_world_cam()[:, :, 0]
 
 
@@ -98,12 +105,14 @@ class CircleOrbit:
 class SplinePath:
     """A C2 path: ``position`` a (vector) ``CubicSpline`` of time (periodic for a loop); ``heading`` a spline of
     the unwrapped heading (rad) or None (along the horizontal velocity); ``tilt`` a spline (rad) or a constant.
-    ``duration_s``: time of one lap (loop) or of the whole path."""
+    ``duration_s``: time of one lap (loop) or of the whole path. ``T_world_own``: 4x4 rigid transform from the
+    splines' ENU frame to the world's (None: the same)."""
 
     position: CubicSpline
     heading: CubicSpline | None
     tilt: CubicSpline | float
     duration_s: float
+    T_world_own: np.ndarray | None = None
 
     def at(self, t_s) -> Kinematics:
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
@@ -116,7 +125,11 @@ class SplinePath:
             tilt, tilt_rate = self.tilt(t), self.tilt(t, 1)
         else:
             tilt, tilt_rate = np.full_like(t, self.tilt), np.zeros_like(t)
-        return Kinematics(t, position, velocity, acceleration, heading, heading_rate, tilt, tilt_rate)
+        if self.T_world_own is None:
+            return Kinematics(t, position, velocity, acceleration, heading, heading_rate, tilt, tilt_rate)
+        R, shift = self.T_world_own[:3, :3], self.T_world_own[:3, 3]
+        return Kinematics(t, position @ R.T + shift, velocity @ R.T, acceleration @ R.T, heading, heading_rate,
+                          tilt, tilt_rate, R)
 
 
 def _orbit_circle(path: Trajectory) -> CircleOrbit:
@@ -146,13 +159,17 @@ def smooth_path(path: Trajectory) -> CircleOrbit | SplinePath:
     return _orbit_circle(path) if path.mode == "orbit" else _polyline_spline(path)
 
 
-def flight_path(flight, knot_s: float = FLIGHT_KNOT_S) -> SplinePath:
-    """The flown path of a :class:`sim.drone.flight.Flight` (gusts included) as a C2 spline through its true
+def flight_path(flight, start_s: float = 0.0, end_s: float | None = None, T_world_home: np.ndarray | None = None,
+                knot_s: float = FLIGHT_KNOT_S) -> SplinePath:
+    """The flown path of a :class:`sim.drone.flight.Flight` (gusts included) from ``start_s`` to ``end_s`` (the
+    telemetry clock, seconds since the motors started; default the whole flight) as a C2 spline through its true
     state every ``knot_s`` seconds: position, the gimbal camera's heading (gimbal yaw) and tilt from nadir
-    (90 deg + gimbal pitch), each a cubic spline of the telemetry clock (seconds since the motors started)."""
-    grid = np.arange(0.0, flight.duration_s + knot_s / 2, knot_s)
-    state = flight.state_at(grid)
+    (90 deg + gimbal pitch). The path's time 0 is ``start_s``; ``T_world_home`` moves it from the flight's ENU
+    frame (at the home point) into the world's."""
+    end_s = flight.duration_s if end_s is None else end_s
+    grid = np.arange(0.0, end_s - start_s + knot_s / 2, knot_s)
+    state = flight.state_at(start_s + grid)
     yaw_deg, pitch_deg = state.gimbal_ypr_deg[:, 0], state.gimbal_ypr_deg[:, 1]
     heading = CubicSpline(grid, np.unwrap(np.radians(yaw_deg)))
     tilt = CubicSpline(grid, np.radians(90.0 + pitch_deg))
-    return SplinePath(CubicSpline(grid, state.position_enu_m), heading, tilt, float(grid[-1]))
+    return SplinePath(CubicSpline(grid, state.position_enu_m), heading, tilt, float(grid[-1]), T_world_home)

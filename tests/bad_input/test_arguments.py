@@ -194,6 +194,9 @@ CASES = [
     Case("render-imu-rate-not-a-multiple", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--mode",
                                                     "trajectory", "--imu", "--imu-rate", "15"],
          r"IMU rate \(15\.0 Hz\) must be a whole multiple of the frame rate \(10\.0 Hz\)", SCENE),
+    Case("render-flight-without-mission", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--mode",
+                                                   "trajectory", "--trajectory", "flight"],
+         r"--trajectory flight needs --mission", SCENE),
     # aerostereo-render compare
     Case("compare-no-folders", RENDER, ["compare"], r"^aerostereo-render compare: .*required: real_dir"),
     Case("compare-real-missing", RENDER, ["compare", "{tmp}/none", "{tmp}/folder"],

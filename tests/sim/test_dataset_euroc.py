@@ -15,9 +15,13 @@ from evo.tools.file_interface import read_euroc_csv_trajectory
 from sim.dataset.export import export_dataset
 from sim.dataset.imu_file import read_imu_csv
 from sim.dataset.writer import DatasetError
+from drone_helpers import short_orbit_csv
+from sim.drone import Imperfections
+from sim.drone.session import fly_litchi_mission
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.motion.imu import EUROC_ADIS16448
-from sim.render_dataset import render_dataset
+from sim.render_dataset import render_dataset, resolve_scene_dir
+from sim.scene import load_scene
 from test_motion_imu import integrate
 
 FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0
@@ -129,3 +133,23 @@ def test_render_refuses_an_imu_it_cannot_synthesize(tmp_path, changes, message):
     with pytest.raises(RenderInputError, match=message):
         render(tmp_path / "dataset", **changes)
     assert not (tmp_path / "dataset").exists()
+
+
+def test_a_virtual_flight_renders_along_the_drones_gusty_flown_path(tmp_path):
+    """``--trajectory flight``: the body follows the virtual drone's true flown path (gusts from the seed) from the
+    first waypoint on, moved into the scene's frame; the frames' cameras sit on it at ``T_BS``."""
+    mission = short_orbit_csv(tmp_path / "mission.csv")
+    source = render(tmp_path / "dataset", trajectory="flight", mission=mission, frames=8, seed=3)
+    scene = load_scene(resolve_scene_dir("demo:small"))
+    flight = fly_litchi_mission(mission, scene, 3, Imperfections.realistic()).flight
+    assert flight.imperfections.gust_offset_std_m > 0
+    record = read_imu_csv(source / "imu/00.csv")
+    t = record["timestamp_ns"] / 1e9
+    truth = flight.state_at(flight.waypoint_times_s()[0] + t)
+    T = flight.frame.transform_to(scene.origin)
+    expected = truth.position_enu_m @ T[:3, :3].T + T[:3, 3]
+    body = np.column_stack([record[f"p_{axis}"] for axis in "xyz"])
+    assert np.abs(body - expected).max() < 1e-3
+    T_body_cam0 = np.array(json.loads((source / "dataset.json").read_text())["sampling"]["imu"]["T_body_cam"][0])
+    T_world_body = np.array(frame_records(source)[0]["T_world_cam"]) @ np.linalg.inv(T_body_cam0)
+    np.testing.assert_allclose(T_world_body[:3, 3], body[0], atol=1e-9)  # frame 0 is the first IMU sample

@@ -11,6 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from capture.attitude import camera_matrix_world
+from flightplan.geodesy import LocalFrame
 from sim.drone import Flight, Imperfections
 from sim.motion.imu import (
     EUROC_ADIS16448,
@@ -23,7 +24,7 @@ from sim.motion.imu import (
 )
 from sim.motion.trajectory import CircleOrbit, flight_path, smooth_path
 from sim.sampling import camera_rotation, lawnmower, orbit, random_loop
-from test_drone_flight import home_point, orbit_waypoints
+from test_drone_flight import LAT0, LON0, home_point, orbit_waypoints
 from test_sampling import GROUND
 
 RATE_HZ = 200.0
@@ -118,10 +119,12 @@ def test_noise_free_imu_integrates_back_to_the_trajectory(name):
         trajectory, start = smooth_path(path), (360.0 - 2 * 20.0) / 5.0 - 5.0
     elif name == "loop":
         trajectory, start = smooth_path(random_loop(GROUND, 3, 60.0, 8.0, 10.0)), 4.0
-    else:  # the default orbit mission with gusts, 10 s into the orbit
+    else:  # the default orbit mission with gusts, 10 s into the orbit, in the ENU frame of an origin 3 km away
         flight = Flight(orbit_waypoints(), home_point(), imperfections=Imperfections.realistic(),
                         rng=np.random.default_rng(5))
-        trajectory, start = flight_path(flight), 60.0
+        to_scene = flight.frame.transform_to(LocalFrame(LAT0 + 0.02, LON0 - 0.02, 900.0))
+        assert Rotation.from_matrix(to_scene[:3, :3]).magnitude() > 1e-4  # the tangent planes differ
+        trajectory, start = flight_path(flight, 40.0, T_world_home=to_scene), 20.0
     position_m, attitude_deg = dead_reckoning_error(trajectory, start)
     assert position_m <= 1e-3 and attitude_deg <= 0.01, (position_m, attitude_deg)
 
