@@ -21,7 +21,8 @@ def _layouts(text: str) -> tuple[str, ...]:
 def add_export_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``export DATASET --layout ... --out OUT`` to an ``add_subparsers()`` object."""
     parser = subparsers.add_parser(
-        "export", help="convert a rendered dataset to KITTI 2015 stereo, KITTI depth, Virtual KITTI 2, TUM or EuRoC layouts",
+        "export",
+        help="convert a rendered dataset to KITTI 2015 stereo, KITTI depth, Virtual KITTI 2, TUM or EuRoC layouts",
         description="Write a finalized dataset folder (as aerostereo-render wrote it) in the layouts other tools read "
                     "unchanged: kitti2015 (OUT/training: image_2/3, disp_occ_0, disp_noc_0), kitti_depth "
                     "(OUT/aerostereo/..._sync: proj_depth/groundtruth), vkitti2 (OUT/SceneNN/clone), tum "

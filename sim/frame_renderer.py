@@ -250,8 +250,9 @@ class PoseSource:
         count = 100 if requested is None else requested
         available = self.path.frames_available() if self.path is not None else None
         if available is not None and count > available:
-            raise RenderInputError(f"the {self.options.trajectory} path holds {available} frames at "
-                                   f"{self.options.speed_m_s} m/s and {self.options.frame_rate_hz} Hz, not {count}")
+            speed = "the mission's speeds" if self.options.trajectory == "flight" else f"{self.options.speed_m_s} m/s"
+            raise RenderInputError(f"the {self.options.trajectory} path holds {available} frames at {speed} and "
+                                   f"{self.options.frame_rate_hz} Hz, not {count}")
         return count
 
     def pose(self, index: int) -> PoseSample:

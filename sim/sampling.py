@@ -219,7 +219,8 @@ class Trajectory:
         if self.look_at_xy is not None:
             east, north = np.subtract(self.look_at_xy, position[:2])
         else:
-            east, north = (self.positions_at(np.array(s + PATH_STEP_M)) - self.positions_at(np.array(s - PATH_STEP_M)))[:2]
+            ahead, behind = self.positions_at(np.array(s + PATH_STEP_M)), self.positions_at(np.array(s - PATH_STEP_M))
+            east, north = (ahead - behind)[:2]
         heading = math.degrees(math.atan2(east, north)) % 360.0
         T = pose_from_position(position, camera_rotation(heading, self.tilt_deg))
         details = {"mode": self.mode, "heading_deg": heading, "tilt_x_deg": self.tilt_deg, "tilt_y_deg": 0.0}

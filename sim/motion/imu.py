@@ -115,3 +115,34 @@ def synthesize_imu(trajectory, t_s: np.ndarray, rate_hz: float, noise: ImuNoise,
                                            noise.accelerometer_random_walk, rng)
     return ImuSamples(kinematics.t_s, gyro_true + gyro_bias + gyro_white, accel_true + accel_bias + accel_white,
                       gyro_true, accel_true, gyro_bias, accel_bias, kinematics)
+
+
+def _skew(w: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+
+
+def dead_reckon(gyro: np.ndarray, accel: np.ndarray, rate_hz: float, R_world_body0: np.ndarray,
+                velocity0: np.ndarray, position0: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Strapdown integration of body-frame samples (N, 3) from a known state: fourth-order Runge-Kutta steps of
+    two samples (the middle sample is the step's midpoint), attitude re-orthonormalised after each step.
+    Returns the body-to-world rotation, world velocity (m/s) and position (m) at the last sample reached
+    (sample N-1 for an odd N)."""
+    h = 2.0 / rate_hz
+
+    def slopes(state, i):
+        R, v, _ = state
+        return R @ _skew(gyro[i]), R @ accel[i] + GRAVITY_WORLD, v
+
+    def moved(state, slope, dt):
+        return tuple(x + dt * d for x, d in zip(state, slope))
+
+    state = (np.asarray(R_world_body0, float), np.asarray(velocity0, float), np.asarray(position0, float))
+    for i in range(0, len(gyro) - 2, 2):
+        k1 = slopes(state, i)
+        k2 = slopes(moved(state, k1, h / 2), i + 1)
+        k3 = slopes(moved(state, k2, h / 2), i + 1)
+        k4 = slopes(moved(state, k3, h), i + 2)
+        state = tuple(x + h / 6 * (a + 2 * b + 2 * c + d) for x, a, b, c, d in zip(state, k1, k2, k3, k4))
+        u, _, vt = np.linalg.svd(state[0])
+        state = (u @ vt, *state[1:])
+    return state

@@ -19,10 +19,9 @@ from drone_helpers import short_orbit_csv
 from sim.drone import Imperfections
 from sim.drone.session import fly_litchi_mission
 from sim.frame_renderer import RenderInputError, RenderOptions
-from sim.motion.imu import EUROC_ADIS16448
+from sim.motion.imu import EUROC_ADIS16448, dead_reckon
 from sim.render_dataset import render_dataset, resolve_scene_dir
 from sim.scene import load_scene
-from test_motion_imu import integrate
 
 FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0
 
@@ -109,7 +108,7 @@ def test_imu_integrated_from_the_first_ground_truth_state_reaches_the_last(euroc
     record = read_imu_csv(source / "imu/00.csv")
     gyro = np.column_stack([record[f"w_true_{axis}"] for axis in "xyz"])
     accel = np.column_stack([record[f"a_true_{axis}"] for axis in "xyz"])
-    R, _, p = integrate(gyro, accel, IMU_RATE_HZ, poses[0][:3, :3], truth[0, 8:11], poses[0][:3, 3])
+    R, _, p = dead_reckon(gyro, accel, IMU_RATE_HZ, poses[0][:3, :3], truth[0, 8:11], poses[0][:3, 3])
     assert np.linalg.norm(p - poses[-1][:3, 3]) < 1e-4
     assert np.abs(R - poses[-1][:3, :3]).max() < 1e-6
     measured = np.loadtxt(mav0 / "imu0/data.csv", delimiter=",", comments="#")

@@ -15,10 +15,10 @@ from flightplan.geodesy import LocalFrame
 from sim.drone import Flight, Imperfections
 from sim.motion.imu import (
     EUROC_ADIS16448,
-    GRAVITY_WORLD,
     R_world_body,
     T_body_cam0,
     T_world_cam0,
+    dead_reckon,
     sensor_noise,
     synthesize_imu,
 )
@@ -32,41 +32,13 @@ SECONDS = 10.0
 ALLAN_HOURS = 4.0
 
 
-def skew(w: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
-
-
-def integrate(gyro: np.ndarray, accel: np.ndarray, rate_hz: float, R, v, p):
-    """Strapdown RK4 of body attitude, world velocity and position, one step per two samples (the middle
-    sample is the step's midpoint); returns R, v, p at the last sample of an odd count."""
-    h = 2.0 / rate_hz
-
-    def rates(state, i):
-        R, v, _ = state
-        return R @ skew(gyro[i]), R @ accel[i] + GRAVITY_WORLD, v
-
-    def moved(state, slope, dt):
-        return tuple(x + dt * d for x, d in zip(state, slope))
-
-    state = (R, v, p)
-    for i in range(0, len(gyro) - 2, 2):
-        k1 = rates(state, i)
-        k2 = rates(moved(state, k1, h / 2), i + 1)
-        k3 = rates(moved(state, k2, h / 2), i + 1)
-        k4 = rates(moved(state, k3, h), i + 2)
-        state = tuple(x + h / 6 * (a + 2 * b + 2 * c + d) for x, a, b, c, d in zip(state, k1, k2, k3, k4))
-        u, _, vt = np.linalg.svd(state[0])
-        state = (u @ vt, *state[1:])
-    return state
-
-
 def dead_reckoning_error(trajectory, start_s: float = 0.0) -> tuple[float, float]:
     """Position (m) and attitude (deg) error after :data:`SECONDS` of integrating the noise-free IMU."""
     t = start_s + np.arange(int(SECONDS * RATE_HZ) + 1) / RATE_HZ
     samples = synthesize_imu(trajectory, t, RATE_HZ, EUROC_ADIS16448, seed=0)
     truth = samples.kinematics
     R_true = R_world_body(truth)
-    R, _, p = integrate(samples.gyro_true, samples.accel_true, RATE_HZ, R_true[0], truth.velocity[0],
+    R, _, p = dead_reckon(samples.gyro_true, samples.accel_true, RATE_HZ, R_true[0], truth.velocity[0],
                         truth.position[0])
     attitude = Rotation.from_matrix(R_true[-1].T @ R).magnitude()
     return float(np.linalg.norm(p - truth.position[-1])), math.degrees(attitude)
