@@ -168,7 +168,7 @@ def _check_options(options: RenderOptions) -> None:
 def _imu_problems(options: RenderOptions) -> list[str]:
     """Why the options' IMU cannot be synthesized (empty when there is none or it can)."""
     rate = options.imu_rate_hz
-    if rate is None:
+    if rate is None or not 0 < options.frame_rate_hz < math.inf:  # a bad --rate is reported on its own
         return []
     if options.mode != "trajectory":
         return [f"--imu needs --mode trajectory (a continuous path to differentiate), got --mode {options.mode}"]

@@ -26,11 +26,11 @@ from sim.scene import load_scene
 FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0
 
 
-def render(out: Path, **changes) -> Path:
+def render(out: Path, overwrite: bool = False, **changes) -> Path:
     options = RenderOptions(**{"frames": FRAMES, "mode": "trajectory", "trajectory": "orbit", "width": 96,
                                "height": 64, "frame_rate_hz": FRAME_RATE_HZ, "imu_rate_hz": IMU_RATE_HZ,
                                "formats": ("depth_exr",), **changes})
-    render_dataset("demo:small", out, options, command_line=["test"], progress=False)
+    render_dataset("demo:small", out, options, command_line=["test"], progress=False, overwrite=overwrite)
     return out
 
 
@@ -122,6 +122,13 @@ def test_euroc_needs_a_dataset_rendered_with_an_imu(tmp_path):
     with pytest.raises(DatasetError, match=r"dataset.json: the euroc layout needs an IMU.*--imu"):
         export_dataset(source, tmp_path / "out", ["euroc"])
     assert not (tmp_path / "out").exists()
+
+
+def test_overwrite_removes_the_imu_record_with_its_dataset(tmp_path):
+    source = render(tmp_path / "dataset", frames=2)
+    assert (source / "imu/00.csv").is_file()
+    render(source, overwrite=True, frames=2, imu_rate_hz=None)
+    assert not (source / "imu").exists() and (source / "sequences/00/frames.jsonl").is_file()
 
 
 @pytest.mark.parametrize("changes, message", [
