@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.atomic import write_bytes_atomic, write_text_atomic
-from sim.dataset.imu_file import AXES, read_imu_csv, timestamps_ns
+from sim.dataset.imu_file import AXES, csv_rows, read_imu_csv, timestamps_ns
 from sim.dataset.kitti import frame_file_name
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame
 from sim.dataset.writer import DatasetError
@@ -43,12 +43,6 @@ def yaml_matrix(T) -> str:
     """A 4x4 matrix in EuRoC's ``sensor.yaml`` form (``cols``, ``rows``, row-major ``data``)."""
     rows = [", ".join(f"{value:.17g}" for value in row) for row in np.asarray(T, dtype=np.float64)]
     return "  cols: 4\n  rows: 4\n  data: [" + ",\n         ".join(rows) + "]\n"
-
-
-def csv_rows(header: str, stamps: np.ndarray, values: np.ndarray) -> str:
-    """``header`` then one ``timestamp,v1,v2...`` line per row (17 significant digits)."""
-    lines = [header] + [f"{stamp}," + ",".join(f"{value:.17g}" for value in row) for stamp, row in zip(stamps, values)]
-    return "\n".join(lines) + "\n"
 
 
 class EurocWriter:

@@ -15,7 +15,6 @@ Numbers are written with 17 significant digits (float64 round-trips exactly). ``
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import numpy as np
@@ -35,6 +34,12 @@ def timestamps_ns(t_s) -> np.ndarray:
     return np.rint(np.asarray(t_s, dtype=np.float64) * 1e9).astype(np.int64)
 
 
+def csv_rows(header: str, stamps: np.ndarray, values: np.ndarray) -> str:
+    """``header`` then one ``timestamp,v1,v2...`` line per row of ``values`` (17 significant digits)."""
+    lines = [header] + [f"{stamp}," + ",".join(f"{value:.17g}" for value in row) for stamp, row in zip(stamps, values)]
+    return "\n".join(lines) + "\n"
+
+
 def write_imu_csv(path: Path, samples: ImuSamples) -> None:
     """Write ``samples`` (their truth included) as described in the module docstring, atomically."""
     k = samples.kinematics
@@ -42,11 +47,7 @@ def write_imu_csv(path: Path, samples: ImuSamples) -> None:
     values = np.column_stack([samples.gyro, samples.accel, samples.gyro_true, samples.accel_true,
                               samples.gyro_bias, samples.accel_bias, k.position, quaternion_xyzw[:, [3, 0, 1, 2]],
                               k.velocity])
-    buffer = io.StringIO()
-    buffer.write(",".join(COLUMNS) + "\n")
-    for stamp, row in zip(timestamps_ns(samples.t_s), values):
-        buffer.write(f"{stamp}," + ",".join(f"{value:.17g}" for value in row) + "\n")
-    write_text_atomic(path, buffer.getvalue())
+    write_text_atomic(path, csv_rows(",".join(COLUMNS), timestamps_ns(samples.t_s), values))
 
 
 def read_imu_csv(path: Path) -> dict[str, np.ndarray]:

@@ -86,7 +86,6 @@ class CircleOrbit:
     tilt_rad: float
     start_angle_rad: float = 0.0
     clockwise: bool = False
-    duration_s: float = math.inf
 
     def at(self, t_s) -> Kinematics:
         t = np.atleast_1d(np.asarray(t_s, dtype=np.float64))
