@@ -1,5 +1,6 @@
 """``aerostereo-render export DATASET --layout L[,L...] --out OUT``: a rendered dataset in the layouts other tools
-read (KITTI 2015 stereo, KITTI depth, Virtual KITTI 2, TUM trajectories), without rendering it again."""
+read (KITTI 2015 stereo, KITTI depth, Virtual KITTI 2, TUM trajectories, EuRoC stereo-inertial), without rendering
+it again."""
 
 from __future__ import annotations
 
@@ -20,15 +21,16 @@ def _layouts(text: str) -> tuple[str, ...]:
 def add_export_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``export DATASET --layout ... --out OUT`` to an ``add_subparsers()`` object."""
     parser = subparsers.add_parser(
-        "export", help="convert a rendered dataset to KITTI 2015 stereo or flow, KITTI depth, Virtual KITTI 2, TUM "
-                       "or Middlebury .flo layouts",
+        "export", help="convert a rendered dataset to KITTI 2015 stereo or flow, KITTI depth, Virtual KITTI 2, TUM, "
+                       "Middlebury .flo or EuRoC layouts",
         description="Write a finalized dataset folder (as aerostereo-render wrote it) in the layouts other tools read "
                     "unchanged: kitti2015 (OUT/training: image_2/3, disp_occ_0, disp_noc_0), kitti_depth "
                     "(OUT/aerostereo/..._sync: proj_depth/groundtruth), vkitti2 (OUT/SceneNN/clone), tum "
                     "(OUT/tum/NN.txt), kitti_flow (OUT/training: image_2 _10/_11, flow_occ, flow_noc), flo and "
-                    "flo_backward (OUT/flow_forward|backward/camV/NNNNNN.flo + camV_visible masks). Refuses an "
-                    "OUT that overlaps DATASET, and layouts the dataset cannot fill (no depth EXRs, lens distortion, "
-                    "no rectified pair).")
+                    "flo_backward (OUT/flow_forward|backward/camV/NNNNNN.flo + camV_visible masks), euroc (OUT/mav0: "
+                    "cam0, cam1, imu0, state_groundtruth_estimate0). Refuses an OUT that overlaps DATASET, and layouts "
+                    "the dataset cannot fill (no depth EXRs, lens distortion, no rectified pair; euroc: no IMU record, "
+                    "i.e. not rendered with --imu, or a k3 distortion).")
     parser.add_argument("dataset", type=Path, metavar="DATASET", help="dataset folder (dataset.json, sequences/NN/...)")
     parser.add_argument("--layout", required=True, type=_layouts,
                         help=f"comma-separated layouts: {', '.join(LAYOUTS)}")

@@ -28,11 +28,19 @@ from sim.effects import (AUTO_EXPOSURE_WINDOW_S, EXPOSURE_STREAM, NOISE_STREAM, 
                          auto_exposure_gain, effects_memory_bytes, render_in_time)
 from sim.raycast import default_workers
 from sim.render import miss_fraction, render, render_memory_bytes
+from sim.drone.flight import GRAVITY_MPS2
+from sim.motion.imu import EUROC_ADIS16448, NOISE_MODEL_NAME, T_body_cam0
+from sim.motion.rig_path import RigPath
+from sim.drone import Imperfections
+from sim.drone.session import fly_litchi_mission
+from sim.motion.trajectory import flight_path, smooth_path
 from sim.sampling import (
+    IMU_STREAM,
     RENDER_STREAM,
     PoseSample,
     RandomPoseSettings,
     SunSample,
+    Trajectory,
     frame_rng,
     lawnmower,
     orbit,
@@ -46,7 +54,7 @@ from sim.scene import Scene, SceneError, load_scene
 from sim.shade import SRGB8_TO_LINEAR, UNLIT, Sun
 
 MODES = ("random", "trajectory", "replay")
-TRAJECTORIES = ("orbit", "lawnmower", "loop")
+TRAJECTORIES = ("orbit", "lawnmower", "loop", "flight")
 #: Image size (pixels) where none is given and none comes from a replayed photo.
 DEFAULT_SIZE = (1280, 720)
 #: Outputs of a replay at the scene's cameras unless asked otherwise: photos are not rectified (no disparity).
@@ -74,6 +82,11 @@ class RenderOptions:
     cameras (replay without ``geotags``), which renders each photo's own lens at its own size, or at ``width``
     (the lens scaled, ``height`` ignored) when given. ``effects``: camera effects on the colour images
     (sim/effects.py; rolling shutter and motion blur need ``mode="trajectory"``).
+    ``imu_rate_hz``: fly the smooth version of the trajectory
+    (sim/motion) and write its IMU record at this rate (a whole multiple of ``frame_rate_hz``); None: no IMU, the
+    polyline trajectory. ``mission``: the Litchi CSV of the ``flight`` trajectory: the virtual drone flies it over
+    the scene with realistic gusts drawn from ``seed``, the frames follow its flown path from the first waypoint
+    to the last.
     """
 
     frames: int | None = None
@@ -96,6 +109,8 @@ class RenderOptions:
     distortion: tuple[float, ...] | None = None
     margin_m: float = 20.0
     max_sky_fraction: float = 0.02
+    imu_rate_hz: float | None = None
+    mission: Path | None = None
     effects: CameraEffects = CameraEffects()
 
     def __post_init__(self) -> None:
@@ -121,6 +136,12 @@ class RenderOptions:
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
+            if self.trajectory == "flight":
+                description["trajectory"] = {"path": "flight", "mission": Path(self.mission).name,
+                                             "imperfections": Imperfections.realistic().to_dict(),
+                                             "frame_rate_hz": self.frame_rate_hz}
+            if self.imu_rate_hz is not None:
+                description["imu"] = self.imu_description()
         elif self.replays_scene_cameras:
             description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
@@ -128,6 +149,16 @@ class RenderOptions:
         if self.effects.enabled:
             description["effects"] = self.effects.description()
         return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
+
+    def imu_description(self) -> dict:
+        """What ``dataset.json`` says about the IMU: rate, noise figures and source, gravity, extrinsics."""
+        T_body_cam = T_body_cam0(self.baseline_m)
+        return {"rate_hz": self.imu_rate_hz, "file": "imu/NN.csv (NN = the sequence)",
+                "noise_model": NOISE_MODEL_NAME, "noise": EUROC_ADIS16448.to_dict(),
+                "noise_seed": f"numpy default_rng([seed, {IMU_STREAM}])", "gravity_m_s2": GRAVITY_MPS2,
+                "trajectory": "smooth (sim/motion): the body (IMU) frame follows the path; frames rendered on it",
+                "body_frame": "IMU axes: x along the left camera's optical axis, y to its left, z up in the image",
+                "T_body_cam": [(T_body_cam @ T_rig_cam).tolist() for T_rig_cam in build_rig(self).T_rig_cam]}
 
 
 class SceneGround:
@@ -193,7 +224,26 @@ class PoseSource:
             self.replayed = replay_poses(Path(options.geotags), scene.origin, self.ground)
         self.frame_count = self._frame_count()
 
-    def _trajectory(self):
+    def _trajectory(self) -> Trajectory | RigPath:
+        """The trajectory of the options: the polyline, or with an IMU its smooth version (sim/motion); a virtual
+        flight is always smooth."""
+        if self.options.trajectory == "flight":
+            return self._flight()
+        path = self._polyline()
+        if self.options.imu_rate_hz is None:
+            return path
+        return RigPath(smooth_path(path), T_body_cam0(self.options.baseline_m), path.frame_rate_hz, path.closed,
+                       path.mode)
+
+    def _flight(self) -> RigPath:
+        """The virtual drone's flown path of the mission (gusts from the seed), first to last waypoint."""
+        scene = self.ground.scene
+        flight = fly_litchi_mission(self.options.mission, scene, self.options.seed, Imperfections.realistic()).flight
+        passes = flight.waypoint_times_s()
+        path = flight_path(flight, passes[0], passes[-1], flight.frame.transform_to(scene.origin))
+        return RigPath(path, T_body_cam0(self.options.baseline_m), self.options.frame_rate_hz, False, "flight")
+
+    def _polyline(self) -> Trajectory:
         o = self.options
         xmin, xmax, ymin, ymax = self.ground.valid_area
         if o.trajectory == "orbit":
@@ -215,8 +265,9 @@ class PoseSource:
         count = 100 if requested is None else requested
         available = self.path.frames_available() if self.path is not None else None
         if available is not None and count > available:
-            raise RenderInputError(f"the {self.options.trajectory} path holds {available} frames at "
-                                   f"{self.options.speed_m_s} m/s and {self.options.frame_rate_hz} Hz, not {count}")
+            speed = "the mission's speeds" if self.options.trajectory == "flight" else f"{self.options.speed_m_s} m/s"
+            raise RenderInputError(f"the {self.options.trajectory} path holds {available} frames at {speed} and "
+                                   f"{self.options.frame_rate_hz} Hz, not {count}")
         return count
 
     def pose_at(self, time_s: float) -> np.ndarray:

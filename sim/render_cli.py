@@ -87,10 +87,20 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         help="random mode: keep cameras this far inside the valid area, metres")
     add("--max-sky", type=float, default=defaults.max_sky_fraction,
         help="random mode: redraw a pose whose view has more sky/miss than this")
-    add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory, help="path flown in trajectory mode")
+    add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory,
+        help="path flown in trajectory mode (flight: the virtual drone flies --mission with gusts)")
+    add("--mission", type=Path, default=None,
+        help="--trajectory flight: the Litchi mission CSV flown (frames from its first waypoint to its last; "
+             "--altitude and --speed are the mission's)")
     add("--altitude", type=float, default=defaults.altitude_m, help="trajectory height above the ground, metres")
     add("--speed", type=float, default=defaults.speed_m_s, help="trajectory speed, m/s")
     add("--rate", type=float, default=defaults.frame_rate_hz, help="trajectory frame rate, Hz")
+    add("--imu", action="store_true",
+        help="trajectory mode: fly the smooth (twice differentiable) version of the path and write its IMU record "
+             "(imu/NN.csv: gyroscope + accelerometer with EuRoC's ADIS16448 noise, the noise-free values, biases "
+             "and the true body state); export it with 'export --layout euroc'")
+    add("--imu-rate", type=float, default=200.0,
+        help="IMU samples per second with --imu (a whole multiple of --rate)")
     add("--width", type=int, default=defaults.width,
         help=f"image width, pixels (default {DEFAULT_SIZE[0]}; replay of the scene's cameras: each photo's own, "
              "or its lens scaled to this width)")
@@ -141,7 +151,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
-                         margin_m=args.margin, max_sky_fraction=args.max_sky, effects=effects_from_args(args))
+                         margin_m=args.margin, max_sky_fraction=args.max_sky, effects=effects_from_args(args),
+                         imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
 
 
 def effects_from_args(args: argparse.Namespace) -> CameraEffects:
@@ -160,7 +171,7 @@ def refuse_clobbering_render(args: argparse.Namespace) -> None:
     geotags (or their sidecar) or the other output, and a ``--contact-sheet`` that is a folder."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     geotags = None if args.geotags is None else [args.geotags, sidecar_path(args.geotags)]
-    refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags},
+    refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags, "--mission": args.mission},
                       {"--out": args.out, "--contact-sheet": args.contact_sheet})
     refuse_folders({"--contact-sheet": args.contact_sheet})
 

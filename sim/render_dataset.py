@@ -63,6 +63,7 @@ from sim.frame_renderer import (
 )
 from flightplan.cli_support import BadInput, require_disk, require_memory
 from sim.camera import MAX_SAMPLES_PER_PIXEL
+from sim.dataset.imu_file import write_imu_csv
 from sim.dataset.kitti import KittiLayout
 from sim.dataset.writer import frame_disk_bytes, recorded_frames
 from sim.raycast import default_workers
@@ -169,11 +170,37 @@ def _check_options(options: RenderOptions) -> None:
         problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
     if not 0 < options.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
+    problems += _imu_problems(options)
+    if options.mode == "trajectory" and (options.trajectory == "flight") != (options.mission is not None):
+        problems.append("--trajectory flight needs --mission (a Litchi CSV), and --mission needs --trajectory flight")
     if options.distortion is not None and needs_disparity(options.formats):
         problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
                         "when rendering with --distortion")
     if problems:
         raise RenderInputError("; ".join(problems))
+
+
+def _imu_problems(options: RenderOptions) -> list[str]:
+    """Why the options' IMU cannot be synthesized (empty when there is none or it can)."""
+    rate = options.imu_rate_hz
+    if rate is None or not 0 < options.frame_rate_hz < math.inf:  # a bad --rate is reported on its own
+        return []
+    if options.mode != "trajectory":
+        return [f"--imu needs --mode trajectory (a continuous path to differentiate), got --mode {options.mode}"]
+    if not 0 < rate < math.inf:
+        return [f"the IMU rate must be a positive finite number, got {rate}"]
+    per_frame = rate / options.frame_rate_hz
+    if abs(per_frame - round(per_frame)) > 1e-9 or round(per_frame) < 1:
+        return [f"the IMU rate ({rate} Hz) must be a whole multiple of the frame rate ({options.frame_rate_hz} Hz), "
+                "so that every frame's timestamp is an IMU sample's"]
+    return []
+
+
+def write_imu_record(renderer: FrameRenderer, out_dir: Path, spec: DatasetSpec) -> None:
+    """Synthesize the IMU along the rendered smooth trajectory and write ``imu/NN.csv`` (sim/dataset/imu_file.py)."""
+    options = renderer.options
+    samples = renderer.poses.path.imu(spec.frame_count, options.imu_rate_hz, options.seed)
+    write_imu_csv(KittiLayout(out_dir, spec.sequence).imu_csv, samples)
 
 
 def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOptions,
@@ -251,6 +278,8 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     remaining = len(writer.pending(range(spec.frame_count)))
     if remaining == 0:
         finalize_dataset(out_dir)
+        if options.imu_rate_hz is not None:
+            write_imu_record(renderer, out_dir, spec)
     summary = RenderSummary(out_dir, spec.frame_count, len(stats), shard_size - len(pending),
                             sum(s.rejected for s in stats), time.perf_counter() - start, remaining == 0, remaining,
                             sorted(stats, key=lambda s: s.index))

@@ -36,7 +36,7 @@ from flightplan.jsonfile import read_json
 from sim.camera import pose_from_position
 from sim.scene_cameras import SceneCamera
 
-POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM = 0, 1, 2, 3  # RENDER_STREAM: anti-aliasing jitter
+POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4  # RENDER: anti-aliasing jitter
 #: The nadir camera at heading 0: x east, y south (image top = north), z down.
 R_WORLD_NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 PATH_STEP_M = 0.25
@@ -201,7 +201,8 @@ class Trajectory:
             return None
         return int(math.floor(self.length_m / self.speed_m_s * self.frame_rate_hz + 1e-9)) + 1
 
-    def _position(self, s: np.ndarray) -> np.ndarray:
+    def positions_at(self, s: np.ndarray) -> np.ndarray:
+        """ENU positions (M, 3) at arc lengths ``s`` (metres; a loop wraps, an open path is clamped at its ends)."""
         path, arc = self._arc
         s = np.mod(s, arc[-1]) if self.closed else np.clip(s, 0.0, arc[-1])
         return np.stack([np.interp(s, arc, path[:, axis]) for axis in range(3)], axis=-1)
@@ -227,11 +228,12 @@ class Trajectory:
         s = self.speed_m_s * time_s
         if not self.closed:
             s = min(max(s, 0.0), self.length_m)
-        position = self._position(np.array(s))
+        position = self.positions_at(np.array(s))
         if self.look_at_xy is not None:
             east, north = np.subtract(self.look_at_xy, position[:2])
         else:
-            east, north = (self._position(np.array(s + PATH_STEP_M)) - self._position(np.array(s - PATH_STEP_M)))[:2]
+            ahead, behind = self.positions_at(np.array(s + PATH_STEP_M)), self.positions_at(np.array(s - PATH_STEP_M))
+            east, north = (ahead - behind)[:2]
         heading = math.degrees(math.atan2(east, north)) % 360.0
         return pose_from_position(position, camera_rotation(heading, self.tilt_deg)), heading
 

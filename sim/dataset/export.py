@@ -14,6 +14,7 @@ import os
 from collections.abc import Sequence
 from pathlib import Path
 
+from sim.dataset.euroc import EurocWriter
 from sim.dataset.flow import FloBackwardWriter, FloWriter, KittiFlowWriter
 from sim.dataset.kitti2015 import Kitti2015Writer
 from sim.dataset.kitti_depth import KittiDepthWriter
@@ -23,7 +24,7 @@ from sim.dataset.vkitti2 import Vkitti2Writer
 from sim.dataset.writer import DatasetError
 
 LAYOUT_WRITERS = {writer.name: writer for writer in (Kitti2015Writer, KittiDepthWriter, Vkitti2Writer, TumWriter,
-                                                     KittiFlowWriter, FloWriter, FloBackwardWriter)}
+                                                     KittiFlowWriter, FloWriter, FloBackwardWriter, EurocWriter)}
 LAYOUTS = tuple(LAYOUT_WRITERS)
 
 

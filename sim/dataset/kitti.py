@@ -4,6 +4,7 @@ Layout of one dataset folder (one sequence)::
 
     OUT/dataset.json                      dataset-wide description (see writer.py)
     OUT/poses/NN.txt                      left camera-to-world relative to frame 0, 3x4 row-major
+    OUT/imu/NN.csv                        with --imu: the IMU record (imu_file.py)
     OUT/sequences/NN/calib.txt            P0..P3 (+ P4.. for extra cameras) and Tr, 12 numbers each
     OUT/sequences/NN/times.txt            one time in seconds per frame
     OUT/sequences/NN/image_0, image_1     grey left/right        (KITTI cameras 0, 1)
@@ -76,6 +77,11 @@ class KittiLayout:
     @property
     def poses_txt(self) -> Path:
         return Path(self.root) / "poses" / f"{self.sequence}.txt"
+
+    @property
+    def imu_csv(self) -> Path:
+        """The IMU record of a dataset rendered with ``--imu`` (sim/dataset/imu_file.py)."""
+        return Path(self.root) / "imu" / f"{self.sequence}.csv"
 
     @property
     def frames_jsonl(self) -> Path:

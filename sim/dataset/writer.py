@@ -218,8 +218,8 @@ def read_dataset_json(root: Path) -> dict:
 
 def remove_dataset(root: Path) -> None:
     """Delete the dataset in ``root``: the folders and files its ``dataset.json`` says it wrote (frames of every
-    camera and format, frame records, replay names, calib/times/poses/frames.jsonl, their temporaries), then
-    ``dataset.json``, then the layout's folders if left empty. Files the dataset did not write are kept."""
+    camera and format, frame records, replay names, calib/times/poses/frames.jsonl, the IMU record, their
+    temporaries), then ``dataset.json``, then the layout's folders if left empty. Files the dataset did not write are kept."""
     description = read_dataset_json(Path(root))
     layout = KittiLayout(Path(root), description["sequence"])
     views = range(len(description["cameras"]))
@@ -227,10 +227,11 @@ def remove_dataset(root: Path) -> None:
     folders |= {layout.frame_meta_dir, *(layout.replay_dir(view) for view in views)}
     for folder in sorted(folders):
         shutil.rmtree(folder, ignore_errors=True)
-    for path in (layout.calib_txt, layout.times_txt, layout.frames_jsonl, layout.poses_txt, layout.dataset_json):
+    for path in (layout.calib_txt, layout.times_txt, layout.frames_jsonl, layout.poses_txt, layout.imu_csv,
+                 layout.dataset_json):
         remove_stale_temps(path)
         path.unlink(missing_ok=True)
-    for folder in (layout.sequence_dir, layout.sequence_dir.parent, layout.poses_txt.parent):
+    for folder in (layout.sequence_dir, layout.sequence_dir.parent, layout.poses_txt.parent, layout.imu_csv.parent):
         if folder.is_dir() and not any(folder.iterdir()):
             folder.rmdir()
 

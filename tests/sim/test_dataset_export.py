@@ -46,7 +46,7 @@ def plane(tmp_path_factory):
                            spec(FRAMES))
     before = tree_bytes(source)
     out = tmp_path_factory.mktemp("export")
-    export_dataset(source, out, LAYOUTS)
+    export_dataset(source, out, [name for name in LAYOUTS if name != "euroc"])  # euroc needs an IMU: its own test
     return source, out, before
 
 

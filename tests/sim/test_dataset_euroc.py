@@ -1,0 +1,161 @@
+"""The EuRoC layout of a rendered stereo-inertial orbit, read back the way EuRoC's consumers read it: evo reads
+the ground truth, the sensor.yaml files parse as YAML, timestamps agree between cameras, IMU and ground truth, and
+the IMU integrated from the first ground-truth state lands on the rendered camera poses."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from evo.tools.file_interface import read_euroc_csv_trajectory
+
+from sim.dataset.export import export_dataset
+from sim.dataset.imu_file import read_imu_csv
+from sim.dataset.writer import DatasetError
+from drone_helpers import short_orbit_csv
+from sim.drone import Imperfections
+from sim.drone.session import fly_litchi_mission
+from sim.frame_renderer import RenderInputError, RenderOptions
+from sim.motion.imu import EUROC_ADIS16448, dead_reckon
+from sim.render_dataset import render_dataset, resolve_scene_dir
+from sim.scene import load_scene
+
+FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0
+
+
+def render(out: Path, overwrite: bool = False, **changes) -> Path:
+    options = RenderOptions(**{"frames": FRAMES, "mode": "trajectory", "trajectory": "orbit", "width": 96,
+                               "height": 64, "frame_rate_hz": FRAME_RATE_HZ, "imu_rate_hz": IMU_RATE_HZ,
+                               "formats": ("depth_exr",), **changes})
+    render_dataset("demo:small", out, options, command_line=["test"], progress=False, overwrite=overwrite)
+    return out
+
+
+@pytest.fixture(scope="module")
+def euroc(tmp_path_factory):
+    """(rendered dataset, its EuRoC export's mav0 folder)."""
+    source = render(tmp_path_factory.mktemp("render") / "dataset")
+    out = tmp_path_factory.mktemp("euroc")
+    export_dataset(source, out, ["euroc"])
+    return source, out / "mav0"
+
+
+def frame_records(source: Path) -> list[dict]:
+    return [json.loads(line) for line in (source / "sequences/00/frames.jsonl").read_text().splitlines()]
+
+
+def sensor(mav0: Path, name: str) -> dict:
+    return yaml.safe_load((mav0 / name / "sensor.yaml").read_text())
+
+
+def matrix(entry: dict) -> np.ndarray:
+    return np.array(entry["data"], dtype=np.float64).reshape(entry["rows"], entry["cols"])
+
+
+def test_evo_reads_the_ground_truth_and_it_carries_the_rendered_cameras(euroc):
+    source, mav0 = euroc
+    truth = read_euroc_csv_trajectory(str(mav0 / "state_groundtruth_estimate0/data.csv"))
+    T_body_cam0 = matrix(sensor(mav0, "cam0")["T_BS"])
+    by_time = {round(t * 1e9): pose for t, pose in zip(truth.timestamps, truth.poses_se3)}
+    for record in frame_records(source):
+        T_world_body = by_time[round(record["time_s"] * 1e9)]
+        np.testing.assert_allclose(T_world_body @ T_body_cam0, record["T_world_cam"], atol=1e-9)
+    T_body_cam1 = matrix(sensor(mav0, "cam1")["T_BS"])
+    baseline = np.linalg.inv(T_body_cam0) @ T_body_cam1
+    np.testing.assert_allclose(baseline[:3, 3], [0.54, 0.0, 0.0], atol=1e-12)  # the rig's right camera
+
+
+def test_timestamps_agree_between_cameras_imu_and_ground_truth(euroc):
+    source, mav0 = euroc
+    cam0, cam1 = (np.array([line.split(",") for line in (mav0 / f"cam{v}/data.csv").read_text().splitlines()[1:]])
+                  for v in (0, 1))
+    np.testing.assert_array_equal(cam0, cam1)
+    stamps = cam0[:, 0].astype(np.int64)
+    np.testing.assert_array_equal(stamps, np.arange(FRAMES) * 100_000_000)
+    assert all((mav0 / f"cam{v}/data" / name).is_file() for v in (0, 1) for name in cam0[:, 1])
+    grey = source / "sequences/00/image_1/000004.png"
+    assert (mav0 / "cam1/data" / cam0[4, 1]).read_bytes() == grey.read_bytes()
+    imu = np.loadtxt(mav0 / "imu0/data.csv", delimiter=",", comments="#", dtype=np.int64, usecols=0)
+    truth = np.loadtxt(mav0 / "state_groundtruth_estimate0/data.csv", delimiter=",", comments="#",
+                       dtype=np.int64, usecols=0)
+    np.testing.assert_array_equal(imu, truth)
+    np.testing.assert_array_equal(imu, np.arange(len(imu)) * 5_000_000)
+    assert set(stamps) <= set(imu) and imu[-1] == stamps[-1]
+
+
+def test_sensor_yaml_files_say_what_was_rendered(euroc):
+    source, mav0 = euroc
+    camera, imu = sensor(mav0, "cam0"), sensor(mav0, "imu0")
+    description = json.loads((source / "dataset.json").read_text())["cameras"][0]
+    assert camera["resolution"] == [96, 64] and camera["rate_hz"] == FRAME_RATE_HZ
+    assert camera["intrinsics"] == [description[key] for key in ("fx", "fy", "cx", "cy")]
+    assert camera["distortion_coefficients"] == [0, 0, 0, 0]
+    assert imu["rate_hz"] == IMU_RATE_HZ and np.array_equal(matrix(imu["T_BS"]), np.eye(4))
+    for name, value in EUROC_ADIS16448.to_dict().items():
+        assert imu[name] == value
+
+
+def test_imu_integrated_from_the_first_ground_truth_state_reaches_the_last(euroc):
+    """The noise-free samples of the dataset's IMU record integrated from the first EuRoC ground-truth state end on
+    its last state (2 s of orbit); the EuRoC samples minus the ground-truth biases differ from them by white noise
+    of the configured density."""
+    source, mav0 = euroc
+    truth = np.loadtxt(mav0 / "state_groundtruth_estimate0/data.csv", delimiter=",", comments="#")
+    poses = read_euroc_csv_trajectory(str(mav0 / "state_groundtruth_estimate0/data.csv")).poses_se3
+    record = read_imu_csv(source / "imu/00.csv")
+    gyro = np.column_stack([record[f"w_true_{axis}"] for axis in "xyz"])
+    accel = np.column_stack([record[f"a_true_{axis}"] for axis in "xyz"])
+    R, _, p = dead_reckon(gyro, accel, IMU_RATE_HZ, poses[0][:3, :3], truth[0, 8:11], poses[0][:3, 3])
+    assert np.linalg.norm(p - poses[-1][:3, 3]) < 1e-4
+    assert np.abs(R - poses[-1][:3, :3]).max() < 1e-6
+    measured = np.loadtxt(mav0 / "imu0/data.csv", delimiter=",", comments="#")
+    white = measured[:, 4:7] - truth[:, 14:17] - accel
+    expected = EUROC_ADIS16448.accelerometer_noise_density * np.sqrt(IMU_RATE_HZ)
+    assert np.std(white) == pytest.approx(expected, rel=0.1)
+
+
+def test_euroc_needs_a_dataset_rendered_with_an_imu(tmp_path):
+    source = render(tmp_path / "plain", frames=2, imu_rate_hz=None)
+    with pytest.raises(DatasetError, match=r"dataset.json: the euroc layout needs an IMU.*--imu"):
+        export_dataset(source, tmp_path / "out", ["euroc"])
+    assert not (tmp_path / "out").exists()
+
+
+def test_overwrite_removes_the_imu_record_with_its_dataset(tmp_path):
+    source = render(tmp_path / "dataset", frames=2)
+    assert (source / "imu/00.csv").is_file()
+    render(source, overwrite=True, frames=2, imu_rate_hz=None)
+    assert not (source / "imu").exists() and (source / "sequences/00/frames.jsonl").is_file()
+
+
+@pytest.mark.parametrize("changes, message", [
+    ({"mode": "random"}, "--imu needs --mode trajectory"),
+    ({"imu_rate_hz": 15.0}, r"IMU rate \(15.0 Hz\) must be a whole multiple of the frame rate \(10.0 Hz\)"),
+])
+def test_render_refuses_an_imu_it_cannot_synthesize(tmp_path, changes, message):
+    with pytest.raises(RenderInputError, match=message):
+        render(tmp_path / "dataset", **changes)
+    assert not (tmp_path / "dataset").exists()
+
+
+def test_a_virtual_flight_renders_along_the_drones_gusty_flown_path(tmp_path):
+    """``--trajectory flight``: the body follows the virtual drone's true flown path (gusts from the seed) from the
+    first waypoint on, moved into the scene's frame; the frames' cameras sit on it at ``T_BS``."""
+    mission = short_orbit_csv(tmp_path / "mission.csv")
+    source = render(tmp_path / "dataset", trajectory="flight", mission=mission, frames=8, seed=3)
+    scene = load_scene(resolve_scene_dir("demo:small"))
+    flight = fly_litchi_mission(mission, scene, 3, Imperfections.realistic()).flight
+    assert flight.imperfections.gust_offset_std_m > 0
+    record = read_imu_csv(source / "imu/00.csv")
+    t = record["timestamp_ns"] / 1e9
+    truth = flight.state_at(flight.waypoint_times_s()[0] + t)
+    T = flight.frame.transform_to(scene.origin)
+    expected = truth.position_enu_m @ T[:3, :3].T + T[:3, 3]
+    body = np.column_stack([record[f"p_{axis}"] for axis in "xyz"])
+    assert np.abs(body - expected).max() < 1e-3
+    T_body_cam0 = np.array(json.loads((source / "dataset.json").read_text())["sampling"]["imu"]["T_body_cam"][0])
+    T_world_body = np.array(frame_records(source)[0]["T_world_cam"]) @ np.linalg.inv(T_body_cam0)
+    np.testing.assert_allclose(T_world_body[:3, 3], body[0], atol=1e-9)  # frame 0 is the first IMU sample
