@@ -10,7 +10,8 @@ from pathlib import Path
 from sim.dataset.export import LAYOUTS, export_dataset
 
 
-def _layouts(text: str) -> tuple[str, ...]:
+def layout_list(text: str) -> tuple[str, ...]:
+    """``--layout``/``--export``: comma-separated names of :data:`~sim.dataset.export.LAYOUTS`."""
     names = tuple(name.strip() for name in text.split(",") if name.strip())
     unknown = [name for name in names if name not in LAYOUTS]
     if unknown or not names:
@@ -32,7 +33,7 @@ def add_export_parser(subparsers) -> argparse.ArgumentParser:
                     "the dataset cannot fill (no depth EXRs, lens distortion, no rectified pair; euroc: no IMU record, "
                     "i.e. not rendered with --imu, or a k3 distortion).")
     parser.add_argument("dataset", type=Path, metavar="DATASET", help="dataset folder (dataset.json, sequences/NN/...)")
-    parser.add_argument("--layout", required=True, type=_layouts,
+    parser.add_argument("--layout", required=True, type=layout_list,
                         help=f"comma-separated layouts: {', '.join(LAYOUTS)}")
     parser.add_argument("--out", required=True, type=Path, help="output folder (outside the dataset)")
     parser.set_defaults(handler=run_export)

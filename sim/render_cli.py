@@ -17,7 +17,9 @@ from flightplan.cli_support import (EXIT_INTERRUPTED, BadInput, Parser, folder_i
                                     refuse_folders)
 from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
+from sim.dataset.export import export_dataset, refuse_overlap
 from sim.effects import VIGNETTING_MODELS, CameraEffects
+from sim.export_cli import layout_list
 from sim.metrics import compare_folders, summary_table
 from sim.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
 from sim.render_dataset import is_demo_scene, render_dataset
@@ -136,6 +138,10 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     effects.add_argument("--auto-exposure", action="store_true",
                          help="auto-exposure drift of the virtual drone's camera (gain per frame and channel)")
     add("--contact-sheet", type=Path, default=None, help="also write a PNG of left, right and depth of a few frames")
+    add("--export", type=layout_list, metavar="LAYOUTS",
+        help="once the dataset is complete, also write it in these layouts into --export-out (what "
+             "'aerostereo-render export' does, e.g. euroc,kitti_flow)")
+    add("--export-out", type=Path, metavar="DIR", help="folder for --export (outside --out)")
     add("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -179,6 +185,7 @@ def refuse_clobbering_render(args: argparse.Namespace) -> None:
 def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> int:
     """Render the dataset described by ``args``; print a summary. Returns the exit code (Ctrl-C: 130)."""
     refuse_clobbering_render(args)
+    check_export_args(args)
     options = options_from_args(args)
     if args.contact_sheet is not None:
         check_depth_written(options.formats, f"{args.out} (--formats)")
@@ -196,7 +203,22 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
                            f"{summary.remaining} frames are missing")
         write_contact_sheet(args.out, args.contact_sheet)
         print(f"contact sheet: {args.contact_sheet}")
+    if args.export:
+        if not summary.finalized:
+            raise BadInput(f"--export needs the whole dataset; {summary.remaining} frames are missing (other shards "
+                           f"still running? then run 'aerostereo-render export {args.out} ...' once they are done)")
+        for line in export_dataset(args.out, args.export_out, args.export):
+            print(line)
     return 0
+
+
+def check_export_args(args: argparse.Namespace) -> None:
+    """``--export`` and ``--export-out`` come together, and the export folder may not overlap ``--out``
+    (checked before rendering)."""
+    if bool(args.export) != (args.export_out is not None):
+        raise BadInput("--export LAYOUTS and --export-out DIR go together")
+    if args.export:
+        refuse_overlap(args.out, args.export_out, "--export-out")
 
 
 def add_compare_parser(subparsers) -> argparse.ArgumentParser:

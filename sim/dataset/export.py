@@ -28,11 +28,11 @@ LAYOUT_WRITERS = {writer.name: writer for writer in (Kitti2015Writer, KittiDepth
 LAYOUTS = tuple(LAYOUT_WRITERS)
 
 
-def _refuse_overlap(source: Path, out: Path) -> None:
-    """Refuse an output folder that is the source, lies inside it or contains it."""
+def refuse_overlap(source: Path, out: Path, option: str = "--out") -> None:
+    """Refuse an output folder (the argument ``option``) that is the source, lies inside it or contains it."""
     source_key, out_key = Path(os.path.realpath(source)), Path(os.path.realpath(out))
     if out_key == source_key or source_key in out_key.parents or out_key in source_key.parents:
-        raise DatasetError(f"--out {out}: overlaps the source dataset {source}; an export never writes into its "
+        raise DatasetError(f"{option} {out}: overlaps the source dataset {source}; an export never writes into its "
                            "source, choose a folder outside it")
 
 
@@ -44,7 +44,7 @@ def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> l
     unknown = [name for name in layouts if name not in LAYOUT_WRITERS]
     if unknown or not layouts:
         raise DatasetError(f"unknown layouts {unknown}; choose from {', '.join(LAYOUTS)}")
-    _refuse_overlap(Path(source_dir), Path(out_dir))
+    refuse_overlap(Path(source_dir), Path(out_dir))
     source = DatasetSource(Path(source_dir))
     writers = [LAYOUT_WRITERS[name](source, Path(out_dir)) for name in dict.fromkeys(layouts)]
     for frame in source.frames():

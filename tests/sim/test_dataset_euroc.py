@@ -159,3 +159,25 @@ def test_a_virtual_flight_renders_along_the_drones_gusty_flown_path(tmp_path):
     T_body_cam0 = np.array(json.loads((source / "dataset.json").read_text())["sampling"]["imu"]["T_body_cam"][0])
     T_world_body = np.array(frame_records(source)[0]["T_world_cam"]) @ np.linalg.inv(T_body_cam0)
     np.testing.assert_allclose(T_world_body[:3, 3], body[0], atol=1e-9)  # frame 0 is the first IMU sample
+
+
+def test_one_command_renders_a_virtual_flight_as_euroc_with_flow_and_effects(tmp_path, capsys):
+    """The issue's one command: a virtual flight rendered with an IMU, rolling shutter and vignetting, written as
+    EuRoC and KITTI flow in the same run (``--export``); an export folder inside ``--out`` is refused first."""
+    from sim.cli import main
+
+    mission = short_orbit_csv(tmp_path / "mission.csv")
+    argv = ["--scene", "demo:small", "--out", str(tmp_path / "flight"), "--mode", "trajectory", "--trajectory",
+            "flight", "--mission", str(mission), "--imu", "--frames", "3", "--width", "64", "--height", "48",
+            "--line-delay", "2e-4", "--vignetting", "cos4", "--quiet", "--export", "euroc,kitti_flow"]
+    assert main([*argv, "--export-out", str(tmp_path / "flight" / "export")]) == 2
+    assert "--export-out" in capsys.readouterr().err and not (tmp_path / "flight").exists()
+    assert main([*argv, "--export-out", str(tmp_path / "export")]) == 0
+    out = capsys.readouterr().out
+    assert "euroc:" in out and "kitti_flow: 2 frame pairs" in out
+    mav0 = tmp_path / "export" / "mav0"
+    assert len(list((mav0 / "cam0" / "data").glob("*.png"))) == 3
+    assert len(read_euroc_csv_trajectory(str(mav0 / "state_groundtruth_estimate0" / "data.csv")).timestamps) == 41
+    assert len(list((tmp_path / "export" / "training" / "flow_noc").glob("*_10.png"))) == 2
+    effects = json.loads((tmp_path / "flight" / "dataset.json").read_text())["sampling"]["effects"]
+    assert effects["rolling_shutter"]["line_delay_s"] == 2e-4 and "vignetting" in effects
