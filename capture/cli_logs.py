@@ -16,13 +16,12 @@ from pathlib import Path
 from flightplan.argtypes import finite_number, positive_number
 from flightplan.cli_support import BadInput, folder_inputs, path_problem, refuse_clobbering, refuse_folders
 
-from .geotag import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, geotag_photos
-from .geotag_export import check_line_names, write_exports, write_track_gpx
-from .geotag_io import geotag_paths, sidecar_path, write_exif_copies, write_geotags
-from .logs import KINDS, read_track
-from .logs.photos import read_photos
+from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M
 from .raw import index_path
-from .track import ReadReport, parse_utc
+from .track import LOG_KINDS, ReadReport, parse_utc
+
+# The geotagger, its exports and the log readers (scipy, Pillow) are imported by the commands that use them, so
+# that 'aerostereo-ingest decode' and 'record' start without them.
 
 
 def register(subparsers) -> None:
@@ -59,7 +58,7 @@ def register(subparsers) -> None:
     track = subparsers.add_parser("track", help="read any flight log and export it as CSV, KML or GPX")
     track.add_argument("file", help="flight log (Litchi/Airdata CSV, DJI SRT, DUML capture NAME.duml (+ .idx) "
                                       "or pcap, or a folder of photos)")
-    track.add_argument("--kind", choices=KINDS, help="force the reader instead of detecting it")
+    track.add_argument("--kind", choices=LOG_KINDS, help="force the reader instead of detecting it")
     add_time_options(track)
     track.add_argument("--out", help="track CSV to write")
     track.add_argument("--kml", help="track KML to write")
@@ -112,11 +111,18 @@ def log_inputs(paths) -> list[Path]:
 
 
 def read_logs(args) -> list:
+    from .logs import read_track
+
     return [read_track(path, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset) for path in args.log]
 
 
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset (stderr), the result line (stdout)."""
+    from .geotag import geotag_photos
+    from .geotag_export import check_line_names, write_exports
+    from .geotag_io import geotag_paths, write_exif_copies, write_geotags
+    from .logs.photos import read_photos
+
     csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
     if problem := path_problem(args.photos, folder=True):
         raise BadInput(f"--photos {args.photos}: {problem}; expected a folder of JPEG photos")
@@ -157,6 +163,9 @@ def run_geotag(args) -> int:
 
 def run_export(args) -> int:
     """Write the requested exports of a geotags.csv; one line per file written (stdout), notes on stderr."""
+    from .geotag_export import write_exports
+    from .geotag_io import sidecar_path
+
     outputs = export_outputs(args)
     if not any(outputs.values()):
         raise BadInput("give at least one of --gpx, --odm-geo, --colmap-ref")
@@ -181,6 +190,9 @@ def print_report(report: ReadReport, shown_rejects: int = 20) -> None:
 
 def run_track(args) -> int:
     """Read one log, print its report (stderr), export CSV, KML and/or GPX, print the result line (stdout)."""
+    from .geotag_export import write_track_gpx
+    from .logs import read_track
+
     if not (args.out or args.kml or args.gpx):
         raise BadInput("give --out track.csv, --kml track.kml and/or --gpx track.gpx")
     outputs = {"--out": args.out, "--kml": args.kml, "--gpx": args.gpx}

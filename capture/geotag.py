@@ -28,24 +28,16 @@ from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
 from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
+from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, MAX_AUTO_CLOCK_OFFSET_S
 from .logs.photos import PhotoInfo
 from .track import ReadReport, Track, format_utc, name_list
 
-DEFAULT_MAX_GAP_S = 2.0
 # Where the origin's height h0 comes from (``GeotagResult.origin_height_datum``, the sidecar's field):
 HOME_POINT_ALTITUDE = "home_point_altitude"  # the log's home record (DUML Home Point, SRT HOME) as the aircraft gives it
 MEAN_SEA_LEVEL = "mean_sea_level"  # the log's absolute heights (EXIF GPS altitude, DJI AbsoluteAltitude, Airdata)
 HEIGHT_UNKNOWN = "unknown"  # no absolute height in the logs: h0 = 0
 MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF second (manual offset)
 EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
-#: Largest camera-clock offset the automatic estimate may find (seconds): a camera set to local time is off UTC
-#: by at most 14 h (the zones span UTC-12 .. UTC+14, Line Islands), and a camera's quartz clock drifts by up to
-#: ~50 ppm, about 26 min in a year without a sync: 14.5 h. Beyond it the photos are from another flight.
-MAX_AUTO_CLOCK_OFFSET_S = 14.5 * 3600.0
-#: Default largest median distance (m) between the photos' own GPS and the geotags (the track at the matched
-#: times): a consumer GNSS fix is off by a few metres in open sky and tens in multipath, and a DJI photo's GPS and
-#: its flight log come from the same receiver; 100 m is beyond any of that and far below a wrong place.
-DEFAULT_MAX_MISFIT_M = 100.0
 #: ``source`` of a photo tagged from its own EXIF GPS and XMP attitude where the logs could not tag it.
 PHOTO_SOURCE = "photo_exif"
 PHOTO_ACCURACY = ("the photo's own EXIF/XMP: consumer GPS as the camera recorded it (metres), height and attitude "

@@ -26,6 +26,9 @@ import numpy as np
 from flightplan.atomic import write_text_atomic
 from flightplan.geodesy import validate_latlon
 
+#: The kinds of log :mod:`capture.logs` reads into a Track (its readers' names, ``--kind`` of the command line).
+LOG_KINDS = ("photos", "srt", "litchi", "airdata", "duml")
+
 # Column name -> meaning (unit, frame). Heights: above take-off (barometric/relative) and "absolute" as the
 # source calls it (DJI AbsoluteAltitude, Airdata altitude above sea level...). Angles: DJI NED ZYX degrees,
 # see capture/attitude.py; gimbal angles are absolute (earth frame).

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..track import LogFormatError, Track
+from ..track import LOG_KINDS, LogFormatError, Track
 from .duml import looks_like_duml, read_duml_track
 from .flightcsv import read_flight_csv, sniff_flight_csv
 from .photos import read_photos_track
 from .srt import looks_like_srt, read_srt
 
-KINDS = ("photos", "srt", "litchi", "airdata", "duml")
+KINDS = LOG_KINDS
 
 
 def detect_kind(path) -> str:

@@ -1,0 +1,14 @@
+"""The limits ``aerostereo-ingest geotag`` applies, in a module of their own so that the command line can show
+them as defaults without importing the geotagger (and scipy) for every subcommand."""
+
+#: Longest telemetry gap (s) positions and attitudes are interpolated across (``--max-gap``).
+DEFAULT_MAX_GAP_S = 2.0
+#: Largest camera-clock offset the automatic estimate may find (seconds): a camera set to local time is off UTC
+#: by at most 14 h (the zones span UTC-12 .. UTC+14, Line Islands), and a camera's quartz clock drifts by up to
+#: ~50 ppm, about 26 min in a year without a sync: 14.5 h. Beyond it the photos are from another flight.
+MAX_AUTO_CLOCK_OFFSET_S = 14.5 * 3600.0
+#: Default largest median distance (m) between the photos' own GPS and the geotags (the track at the matched
+#: times): a consumer GNSS fix is off by a few metres in open sky and tens in multipath, and a DJI photo's GPS and
+#: its flight log come from the same receiver; 100 m is beyond any of that and far below a wrong place
+#: (``--max-misfit``).
+DEFAULT_MAX_MISFIT_M = 100.0
