@@ -76,6 +76,8 @@ def expand(argv: list[str], tmp: Path) -> list[str]:
 
 def run_case(case: Case, tmp: Path) -> Result:
     """Set the case up in ``tmp``, run its program in-process, and capture exit code, streams and warnings."""
+    if any("{data}" in arg for arg in case.argv) and not SHARED_DATA.is_dir():
+        pytest.skip(f"{case.id}: real sample data not found at {SHARED_DATA} (set AEROSTEREO_SHARED_DATA)")
     if case.setup is not None:
         case.setup(tmp)
     before = _files(tmp)

@@ -18,9 +18,8 @@ from capture.geotag_io import GEOTAG_COLUMNS
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.litchi import write_mission_csv
 from flightplan.orbit import OrbitRequest, Ring, plan_orbit
-from tests.bad_input.harness import SHARED_DATA, Case, assert_refused, run_case
+from tests.bad_input.harness import Case, assert_refused, run_case
 
-BRIGHTON = SHARED_DATA / "brighton_beach" / "images"
 NESTED = "[" * 100_000 + "]" * 100_000
 HUGE_FIELD = "x" * (20 * 1024 * 1024)  # 20 MB: beyond the csv module's 128 KiB field limit
 ORIGIN = {"lat0_deg": DEMO_ORIGIN.lat0_deg, "lon0_deg": DEMO_ORIGIN.lon0_deg, "h0_ellipsoid_m": 0.0}
@@ -129,7 +128,7 @@ def merge_inputs(tmp: Path) -> None:
 
 RENDER = ["--scene", "demo:small", "--out", "{tmp}/d", "--quiet"]
 FLY = ["fly", "--scene", "demo:small", "--out", "{tmp}/f", "--mission", "{tmp}/m.csv"]
-RECON = ["--photos", str(BRIGHTON), "--out", "{tmp}/s"]
+RECON = ["--photos", "{data}/brighton_beach/images", "--out", "{tmp}/s"]
 SCENE = ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--quiet", "--frames", "1"]
 
 CASES = [
