@@ -102,9 +102,10 @@ def _geojson_ring(raw: bytes, path: Path) -> np.ndarray:
     if not isinstance(rings, list) or not rings or not isinstance(rings[0], list):
         raise BadInput(f"--area {path}: the Polygon's coordinates are not a list of rings")
     try:
-        return _as_lonlat([list(map(float, p))[:2] if len(p) in (2, 3) else [] for p in rings[0]], path)
+        points = [list(map(float, p))[:2] if len(p) in (2, 3) else [] for p in rings[0]]
     except (TypeError, ValueError):
         raise BadInput(f"--area {path}: the Polygon's exterior ring is not a list of [lon, lat] numbers") from None
+    return _as_lonlat(points, path)
 
 
 def _first_polygon(document) -> dict | None:
