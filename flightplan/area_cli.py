@@ -18,6 +18,7 @@ from flightplan.area import AreaRequest, plan_area
 from flightplan.area_outputs import OVERVIEW_NAMES, summary_text, write_area_plan
 from flightplan.cli_support import BadInput, refuse_clobbering
 from flightplan.field import read_field
+from flightplan.geodesy import validate_latlon
 from flightplan.orbit import DEFAULT_HEIGHT_M, DEFAULT_RADIUS_M
 
 #: Single-orbit options that make no sense with --area (the centres come from the field, the previews go in --out).
@@ -46,6 +47,10 @@ def request_from_args(args: argparse.Namespace, field) -> AreaRequest:
     """The :class:`AreaRequest` of the parsed arguments (take-off in the field's ENU plane)."""
     home = (0.0, 0.0)
     if args.home is not None:
+        try:
+            validate_latlon(*args.home)
+        except ValueError as error:
+            raise BadInput(f"--home: {error}") from None
         east, north, _ = field.frame.to_enu(args.home[0], args.home[1], 0.0)
         home = (float(east), float(north))
     orbit = {"speed_m_s": args.speed_kmh / 3.6, "photo_interval_s": args.interval, "direction": args.direction,

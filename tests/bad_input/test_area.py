@@ -88,6 +88,9 @@ CASES = [
     Case("area-take-off-too-far", MISSION, ["--area", "{tmp}/f.geojson", "--home", "40.3", "44.5", *OUT],
          r"an orbit \d+ m from take-off does not fit one battery",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
+    Case("area-take-off-latitude", MISSION, ["--area", "{tmp}/f.geojson", "--home", "91", "44.5", *OUT],
+         r"--home: latitude must be within",
+         files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
 ]
 
 
