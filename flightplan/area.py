@@ -10,7 +10,7 @@ Model, step by step:
    ring's azimuths (the views span at least 180 deg, what multi-view reconstruction needs). The fraction is
    computed for the aircraft's camera (pinhole of its native image and FOV, aimed at the POI as Focus POI flies
    it) at 720 positions around the ring; the well-covered disc's radius is the smallest ground radius where the
-   fraction drops below the threshold. Mini SE at the paper's 50 m / 30 m: 40.5 m (5,150 m²): inside 32 m every
+   fraction drops below the threshold. Mini SE at the paper's 50 m / 30 m: 41.3 m (5,359 m²): inside 32 m every
    photo sees the point; beyond it the near side's photos look over it.
 2. **Spacing.** Orbit centres sit on a triangular lattice (hexagonal cells). Discs of radius ``r`` on a lattice
    of spacing ``s`` cover the plane when ``s <= sqrt(3) r``; neighbours must also share ground to be aligned
@@ -19,13 +19,12 @@ Model, step by step:
 3. **Which orbits.** Every lattice cell (hexagon of circumradius ``s / sqrt(3) <= r``) that meets the field
    gets an orbit: the cells holding a field vertex, a point of its boundary (sampled every ``s / 50``) or whose
    centre lies inside the field. Every field point is then within ``r`` of an orbit centre.
-4. **Order.** A path from the take-off point through all orbit centres: nearest neighbour, then 2-opt until no
-   reversal shortens it. Every orbit starts at the same bearing, so the leg between two orbits is exactly the
-   distance between their centres. The lower bound is the minimum spanning tree of the centres and take-off
-   (no path through all of them is shorter).
-5. **Flights.** The path is cut greedily into flights: an orbit joins the current flight while the flight keeps
-   within Litchi's 99 waypoints and the battery: take-off -> first orbit, the orbits and the legs between them,
-   last orbit -> take-off (legs at the transit speed) must fit
+4. **Order.** A closed tour from the take-off point through all orbit centres and back: nearest neighbour, then
+   2-opt until no reversal shortens it. Every orbit starts at the same bearing, so the leg between two orbits is
+   exactly the distance between their centres. :func:`transit_lower_bound_m` is what no plan can beat.
+5. **Flights.** The tour is cut into consecutive flights with the least transit in all (dynamic programming over
+   the cut points); each flight keeps within Litchi's 99 waypoints and the battery: take-off -> first orbit,
+   the orbits and the legs between them, last orbit -> take-off (legs at the transit speed) must fit
    :attr:`flightplan.aircraft.AircraftProfile.usable_flight_time_s` (the Mini SE's rated 30 min less a 20 %
    reserve, our policy stated in ``aircraft.py``, for climb, landing and wind: the 30 min are rated at 17 km/h
    without wind). Each flight is one Litchi mission; the leg leaving an orbit's closing row is flown at the

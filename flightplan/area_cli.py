@@ -89,4 +89,6 @@ def check_flights(plan, legal_height_m: float) -> list[str]:
                 flights_of.setdefault(warning, []).append(number)
         except checks.MissionCheckError as error:
             raise BadInput(f"flight {number}: {error}") from None
-    return [f"flight(s) {', '.join(map(str, numbers))}: {warning}" for warning, numbers in flights_of.items()]
+    every = list(range(1, len(plan.flights) + 1))
+    return [f"{'every flight' if numbers == every else 'flight(s) ' + ', '.join(map(str, numbers))}: {warning}"
+            for warning, numbers in flights_of.items()]
