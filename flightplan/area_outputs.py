@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 
+from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import AreaPlan
 from flightplan.atomic import atomic_path, write_text_atomic
 from flightplan.litchi import write_mission_csv
@@ -163,7 +164,8 @@ def summary_dict(plan: AreaPlan, warnings: list[str]) -> dict:
                                                                     plan.covered_in_field_m2))],
         "flights": [{"flight": number, "csv": flight_csv_name(number), "orbits": [i + 1 for i in f.orbits],
                      "waypoints": len(f.mission), "photo_count": f.photo_count, "flight_time_s": f.flight_time_s,
-                     "transit_m": f.transit_m, "batteries": 1}
+                     "transit_m": f.transit_m, "batteries": 1,
+                     "battery_used": f.flight_time_s / DJI_MINI_SE.usable_flight_time_s}
                     for number, f in enumerate(plan.flights, start=1)],
         "totals": {"orbits": len(plan.centres_enu_m), "flights": len(plan.flights), "batteries": len(plan.flights),
                    "photo_count": sum(f.photo_count for f in plan.flights),
@@ -182,11 +184,12 @@ def summary_text(plan: AreaPlan) -> str:
         f"field {plan.field.area_m2:,.0f} m² ({len(plan.field.enu_m)} vertices); orbit r={plan.request.radius_m:g} m "
         f"h={plan.request.height_m:g} m covers a disc of {plan.well_covered_radius_m:.1f} m well; "
         f"overlap {plan.request.overlap:g} -> spacing {plan.spacing_m:.1f} m; field covered {100 * plan.field_coverage:.1f} %",
-        "flight  orbits      waypoints  photos  time_min  battery  transit_m",
+        f"flight  orbits      waypoints  photos  time_min  battery (of {DJI_MINI_SE.usable_flight_time_s / 60:.0f} min)  transit_m",
     ]
     for flight in data["flights"]:
         lines.append(f"{flight['flight']:>6}  {','.join(map(str, flight['orbits'])):<10}  {flight['waypoints']:>9}  "
-                     f"{flight['photo_count']:>6}  {flight['flight_time_s'] / 60:>8.1f}  {1:>7}  {flight['transit_m']:>9.0f}")
+                     f"{flight['photo_count']:>6}  {flight['flight_time_s'] / 60:>8.1f}  {'1 (' + format(flight['battery_used'], '.0%') + ')':>18}  "
+                     f"{flight['transit_m']:>9.0f}")
     lines.append("orbit  flight  lat_deg      lon_deg       covered_in_field_m2")
     flight_of = {o: f["flight"] for f in data["flights"] for o in f["orbits"]}
     for orbit in data["orbits"]:

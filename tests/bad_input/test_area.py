@@ -96,4 +96,6 @@ CASES = [
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.id)
 def test_refused(case, tmp_path):
-    assert_refused(run_case(case, tmp_path), case, tmp_path)
+    result = run_case(case, tmp_path)
+    assert_refused(result, case, tmp_path)
+    assert not result.out.strip(), f"{case.id}: stdout on a refusal: {result.out!r}"
