@@ -100,7 +100,7 @@ class AreaPlan:
     centres_latlon_deg: np.ndarray  # (K, 2)
     covered_in_field_m2: np.ndarray  # (K,)
     field_coverage: float  # fraction of the field within the well-covered discs (grid estimate)
-    orbit_plan: OrbitPlan  # of the first orbit; every orbit has the same rows around its own centre
+    orbit_plan: OrbitPlan  # of an orbit at the field's origin; every orbit has the same rows around its own centre
     flights: tuple[Flight, ...]
     transit_m: float
     transit_lower_bound_m: float
@@ -108,7 +108,27 @@ class AreaPlan:
 
 
 def well_covered_radius_m(camera: CameraProfile, radius_m: float, height_above_poi_m: float) -> float:
-    """Radius (m) of the ground disc seen by at least :data:`WELL_SEEN_FRACTION` of an orbit's photos (step 1)."""
+    """Radius (m) of the ground disc seen by at least :data:`WELL_SEEN_FRACTION` of an orbit's photos (step 1).
+
+    The first radius where the fraction drops below it, found by a scan of 1,000 steps out to ten slant ranges
+    and bisection of that step to 1 mm.
+    """
+    seen = seen_fraction(camera, radius_m, height_above_poi_m)
+    farthest = 10.0 * math.hypot(radius_m, height_above_poi_m)
+    step = farthest / 1000.0
+    outside = next((r for r in np.arange(0.0, farthest, step) if seen(r) < WELL_SEEN_FRACTION), None)
+    if outside is None:
+        return farthest
+    low, high = outside - step, outside
+    while high - low > 1e-3:
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if seen(middle) >= WELL_SEEN_FRACTION else (low, middle)
+    return float(low)
+
+
+def seen_fraction(camera: CameraProfile, radius_m: float, height_above_poi_m: float):
+    """A function of the ground radius (m, on flat ground at the POI height) giving the fraction of the orbit's
+    photos (camera aimed at the POI from :data:`_RING_POSITIONS` positions around the ring) whose image holds it."""
     fx, fy, cx, cy = camera.pinhole_intrinsics()
     azimuth = np.linspace(0.0, 2.0 * np.pi, _RING_POSITIONS, endpoint=False)
     cameras = np.stack([radius_m * np.cos(azimuth), radius_m * np.sin(azimuth), np.full_like(azimuth, height_above_poi_m)], -1)
@@ -116,17 +136,16 @@ def well_covered_radius_m(camera: CameraProfile, radius_m: float, height_above_p
     right = np.cross(forward, [0.0, 0.0, 1.0])
     right /= np.linalg.norm(right, axis=1, keepdims=True)
     down = np.cross(forward, right)
-    step = radius_m / 1000.0
-    for ground_radius in np.arange(0.0, 10.0 * radius_m, step):
+
+    def fraction(ground_radius: float) -> float:
         ray = np.array([ground_radius, 0.0, 0.0]) - cameras
         depth = np.einsum("ij,ij->i", ray, forward)
         ahead = depth > 1e-9
         u = fx * np.einsum("ij,ij->i", ray, right)[ahead] / depth[ahead] + cx
         v = fy * np.einsum("ij,ij->i", ray, down)[ahead] / depth[ahead] + cy
-        inside = (u >= -0.5) & (u <= 2 * cx + 0.5) & (v >= -0.5) & (v <= 2 * cy + 0.5)
-        if inside.sum() < WELL_SEEN_FRACTION * _RING_POSITIONS:
-            return float(ground_radius)
-    return float(10.0 * radius_m)
+        return float(np.sum((u >= -0.5) & (u <= 2 * cx + 0.5) & (v >= -0.5) & (v <= 2 * cy + 0.5))) / _RING_POSITIONS
+
+    return fraction
 
 
 def lattice_spacing_m(well_covered_m: float, overlap: float) -> float:
@@ -252,7 +271,8 @@ def _legs_m(home: np.ndarray, centres: np.ndarray) -> float:
 
 def plan_area(field: Field, request: AreaRequest, aircraft: AircraftProfile = DJI_MINI_SE) -> AreaPlan:
     """Plan orbits, flights and their order over ``field`` (see the module docstring)."""
-    poi_height = request.orbit.get("poi_height_m", 0.0)
+    template = orbit_at(field, np.zeros(2), request, aircraft)  # validates the orbit; every orbit flies its rows
+    poi_height = template.request.poi_height_m
     covered = well_covered_radius_m(aircraft.camera, request.radius_m, request.height_m - poi_height)
     spacing = lattice_spacing_m(covered, request.overlap)
     estimate = estimated_orbit_count(field, spacing)
@@ -262,7 +282,6 @@ def plan_area(field: Field, request: AreaRequest, aircraft: AircraftProfile = DJ
                        f"at most {MAX_ORBITS}: split the field")
     lattice = lattice_centres(field, spacing)
     home = np.asarray(request.home_enu_m, dtype=np.float64)
-    template = _orbit_at(field, lattice[0], request, aircraft)
     flights = split_flights(home, lattice, order_tour(home, lattice), template, request, aircraft)
     naive = split_flights(home, lattice, np.arange(len(lattice)), template, request, aircraft)
     centres = lattice[np.concatenate(flights)]
@@ -279,7 +298,8 @@ def plan_area(field: Field, request: AreaRequest, aircraft: AircraftProfile = DJ
     )
 
 
-def _orbit_at(field: Field, centre_enu: np.ndarray, request: AreaRequest, aircraft: AircraftProfile) -> OrbitPlan:
+def orbit_at(field: Field, centre_enu: np.ndarray, request: AreaRequest, aircraft: AircraftProfile) -> OrbitPlan:
+    """The orbit of ``request`` around ``centre_enu`` (m, the field's ENU plane); ``ValueError`` on a bad orbit."""
     lat, lon, _ = field.frame.to_geodetic(centre_enu[0], centre_enu[1], 0.0)
     orbit_request = OrbitRequest(float(lat), float(lon), (Ring(request.radius_m, request.height_m),), **request.orbit)
     return plan_orbit(orbit_request, aircraft)
@@ -287,7 +307,7 @@ def _orbit_at(field: Field, centre_enu: np.ndarray, request: AreaRequest, aircra
 
 def _flight(field, home, centres, indices, request, aircraft) -> Flight:
     """One flight's mission: the orbits' rows in turn, the leg leaving each closing row at the transit speed."""
-    orbits = [_orbit_at(field, centre, request, aircraft) for centre in centres]
+    orbits = [orbit_at(field, centre, request, aircraft) for centre in centres]
     rows: list[litchi.Waypoint] = []
     for orbit in orbits:
         if rows:

@@ -12,9 +12,11 @@ import argparse
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from flightplan import checks
 from flightplan.aircraft import DJI_MINI_SE
-from flightplan.area import AreaRequest, plan_area
+from flightplan.area import AreaRequest, orbit_at, plan_area
 from flightplan.area_outputs import OVERVIEW_NAMES, summary_text, write_area_plan
 from flightplan.cli_support import BadInput, refuse_clobbering
 from flightplan.field import read_field
@@ -68,7 +70,10 @@ def run_area(args: argparse.Namespace) -> int:
     refuse_clobbering({"--area": args.area}, {"--out": args.out})
     refuse_output_folder(args.out)
     field = read_field(args.area)
-    plan = plan_area(field, request_from_args(args, field), DJI_MINI_SE)
+    request = request_from_args(args, field)
+    orbit = orbit_at(field, np.zeros(2), request, DJI_MINI_SE)  # an orbit failing the checks fails every flight
+    checks.raise_on_errors(checks.check_mission(orbit.mission, DJI_MINI_SE, None, args.legal_height))
+    plan = plan_area(field, request, DJI_MINI_SE)
     warnings = check_flights(plan, args.legal_height)
     written = write_area_plan(plan, args.out, warnings)
     print(summary_text(plan))
