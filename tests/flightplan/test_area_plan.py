@@ -129,3 +129,20 @@ def test_cli_writes_checked_flights_and_an_overview_that_reads_back(tmp_path, ca
     for name in ("area.kml", "area.geojson"):  # the overview's field polygon is the field read back
         field = read_field(tmp_path / "plan" / name)
         assert np.allclose(np.stack([field.lon_deg, field.lat_deg], -1), lonlat, atol=1e-12)
+
+
+def test_google_earth_kml_reads_as_the_same_polygon_as_geojson(tmp_path):
+    """A KML as Google Earth writes it (namespace, heights, a hole) gives the GeoJSON's exterior ring."""
+    lonlat = square_lonlat(200.0)
+    ring = " ".join(f"{float(lon)!r},{float(lat)!r},0" for lon, lat in [*lonlat, lonlat[0]])
+    hole = " ".join(f"{float(lon)!r},{float(lat)!r},0" for lon, lat in square_lonlat(20.0))
+    (tmp_path / "field.kml").write_text(
+        '<?xml version="1.0" encoding="UTF-8"?><kml xmlns="http://www.opengis.net/kml/2.2" '
+        'xmlns:gx="http://www.google.com/kml/ext/2.2"><Document><name>field</name><Placemark><name>f</name><Polygon>'
+        f"<tessellate>1</tessellate><outerBoundaryIs><LinearRing><coordinates>\n\t{ring}\n</coordinates></LinearRing>"
+        f"</outerBoundaryIs><innerBoundaryIs><LinearRing><coordinates>{hole}</coordinates></LinearRing>"
+        "</innerBoundaryIs></Polygon></Placemark></Document></kml>")
+    write_geojson(tmp_path / "field.geojson", lonlat)
+    from_kml, from_geojson = read_field(tmp_path / "field.kml"), read_field(tmp_path / "field.geojson")
+    assert np.array_equal(from_kml.lat_deg, from_geojson.lat_deg) and np.array_equal(from_kml.lon_deg, lonlat[:, 0])
+    assert from_kml.area_m2 == pytest.approx(200.0 ** 2, rel=1e-6)
