@@ -161,6 +161,8 @@ def estimated_orbit_count(field: Field, spacing_m: float) -> int:
 
 def lattice_centres(field: Field, spacing_m: float) -> np.ndarray:
     """Centres (ENU m, row by row from the south-west) of the lattice cells that meet the field (step 3)."""
+    from scipy.spatial import cKDTree  # scipy here, not at import: the single-orbit CLI starts without it
+
     low, high = field.enu_m.min(axis=0) - spacing_m, field.enu_m.max(axis=0) + spacing_m
     row_step = spacing_m * math.sqrt(3.0) / 2.0
     rows = []
@@ -168,7 +170,6 @@ def lattice_centres(field: Field, spacing_m: float) -> np.ndarray:
         east = np.arange(low[0] + (k % 2) * spacing_m / 2.0, high[0] + spacing_m, spacing_m)
         rows.append(np.stack([east, np.full_like(east, north)], -1))
     candidates = np.concatenate(rows)
-    from scipy.spatial import cKDTree  # scipy here, not at import: the single-orbit CLI starts without it
     polygon = PolygonPath(np.vstack([field.enu_m, field.enu_m[:1]]), closed=True)
     samples = [candidates[polygon.contains_points(candidates)], boundary_points(field.enu_m, spacing_m / _BOUNDARY_SAMPLES_PER_SPACING)]
     _, nearest = cKDTree(candidates).query(np.concatenate(samples))
@@ -239,7 +240,8 @@ def orbits_per_mission(orbit: OrbitPlan) -> int:
     return litchi.MAX_WAYPOINTS // len(orbit.mission)
 
 
-def split_flights(home, centres, order, orbit, request, aircraft) -> list[list[int]]:
+def split_flights(home: np.ndarray, centres: np.ndarray, order: np.ndarray, orbit: OrbitPlan, request: AreaRequest,
+                  aircraft: AircraftProfile) -> list[list[int]]:
     """Cut ``order`` into consecutive flights that each fit :func:`flight_fits`, with the least transit in all
     (dynamic programming over the cut points, step 5)."""
     count = len(order)
@@ -305,7 +307,8 @@ def orbit_at(field: Field, centre_enu: np.ndarray, request: AreaRequest, aircraf
     return plan_orbit(orbit_request, aircraft)
 
 
-def _flight(field, home, centres, indices, request, aircraft) -> Flight:
+def _flight(field: Field, home: np.ndarray, centres: np.ndarray, indices: range, request: AreaRequest,
+            aircraft: AircraftProfile) -> Flight:
     """One flight's mission: the orbits' rows in turn, the leg leaving each closing row at the transit speed."""
     orbits = [orbit_at(field, centre, request, aircraft) for centre in centres]
     rows: list[litchi.Waypoint] = []
