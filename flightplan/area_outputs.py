@@ -150,9 +150,8 @@ def summary_dict(plan: AreaPlan, warnings: list[str]) -> dict:
                   "vertices": len(plan.field.enu_m), "origin": plan.field.frame.to_dict()},
         "take_off": dict(zip(("lat_deg", "lon_deg"), home_latlon(plan))),
         "heights": "metres above take-off (Litchi altitude mode 0)",
-        "orbit": orbit.summary_dict()["parameters"] | {"waypoints": len(orbit.mission),
-                                                      "flight_time_s": orbit.flight_time_s,
-                                                      "photo_count": orbit.photo_count},
+        "orbit": {k: v for k, v in orbit.summary_dict()["parameters"].items() if not k.startswith("center_")}
+        | {"waypoints": len(orbit.mission), "flight_time_s": orbit.flight_time_s, "photo_count": orbit.photo_count},
         "well_covered_radius_m": plan.well_covered_radius_m,
         "overlap": plan.request.overlap,
         "spacing_m": plan.spacing_m,
