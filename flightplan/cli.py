@@ -1,4 +1,5 @@
-"""``aerostereo-mission``: plan a circular orbit and export it as a Litchi Mission Hub CSV.
+"""``aerostereo-mission``: plan a circular orbit and export it as a Litchi Mission Hub CSV; with ``--area``, cover
+a field with orbits and write one CSV per flight plus an overview (see :mod:`flightplan.area`).
 
 Heights are metres above the take-off point; the centre is WGS84 degrees. Prints a summary (waypoints, path
 length, flight time, photos, GSD, overlap, deviation from the circle) on stdout and the plan's warnings on stderr.
@@ -14,6 +15,7 @@ from pathlib import Path
 
 from flightplan import checks, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
+from flightplan.area import DEFAULT_OVERLAP, DEFAULT_TRANSIT_SPEED_M_S
 from flightplan.argtypes import finite_number
 from flightplan.atomic import write_text_atomic
 from flightplan.cli_support import BadInput, Parser, add_version, refuse_clobbering, refuse_folders, run_cli
@@ -92,8 +94,16 @@ def build_parser() -> argparse.ArgumentParser:
     orbit.add_argument(
         "--legal-height", type=finite_number, default=LEGAL_MAX_HEIGHT_M, metavar="M", help="above take-off (default 120: EU/US)"
     )
+    area = parser.add_argument_group("area (instead of a centre): cover a field with orbits, one CSV per flight")
+    area.add_argument("--area", type=Path, metavar="FIELD", help="field polygon, .kml or .geojson (WGS84); --out is then a folder")
+    area.add_argument("--overlap", type=finite_number, default=DEFAULT_OVERLAP, metavar="F",
+                      help="fraction of a well-covered disc's diameter shared with each neighbour")
+    area.add_argument("--transit-speed-kmh", type=finite_number, default=DEFAULT_TRANSIT_SPEED_M_S * 3.6, metavar="KMH",
+                      help="between orbits and to/from take-off")
+    area.add_argument("--home", type=finite_number, nargs=2, metavar=("LAT", "LON"),
+                      help="take-off point (default: the centroid of the field's vertices)")
     out = parser.add_argument_group("outputs")
-    out.add_argument("--out", type=Path, required=True, metavar="CSV", help="Litchi CSV to write")
+    out.add_argument("--out", type=Path, required=True, metavar="CSV", help="Litchi CSV to write (with --area: a folder)")
     out.add_argument("--kml", type=Path, metavar="F", help="KML preview (Google Earth)")
     out.add_argument("--geojson", type=Path, metavar="F", help="GeoJSON preview")
     out.add_argument("--plot", type=Path, metavar="PNG", help="PNG plot")
@@ -175,6 +185,10 @@ def output_paths(args: argparse.Namespace) -> dict[str, Path | None]:
 
 def run(args: argparse.Namespace) -> int:
     """Plan, check and write the mission of ``args``; print the summary (stdout) and warnings (stderr)."""
+    if args.area is not None:
+        from flightplan.area_cli import run_area  # matplotlib and scipy only where an area is planned
+
+        return run_area(args)
     refuse_clobbering({}, output_paths(args))
     refuse_folders(output_paths(args))
     plan = plan_orbit(request_from_args(args), DJI_MINI_SE)

@@ -53,7 +53,8 @@ def _mission_line(mission: litchi.Mission) -> list[np.ndarray]:
     )
 
 
-def _coordinates_text(points: np.ndarray) -> str:
+def coordinates_text(points: np.ndarray) -> str:
+    """KML ``coordinates`` text: ``lon,lat[,height]`` tuples separated by spaces, shortest exact numbers."""
     return " ".join(",".join(litchi.format_number(v) for v in point) for point in points)
 
 
@@ -68,7 +69,7 @@ def _kml_placemark(parent: ET.Element, name: str, description: str = "") -> ET.E
 def _kml_point(placemark: ET.Element, lon: float, lat: float, height_m: float) -> None:
     point = ET.SubElement(placemark, "Point")
     ET.SubElement(point, "altitudeMode").text = "relativeToGround"
-    ET.SubElement(point, "coordinates").text = _coordinates_text(np.array([[lon, lat, height_m]]))
+    ET.SubElement(point, "coordinates").text = coordinates_text(np.array([[lon, lat, height_m]]))
 
 
 def _waypoint_description(index: int, waypoint: litchi.Waypoint) -> str:
@@ -94,7 +95,7 @@ def mission_to_kml(mission: litchi.Mission, name: str = "aerostereo mission") ->
         line = ET.SubElement(geometry, "LineString")
         ET.SubElement(line, "extrude").text = "1"
         ET.SubElement(line, "altitudeMode").text = "relativeToGround"
-        ET.SubElement(line, "coordinates").text = _coordinates_text(piece)
+        ET.SubElement(line, "coordinates").text = coordinates_text(piece)
     folder = ET.SubElement(document, "Folder")
     ET.SubElement(folder, "name").text = "Waypoints"
     for index, waypoint in enumerate(mission.waypoints, start=1):
