@@ -247,7 +247,7 @@ class Deframer:
 
     def _scan_and_consume(self, buffer: bytes, final: bool) -> FrameBatch:
         scan = _scan(buffer, final, self.crc16_seed)
-        for reason, count in zip(SkipReason, np.bincount(scan.skipped_reasons, minlength=len(SkipReason)).tolist()):
+        for reason, count in zip(SkipReason, scan.skipped_counts):
             self.stats.skipped_bytes[reason.name.lower()] += count
         for reason, count in zip(SkipReason, scan.rejected_counts):
             self.stats.rejected_frames[reason.name.lower()] += count
@@ -286,7 +286,7 @@ def packets_from_frames(buffer: bytes, frames: FrameBatch) -> list[Packet]:
 class _Scan(NamedTuple):
     frames: FrameBatch
     decided: int  # buffer[:decided] is fully accounted for (frames + skipped bytes)
-    skipped_reasons: np.ndarray  # one SkipReason code per skipped byte
+    skipped_counts: list[int]  # skipped bytes per SkipReason
     rejected_counts: list[int]  # number of rejected candidates per SkipReason
 
 
@@ -310,7 +310,7 @@ def _scan(buffer: bytes, final: bool, crc16_seed: int) -> _Scan:
     status[cut] = SkipReason.TRUNCATED
     rej_starts, rej_status = starts[rejected], status[rejected]
     rej_ends = np.minimum(rej_starts + _claimed_extent(rej_status, lengths[rejected]), next_start[rejected])
-    skipped = _skipped_reasons(acc_starts, acc_ends, decided, rej_starts, rej_ends, rej_status)
+    skipped = _skipped_counts(acc_starts, acc_ends, decided, rej_starts, rej_ends, rej_status)
     rejected_counts = np.bincount(rej_status.astype(np.int64), minlength=len(SkipReason))[:len(SkipReason)].tolist()
     return _Scan(FrameBatch(acc_starts, acc_lengths), decided, skipped, rejected_counts)
 
@@ -406,26 +406,29 @@ def _claimed_extent(status: np.ndarray, lengths: np.ndarray) -> np.ndarray:
                      [1, 4], default=lengths)
 
 
-def _skipped_reasons(acc_starts, acc_ends, decided, rej_starts, rej_ends, rej_status) -> np.ndarray:
-    """SkipReason code of every byte of ``[0, decided)`` outside accepted frames, in order.
+def _skipped_counts(acc_starts, acc_ends, decided, rej_starts, rej_ends, rej_status) -> list[int]:
+    """Bytes of ``[0, decided)`` outside accepted frames, counted per SkipReason (index = reason code).
 
     A skipped byte belongs to the rejected candidate at or before it that reaches furthest, when that
-    candidate's extent covers it; otherwise it is NO_SYNC.
+    candidate's extent covers it; otherwise it is NO_SYNC. Between two candidate starts that owner is fixed, so
+    each candidate k owns ``[start_k, min(start_k+1, reach_k))`` and the counts are that interval's overlap with
+    the gaps between accepted frames: interval arithmetic, not one entry per byte.
     """
     gap_starts = np.concatenate(([0], acc_ends))
-    gap_ends = np.concatenate((acc_starts, [decided]))
-    gap_lengths = gap_ends - gap_starts
+    gap_lengths = np.concatenate((acc_starts, [decided])) - gap_starts
+    counts = np.zeros(len(SkipReason), dtype=np.int64)
     total = int(gap_lengths.sum())
-    if total == 0:
-        return np.zeros(0, dtype=np.int64)
-    gap_first_index = np.cumsum(np.concatenate(([0], gap_lengths[:-1])))
-    positions = np.repeat(gap_starts - gap_first_index, gap_lengths) + np.arange(total)
-    reasons = np.full(total, SkipReason.NO_SYNC, dtype=np.int64)
     if len(rej_starts):
         reach = np.maximum.accumulate(rej_ends)
         holder = np.maximum.accumulate(np.where(rej_ends == reach, np.arange(len(rej_ends)), 0))
-        i = np.searchsorted(rej_starts, positions, side="right") - 1
-        owner = holder[np.maximum(i, 0)]
-        covered = (i >= 0) & (positions < rej_ends[owner])
-        reasons[covered] = rej_status[owner[covered]]
-    return reasons
+        owned_ends = np.minimum(np.append(rej_starts[1:], decided), reach)
+        gap_bytes_before = np.concatenate(([0], np.cumsum(gap_lengths)))
+
+        def in_gaps_before(x: np.ndarray) -> np.ndarray:  # skipped bytes in [0, x)
+            j = np.searchsorted(gap_starts, x, side="right") - 1
+            return gap_bytes_before[j] + np.clip(x - gap_starts[j], 0, gap_lengths[j])
+
+        owned = np.maximum(in_gaps_before(np.maximum(owned_ends, rej_starts)) - in_gaps_before(rej_starts), 0)
+        counts += np.bincount(rej_status[holder], weights=owned, minlength=len(SkipReason)).astype(np.int64)
+    counts[SkipReason.NO_SYNC] += total - int(counts.sum())
+    return counts.tolist()

@@ -3,7 +3,10 @@
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from capture.duml import Deframer, Packet
+import numpy as np
+
+from capture import duml
+from capture.duml import Deframer, Packet, SkipReason
 
 packets = st.builds(Packet, st.integers(0, 255), st.integers(0, 255), st.integers(0, 0xFFFF), st.integers(0, 255),
                     st.integers(0, 255), st.integers(0, 255), st.binary(max_size=80))
@@ -94,3 +97,33 @@ def test_greedy_overlap_resolution_matches_a_plain_scan(intervals):
         expected.append(start >= last_end)
         last_end = end if start >= last_end else last_end
     assert _greedy_non_overlapping(starts, ends).tolist() == expected
+
+
+def _per_byte_reasons(acc_starts, acc_ends, decided, rej_starts, rej_ends, rej_status):
+    """The definition, byte by byte: each byte outside accepted frames belongs to the rejected candidate at or
+    before it that reaches furthest, if that candidate's extent covers it, else NO_SYNC."""
+    accepted = np.zeros(decided, dtype=bool)
+    for start, end in zip(acc_starts, acc_ends):
+        accepted[start:end] = True
+    reasons = []
+    for position in np.flatnonzero(~accepted):
+        before = [k for k, start in enumerate(rej_starts) if start <= position]
+        owner = max(before, key=lambda k: (rej_ends[k], k)) if before else None
+        covered = owner is not None and position < rej_ends[owner]
+        reasons.append(int(rej_status[owner]) if covered else int(SkipReason.NO_SYNC))
+    return np.bincount(reasons, minlength=len(SkipReason)).tolist()
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(segments, max_size=8))
+def test_skipped_bytes_are_counted_per_reason_as_defined_byte_by_byte(stream_segments):
+    """The scan counts skipped bytes by interval arithmetic; the counts equal the definition applied per byte to
+    the same accepted frames and rejected candidates (captured from inside the scan)."""
+    stream, _ = _build(stream_segments)
+    captured, counting = [], duml._skipped_counts
+    duml._skipped_counts = lambda *args: captured.append(args) or counting(*args)
+    try:
+        scan = duml._scan(stream, True, duml.CRC16_SEED)
+    finally:
+        duml._skipped_counts = counting
+    assert scan.skipped_counts == _per_byte_reasons(*captured[0])
