@@ -27,12 +27,14 @@ from __future__ import annotations
 import contextlib
 import math
 import re
+import socket
 import sys
 import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import distributed
+from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
 from tqdm import tqdm
 
@@ -44,7 +46,9 @@ TASKS_PER_WORKER = 8
 #: Most frames in one task (a lost worker costs at most this many frames per task it was running).
 MAX_BATCH_FRAMES = 32
 PLUGIN_NAME = "aerostereo-renderer"
-_SCHEDULER = re.compile(r"^(?:local:(?P<local>\d+)|(?P<address>(?:tcp|tls|inproc|ucx)://\S+))$")
+#: Seconds to wait for a scheduler's port to accept a connection before the run is refused.
+CONNECT_TIMEOUT_S = 10.0
+_SCHEDULER = re.compile(r"^(?:local:(?P<local>\d+)|(?P<address>(?:tcp|tls)://\S+))$")
 
 
 @dataclass(frozen=True)
@@ -56,7 +60,7 @@ class Scheduler:
 
 
 def parse_scheduler(text: str) -> Scheduler:
-    """``local:N`` (N >= 1) or ``tcp://HOST:PORT`` (also tls://, ucx://, inproc://); RenderInputError otherwise."""
+    """``local:N`` (N >= 1) or ``tcp://HOST:PORT`` (or tls://); RenderInputError otherwise."""
     match = _SCHEDULER.match(text.strip())
     if match is None or (match["local"] is not None and int(match["local"]) < 1):
         raise RenderInputError(f"--scheduler must be local:N (N >= 1 worker processes started here) or the address of a "
@@ -64,6 +68,22 @@ def parse_scheduler(text: str) -> Scheduler:
     if match["local"] is not None:
         return Scheduler(local_workers=int(match["local"]))
     return Scheduler(address=match["address"])
+
+
+def check_reachable(scheduler: Scheduler, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
+    """Refuse (:class:`RenderInputError`) a scheduler address whose port does not accept a TCP connection, before
+    the dataset folder is opened (a wrong address leaves no file behind)."""
+    if scheduler.address is None:
+        return
+    try:
+        host, port = parse_host_port(parse_address(scheduler.address)[1])
+    except ValueError as error:
+        raise RenderInputError(f"--scheduler {scheduler.address}: {error}; expected tcp://HOST:PORT") from None
+    try:
+        socket.create_connection((host, port), timeout=timeout_s).close()
+    except OSError as error:
+        raise RenderInputError(f"--scheduler {scheduler.address}: no Dask scheduler answers there "
+                               f"({error.strerror or error}); start one with 'dask scheduler' or use local:N") from None
 
 
 def batch_size(pending: int, workers: int) -> int:

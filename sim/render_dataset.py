@@ -186,7 +186,9 @@ def _cluster_scheduler(options: RenderOptions):
         if not (error.name or "").startswith(("distributed", "dask")):
             raise
         raise RenderInputError("--scheduler needs Dask distributed: pip install 'aerostereo[dask]'") from None
-    return cluster.parse_scheduler(options.scheduler)
+    scheduler = cluster.parse_scheduler(options.scheduler)
+    cluster.check_reachable(scheduler)
+    return scheduler
 
 
 def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range,

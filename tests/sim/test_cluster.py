@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import os
 import signal
+import socket
 import threading
 import time
 
@@ -44,6 +45,16 @@ def test_scheduler_text_is_local_n_or_an_address():
     for bad in ("local:0", "local:", "10.0.0.5:8786", "http://host:8786", "local:two"):
         with pytest.raises(RenderInputError, match="--scheduler"):
             parse_scheduler(bad)
+
+
+def test_an_address_where_no_scheduler_listens_is_refused_before_any_file(scene_dir, tmp_path):
+    with socket.socket() as probe:  # a loopback port that was free a moment ago
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    for address, reason in ((f"tcp://127.0.0.1:{port}", "no Dask scheduler answers"), ("tcp://127.0.0.1", "port")):
+        with pytest.raises(RenderInputError, match=reason):
+            render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler=address), progress=False)
+    assert not (tmp_path / "out").exists()
 
 
 def test_batches_cover_every_frame_once_in_order_and_stay_small():
