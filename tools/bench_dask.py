@@ -1,0 +1,191 @@
+"""Rendering on a Dask cluster: overhead against the built-in pool, scheduler throughput, a scaling table.
+
+Three parts, one run:
+
+1. The same frames rendered by :func:`sim.render_dataset.render_dataset` with the built-in pool
+   (``--workers J``) and with ``--scheduler local:J``: wall time, start-up and steady seconds per frame (from
+   the times the frames were reported done, as tools/bench_dataset.py), and the cluster's overhead in %
+   (each rendered ``--repeats`` times, alternating; the fastest run of each is kept).
+2. The scheduler's throughput: thousands of tasks that do nothing on a LocalCluster of J processes
+   (tasks/s, so per-task overhead = 1 / that).
+3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
+   stage runs per view): ``--views`` synthetic 640x480 nadir photos of a textured plane, each view's depth from its
+   two neighbours, in this process (OpenCV's threads) and as one task per view on local:J (start-up included).
+4. On paper: wall time for 10^4..10^6 frames on 1..100 machines of ``--cores`` cores each, from the measured
+   per-frame cost (core-seconds), the per-task overhead at :func:`sim.cluster.batch_size` frames per task and
+   the bytes per frame over a shared disk of ``--disk-mb-s``; the column ``limit`` names the term that
+   dominates (render, coordinator, disk).
+
+Usage: ``python tools/bench_dask.py [--frames N] [--width W --height H] [--workers J] [--repeats R] [--tasks T]
+[--views V] [--cores N] [--disk-mb-s B]`` (demo world).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import distributed
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
+
+from bench_dataset import steady_rate  # noqa: E402
+from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
+from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
+from sim.cluster import batch_size  # noqa: E402
+from sim.frame_renderer import RenderOptions  # noqa: E402
+from sim.raycast import default_workers  # noqa: E402
+from sim.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
+
+FRAME_COUNTS = (10**4, 10**5, 10**6)
+#: Synthetic orbit for the depth-map part: height and spacing of the nadir views (m), their depth search range.
+VIEW_HEIGHT_M, VIEW_SPACING_M, DEPTH_RANGE_M = 30.0, 3.0, (20.0, 45.0)
+MACHINES = (1, 10, 100)
+
+
+def compare_runs(scene_dir: Path, options: dict, workers: int, repeats: int, scratch: Path) -> list[tuple]:
+    """(name, wall s, start-up s, steady s/frame) for the built-in pool and local:J on the same frames; each
+    rendered ``repeats`` times, alternating, keeping each one's fastest run (the least disturbed by other load)."""
+    configurations = ((f"built-in pool, --workers {workers}", dict(workers=workers)),
+                      (f"Dask, --scheduler local:{workers}", dict(scheduler=f"local:{workers}")))
+    best = {}
+    for repeat in range(repeats):
+        for name, how in configurations:
+            out = scratch / f"{name.split(',')[0].replace(' ', '_')}{repeat}"
+            start = time.perf_counter()
+            summary = render_dataset(scene_dir, out, RenderOptions(**options, **how), command_line=["bench"],
+                                     progress=False)
+            wall = time.perf_counter() - start
+            per_frame, startup = steady_rate(summary, workers)
+            if name not in best or wall < best[name][1]:
+                best[name] = (name, wall, startup, per_frame)
+    return list(best.values())
+
+
+def bytes_per_frame(dataset: Path, frames: int) -> float:
+    """Bytes a rendered frame put on disk (every file of the dataset's sequences, divided by ``frames``)."""
+    return sum(path.stat().st_size for path in (dataset / "sequences").rglob("*") if path.is_file()) / frames
+
+
+def _nothing(index: int) -> int:
+    return index
+
+
+def tasks_per_second(tasks: int, workers: int) -> float:
+    """Tasks that do nothing, submitted at once and gathered, per second of wall time on a LocalCluster."""
+    with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client:
+        client.gather(client.map(_nothing, range(100), pure=False))  # warm up (imports, connections)
+        start = time.perf_counter()
+        client.gather(client.map(_nothing, range(tasks), pure=False))
+        return tasks / (time.perf_counter() - start)
+
+
+def view_depth(images: list[np.ndarray], views: list, k: int) -> float:
+    """Depth map of view ``k`` from its neighbours (as the depth stage does per view); its valid fraction."""
+    neighbours = [j for j in (k - 1, k + 1) if 0 <= j < len(views)]
+    depth = fuse_pair_depths([pair_depth(images[k], images[j], views[k], views[j], DEPTH_RANGE_M)
+                              for j in neighbours], 0.02)
+    return float(np.mean(np.isfinite(depth)))
+
+
+def depth_maps_here_and_on_cluster(count: int, workers: int) -> tuple[float, float, float]:
+    """Seconds for ``count`` depth maps in this process, on local:J once started, and local:J's start-up (worker
+    processes, importing recon.dense there, sending the images)."""
+    texture = make_texture()
+    views = [look_down_view((k * VIEW_SPACING_M - count * VIEW_SPACING_M / 2, 0.0, VIEW_HEIGHT_M), 0.0)
+             for k in range(count)]
+    images = [render_plane(texture, view) for view in views]
+    start = time.perf_counter()
+    here = [view_depth(images, views, k) for k in range(count)]
+    here_s = time.perf_counter() - start
+    start = time.perf_counter()
+    with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client:
+        client.run(importlib.import_module, "recon.dense")
+        shared = client.scatter([images, views], broadcast=True)
+        startup_s = time.perf_counter() - start
+        start = time.perf_counter()
+        on_cluster = client.gather(client.map(view_depth, *[[item] * count for item in shared], range(count)))
+        cluster_s = time.perf_counter() - start
+    if not np.allclose(here, on_cluster):
+        raise SystemExit("the depth maps on the cluster differ from those computed here")
+    return here_s, cluster_s, startup_s
+
+
+def scaling_rows(core_s_per_frame: float, task_overhead_s: float, frame_bytes: float, cores: int,
+                 disk_bytes_s: float) -> list[tuple]:
+    """(frames, machines, render s, coordinator s, disk s, wall s, limit) on paper: the three terms overlap, so
+    the wall time is the largest; one worker process per machine (casting with all its cores)."""
+    rows = []
+    for frames in FRAME_COUNTS:
+        for machines in MACHINES:
+            render_s = frames * core_s_per_frame / (machines * cores)
+            coordinator_s = frames / batch_size(frames, machines) * task_overhead_s
+            disk_s = frames * frame_bytes / disk_bytes_s
+            terms = {"render": render_s, "coordinator": coordinator_s, "disk": disk_s}
+            limit = max(terms, key=terms.get)
+            rows.append((frames, machines, render_s, coordinator_s, disk_s, terms[limit], limit))
+    return rows
+
+
+def _hours(seconds: float) -> str:
+    return f"{seconds / 3600:8.2f} h" if seconds >= 3600 else f"{seconds / 60:8.1f} m"
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=12)
+    parser.add_argument("--width", type=int, default=640)
+    parser.add_argument("--height", type=int, default=360)
+    parser.add_argument("--workers", type=int, default=2, help="processes of the pool and of local:J")
+    parser.add_argument("--repeats", type=int, default=2, help="renders of each configuration (fastest kept)")
+    parser.add_argument("--tasks", type=int, default=5000, help="tiny tasks for the scheduler's throughput")
+    parser.add_argument("--views", type=int, default=16, help="depth maps in the reconstruction part")
+    parser.add_argument("--cores", type=int, default=32, help="cores per machine in the table")
+    parser.add_argument("--disk-mb-s", type=float, default=1000.0, help="shared disk write bandwidth in the table")
+    args = parser.parse_args()
+    scene_dir = resolve_scene_dir(None)
+    options = dict(frames=args.frames, width=args.width, height=args.height, seed=1)
+    scratch = Path(tempfile.mkdtemp(prefix="bench_dask_"))
+    try:
+        runs = compare_runs(scene_dir, options, args.workers, args.repeats, scratch)
+        frame_bytes = bytes_per_frame(scratch / "built-in_pool0", args.frames)
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    rate = tasks_per_second(args.tasks, args.workers)
+    depth_here_s, depth_cluster_s, cluster_startup_s = depth_maps_here_and_on_cluster(args.views, args.workers)
+    cpus = default_workers()
+    pool_per_frame = runs[0][3]
+    print(f"demo world, {args.width}x{args.height} stereo with depth + disparity, {args.frames} frames per row "
+          f"(fastest of {args.repeats}), {args.workers} processes on {cpus} CPUs")
+    print(f"{'run':<32} {'wall s':>7} {'start-up s':>10} {'s/frame':>8} {'overhead':>9}")
+    for name, wall, startup, per_frame in runs:
+        print(f"{name:<32} {wall:7.2f} {startup:10.2f} {per_frame:8.3f} {100 * (per_frame / pool_per_frame - 1):8.1f}%")
+    print(f"\nscheduler: {args.tasks} no-op tasks on local:{args.workers}: {rate:.0f} tasks/s "
+          f"({1e3 / rate:.2f} ms per task)")
+    print(f"\ndepth maps, {args.views} views of 640x480, 2 neighbours each: {depth_here_s:.2f} s in this process "
+          f"({depth_here_s / args.views:.3f} s/view), {depth_cluster_s:.2f} s on local:{args.workers} one task per "
+          f"view, after {cluster_startup_s:.2f} s of start-up (processes, imports, images sent)")
+    core_s = pool_per_frame * cpus
+    print(f"\non paper: {core_s:.2f} core-s per frame (measured), {1e3 / rate:.2f} ms per task at the scheduler, "
+          f"{frame_bytes / 1e6:.2f} MB per frame onto a shared disk of {args.disk_mb_s:.0f} MB/s; machines of "
+          f"{args.cores} cores, up to {batch_size(10**9, 1)} frames per task")
+    print(f"{'frames':>8} {'machines':>8} {'render':>11} {'coordinator':>11} {'disk':>11} {'wall':>11}  limit")
+    for frames, machines, render_s, coordinator_s, disk_s, wall, limit in scaling_rows(
+            core_s, 1 / rate, frame_bytes, args.cores, args.disk_mb_s * 1e6):
+        print(f"{frames:>8} {machines:>8} {_hours(render_s):>11} {_hours(coordinator_s):>11} {_hours(disk_s):>11} "
+              f"{_hours(wall):>11}  {limit}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
