@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import os
 import re
 import socket
 import sys
@@ -33,6 +34,7 @@ import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
+import dask
 import distributed
 from distributed.comm.addressing import parse_address, parse_host_port
 from distributed.diagnostics.plugin import WorkerPlugin
@@ -46,6 +48,10 @@ TASKS_PER_WORKER = 8
 #: Most frames in one task (a lost worker costs at most this many frames per task it was running).
 MAX_BATCH_FRAMES = 32
 PLUGIN_NAME = "aerostereo-renderer"
+#: Dask config of the workers ``local:N`` starts. A nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers by
+#: default, which turns off glibc's adaptive mmap threshold: every frame-sized array is then mmap'ed and zeroed
+#: afresh, and a frame costs 1.5-2x the CPU (tools/bench_dask.py). Remote workers need the same (docs/cluster.md).
+WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
 #: Task threads of a worker started by ``local:N``: one task renders while the one before it writes its files.
 THREADS_PER_WORKER = 2
 #: Seconds to wait for a scheduler's port to accept a connection before the run is refused.
@@ -125,6 +131,8 @@ class RendererPlugin(WorkerPlugin):
 
     def render(self, indices: Sequence[int]) -> list[FrameStats]:
         """Render and write ``indices`` (every file is on disk when this returns)."""
+        if self.writer is None:  # setup failed on a worker that joined after the run started (Dask logs why)
+            raise RuntimeError("this worker could not load the scene or open the dataset folder (see its log)")
         stats = []
         with AsyncFrameWriter(self.writer) as frames:
             with self.render_lock:
@@ -147,10 +155,23 @@ def connect(scheduler: Scheduler) -> Iterator:
         with distributed.Client(scheduler.address) as client:
             yield client
         return
-    with distributed.LocalCluster(n_workers=scheduler.local_workers, threads_per_worker=THREADS_PER_WORKER,
-                                  processes=True, dashboard_address=":0") as cluster:
+    with _environment_kept(), dask.config.set(WORKER_CONFIG), distributed.LocalCluster(
+            n_workers=scheduler.local_workers, threads_per_worker=THREADS_PER_WORKER, processes=True,
+            dashboard_address=":0") as cluster:
         with distributed.Client(cluster) as client:
             yield client
+
+
+@contextlib.contextmanager
+def _environment_kept() -> Iterator[None]:
+    """Restore ``os.environ`` afterwards: a Dask nanny sets its workers' variables in its own process too (and
+    ``local:N`` runs the nannies here), which would reach every process this one starts later."""
+    saved = dict(os.environ)
+    try:
+        yield
+    finally:
+        os.environ.clear()
+        os.environ.update(saved)
 
 
 def dashboard_line(client) -> str:

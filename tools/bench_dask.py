@@ -3,9 +3,9 @@
 Three parts, one run:
 
 1. The same frames rendered by :func:`sim.render_dataset.render_dataset` with the built-in pool
-   (``--workers J``) and with ``--scheduler local:J``: wall time, start-up and steady seconds per frame (from
-   the times the frames were reported done, as tools/bench_dataset.py), and the cluster's overhead in %
-   (each rendered ``--repeats`` times, alternating; the fastest run of each is kept).
+   (``--workers J``) and with ``--scheduler local:J``, each for two frame counts: the cost per frame and the
+   fixed cost, in CPU seconds of all processes (robust to other jobs on the machine) and in wall seconds, and
+   the cluster's overhead per frame in %.
 2. The scheduler's throughput: thousands of tasks that do nothing on a LocalCluster of J processes
    (tasks/s, so per-task overhead = 1 / that).
 3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
@@ -16,7 +16,7 @@ Three parts, one run:
    the bytes per frame over a shared disk of ``--disk-mb-s``; the column ``limit`` names the term that
    dominates (render, coordinator, disk).
 
-Usage: ``python tools/bench_dask.py [--frames N] [--width W --height H] [--workers J] [--repeats R] [--tasks T]
+Usage: ``python tools/bench_dask.py [--frames N1 N2] [--width W --height H] [--workers J] [--tasks T]
 [--views V] [--cores N] [--disk-mb-s B]`` (demo world).
 """
 
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import resource
 import shutil
 import sys
 import tempfile
@@ -37,7 +38,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
 
-from bench_dataset import steady_rate  # noqa: E402
 from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
 from sim.cluster import batch_size  # noqa: E402
@@ -51,23 +51,40 @@ VIEW_HEIGHT_M, VIEW_SPACING_M, DEPTH_RANGE_M = 30.0, 3.0, (20.0, 45.0)
 MACHINES = (1, 10, 100)
 
 
-def compare_runs(scene_dir: Path, options: dict, workers: int, repeats: int, scratch: Path) -> list[tuple]:
-    """(name, wall s, start-up s, steady s/frame) for the built-in pool and local:J on the same frames; each
-    rendered ``repeats`` times, alternating, keeping each one's fastest run (the least disturbed by other load)."""
+def cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process and of its finished child processes (the pool's workers,
+    the LocalCluster's nannies and their workers)."""
+    own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+
+def compare_runs(scene_dir: Path, options: dict, workers: int, frame_counts: tuple[int, int],
+                 scratch: Path) -> list[tuple]:
+    """(name, fixed CPU s, CPU s per frame, fixed wall s, wall s per frame) of the built-in pool and local:J.
+
+    Each renders the first ``frame_counts[0]`` and then ``frame_counts[1]`` frames of the same dataset (a
+    frame depends only on (seed, index)); the difference of the two runs is the cost per frame, the rest the
+    fixed cost (processes, imports, scene loads, the cluster). CPU time does not count other jobs' load, so it
+    shows the overhead on a busy machine where wall time cannot.
+    """
     configurations = ((f"built-in pool, --workers {workers}", dict(workers=workers)),
                       (f"Dask, --scheduler local:{workers}", dict(scheduler=f"local:{workers}")))
-    best = {}
-    for repeat in range(repeats):
-        for name, how in configurations:
-            out = scratch / f"{name.split(',')[0].replace(' ', '_')}{repeat}"
-            start = time.perf_counter()
-            summary = render_dataset(scene_dir, out, RenderOptions(**options, **how), command_line=["bench"],
-                                     progress=False)
-            wall = time.perf_counter() - start
-            per_frame, startup = steady_rate(summary, workers)
-            if name not in best or wall < best[name][1]:
-                best[name] = (name, wall, startup, per_frame)
-    return list(best.values())
+    rows = []
+    small, large = frame_counts
+    for name, how in configurations:
+        costs = []
+        for frames in frame_counts:
+            out = scratch / f"{name.split(',')[0].replace(' ', '_')}{frames}"
+            cpu, start = cpu_seconds(), time.perf_counter()
+            render_dataset(scene_dir, out, RenderOptions(**options, frames=frames, **how), command_line=["bench"],
+                           progress=False)
+            costs.append((cpu_seconds() - cpu, time.perf_counter() - start))
+        (cpu_small, wall_small), (cpu_large, wall_large) = costs
+        cpu_per_frame, wall_per_frame = (cpu_large - cpu_small) / (large - small), (wall_large - wall_small) / (
+            large - small)
+        rows.append((name, cpu_small - small * cpu_per_frame, cpu_per_frame, wall_small - small * wall_per_frame,
+                     wall_per_frame))
+    return rows
 
 
 def bytes_per_frame(dataset: Path, frames: int) -> float:
@@ -143,39 +160,40 @@ def _hours(seconds: float) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--frames", type=int, default=12)
+    parser.add_argument("--frames", type=int, nargs=2, default=(8, 24), help="the two frame counts")
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=360)
     parser.add_argument("--workers", type=int, default=2, help="processes of the pool and of local:J")
-    parser.add_argument("--repeats", type=int, default=2, help="renders of each configuration (fastest kept)")
     parser.add_argument("--tasks", type=int, default=5000, help="tiny tasks for the scheduler's throughput")
     parser.add_argument("--views", type=int, default=16, help="depth maps in the reconstruction part")
     parser.add_argument("--cores", type=int, default=32, help="cores per machine in the table")
     parser.add_argument("--disk-mb-s", type=float, default=1000.0, help="shared disk write bandwidth in the table")
     args = parser.parse_args()
     scene_dir = resolve_scene_dir(None)
-    options = dict(frames=args.frames, width=args.width, height=args.height, seed=1)
+    options = dict(width=args.width, height=args.height, seed=1)
     scratch = Path(tempfile.mkdtemp(prefix="bench_dask_"))
     try:
-        runs = compare_runs(scene_dir, options, args.workers, args.repeats, scratch)
-        frame_bytes = bytes_per_frame(scratch / "built-in_pool0", args.frames)
+        runs = compare_runs(scene_dir, options, args.workers, tuple(args.frames), scratch)
+        frame_bytes = bytes_per_frame(scratch / f"built-in_pool{args.frames[1]}", args.frames[1])
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     rate = tasks_per_second(args.tasks, args.workers)
     depth_here_s, depth_cluster_s, cluster_startup_s = depth_maps_here_and_on_cluster(args.views, args.workers)
     cpus = default_workers()
-    pool_per_frame = runs[0][3]
-    print(f"demo world, {args.width}x{args.height} stereo with depth + disparity, {args.frames} frames per row "
-          f"(fastest of {args.repeats}), {args.workers} processes on {cpus} CPUs")
-    print(f"{'run':<32} {'wall s':>7} {'start-up s':>10} {'s/frame':>8} {'overhead':>9}")
-    for name, wall, startup, per_frame in runs:
-        print(f"{name:<32} {wall:7.2f} {startup:10.2f} {per_frame:8.3f} {100 * (per_frame / pool_per_frame - 1):8.1f}%")
+    pool_cpu, pool_wall = runs[0][2], runs[0][4]
+    print(f"demo world, {args.width}x{args.height} stereo with depth + disparity, {args.frames[0]} and "
+          f"{args.frames[1]} frames, {args.workers} processes on {cpus} CPUs")
+    print(f"{'run':<32} {'CPU s/frame':>11} {'overhead':>9} {'fixed CPU s':>11} {'wall s/frame':>12} {'overhead':>9} "
+          f"{'fixed wall s':>12}")
+    for name, cpu_fixed, cpu_per_frame, wall_fixed, wall_per_frame in runs:
+        print(f"{name:<32} {cpu_per_frame:11.3f} {100 * (cpu_per_frame / pool_cpu - 1):8.1f}% {cpu_fixed:11.2f} "
+              f"{wall_per_frame:12.3f} {100 * (wall_per_frame / pool_wall - 1):8.1f}% {wall_fixed:12.2f}")
     print(f"\nscheduler: {args.tasks} no-op tasks on local:{args.workers}: {rate:.0f} tasks/s "
           f"({1e3 / rate:.2f} ms per task)")
     print(f"\ndepth maps, {args.views} views of 640x480, 2 neighbours each: {depth_here_s:.2f} s in this process "
           f"({depth_here_s / args.views:.3f} s/view), {depth_cluster_s:.2f} s on local:{args.workers} one task per "
           f"view, after {cluster_startup_s:.2f} s of start-up (processes, imports, images sent)")
-    core_s = pool_per_frame * cpus
+    core_s = pool_cpu
     print(f"\non paper: {core_s:.2f} core-s per frame (measured), {1e3 / rate:.2f} ms per task at the scheduler, "
           f"{frame_bytes / 1e6:.2f} MB per frame onto a shared disk of {args.disk_mb_s:.0f} MB/s; machines of "
           f"{args.cores} cores, up to {batch_size(10**9, 1)} frames per task")
