@@ -5,7 +5,7 @@ Three parts, one run:
 1. The same frames rendered by :func:`sim.render_dataset.render_dataset` with the built-in pool
    (``--workers J``) and with ``--scheduler local:J``, each for two frame counts: the cost per frame and the
    fixed cost, in CPU seconds of all processes (robust to other jobs on the machine) and in wall seconds, and
-   the cluster's overhead per frame in %.
+   the cluster's overhead per frame in % (median of ``--repeats``).
 2. The scheduler's throughput: thousands of tasks that do nothing on a LocalCluster of J processes
    (tasks/s, so per-task overhead = 1 / that).
 3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
@@ -16,7 +16,7 @@ Three parts, one run:
    the bytes per frame over a shared disk of ``--disk-mb-s``; the column ``limit`` names the term that
    dominates (render, coordinator, disk).
 
-Usage: ``python tools/bench_dask.py [--frames N1 N2] [--width W --height H] [--workers J] [--tasks T]
+Usage: ``python tools/bench_dask.py [--frames N1 N2] [--width W --height H] [--workers J] [--repeats R] [--tasks T]
 [--views V] [--cores N] [--disk-mb-s B]`` (demo world).
 """
 
@@ -58,33 +58,35 @@ def cpu_seconds() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-def compare_runs(scene_dir: Path, options: dict, workers: int, frame_counts: tuple[int, int],
+def compare_runs(scene_dir: Path, options: dict, workers: int, frame_counts: tuple[int, int], repeats: int,
                  scratch: Path) -> list[tuple]:
-    """(name, fixed CPU s, CPU s per frame, fixed wall s, wall s per frame) of the built-in pool and local:J.
+    """(name, fixed CPU s, CPU s per frame, fixed wall s, wall s per frame) of the built-in pool and local:J,
+    each the median of ``repeats`` measurements (the two configurations alternate).
 
-    Each renders the first ``frame_counts[0]`` and then ``frame_counts[1]`` frames of the same dataset (a
-    frame depends only on (seed, index)); the difference of the two runs is the cost per frame, the rest the
+    A measurement renders the first ``frame_counts[0]`` and then ``frame_counts[1]`` frames of the same dataset
+    (a frame depends only on (seed, index)); the difference of the two runs is the cost per frame, the rest the
     fixed cost (processes, imports, scene loads, the cluster). CPU time does not count other jobs' load, so it
     shows the overhead on a busy machine where wall time cannot.
     """
     configurations = ((f"built-in pool, --workers {workers}", dict(workers=workers)),
                       (f"Dask, --scheduler local:{workers}", dict(scheduler=f"local:{workers}")))
-    rows = []
     small, large = frame_counts
-    for name, how in configurations:
-        costs = []
-        for frames in frame_counts:
-            out = scratch / f"{name.split(',')[0].replace(' ', '_')}{frames}"
-            cpu, start = cpu_seconds(), time.perf_counter()
-            render_dataset(scene_dir, out, RenderOptions(**options, frames=frames, **how), command_line=["bench"],
-                           progress=False)
-            costs.append((cpu_seconds() - cpu, time.perf_counter() - start))
-        (cpu_small, wall_small), (cpu_large, wall_large) = costs
-        cpu_per_frame, wall_per_frame = (cpu_large - cpu_small) / (large - small), (wall_large - wall_small) / (
-            large - small)
-        rows.append((name, cpu_small - small * cpu_per_frame, cpu_per_frame, wall_small - small * wall_per_frame,
-                     wall_per_frame))
-    return rows
+    measured: dict[str, list] = {name: [] for name, _ in configurations}
+    for repeat in range(repeats):
+        for name, how in configurations:
+            costs = []
+            for frames in frame_counts:
+                out = scratch / f"{name.split(',')[0].replace(' ', '_')}{frames}-{repeat}"
+                cpu, start = cpu_seconds(), time.perf_counter()
+                render_dataset(scene_dir, out, RenderOptions(**options, frames=frames, **how),
+                               command_line=["bench"], progress=False)
+                costs.append((cpu_seconds() - cpu, time.perf_counter() - start))
+            (cpu_small, wall_small), (cpu_large, wall_large) = costs
+            cpu_per_frame = (cpu_large - cpu_small) / (large - small)
+            wall_per_frame = (wall_large - wall_small) / (large - small)
+            measured[name].append((cpu_small - small * cpu_per_frame, cpu_per_frame,
+                                   wall_small - small * wall_per_frame, wall_per_frame))
+    return [(name, *np.median(rows, axis=0)) for name, rows in measured.items()]
 
 
 def bytes_per_frame(dataset: Path, frames: int) -> float:
@@ -164,6 +166,7 @@ def main() -> int:
     parser.add_argument("--width", type=int, default=640)
     parser.add_argument("--height", type=int, default=360)
     parser.add_argument("--workers", type=int, default=2, help="processes of the pool and of local:J")
+    parser.add_argument("--repeats", type=int, default=3, help="measurements of each configuration (median)")
     parser.add_argument("--tasks", type=int, default=5000, help="tiny tasks for the scheduler's throughput")
     parser.add_argument("--views", type=int, default=16, help="depth maps in the reconstruction part")
     parser.add_argument("--cores", type=int, default=32, help="cores per machine in the table")
@@ -173,8 +176,8 @@ def main() -> int:
     options = dict(width=args.width, height=args.height, seed=1)
     scratch = Path(tempfile.mkdtemp(prefix="bench_dask_"))
     try:
-        runs = compare_runs(scene_dir, options, args.workers, tuple(args.frames), scratch)
-        frame_bytes = bytes_per_frame(scratch / f"built-in_pool{args.frames[1]}", args.frames[1])
+        runs = compare_runs(scene_dir, options, args.workers, tuple(args.frames), args.repeats, scratch)
+        frame_bytes = bytes_per_frame(scratch / f"built-in_pool{args.frames[1]}-0", args.frames[1])
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     rate = tasks_per_second(args.tasks, args.workers)
@@ -182,7 +185,7 @@ def main() -> int:
     cpus = default_workers()
     pool_cpu, pool_wall = runs[0][2], runs[0][4]
     print(f"demo world, {args.width}x{args.height} stereo with depth + disparity, {args.frames[0]} and "
-          f"{args.frames[1]} frames, {args.workers} processes on {cpus} CPUs")
+          f"{args.frames[1]} frames, median of {args.repeats}, {args.workers} processes on {cpus} CPUs")
     print(f"{'run':<32} {'CPU s/frame':>11} {'overhead':>9} {'fixed CPU s':>11} {'wall s/frame':>12} {'overhead':>9} "
           f"{'fixed wall s':>12}")
     for name, cpu_fixed, cpu_per_frame, wall_fixed, wall_per_frame in runs:
