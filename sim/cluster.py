@@ -155,7 +155,7 @@ def connect(scheduler: Scheduler) -> Iterator:
         with distributed.Client(scheduler.address) as client:
             yield client
         return
-    with _environment_kept(), dask.config.set(WORKER_CONFIG), distributed.LocalCluster(
+    with environment_kept(), dask.config.set(WORKER_CONFIG), distributed.LocalCluster(
             n_workers=scheduler.local_workers, threads_per_worker=THREADS_PER_WORKER, processes=True,
             dashboard_address=":0") as cluster:
         with distributed.Client(cluster) as client:
@@ -163,7 +163,7 @@ def connect(scheduler: Scheduler) -> Iterator:
 
 
 @contextlib.contextmanager
-def _environment_kept() -> Iterator[None]:
+def environment_kept() -> Iterator[None]:
     """Restore ``os.environ`` afterwards: a Dask nanny sets its workers' variables in its own process too (and
     ``local:N`` runs the nannies here), which would reach every process this one starts later."""
     saved = dict(os.environ)

@@ -200,8 +200,9 @@ def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, 
     options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
     missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
     try:
+        how = f"--scheduler {options.scheduler}" if options.scheduler else f"--workers {options.workers}"
         require_memory(processes * renderer.memory_bytes(),
-                       f"rendering {options_size} at --spp {options.spp} with {processes} processes here")
+                       f"rendering {options_size} at --spp {options.spp} with {how}")
         require_disk(out_dir, missing * frame_disk_bytes(spec), f"{missing} frames of {options_size}")
     except BadInput as error:
         raise RenderInputError(str(error)) from None

@@ -6,7 +6,7 @@ Three parts, one run:
    (``--workers J``) and with ``--scheduler local:J``, each for two frame counts: the cost per frame and the
    fixed cost, in CPU seconds of all processes (robust to other jobs on the machine) and in wall seconds, and
    the cluster's overhead per frame in % (median of ``--repeats``).
-2. The scheduler's throughput: thousands of tasks that do nothing on a LocalCluster of J processes
+2. The scheduler's throughput: thousands of tasks that do nothing on ``local:J``
    (tasks/s, so per-task overhead = 1 / that).
 3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
    stage runs per view): ``--views`` synthetic 640x480 nadir photos of a textured plane, each view's depth from its
@@ -31,7 +31,6 @@ import tempfile
 import time
 from pathlib import Path
 
-import distributed
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -40,7 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
 
 from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
-from sim.cluster import batch_size  # noqa: E402
+from sim.cluster import Scheduler, batch_size, connect  # noqa: E402
 from sim.frame_renderer import RenderOptions  # noqa: E402
 from sim.raycast import default_workers  # noqa: E402
 from sim.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
@@ -99,9 +98,8 @@ def _nothing(index: int) -> int:
 
 
 def tasks_per_second(tasks: int, workers: int) -> float:
-    """Tasks that do nothing, submitted at once and gathered, per second of wall time on a LocalCluster."""
-    with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=":0") as cluster, \
-            distributed.Client(cluster) as client:
+    """Tasks that do nothing, submitted at once and gathered, per second of wall time on ``local:J``."""
+    with connect(Scheduler(local_workers=workers)) as client:
         client.gather(client.map(_nothing, range(100), pure=False))  # warm up (imports, connections)
         start = time.perf_counter()
         client.gather(client.map(_nothing, range(tasks), pure=False))
@@ -127,8 +125,7 @@ def depth_maps_here_and_on_cluster(count: int, workers: int) -> tuple[float, flo
     here = [view_depth(images, views, k) for k in range(count)]
     here_s = time.perf_counter() - start
     start = time.perf_counter()
-    with distributed.LocalCluster(n_workers=workers, threads_per_worker=1, dashboard_address=":0") as cluster, \
-            distributed.Client(cluster) as client:
+    with connect(Scheduler(local_workers=workers)) as client:
         client.run(importlib.import_module, "recon.dense")
         shared = client.scatter([images, views], broadcast=True)
         startup_s = time.perf_counter() - start

@@ -18,7 +18,7 @@ import pytest
 distributed = pytest.importorskip("distributed")
 
 from sim.cluster import (MAX_BATCH_FRAMES, TASKS_PER_WORKER, THREADS_PER_WORKER, Scheduler, batch_size, batches,
-                         parse_scheduler)
+                         environment_kept, parse_scheduler)
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.render_dataset import render_dataset
 
@@ -100,8 +100,9 @@ def _kill_a_busy_worker(client, out, pids: dict, killed: list) -> None:
 def test_a_worker_killed_mid_run_costs_only_its_tasks(scene_dir, tmp_path):
     expected = _single_machine(scene_dir, tmp_path / "here", KILL)
     out = tmp_path / "cluster"
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=THREADS_PER_WORKER, dashboard_address=":0") \
-            as cluster, distributed.Client(cluster) as client:
+    with environment_kept(), distributed.LocalCluster(n_workers=2, threads_per_worker=THREADS_PER_WORKER,
+                                                      dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client:
         pids = client.run(os.getpid)
         killed: list[int] = []
         killer = threading.Thread(target=_kill_a_busy_worker, args=(client, out, pids, killed))
