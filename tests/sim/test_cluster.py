@@ -7,9 +7,11 @@ run with that reason; a rerun resumes. Needs ``distributed`` (the ``dask`` and `
 
 from __future__ import annotations
 
+import importlib.abc
 import os
 import signal
 import socket
+import sys
 import threading
 import time
 
@@ -17,6 +19,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
+import sim
 from sim.cluster import (MAX_BATCH_FRAMES, TASKS_PER_WORKER, THREADS_PER_WORKER, Scheduler, batch_size, batches,
                          environment_kept, parse_scheduler)
 from sim.frame_renderer import RenderInputError, RenderOptions
@@ -55,6 +58,21 @@ def test_an_address_where_no_scheduler_listens_is_refused_before_any_file(scene_
     for address, reason in ((f"tcp://127.0.0.1:{port}", "no Dask scheduler answers"), ("tcp://127.0.0.1", "port")):
         with pytest.raises(RenderInputError, match=reason):
             render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler=address), progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_without_dask_installed_a_scheduler_is_refused_and_nothing_is_written(scene_dir, tmp_path, monkeypatch):
+    class NotInstalled(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "distributed":
+                raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+
+    monkeypatch.delitem(sys.modules, "distributed")
+    monkeypatch.delitem(sys.modules, "sim.cluster")
+    monkeypatch.delattr(sim, "cluster")
+    monkeypatch.setattr(sys, "meta_path", [NotInstalled(), *sys.meta_path])
+    with pytest.raises(RenderInputError, match=r"--scheduler needs Dask distributed: pip install 'aerostereo\[dask\]'"):
+        render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler="local:2"), progress=False)
     assert not (tmp_path / "out").exists()
 
 
