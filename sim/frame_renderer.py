@@ -75,7 +75,8 @@ class RenderOptions:
     """Settings of one dataset render (everything that decides the bytes, plus how to run it).
 
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
-    metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes.
+    metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes, or with
+    ``scheduler`` (``local:N`` or ``tcp://HOST:PORT``) tasks on a Dask cluster (sim/cluster.py).
     ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`).
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
     disparity can be written). ``width``/``height`` None: :data:`DEFAULT_SIZE`, except a replay of the scene's
@@ -101,6 +102,7 @@ class RenderOptions:
     seed: int = 0
     workers: int = 1
     shard: tuple[int, int] = (0, 1)
+    scheduler: str | None = None
     formats: Sequence[str] = DEFAULT_FORMATS
     trajectory: str = "orbit"
     altitude_m: float = 50.0

@@ -116,6 +116,10 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--spp", type=int, default=defaults.spp, help="samples per pixel (anti-aliasing)")
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=defaults.workers, help="render processes (each builds the scene once)")
+    add("--scheduler", default=defaults.scheduler,
+        help="render the frames as tasks on a Dask cluster: local:N (N worker processes started here) or "
+             "tcp://HOST:PORT of a running scheduler; every worker must see --scene and --out at the same path "
+             "(needs pip install 'aerostereo[dask]'; see docs/cluster.md)")
     add("--shard", type=_shard, default=defaults.shard,
         help="render only frames I, I+N, I+2N... (I/N; default 0/1: every frame)")
     add("--formats", type=_formats, default=None,
@@ -155,6 +159,7 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
     return RenderOptions(frames=args.frames, mode=args.mode, geotags=args.geotags, width=args.width,
                          height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
+                         scheduler=args.scheduler,
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
                          margin_m=args.margin, max_sky_fraction=args.max_sky, effects=effects_from_args(args),

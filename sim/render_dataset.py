@@ -15,6 +15,9 @@ The pipeline (what ``aerostereo-render`` runs):
 4. When every frame of the dataset exists it is finalized (``poses``, ``times.txt``, ``frames.jsonl``);
    otherwise the summary says how many frames other shards still have to render.
 
+With ``options.scheduler`` step 3 runs as tasks on a Dask cluster instead (sim/cluster.py): the same frames,
+written by the workers into the same folder, finalized here.
+
 Every file is written atomically and a frame counts as done only when its record exists, so a run
 killed at any moment and started again with the same arguments completes to the same bytes. Worker
 processes die with the run (Linux: ``PR_SET_PDEATHSIG``): killing the run stops every write. A run that
@@ -119,8 +122,8 @@ class Job:
     out_dir: Path
     options: RenderOptions
     spec: DatasetSpec
-    threads: int
-    parent_pid: int
+    threads: int | None  # casting threads per process (None: the cluster worker's own)
+    parent_pid: int | None = None  # the built-in pool's workers die with this process
 
 
 def is_demo_scene(scene: str | os.PathLike | None) -> bool:
@@ -173,6 +176,8 @@ def _check_options(options: RenderOptions) -> None:
     problems += _imu_problems(options)
     if options.mode == "trajectory" and (options.trajectory == "flight") != (options.mission is not None):
         problems.append("--trajectory flight needs --mission (a Litchi CSV), and --mission needs --trajectory flight")
+    if options.scheduler is not None and options.workers != 1:
+        problems.append("--workers and --scheduler exclude each other: --scheduler local:N starts N worker processes")
     if options.distortion is not None and needs_disparity(options.formats):
         problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
                         "when rendering with --distortion")
@@ -213,15 +218,33 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
                                 sampling=options.sampling_description(), command_line=list(command_line))
 
 
-def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range) -> None:
-    """Refuse (:class:`RenderInputError`) a run whose frames would not fit in memory or whose missing frames of
-    ``shard`` would not fit on the disk of ``out_dir``, before any file is written."""
+def _cluster_scheduler(options: RenderOptions):
+    """The parsed ``options.scheduler`` (:class:`sim.cluster.Scheduler`), or None to render on this machine."""
+    if options.scheduler is None:
+        return None
+    try:
+        from sim import cluster
+    except ImportError as error:
+        if not (error.name or "").startswith(("distributed", "dask")):
+            raise
+        raise RenderInputError("--scheduler needs Dask distributed: pip install 'aerostereo[dask]'") from None
+    scheduler = cluster.parse_scheduler(options.scheduler)
+    cluster.check_reachable(scheduler)
+    return scheduler
+
+
+def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range,
+                     processes: int) -> None:
+    """Refuse (:class:`RenderInputError`) a run whose ``processes`` renderers would not fit in this machine's
+    memory or whose missing frames of ``shard`` would not fit on the disk of ``out_dir``, before any file is
+    written."""
     options, camera = renderer.options, renderer.rig.cameras[0]
     options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
     missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
     try:
-        require_memory(options.workers * renderer.memory_bytes(),
-                       f"rendering {options_size} at --spp {options.spp} with --workers {options.workers}")
+        how = f"--scheduler {options.scheduler}" if options.scheduler else f"--workers {options.workers}"
+        require_memory(processes * renderer.memory_bytes(),
+                       f"rendering {options_size} at --spp {options.spp} with {how}")
         require_disk(out_dir, missing * frame_disk_bytes(spec), f"{missing} frames of {options_size}")
     except BadInput as error:
         raise RenderInputError(str(error)) from None
@@ -249,21 +272,30 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     out_dir = Path(out_dir)
     created = not out_dir.exists()
     scene_dir = resolve_scene_dir(scene)
-    workers = options.workers
-    threads = max(1, default_workers() // workers)  # casting threads per process
+    scheduler = _cluster_scheduler(options)
+    workers = options.workers if scheduler is None else scheduler.local_workers or 0  # processes here
+    threads = max(1, default_workers() // max(1, workers))  # casting threads per process
     renderer = FrameRenderer(scene_dir, options, threads)
     command_line = list(sys.argv if command_line is None else command_line)
     try:
         spec = dataset_spec(renderer, scene_dir, options, command_line)
         shard = shard_frames(spec.frame_count, *options.shard)
-        _check_resources(renderer, spec, out_dir, shard)
+        _check_resources(renderer, spec, out_dir, shard, workers)
         writer = _open_writer(out_dir, spec, overwrite)
         pending = writer.pending(shard)
         shard_size = len(shard)
         bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,
                    desc=f"rendering {out_dir.name}")
         with bar:
-            if workers == 1 or len(pending) <= 1:
+            if scheduler is not None and pending:
+                renderer.close()
+                from sim.cluster import render_on_cluster
+
+                job = Job(scene_dir, out_dir, options, spec, threads if scheduler.local_workers else None)
+                progress = _Progress(bar, start)
+                render_on_cluster(scheduler, job, pending, progress.frame_done)
+                stats = progress.stats
+            elif workers == 1 or len(pending) <= 1:
                 stats = _render_here(renderer, writer, pending, _Progress(bar, start))
             else:
                 renderer.close()  # the workers build their own; this one only checked the input

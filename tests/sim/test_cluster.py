@@ -1,0 +1,152 @@
+"""Rendering on a Dask cluster (sim/cluster.py) against the single-machine run of the same frames.
+
+A LocalCluster of 2 worker processes writes the same bytes as one process; so does a run whose worker is
+killed with SIGKILL in the middle (Dask reruns its tasks); a task that fails for a reason of its own stops the
+run with that reason; a rerun resumes. Needs ``distributed`` (the ``dask`` and ``test`` extras).
+"""
+
+from __future__ import annotations
+
+import importlib.abc
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+import sim
+from sim.cluster import (MAX_BATCH_FRAMES, TASKS_PER_WORKER, THREADS_PER_WORKER, Scheduler, batch_size, batches,
+                         environment_kept, parse_scheduler)
+from sim.frame_renderer import RenderInputError, RenderOptions
+from sim.render_dataset import render_dataset
+
+from render_scene_helpers import write_scene
+from dataset_helpers import dataset_bytes
+
+SMALL = dict(width=160, height=100, frames=8, seed=3)
+#: Frames big enough that a worker is caught in the middle of one (a few tenths of a second each).
+KILL = dict(width=480, height=300, frames=12, seed=4)
+
+
+@pytest.fixture(scope="module")
+def scene_dir(tmp_path_factory):
+    return write_scene(tmp_path_factory.mktemp("scene"))
+
+
+def _single_machine(scene_dir, out, settings) -> dict[str, bytes]:
+    render_dataset(scene_dir, out, RenderOptions(**settings), progress=False)
+    return dataset_bytes(out)
+
+
+def test_scheduler_text_is_local_n_or_an_address():
+    assert parse_scheduler("local:3") == Scheduler(local_workers=3)
+    assert parse_scheduler("tcp://10.0.0.5:8786") == Scheduler(address="tcp://10.0.0.5:8786")
+    for bad in ("local:0", "local:", "10.0.0.5:8786", "http://host:8786", "local:two"):
+        with pytest.raises(RenderInputError, match="--scheduler"):
+            parse_scheduler(bad)
+
+
+def test_an_address_where_no_scheduler_listens_is_refused_before_any_file(scene_dir, tmp_path):
+    with socket.socket() as probe:  # a loopback port that was free a moment ago
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    for address, reason in ((f"tcp://127.0.0.1:{port}", "no Dask scheduler answers"), ("tcp://127.0.0.1", "port")):
+        with pytest.raises(RenderInputError, match=reason):
+            render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler=address), progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_without_dask_installed_a_scheduler_is_refused_and_nothing_is_written(scene_dir, tmp_path, monkeypatch):
+    class NotInstalled(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "distributed":
+                raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+
+    monkeypatch.delitem(sys.modules, "distributed")
+    monkeypatch.delitem(sys.modules, "sim.cluster")
+    monkeypatch.delattr(sim, "cluster")
+    monkeypatch.setattr(sys, "meta_path", [NotInstalled(), *sys.meta_path])
+    with pytest.raises(RenderInputError, match=r"--scheduler needs Dask distributed: pip install 'aerostereo\[dask\]'"):
+        render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    assert not (tmp_path / "out").exists()
+
+
+def test_batches_cover_every_frame_once_in_order_and_stay_small():
+    pending = list(range(3, 1000, 3))
+    for workers in (1, 2, 7, 100):
+        size = batch_size(len(pending), workers)
+        cut = batches(pending, size)
+        assert [index for batch in cut for index in batch] == pending
+        assert max(map(len, cut)) == size <= MAX_BATCH_FRAMES
+        assert len(cut) >= min(len(pending), TASKS_PER_WORKER * workers) or size == MAX_BATCH_FRAMES
+    assert batch_size(5, 2) == 1 and batch_size(10**6, 10) == MAX_BATCH_FRAMES
+
+
+@pytest.mark.slow
+def test_local_cluster_writes_the_same_bytes_and_resumes(scene_dir, tmp_path):
+    expected = _single_machine(scene_dir, tmp_path / "here", SMALL)
+    out = tmp_path / "cluster"
+    summary = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    assert (summary.rendered, summary.finalized) == (SMALL["frames"], True)
+    assert sorted(s.index for s in summary.frames) == list(range(SMALL["frames"]))
+    assert dataset_bytes(out) == expected
+    (out / "sequences/00/frame_meta/000005.json").unlink()  # as if the run had stopped before frame 5's record
+    resumed = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    assert (resumed.rendered, resumed.skipped) == (1, SMALL["frames"] - 1)
+    assert dataset_bytes(out) == expected
+
+
+def _kill_a_busy_worker(client, out, pids: dict, killed: list) -> None:
+    """Once the first frame is on disk, SIGKILL a worker process that is running a task (records its pid and
+    the task's key)."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline and not any((out / "sequences/00/frame_meta").glob("*.json")):
+        time.sleep(0.01)
+    busy = [(address, keys[0]) for address, keys in client.processing().items() if keys]
+    if busy:
+        address, key = busy[0]
+        killed.append((pids[address], key))
+        os.kill(pids[address], signal.SIGKILL)
+
+
+@pytest.mark.slow
+def test_a_worker_killed_mid_run_costs_only_its_tasks(scene_dir, tmp_path):
+    expected = _single_machine(scene_dir, tmp_path / "here", KILL)
+    out = tmp_path / "cluster"
+    with environment_kept(), distributed.LocalCluster(n_workers=2, threads_per_worker=THREADS_PER_WORKER,
+                                                      dashboard_address=":0") as cluster, \
+            distributed.Client(cluster) as client:
+        pids = client.run(os.getpid)
+        killed: list[int] = []
+        killer = threading.Thread(target=_kill_a_busy_worker, args=(client, out, pids, killed))
+        killer.start()
+        summary = render_dataset(scene_dir, out, RenderOptions(**KILL, scheduler=cluster.scheduler_address),
+                                 progress=False)
+        killer.join()
+        assert killed, "no worker was running a task when the first frame was written"
+        pid, key = killed[0]
+        assert pid not in client.run(os.getpid).values()  # the nanny replaced the killed process
+        runs = [event for event in client.story(key) if event[0] == "scheduler" and event[3] == "processing"]
+        assert len(runs) == 2  # the killed worker's task ran again elsewhere, once
+    assert summary.finalized and summary.rendered == KILL["frames"]
+    assert dataset_bytes(out) == expected
+
+
+@pytest.mark.slow
+def test_a_task_failing_on_its_own_stops_the_run_with_its_reason(scene_dir, tmp_path):
+    expected = _single_machine(scene_dir, tmp_path / "here", SMALL)
+    out = tmp_path / "cluster"
+    blocker = out / "sequences/00/image_3/000004.png"
+    blocker.mkdir(parents=True)  # frame 4's right image cannot be written (as on a full or broken disk)
+    with pytest.raises(IsADirectoryError, match="000004"):  # the reason, from the worker that met it
+        render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    assert not (out / "sequences/00/frame_meta/000004.json").exists()
+    blocker.rmdir()
+    resumed = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    assert resumed.finalized and 4 in {s.index for s in resumed.frames}
+    assert dataset_bytes(out) == expected
