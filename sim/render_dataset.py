@@ -164,7 +164,7 @@ def _check_options(options: RenderOptions) -> None:
                         ("speed", options.speed_m_s), ("rate", options.frame_rate_hz)):
         if not 0 < value < math.inf:
             problems.append(f"{name} must be a positive finite number, got {value}")
-    if not 0 <= options.margin_m < math.inf:
+    if options.margin_m is not None and not 0 <= options.margin_m < math.inf:
         problems.append(f"margin must be a finite number >= 0, got {options.margin_m}")
     if not 0 <= options.max_sky_fraction <= 1:
         problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
