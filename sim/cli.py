@@ -44,7 +44,8 @@ def add_fly_parser(subparsers) -> None:
                     "with the seed (SEED, k): its own gusts, sensor errors and GPS fix offset.")
     parser.add_argument("--mission", required=True, type=Path, action="append",
                         help="Litchi Mission Hub CSV; repeat it for each flight of an area plan")
-    parser.add_argument("--scene", default="demo", help="scene folder, or 'demo' / 'demo:small' (default: demo)")
+    parser.add_argument("--scene", default="demo",
+                        help="scene folder, or 'demo' / 'demo:small' / 'demo:large' (default: demo)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     parser.add_argument("--photo-size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"),
                         help="render size in pixels (default 800 600; the Mini SE field of view is kept)")

@@ -77,7 +77,11 @@ class ViewFrustum:
         return None if reach is None else float(np.linalg.norm(reach, axis=1).max())
 
 
-def placement_area(area: tuple[float, float, float, float], reach: np.ndarray) -> tuple[float, float, float, float] | None:
+Area = tuple[float, float, float, float]
+"""An ENU rectangle ``(xmin, xmax, ymin, ymax)``, metres."""
+
+
+def placement_area(area: Area, reach: np.ndarray) -> Area | None:
     """The rectangle ``(xmin, xmax, ymin, ymax)`` of rig positions (ENU x, y) from which every point of ``reach``
     (offsets from the rig, :meth:`ViewFrustum.reach`) lies inside ``area``; None when there is none."""
     xmin, xmax, ymin, ymax = area
@@ -86,7 +90,7 @@ def placement_area(area: tuple[float, float, float, float], reach: np.ndarray) -
     return placed if placed[0] < placed[1] and placed[2] < placed[3] else None
 
 
-def sees_inside(area: tuple[float, float, float, float], xy, reach: np.ndarray | None) -> bool:
+def sees_inside(area: Area, xy, reach: np.ndarray | None) -> bool:
     """Whether a rig at ENU ``xy`` with view ``reach`` (None: the horizon) sees only inside ``area``."""
     if reach is None:
         return False

@@ -85,8 +85,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
                                "scene folder or the built-in demo world.")
     add = parser.add_argument
     defaults = RenderOptions()
-    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
-                                      "demo world (default: demo)")
+    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' / 'demo:large' "
+                                      "for the built-in demo world (default: demo)")
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one with the same settings "
                                                 "is resumed)")
     add("--overwrite", action="store_true",
@@ -171,7 +171,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
-                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin, max_sky_fraction=args.max_sky, effects=effects_from_args(args),
+                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin,
+                         max_sky_fraction=args.max_sky, effects=effects_from_args(args),
                          imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
 
 

@@ -68,7 +68,7 @@ def test_cli_flies_every_mission_into_its_own_folder(mission_csv, tmp_path, caps
             "--start-utc", "2024-05-01T10:00:00Z"]
     assert main(argv) == 0
     assert capsys.readouterr().out.count("GPS fix offset") == 2
-    truths = [json.loads((out / name / "truth.json").read_text(encoding="utf-8")) for name in ("flight_01", "flight_02")]
+    truths = [json.loads((out / f"flight_0{k}" / "truth.json").read_text(encoding="utf-8")) for k in (1, 2)]
     for number, truth in enumerate(truths, start=1):
         assert truth["seed"] == [5, number]
         assert truth["imperfections"] == Imperfections.area().to_dict()
