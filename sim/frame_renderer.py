@@ -65,6 +65,8 @@ SCENE_REPLAY_FORMATS = ("depth_exr",)
 #: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
+#: The trajectories kept inside the valid area less the margin (orbit and flight are placed by the user).
+MARGIN_PATHS = ("lawnmower", "loop")
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
 
@@ -138,8 +140,6 @@ class RenderOptions:
                        "sun_strength_to_intensity": SUN_STRENGTH_TO_INTENSITY}
         if self.mode == "random":
             description["random"] = asdict(self.random_settings())
-        if self.margin_m is None and self.mode in ("random", "trajectory"):
-            description["margin"] = "frustum: every ray of every frame stays inside the valid area (sim/frustum.py)"
         elif self.mode == "trajectory":
             description["trajectory"] = {"path": self.trajectory, "altitude_m": self.altitude_m,
                                          "speed_m_s": self.speed_m_s, "frame_rate_hz": self.frame_rate_hz}
@@ -153,6 +153,11 @@ class RenderOptions:
             description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
             description["geotags"] = Path(self.geotags).name
+        inside_margin = self.mode == "random" or (self.mode == "trajectory" and self.trajectory in MARGIN_PATHS)
+        if inside_margin and self.margin_m is None:
+            description["margin"] = "frustum: every ray of every frame stays inside the valid area (sim/frustum.py)"
+        elif inside_margin and self.mode == "trajectory":
+            description["trajectory"]["margin_m"] = self.margin_m
         if self.effects.enabled:
             description["effects"] = self.effects.description()
         return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
@@ -176,6 +181,7 @@ class SceneGround:
         self.scene = scene
         self.valid_area = scene.valid_area
         self.z_range = (float(scene.bounds[0, 2]), float(scene.bounds[1, 2]))
+        self.covered_polygon = None if scene.observed_area_m is None else np.asarray(scene.observed_area_m, float)
 
     def ground_height(self, x, y):
         return np.nan_to_num(self.scene.ground_height(x, y), nan=float(self.scene.bounds[0, 2]))

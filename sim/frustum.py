@@ -6,7 +6,8 @@ horizontal plane of that lowest surface at the horizontal distance ``D * tan(the
 that plane, so the ray hits the scene no farther out. The rays along the image borders bound the view (the
 frustum is a convex cone: a ray inside it is a positive mix of border rays), so when every border ray goes down
 and the cameras and these plane crossings all lie inside a convex covered area (a rectangle), every pixel of the
-frame sees the scene inside that area: nothing beyond its edge, and no sky.
+frame sees the scene inside that area: nothing beyond its edge, and no sky. A reconstruction's covered area is the
+convex ``observed_area_m`` polygon of its scene.json within its valid rectangle.
 
 The margin this needs in a direction is ``D * tan(theta)`` of the border ray reaching farthest that way; its bound
 over all headings is ``D * tan(tilt + half-diagonal field of view)``, and none exists once ``tilt + half-diagonal
@@ -90,11 +91,29 @@ def placement_area(area: Area, reach: np.ndarray) -> Area | None:
     return placed if placed[0] < placed[1] and placed[2] < placed[3] else None
 
 
-def sees_inside(area: Area, xy, reach: np.ndarray | None) -> bool:
-    """Whether a rig at ENU ``xy`` with view ``reach`` (None: the horizon) sees only inside ``area``."""
+def bounding_area(area: Area, polygon: np.ndarray | None) -> Area:
+    """The part of the rectangle ``area`` inside the bounding box of ``polygon`` ((K, 2) ENU metres; None: all)."""
+    if polygon is None:
+        return area
+    (pxmin, pymin), (pxmax, pymax) = polygon.min(axis=0), polygon.max(axis=0)
+    return max(area[0], pxmin), min(area[1], pxmax), max(area[2], pymin), min(area[3], pymax)
+
+
+def inside_convex(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Which ``points`` (N, 2) lie inside (or on) the convex ``polygon`` (K, 2), either orientation (ENU metres)."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    rel = points[:, None, :] - polygon[None]
+    cross = edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0]
+    doubled_area = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
+    return np.all(np.sign(doubled_area) * cross >= -1e-9, axis=1)
+
+
+def sees_inside(area: Area, xy, reach: np.ndarray | None, polygon: np.ndarray | None = None) -> bool:
+    """Whether a rig at ENU ``xy`` with view ``reach`` (None: the horizon) sees only inside ``area`` and, if
+    given, the convex ``polygon`` (K, 2)."""
     if reach is None:
         return False
     points = np.asarray(xy, float)[:2] + reach
     xmin, xmax, ymin, ymax = area
-    return bool(np.all((points[:, 0] >= xmin) & (points[:, 0] <= xmax) & (points[:, 1] >= ymin)
-                       & (points[:, 1] <= ymax)))
+    in_area = np.all((points[:, 0] >= xmin) & (points[:, 0] <= xmax) & (points[:, 1] >= ymin) & (points[:, 1] <= ymax))
+    return bool(in_area and (polygon is None or np.all(inside_convex(polygon, points))))

@@ -35,7 +35,7 @@ from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from flightplan.jsonfile import read_json
 from sim.camera import pose_from_position
-from sim.frustum import ViewFrustum, placement_area, sees_inside
+from sim.frustum import ViewFrustum, bounding_area, placement_area, sees_inside
 from sim.scene_cameras import SceneCamera
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4  # RENDER: anti-aliasing jitter
@@ -51,6 +51,7 @@ class GroundModel(Protocol):
 
     valid_area: tuple[float, float, float, float]
     z_range: tuple[float, float]  # lowest and highest ENU z of any surface (metres): the frustum margin's
+    covered_polygon: np.ndarray | None  # (K, 2) convex ENU polygon well covered within valid_area, or None
 
     def ground_height(self, x, y):
         """ENU z (metres) of the ground below ENU (x, y); vectorised over arrays."""
@@ -121,7 +122,8 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
     ``miss_fraction`` is a probe (e.g. a low-resolution ray cast) giving the fraction of a
     view's pixels that hit nothing; the number of redraws is recorded as ``rejected``.
     With a ``frustum`` (the rig's view, :mod:`sim.frustum`) the position is drawn, for the drawn height, tilts and
-    heading, among those from which the whole view stays inside the valid area (less ``margin_m``), and the pose
+    heading, among those from which the whole view stays inside the valid area (less ``margin_m``; and inside the
+    ground's ``covered_polygon`` when it has one: drawn in its bounding box, redrawn when outside), and the pose
     is redrawn when none exists (the view reaches the horizon) or when the scene under it lies higher than the
     height drawn assumed and the view then reaches past the area.
     """
@@ -133,13 +135,9 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
         tilt_x, tilt_y = (float(tilt) for tilt in rng.uniform(*settings.tilt_range_deg, size=2))
         heading = rng.uniform(*settings.heading_range_deg)
         rotation = camera_rotation(heading, tilt_x, tilt_y)
-        xmin, xmax, ymin, ymax = area if frustum is None else _placement(frustum, rotation, height, area)
-        if xmin is None:
-            continue
-        x, y = xmin + (xmax - xmin) * u_x, ymin + (ymax - ymin) * u_y
-        position = (x, y, float(np.asarray(ground.ground_height(x, y))) + height)
-        if frustum is not None and not sees_inside(area, position,
-                                                   frustum.reach(rotation, position[2] - ground.z_range[0])):
+        if frustum is None:
+            position = _above_ground(ground, area, (u_x, u_y), height)
+        elif (position := _position_seeing_inside(ground, frustum, rotation, height, area, (u_x, u_y))) is None:
             continue
         T = pose_from_position(position, rotation)
         if miss_fraction is None or miss_fraction(T) <= settings.max_miss_fraction:
@@ -151,13 +149,27 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
                        "fraction, or use a larger scene or a narrower field of view")
 
 
-def _placement(frustum: ViewFrustum, rotation: np.ndarray, height_m: float,
-               area: tuple[float, float, float, float]) -> tuple:
-    """Where a camera ``height_m`` above the ground with ``rotation`` may stand so that its view stays inside
-    ``area`` if the ground under it were the scene's lowest (the least it can reach); ``(None,) * 4`` if nowhere."""
+def _above_ground(ground: GroundModel, area: tuple[float, float, float, float], unit_xy: tuple[float, float],
+                  height_m: float) -> tuple[float, float, float]:
+    """The ENU position ``height_m`` above the ground at the fractions ``unit_xy`` (in [0, 1)) of the rectangle."""
+    xmin, xmax, ymin, ymax = area
+    x, y = xmin + (xmax - xmin) * unit_xy[0], ymin + (ymax - ymin) * unit_xy[1]
+    return x, y, float(np.asarray(ground.ground_height(x, y))) + height_m
+
+
+def _position_seeing_inside(ground: GroundModel, frustum: ViewFrustum, rotation: np.ndarray, height_m: float,
+                            area: tuple[float, float, float, float], unit_xy: tuple[float, float]):
+    """The position at ``unit_xy`` of the rectangle from which a camera ``height_m`` above the ground with
+    ``rotation`` would see only ``area`` (and the ground's covered polygon) were the ground under it the scene's
+    lowest surface (the least it can reach); None when no such place exists, or when from there, over the true
+    ground, its view reaches past."""
     reach = frustum.reach(rotation, height_m)
-    placed = None if reach is None else placement_area(area, reach)
-    return (None,) * 4 if placed is None else placed
+    placed = None if reach is None else placement_area(bounding_area(area, ground.covered_polygon), reach)
+    if placed is None:
+        return None
+    position = _above_ground(ground, placed, unit_xy, height_m)
+    seen = frustum.reach(rotation, position[2] - ground.z_range[0])
+    return position if sees_inside(area, position, seen, ground.covered_polygon) else None
 
 
 def frustum_margin(ground: GroundModel, frustum: ViewFrustum, tilt_deg: float, height_m: float) -> float:
