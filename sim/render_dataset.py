@@ -102,7 +102,7 @@ class RenderSummary:
         lines = [f"{self.out_dir}: rendered {self.rendered} frames in {self.elapsed_s:.1f} s "
                  f"({self.frames_per_second:.2f} frames/s), "
                  f"{self.skipped} already complete",
-                 f"sky/miss probe rejected {self.rejected_poses} sampled poses"]
+                 f"redrew {self.rejected_poses} sampled poses (sky/miss probe, or a view past the valid area)"]
         if self.finalized:
             lines.append(f"finalized: {self.frame_count} frames (poses, times.txt, frames.jsonl written)")
         else:
