@@ -19,7 +19,8 @@ from capture.track import parse_utc
 from flightplan.argtypes import finite_number
 from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
 from sim import render_cli
-from sim.drone.session import BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, run_flights, run_session
+from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
+                               run_session)
 from sim.evaluate_cli import add_evaluate_parser
 from sim.export_cli import add_export_parser
 from sim.render_cli import PROG, add_compare_parser
@@ -138,7 +139,7 @@ def run_fly(args) -> int:
         print_flight(run_session(args.mission[0], scene, args.out, options), args.mission[0], scene.source, args.out)
         return 0
     for number, report in enumerate(run_flights(args.mission, scene, args.out, options), start=1):
-        print_flight(report, args.mission[number - 1], scene.source, args.out / f"flight_{number:02d}")
+        print_flight(report, args.mission[number - 1], scene.source, flight_folder(args.out, number))
     return 0
 
 
