@@ -19,7 +19,8 @@ from capture.track import parse_utc
 from flightplan.argtypes import finite_number
 from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
 from sim import render_cli
-from sim.drone.session import LINKS, NOISE, FlyOptions, run_session
+from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
+                               run_session)
 from sim.evaluate_cli import add_evaluate_parser
 from sim.export_cli import add_export_parser
 from sim.render_cli import PROG, add_compare_parser
@@ -39,9 +40,13 @@ def add_fly_parser(subparsers) -> None:
     parser = subparsers.add_parser(
         "fly", help="fly a Litchi mission over a scene: DJI photos, DUML telemetry, ground truth",
         description="Fly a Litchi mission CSV with the virtual drone: writes OUT/photos/DJI_*.JPG (EXIF + DJI XMP), "
-                    "OUT/flight.duml (+ .idx, the telemetry as received) and OUT/truth.json + truth.csv.")
-    parser.add_argument("--mission", required=True, type=Path, help="Litchi Mission Hub CSV")
-    parser.add_argument("--scene", default="demo", help="scene folder, or 'demo' / 'demo:small' (default: demo)")
+                    "OUT/flight.duml (+ .idx, the telemetry as received) and OUT/truth.json + truth.csv. Several "
+                    "--mission (the flights of an area plan) are flown in order, flight k into OUT/flight_0k/, each "
+                    "with the seed (SEED, k): its own gusts, sensor errors and GPS fix offset.")
+    parser.add_argument("--mission", required=True, type=Path, action="append",
+                        help="Litchi Mission Hub CSV; repeat it for each flight of an area plan")
+    parser.add_argument("--scene", default="demo",
+                        help="scene folder, or 'demo' / 'demo:small' / 'demo:large' (default: demo)")
     parser.add_argument("--out", required=True, type=Path, help="output folder")
     parser.add_argument("--photo-size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"),
                         help="render size in pixels (default 800 600; the Mini SE field of view is kept)")
@@ -51,9 +56,13 @@ def add_fly_parser(subparsers) -> None:
     parser.add_argument("--port", help="for --link tcp: socket://HOST:PORT to stream to")
     parser.add_argument("--speedup", type=float, default=1.0,
                         help="pace live links this many times faster than real time (default 1)")
-    parser.add_argument("--noise", choices=sorted(NOISE), default="realistic", help="imperfections (default realistic)")
+    parser.add_argument("--noise", choices=sorted(NOISE), help="imperfections (default: realistic for one --mission; "
+                                                                  "area, realistic + a GPS fix offset per flight, "
+                                                                  "for several)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now)")
+    parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now); with several "
+                                                           "--mission, of the first flight, the next ones taking off "
+                                                           f"{BATTERY_SWAP_S:.0f} s after the previous landed")
     parser.add_argument("--photos", type=int, dest="photo_limit", help="render only the first N photos")
     parser.add_argument("--logs", action="store_true", help="also write flight_log.csv (Litchi) and flight.srt")
     parser.add_argument("--geoid-undulation", type=finite_number, default=0.0, metavar="N",
@@ -107,26 +116,39 @@ def refuse_clobbering_fly(args) -> None:
     inputs = {"--mission": args.mission, "--scene": folder_inputs(scene)}
     refuse_clobbering(inputs, {"--out": args.out})
     out = args.out.resolve()
-    for name, path in (("--mission", args.mission), ("--scene", scene)):
+    for name, path in [*(("--mission", mission) for mission in args.mission), ("--scene", scene)]:
         if path is not None and out in path.resolve().parents:
             raise BadInput(f"--out {args.out}: holds {name} {path}, which the flight's outputs could overwrite; "
                            "choose an --out folder outside it")
 
 
 def run_fly(args) -> int:
-    if problem := path_problem(args.mission, folder=False):
-        raise BadInput(f"{args.mission}: {problem}; expected a Litchi mission CSV")
+    for mission in args.mission:
+        if problem := path_problem(mission, folder=False):
+            raise BadInput(f"{mission}: {problem}; expected a Litchi mission CSV")
     if args.photo_limit is not None and args.photo_limit < 0:
         raise BadInput(f"--photos {args.photo_limit}: expected a count >= 0")
     refuse_clobbering_fly(args)
+    several = len(args.mission) > 1
+    noise = args.noise or ("area" if several else "realistic")
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
-                         imperfections=NOISE[args.noise](), seed=args.seed, start_utc=args.start_utc,
+                         imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation)
     scene = load_scene(resolve_scene_dir(args.scene))
-    report = run_session(args.mission, scene, args.out, options)
-    flight, photos = report.mission.flight, report.mission.photos
-    print(f"flew {args.mission} over {scene.source}: {flight.duration_s:.1f} s from {report.start_utc.isoformat()}")
-    print(f"telemetry: {report.frames} DUML frames, {report.bytes_sent} bytes -> {args.out / 'flight.duml'} (+ .idx)")
-    print(f"photos: {report.rendered.photos} of {int(photos.taken.sum())} taken ({len(photos.t_s)} scheduled) "
-          f"-> {args.out / 'photos'}; truth -> {args.out / 'truth.json'}, {args.out / 'truth.csv'}")
+    if not several:
+        print_flight(run_session(args.mission[0], scene, args.out, options), args.mission[0], scene.source, args.out)
+        return 0
+    for number, report in enumerate(run_flights(args.mission, scene, args.out, options), start=1):
+        print_flight(report, args.mission[number - 1], scene.source, flight_folder(args.out, number))
     return 0
+
+
+def print_flight(report: FlyReport, mission: Path, scene_source, out: Path) -> None:
+    """The summary of one flight on stdout: duration, telemetry, photos, where each went."""
+    flight, photos = report.mission.flight, report.mission.photos
+    bias = ", ".join(f"{v:+.2f}" for v in report.mission.sensors.gps_fix_bias_enu_m)
+    print(f"flew {mission} over {scene_source}: {flight.duration_s:.1f} s from {report.start_utc.isoformat()}, "
+          f"GPS fix offset ENU ({bias}) m")
+    print(f"telemetry: {report.frames} DUML frames, {report.bytes_sent} bytes -> {out / 'flight.duml'} (+ .idx)")
+    print(f"photos: {report.rendered.photos} of {int(photos.taken.sum())} taken ({len(photos.t_s)} scheduled) "
+          f"-> {out / 'photos'}; truth -> {out / 'truth.json'}, {out / 'truth.csv'}")

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from sim.camera import PinholeCamera, Rig
+from sim.frustum import ViewFrustum
 from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
@@ -36,12 +37,14 @@ from sim.drone.session import fly_litchi_mission
 from sim.motion.trajectory import flight_path, smooth_path
 from sim.sampling import (
     IMU_STREAM,
+    RANDOM_LOOP_TILT_DEG,
     RENDER_STREAM,
     PoseSample,
     RandomPoseSettings,
     SunSample,
     Trajectory,
     frame_rng,
+    frustum_margin,
     lawnmower,
     orbit,
     random_loop,
@@ -62,6 +65,8 @@ SCENE_REPLAY_FORMATS = ("depth_exr",)
 #: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
+#: The trajectories kept inside the valid area less the margin (orbit and flight are placed by the user).
+MARGIN_PATHS = ("lawnmower", "loop")
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
 
@@ -77,7 +82,9 @@ class RenderOptions:
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes, or with
     ``scheduler`` (``local:N`` or ``tcp://HOST:PORT``) tasks on a Dask cluster (sim/cluster.py).
-    ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`).
+    ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`);
+    ``margin_m`` None (the default) derives the margin from the rig's view frustum (:mod:`sim.frustum`): random
+    poses and the lawnmower and random-loop paths then keep every ray of every frame inside the valid area.
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
     disparity can be written). ``width``/``height`` None: :data:`DEFAULT_SIZE`, except a replay of the scene's
     cameras (replay without ``geotags``), which renders each photo's own lens at its own size, or at ``width``
@@ -109,7 +116,7 @@ class RenderOptions:
     speed_m_s: float = 5.0
     frame_rate_hz: float = 10.0
     distortion: tuple[float, ...] | None = None
-    margin_m: float = 20.0
+    margin_m: float | None = None
     max_sky_fraction: float = 0.02
     imu_rate_hz: float | None = None
     mission: Path | None = None
@@ -127,7 +134,7 @@ class RenderOptions:
 
     def random_settings(self) -> RandomPoseSettings:
         """The paper's ranges with this run's margin and sky limit."""
-        return RandomPoseSettings(margin_m=self.margin_m, max_miss_fraction=self.max_sky_fraction)
+        return RandomPoseSettings(margin_m=self.margin_m or 0.0, max_miss_fraction=self.max_sky_fraction)
 
     def sampling_description(self) -> dict:
         """What ``dataset.json`` records about the sampling (settings that decide the bytes, no run details)."""
@@ -148,6 +155,11 @@ class RenderOptions:
             description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
             description["geotags"] = Path(self.geotags).name
+        inside_margin = self.mode == "random" or (self.mode == "trajectory" and self.trajectory in MARGIN_PATHS)
+        if inside_margin and self.margin_m is None:
+            description["margin"] = "frustum: every ray of every frame stays inside the valid area (sim/frustum.py)"
+        elif inside_margin and self.mode == "trajectory":
+            description["trajectory"]["margin_m"] = self.margin_m
         if self.effects.enabled:
             description["effects"] = self.effects.description()
         return json.loads(json.dumps(description))  # as read back from dataset.json (lists, not tuples)
@@ -170,6 +182,8 @@ class SceneGround:
     def __init__(self, scene: Scene):
         self.scene = scene
         self.valid_area = scene.valid_area
+        self.z_range = (float(scene.bounds[0, 2]), float(scene.bounds[1, 2]))
+        self.covered_polygon = None if scene.observed_area_m is None else np.asarray(scene.observed_area_m, float)
 
     def ground_height(self, x, y):
         return np.nan_to_num(self.scene.ground_height(x, y), nan=float(self.scene.bounds[0, 2]))
@@ -216,6 +230,7 @@ class PoseSource:
         self.ground = SceneGround(scene)
         self.replayed: list[PoseSample] | None = None
         self.path = None
+        self.frustum = ViewFrustum.of_rig(build_rig(options, left_camera)) if options.margin_m is None else None
         if options.mode == "random":
             self._probe = functools.partial(miss_fraction, scene, left_camera)
         elif options.mode == "trajectory":
@@ -254,8 +269,24 @@ class PoseSource:
             return orbit(self.ground, centre, radius, o.altitude_m, o.speed_m_s, o.frame_rate_hz)
         if o.trajectory == "lawnmower":
             spacing = min(40.0, 0.25 * (ymax - ymin))
-            return lawnmower(self.ground, spacing, o.altitude_m, o.speed_m_s, o.frame_rate_hz)
-        return random_loop(self.ground, o.seed, o.altitude_m, o.speed_m_s, o.frame_rate_hz)
+            return lawnmower(self.ground, spacing, o.altitude_m, o.speed_m_s, o.frame_rate_hz,
+                             margin_m=self._path_margin(0.0))
+        return random_loop(self.ground, o.seed, o.altitude_m, o.speed_m_s, o.frame_rate_hz,
+                           margin_m=self._path_margin(RANDOM_LOOP_TILT_DEG))
+
+    def _path_margin(self, tilt_deg: float) -> float:
+        """The margin of a path flown at the options' altitude with the camera ``tilt_deg`` from nadir: the
+        fixed one, or the frustum's (:func:`~sim.sampling.frustum_margin`)."""
+        if self.frustum is None:
+            return self.options.margin_m
+        margin = frustum_margin(self.ground, self.frustum, tilt_deg, self.options.altitude_m)
+        xmin, xmax, ymin, ymax = self.ground.valid_area
+        if 2 * margin >= min(xmax - xmin, ymax - ymin):
+            raise RenderInputError(f"{self.ground.scene.source}: the {self.options.trajectory} path's views reach "
+                                   f"{margin:.0f} m across the ground at {self.options.altitude_m:g} m, more than half "
+                                   f"the valid area {self.ground.valid_area}: lower --altitude, narrow --fov, or give "
+                                   "a fixed --margin (frames will then see past the area)")
+        return margin
 
     def _frame_count(self) -> int:
         requested = self.options.frames
@@ -282,7 +313,8 @@ class PoseSource:
         if self.path is not None:
             return self.path.pose(self.ground, index)
         try:
-            return random_pose(self.ground, self.options.seed, index, self.options.random_settings(), self._probe)
+            return random_pose(self.ground, self.options.seed, index, self.options.random_settings(), self._probe,
+                               self.frustum)
         except (RuntimeError, ValueError) as error:  # too much sky from every pose drawn, or margin too wide
             raise RenderInputError(f"{self.ground.scene.source}: {error}") from None
 

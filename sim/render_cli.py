@@ -27,6 +27,19 @@ from sim.render_dataset import is_demo_scene, render_dataset
 PROG = "aerostereo-render"
 
 
+FRUSTUM_MARGIN = "frustum"
+
+
+def margin_value(text: str) -> float | str:
+    """``--margin``: metres (a number), or ``frustum`` (derived from each view, :mod:`sim.frustum`)."""
+    if text == FRUSTUM_MARGIN:
+        return text
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected metres or '{FRUSTUM_MARGIN}', got {text!r}") from None
+
+
 def _shard(text: str) -> tuple[int, int]:
     try:
         return parse_shard(text)
@@ -72,8 +85,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
                                "scene folder or the built-in demo world.")
     add = parser.add_argument
     defaults = RenderOptions()
-    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' for the built-in "
-                                      "demo world (default: demo)")
+    add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' / 'demo:large' "
+                                      "for the built-in demo world (default: demo)")
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one with the same settings "
                                                 "is resumed)")
     add("--overwrite", action="store_true",
@@ -85,8 +98,9 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
              "(cameras.json, unlit, each photo's lens), or with --geotags the geotagged poses")
     add("--geotags", type=Path, default=defaults.geotags,
         help="replay: geotags.csv (with geotags.json beside it) instead of the scene's cameras")
-    add("--margin", type=float, default=defaults.margin_m,
-        help="random mode: keep cameras this far inside the valid area, metres")
+    add("--margin", type=margin_value, default=FRUSTUM_MARGIN,
+        help="random mode, lawnmower and random-loop paths: keep cameras this far inside the valid area, metres; "
+             f"'{FRUSTUM_MARGIN}': as far as each view reaches across the ground, so no frame sees past the area")
     add("--max-sky", type=float, default=defaults.max_sky_fraction,
         help="random mode: redraw a pose whose view has more sky/miss than this")
     add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory,
@@ -162,7 +176,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                          scheduler=args.scheduler,
                          formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
                          speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
-                         margin_m=args.margin, max_sky_fraction=args.max_sky, effects=effects_from_args(args),
+                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin,
+                         max_sky_fraction=args.max_sky, effects=effects_from_args(args),
                          imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
 
 

@@ -105,7 +105,7 @@ class RenderSummary:
         lines = [f"{self.out_dir}: rendered {self.rendered} frames in {self.elapsed_s:.1f} s "
                  f"({self.frames_per_second:.2f} frames/s), "
                  f"{self.skipped} already complete",
-                 f"sky/miss probe rejected {self.rejected_poses} sampled poses"]
+                 f"redrew {self.rejected_poses} sampled poses (sky/miss probe, or a view past the valid area)"]
         if self.finalized:
             lines.append(f"finalized: {self.frame_count} frames (poses, times.txt, frames.jsonl written)")
         else:
@@ -167,7 +167,7 @@ def _check_options(options: RenderOptions) -> None:
                         ("speed", options.speed_m_s), ("rate", options.frame_rate_hz)):
         if not 0 < value < math.inf:
             problems.append(f"{name} must be a positive finite number, got {value}")
-    if not 0 <= options.margin_m < math.inf:
+    if options.margin_m is not None and not 0 <= options.margin_m < math.inf:
         problems.append(f"margin must be a finite number >= 0, got {options.margin_m}")
     if not 0 <= options.max_sky_fraction <= 1:
         problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")

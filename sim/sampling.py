@@ -13,7 +13,8 @@ rotates about the camera x axis (positive tilts the view forward, towards the im
 ``tilt_y_deg`` about the camera y axis (positive tilts the view towards the image right).
 
 The scene is seen through :class:`GroundModel`: ``ground_height(x, y)`` (vectorised, ENU metres)
-and ``valid_area`` ``(xmin, xmax, ymin, ymax)`` where the scene has real content.
+and ``valid_area`` ``(xmin, xmax, ymin, ymax)`` where the scene has real content, and for a margin derived from
+the view frustum (:mod:`sim.frustum`) ``z_range``, the lowest and highest surface ENU z.
 """
 
 from __future__ import annotations
@@ -34,18 +35,23 @@ from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from flightplan.jsonfile import read_json
 from sim.camera import pose_from_position
+from sim.frustum import ViewFrustum, bounding_area, placement_area, sees_inside
 from sim.scene_cameras import SceneCamera
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4  # RENDER: anti-aliasing jitter
 #: The nadir camera at heading 0: x east, y south (image top = north), z down.
 R_WORLD_NADIR = np.array([[1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]])
 PATH_STEP_M = 0.25
+#: The random loop's forward camera tilt from nadir (degrees).
+RANDOM_LOOP_TILT_DEG = 20.0
 
 
 class GroundModel(Protocol):
     """What the samplers need of a scene."""
 
     valid_area: tuple[float, float, float, float]
+    z_range: tuple[float, float]  # lowest and highest ENU z of any surface (metres): the frustum margin's
+    covered_polygon: np.ndarray | None  # (K, 2) convex ENU polygon well covered within valid_area, or None
 
     def ground_height(self, x, y):
         """ENU z (metres) of the ground below ENU (x, y); vectorised over arrays."""
@@ -109,26 +115,74 @@ class RandomPoseSettings:
 
 
 def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPoseSettings = RandomPoseSettings(),
-                miss_fraction: Callable[[np.ndarray], float] | None = None) -> PoseSample:
+                miss_fraction: Callable[[np.ndarray], float] | None = None,
+                frustum: ViewFrustum | None = None) -> PoseSample:
     """Draw a pose as the paper does; redraw while ``miss_fraction(T_world_cam)`` exceeds the setting.
 
     ``miss_fraction`` is a probe (e.g. a low-resolution ray cast) giving the fraction of a
     view's pixels that hit nothing; the number of redraws is recorded as ``rejected``.
+    With a ``frustum`` (the rig's view, :mod:`sim.frustum`) the position is drawn, for the drawn height, tilts and
+    heading, among those from which the whole view stays inside the valid area (less ``margin_m``; and inside the
+    ground's ``covered_polygon`` when it has one: drawn in its bounding box, redrawn when outside), and the pose
+    is redrawn when none exists (the view reaches the horizon) or when the scene under it lies higher than the
+    height drawn assumed and the view then reaches past the area.
     """
     rng = frame_rng(seed, index, POSE_STREAM)
-    xmin, xmax, ymin, ymax = _inner_area(ground, settings.margin_m)
+    area = _inner_area(ground, settings.margin_m)
     for attempt in range(settings.max_attempts):
-        x, y = rng.uniform(xmin, xmax), rng.uniform(ymin, ymax)
+        u_x, u_y = rng.random(), rng.random()  # what rng.uniform(min, max) scales: min + (max - min) * u
         height = rng.uniform(*settings.height_range_m)
         tilt_x, tilt_y = (float(tilt) for tilt in rng.uniform(*settings.tilt_range_deg, size=2))
         heading = rng.uniform(*settings.heading_range_deg)
-        position = (x, y, float(np.asarray(ground.ground_height(x, y))) + height)
-        T = pose_from_position(position, camera_rotation(heading, tilt_x, tilt_y))
+        rotation = camera_rotation(heading, tilt_x, tilt_y)
+        if frustum is None:
+            position = _above_ground(ground, area, (u_x, u_y), height)
+        elif (position := _position_seeing_inside(ground, frustum, rotation, height, area, (u_x, u_y))) is None:
+            continue
+        T = pose_from_position(position, rotation)
         if miss_fraction is None or miss_fraction(T) <= settings.max_miss_fraction:
             details = {"mode": "random", "heading_deg": heading, "tilt_x_deg": tilt_x, "tilt_y_deg": tilt_y}
             return PoseSample(index, T, index / settings.frame_rate_hz, height, attempt, details)
-    raise RuntimeError(f"frame {index} (seed {seed}): no pose with at most {settings.max_miss_fraction:.0%} sky/miss "
-                       f"pixels in {settings.max_attempts} draws; raise the margin or the allowed miss fraction")
+    seeing = "seeing only the valid area and " if frustum is not None else ""
+    raise RuntimeError(f"frame {index} (seed {seed}): no pose {seeing}with at most {settings.max_miss_fraction:.0%} "
+                       f"sky/miss pixels in {settings.max_attempts} draws; raise the margin or the allowed miss "
+                       "fraction, or use a larger scene or a narrower field of view")
+
+
+def _above_ground(ground: GroundModel, area: tuple[float, float, float, float], unit_xy: tuple[float, float],
+                  height_m: float) -> tuple[float, float, float]:
+    """The ENU position ``height_m`` above the ground at the fractions ``unit_xy`` (in [0, 1)) of the rectangle."""
+    xmin, xmax, ymin, ymax = area
+    x, y = xmin + (xmax - xmin) * unit_xy[0], ymin + (ymax - ymin) * unit_xy[1]
+    return x, y, float(np.asarray(ground.ground_height(x, y))) + height_m
+
+
+def _position_seeing_inside(ground: GroundModel, frustum: ViewFrustum, rotation: np.ndarray, height_m: float,
+                            area: tuple[float, float, float, float], unit_xy: tuple[float, float]):
+    """The position at ``unit_xy`` of the rectangle from which a camera ``height_m`` above the ground with
+    ``rotation`` would see only ``area`` (and the ground's covered polygon) were the ground under it the scene's
+    lowest surface (the least it can reach); None when no such place exists, or when from there, over the true
+    ground, its view reaches past."""
+    reach = frustum.reach(rotation, height_m)
+    placed = None if reach is None else placement_area(bounding_area(area, ground.covered_polygon), reach)
+    if placed is None:
+        return None
+    position = _above_ground(ground, placed, unit_xy, height_m)
+    seen = frustum.reach(rotation, position[2] - ground.z_range[0])
+    return position if sees_inside(area, position, seen, ground.covered_polygon) else None
+
+
+def frustum_margin(ground: GroundModel, frustum: ViewFrustum, tilt_deg: float, height_m: float) -> float:
+    """The margin (metres) that keeps every frame of a path flown ``height_m`` above the ground with the camera
+    tilted ``tilt_deg`` forward inside the valid area, whatever its heading: the view's farthest reach from a
+    camera at ``height_m`` above the scene's highest surface down to its lowest. ``ValueError`` when the view
+    reaches the horizon."""
+    low, high = ground.z_range
+    radius = frustum.radius(camera_rotation(0.0, tilt_deg), height_m + high - low)
+    if radius is None:
+        raise ValueError(f"a camera tilted {tilt_deg:g} deg from nadir sees the horizon with this field of view: "
+                         "no margin keeps its frames inside the scene")
+    return radius
 
 
 # --- sun ---------------------------------------------------------------------------------------
@@ -283,7 +337,7 @@ def lawnmower(ground: GroundModel, spacing_m: float, height_m: float, speed_m_s:
 
 
 def random_loop(ground: GroundModel, seed: int, height_m: float, speed_m_s: float, frame_rate_hz: float,
-                control_points: int = 8, margin_m: float = 20.0, tilt_deg: float = 20.0) -> Trajectory:
+                control_points: int = 8, margin_m: float = 20.0, tilt_deg: float = RANDOM_LOOP_TILT_DEG) -> Trajectory:
     """A smooth random closed loop (periodic cubic spline through random points around the area's centre)."""
     rng = np.random.default_rng([seed, PATH_STREAM])
     xmin, xmax, ymin, ymax = _inner_area(ground, margin_m)

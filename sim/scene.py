@@ -78,6 +78,7 @@ class Scene:
     bounds: np.ndarray = field(init=False)
     embree: rtcore_scene.EmbreeScene = field(init=False, repr=False)
     device: rtcore.EmbreeDevice | None = field(default=None, repr=False)
+    observed_area_m: list | None = None  # scene.json's convex [[x, y], ...] ENU polygon of a reconstruction
 
     def __post_init__(self) -> None:
         self.vertices = np.asarray(self.vertices, dtype=np.float64)
@@ -175,6 +176,10 @@ def read_scene_json(scene_dir: Path) -> dict:
     area = meta.get("valid_area_m")
     if area is not None and not _is_rectangle(area):
         raise SceneError(f"{path}: \"valid_area_m\" must be {{xmin, xmax, ymin, ymax}} numbers with min < max, got {area!r}")
+    observed = meta.get("observed_area_m")
+    if observed is not None and not _is_polygon(observed):
+        raise SceneError(f"{path}: \"observed_area_m\" must be a list of at least 3 [x, y] number pairs, "
+                         f"got {observed!r}")
     if not isinstance(meta.get("mesh"), str):
         raise SceneError(f"{path}: \"mesh\" must name the mesh file")
     if not isinstance(meta.get("cameras", ""), str):
@@ -205,6 +210,13 @@ def _is_rectangle(area) -> bool:
     return area["xmin"] < area["xmax"] and area["ymin"] < area["ymax"]
 
 
+def _is_polygon(points) -> bool:
+    """True for a list of at least 3 ``[x, y]`` finite number pairs."""
+    return (isinstance(points, list) and len(points) >= 3
+            and all(isinstance(p, list) and len(p) == 2 and all(isinstance(c, (int, float)) for c in p)
+                    and all(np.isfinite(p)) for p in points))
+
+
 def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     """Load a scene folder (``scene.json`` + mesh) into a ray-castable :class:`Scene`.
 
@@ -214,7 +226,8 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     meta = read_scene_json(scene_dir)
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
-                 str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device)
+                 str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
+                 observed_area_m=meta.get("observed_area_m"))
 
 
 def read_scene_cameras(scene_dir: Path, meta: dict) -> tuple[SceneCamera, ...]:

@@ -1,10 +1,10 @@
-"""Benchmark the demo world: generation time, and for each mesh format its size, trimesh load time and texture error.
+"""Benchmark the demo world: generation time and peak memory, and for each mesh format its size, trimesh load time and texture error.
 
 Prints one table per variant. The chosen format (GLB with an embedded JPEG atlas) is the baseline of the load-time
 ratio; the texture error is the mean absolute 8-bit difference between the texture trimesh loads and the lossless
 atlas (so lossy compression shows up beside the time it saves).
 
-    .venv/bin/python tools/bench_worlds.py [--variants small default] [--seed 0]
+    .venv/bin/python tools/bench_worlds.py [--variants small default large] [--seed 0]
 """
 
 from __future__ import annotations
@@ -12,14 +12,17 @@ from __future__ import annotations
 import argparse
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 import numpy as np
 import trimesh
 from PIL import Image
 
-from sim.worlds.demo import encode_glb, generate_world
+from sim.scene import load_scene
+from sim.worlds.demo import build_demo_world, encode_glb, generate_world
 from sim.worlds.geometry import Part
+from sim.worlds.layout import VARIANTS
 
 
 def _trimesh_of(mesh: Part, atlas: np.ndarray) -> trimesh.Trimesh:
@@ -56,11 +59,14 @@ def _loaded_texture(loaded: trimesh.Trimesh) -> np.ndarray:
 
 
 def bench_variant(variant: str, seed: int) -> None:
+    tracemalloc.start()  # numpy reports its buffers to tracemalloc: the peak is the generator's memory
     start = time.perf_counter()
     _, mesh, atlas = generate_world(variant, seed)
     generate_s = time.perf_counter() - start
+    peak_mb = tracemalloc.get_traced_memory()[1] / 1e6
+    tracemalloc.stop()
     print(f"\nvariant {variant!r}, seed {seed}: {len(mesh.faces):,} triangles, {atlas.shape[1]}x{atlas.shape[0]} atlas,"
-          f" generated in {generate_s:.2f} s")
+          f" generated in {generate_s:.2f} s, peak memory {peak_mb:.0f} MB")
     print(f"{'format':<26}{'write s':>9}{'files MB':>10}{'load s':>8}{'load ratio':>12}{'texture MAE':>13}")
     baseline = None
     for name, write in FORMATS.items():
@@ -77,11 +83,16 @@ def bench_variant(variant: str, seed: int) -> None:
         baseline = baseline or load_s
         error = float(np.abs(texture - atlas.astype(np.int16)).mean())
         print(f"{name:<26}{write_s:>9.2f}{size_mb:>10.1f}{load_s:>8.2f}{load_s / baseline:>12.2f}{error:>13.2f}")
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = build_demo_world(tmp, variant, seed)
+        start = time.perf_counter()
+        load_scene(folder)
+        print(f"scene folder -> ray-castable Scene (sim.scene.load_scene, embree): {time.perf_counter() - start:.2f} s")
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--variants", nargs="+", default=["small", "default"], choices=["small", "default"])
+    parser.add_argument("--variants", nargs="+", default=["small", "default"], choices=sorted(VARIANTS))
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args(argv)
     for variant in args.variants:

@@ -6,7 +6,7 @@ defaults' sources and rationale.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -18,7 +18,9 @@ class Imperfections:
     """Sizes of the imperfections; units in the names. ``none()`` is a perfect flight, ``realistic()`` a calm day.
 
     GPS (horizontal, per axis): white noise + a Gauss-Markov bias (a random walk that forgets over
-    ``gps_bias_time_s``); the vertical GPS error (used only for the home point's height) is twice as large.
+    ``gps_bias_time_s``), plus a constant offset per flight (``gps_fix_bias_std_m``: each battery swap
+    re-acquires the fix, so each flight of an area plan carries its own); the vertical GPS error (used only for the
+    home point's height) is twice as large.
     Height above take-off is barometric: zero at take-off, then a Gauss-Markov drift + white noise.
     Wind: a steady wind the aircraft leans into, plus gusts that push the flown path off the plan.
     Camera: ``lens_distortion`` is the fraction of the camera profile's lens calibration (distortion and
@@ -30,6 +32,7 @@ class Imperfections:
     gps_noise_std_m: float = 0.0
     gps_bias_std_m: float = 0.0
     gps_bias_time_s: float = 120.0
+    gps_fix_bias_std_m: float = 0.0
     baro_bias_std_m: float = 0.0
     baro_bias_time_s: float = 300.0
     baro_noise_std_m: float = 0.0
@@ -98,6 +101,12 @@ class Imperfections:
             exposure_noise_std=0.03,
             white_balance_std=0.01,
         )
+
+    @classmethod
+    def area(cls) -> "Imperfections":
+        """``realistic()`` plus a constant GPS offset per flight (1 m per horizontal axis, 2 m vertical): the
+        flights of an area plan, each flown on a fresh battery with a freshly acquired fix."""
+        return replace(cls.realistic(), gps_fix_bias_std_m=1.0)
 
     def to_dict(self) -> dict:
         """JSON-ready parameters (written beside the ground truth)."""

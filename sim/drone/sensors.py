@@ -41,9 +41,12 @@ class Sensors:
         epochs = np.arange(0.0, flight.duration_s + 2.0 / rate_hz, 1.0 / rate_hz)
         vertical = np.array([1.0, 1.0, GPS_VERTICAL_FACTOR])
         gps_rng, baro_rng, white_rng = rng.spawn(3)
+        fix_rng, = rng.spawn(1)  # a fourth child: the three streams above draw what they drew before it existed
+        #: The flight's constant GPS offset (ENU metres, vertical twice the horizontal): this fix's error.
+        self.gps_fix_bias_enu_m = vertical * imp.gps_fix_bias_std_m * fix_rng.standard_normal(3)
         self.gps_error_enu_m = vertical * (
             gauss_markov(epochs, imp.gps_bias_std_m, imp.gps_bias_time_s, gps_rng, dims=3)
-            + imp.gps_noise_std_m * white_rng.standard_normal((len(epochs), 3)))
+            + imp.gps_noise_std_m * white_rng.standard_normal((len(epochs), 3))) + self.gps_fix_bias_enu_m
         self.baro_error_m = (gauss_markov(epochs, imp.baro_bias_std_m, imp.baro_bias_time_s, baro_rng,
                                           start_at_zero=True)[:, 0]
                              + imp.baro_noise_std_m * white_rng.standard_normal(len(epochs)))

@@ -17,7 +17,7 @@ from __future__ import annotations
 import datetime as dt
 import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import serial
@@ -40,26 +40,29 @@ from sim.render import render_memory_bytes
 from sim.scene import Scene
 
 LINKS = ("file", "loop", "tcp")
-NOISE = {"realistic": Imperfections.realistic, "none": Imperfections.none}
+NOISE = {"realistic": Imperfections.realistic, "area": Imperfections.area, "none": Imperfections.none}
 CAPTURE_NAME = "flight.duml"
 #: JPEG stores a photo's width and height in 16 bits.
 MAX_PHOTO_SIDE_PX = 65535
 #: How far past the flight's end its time stamps may reach (the camera clock's offset is seconds at most).
 TIME_LINE_SLACK_S = 86400.0
+#: Time on the ground between two flights of an area plan (land, swap the battery, re-acquire the fix, take off).
+BATTERY_SWAP_S = 300.0
 
 
 @dataclass(frozen=True)
 class FlyOptions:
     """How to fly: render size (px), link, port URL for ``tcp``, pacing speed-up, imperfections, seed, start, and
     ``geoid_undulation_m`` (N: the geoid's height above the WGS84 ellipsoid at the scene, metres) that turns the
-    flight's ellipsoidal heights into the heights above sea level the photos and logs carry (h - N)."""
+    flight's ellipsoidal heights into the heights above sea level the photos and logs carry (h - N). ``seed`` is
+    an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`)."""
 
     photo_size: tuple[int, int] = (800, 600)
     link: str = "file"
     port: str | None = None
     speedup: float = 1.0
     imperfections: Imperfections = field(default_factory=Imperfections.realistic)
-    seed: int = 0
+    seed: int | tuple[int, int] = 0
     start_utc: dt.datetime | None = None
     photo_limit: int | None = None
     logs: bool = False
@@ -89,7 +92,7 @@ class FlyReport:
     rendered: RenderedPhotos
 
 
-def fly_litchi_mission(mission_csv, scene: Scene, seed: int, imperfections: Imperfections) -> FlownMission:
+def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfections) -> FlownMission:
     """Fly the Litchi CSV over ``scene``, taking off below the first waypoint on the scene's ground."""
     waypoints = waypoints_from_litchi(read_mission_csv(mission_csv))
     first = waypoints[0]
@@ -175,6 +178,27 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
         "mission_csv": str(mission_csv), "scene": scene.source, "link": options.link,
         "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist(), "camera": camera_truth(camera),
         "geoid_undulation_m": options.geoid_undulation_m,
+        "gps_fix_bias_enu_m": mission.sensors.gps_fix_bias_enu_m.tolist(),
+        "gps_fix_bias_note": "the flight's constant GPS error (ENU m), part of every GPS fix: its fix offset",
         "height_note": "h_ellipsoid_m is above the WGS84 ellipsoid; photos and logs carry h_ellipsoid_m - "
                        "geoid_undulation_m as the height above sea level"})
     return FlyReport(mission, clock.start_utc, len(frames), sent, rendered)
+
+
+def flight_folder(out_dir, number: int) -> Path:
+    """Where flight ``number`` (1-based) of an area plan writes its outputs: ``OUT/flight_NN``."""
+    return Path(out_dir) / f"flight_{number:02d}"
+
+
+def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> list[FlyReport]:
+    """Fly the flights of an area plan in order, flight k (1-based) into :func:`flight_folder` with the seed
+    ``(options.seed, k)`` (its own gusts, sensor errors and GPS fix offset) and, when ``options.start_utc`` is
+    set, taking off :data:`BATTERY_SWAP_S` after the previous one landed (else each at its own "now")."""
+    reports = []
+    start = options.start_utc
+    for number, mission_csv in enumerate(mission_csvs, start=1):
+        flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
+        reports.append(run_session(mission_csv, scene, flight_folder(out_dir, number), flight_options))
+        if start is not None:
+            start = reports[-1].start_utc + dt.timedelta(seconds=reports[-1].mission.flight.duration_s + BATTERY_SWAP_S)
+    return reports

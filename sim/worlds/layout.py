@@ -52,7 +52,12 @@ VARIANTS: dict[str, WorldSpec] = {
     # 192 m x 156 m, same texel size and grid, ~70 k triangles: for tests.
     "small": WorldSpec(size_x_m=192.0, texture_px=2048, ortho_rows=1664, grid_step_m=1.0,
                        building_count=12, tree_count=150),
+    # 480 m x 324 m = 155,520 m^2 (the paper's 153,000 m^2), same texel size and grid; buildings and trees scaled
+    # with the area (facade strips: 8 x 5120 texels). ~0.36 M triangles: for area plans (issue 21).
+    "large": WorldSpec(size_x_m=480.0, texture_px=5120, ortho_rows=3456, grid_step_m=1.0,
+                       building_count=56, tree_count=720),
 }
+"""Variants by name; the order is part of each variant's random streams (sim/worlds/demo.py), so append only."""
 
 
 @dataclass(frozen=True)

@@ -269,11 +269,20 @@ def test_trajectory_mode_flies_the_orbit_at_the_set_speed(scene_dir, tmp_path):
     np.testing.assert_allclose(positions[:, 2], BOX_TOP_M + 30.0)  # 30 m over the ground at the centre: the box top
 
 
+def test_frustum_margin_refuses_a_path_whose_views_reach_past_the_scene(scene_dir, tmp_path, capsys):
+    assert cli_main(_argv(scene_dir, tmp_path / "out", mode="trajectory", trajectory="lawnmower", frames=4, width=32,
+                          height=24, altitude=40)) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "lawnmower path's views reach" in err and "lower --altitude" in err
+    assert not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("path", ["lawnmower", "loop"])
 def test_terrain_following_trajectories_keep_speed_and_height(scene_dir, tmp_path, path):
     out = tmp_path / path
+    # a fixed margin: at 40 m the views of this 90 m scene reach past it, which the frustum margin refuses
     assert cli_main(_argv(scene_dir, out, mode="trajectory", trajectory=path, frames=4, width=32, height=24,
-                             speed=6.0, rate=3.0, altitude=40)) == 0
+                             speed=6.0, rate=3.0, altitude=40, margin=20)) == 0
     records = frame_records(out)
     steps = np.linalg.norm(np.diff([r["position_enu_m"] for r in records], axis=0)[:, :2], axis=1)
     np.testing.assert_allclose(steps, 2.0, rtol=0.02)  # 6 m/s at 3 Hz, along the (possibly curved) path

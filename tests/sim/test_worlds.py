@@ -296,3 +296,33 @@ def test_command_line_rejects_bad_arguments_with_exit_code_2(argv, capsys):
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert "error:" in err and "Traceback" not in err
+
+
+def test_large_variant_layout_fills_the_papers_area():
+    """demo:large's layout (no mesh or pixels: cheap) covers >= 150,000 m^2 with its buildings and trees inside
+    it; its random streams are those of its place in VARIANTS, so adding it left the others' alone."""
+    spec = VARIANTS["large"]
+    assert spec.size_x_m * spec.size_y_m >= 150_000.0
+    layout = demo.generate_layout(spec, demo._generators(0, "large")[0])
+    assert len(layout.buildings) == spec.building_count  # trees are candidates, skipped near roads and buildings:
+    assert 0.8 * spec.tree_count <= len(layout.trees) <= spec.tree_count  # ~90 % of the count are placed
+    half = np.array(spec.half_extent_m)
+    points = np.vstack([np.vstack([b.corners for b in layout.buildings]), [t.position for t in layout.trees]])
+    assert np.all(np.abs(points) <= half)
+    for index, variant in enumerate(("default", "small", "large")):
+        expected = np.random.default_rng(np.random.SeedSequence([0, index]).spawn(3)[0]).random(4)
+        np.testing.assert_array_equal(demo._generators(0, variant)[0].random(4), expected)
+
+
+@pytest.mark.slow
+def test_large_world_budgets(tmp_path):
+    folder = build_demo_world(tmp_path / "large", variant="large", seed=0)
+    meta = json.loads((folder / "scene.json").read_text(encoding="utf-8"))
+    area = meta["valid_area_m"]
+    assert (area["xmax"] - area["xmin"]) * (area["ymax"] - area["ymin"]) >= 150_000.0
+    assert meta["provenance"]["triangles"] <= 500_000 and meta["provenance"]["texture_px"] <= 5120
+    mesh = trimesh.load(folder / meta["mesh"], force="mesh")
+    assert len(mesh.faces) == meta["provenance"]["triangles"]
+    lo, hi = enu_from_gltf(mesh.vertices).min(axis=0), enu_from_gltf(mesh.vertices).max(axis=0)
+    assert lo[0] >= area["xmin"] - 1e-6 and hi[0] <= area["xmax"] + 1e-6
+    assert lo[1] >= area["ymin"] - 1e-6 and hi[1] <= area["ymax"] + 1e-6

@@ -1,0 +1,81 @@
+"""The virtual drone flying every flight of an area plan: a GPS fix offset per flight, one folder per flight."""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from flightplan import litchi
+from sim.cli import main
+from sim.drone import Imperfections, fly
+from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
+from sim.drone.session import BATTERY_SWAP_S
+from sim.worlds.demo import build_demo_world
+from tests.sim.drone_helpers import short_orbit_csv
+
+HOME_H = 1000.0
+
+
+@pytest.fixture(scope="module")
+def mission_csv(tmp_path_factory):
+    return short_orbit_csv(tmp_path_factory.mktemp("mission") / "short.csv")
+
+
+def flown(mission_csv, imperfections, seed):
+    waypoints = waypoints_from_litchi(litchi.read_mission_csv(mission_csv))
+    return fly(waypoints, home_below_first_waypoint(waypoints, HOME_H), imperfections, seed=seed)
+
+
+def test_the_fix_offset_is_the_whole_gps_error_when_alone(mission_csv):
+    """With only the fix offset, every photo's measured position (geotag) is the true one moved by it, and the
+    recorded home point's height is off by its vertical part."""
+    mission = flown(mission_csv, Imperfections(gps_fix_bias_std_m=1.0), seed=(3, 2))
+    bias = mission.sensors.gps_fix_bias_enu_m
+    photos, frame = mission.photos, mission.flight.frame
+    measured = frame.enu_points(photos.measured_latitude_deg, photos.measured_longitude_deg,
+                                frame.h0_m + photos.position_enu_m[:, 2] + bias[2])  # the fix it came from
+    np.testing.assert_allclose(measured[:, :2] - photos.position_enu_m[:, :2], np.tile(bias[:2], (len(measured), 1)),
+                               atol=1e-6)
+    assert mission.sensors.measured_home()[2] == pytest.approx(frame.h0_m + bias[2], abs=1e-6)
+    assert np.linalg.norm(bias) > 0.05
+
+
+def test_each_flight_draws_its_own_offset_from_seed_and_number_and_nothing_else_moves(mission_csv):
+    """The offset depends on (seed, flight number) only; adding it leaves every other random draw as it was."""
+    area = Imperfections.area()
+    biases = [flown(mission_csv, area, seed=(7, k)).sensors.gps_fix_bias_enu_m for k in (1, 2, 3)]
+    assert min(np.linalg.norm(a - b) for i, a in enumerate(biases) for b in biases[i + 1:]) > 1e-3
+    np.testing.assert_array_equal(flown(mission_csv, area, seed=(7, 2)).sensors.gps_fix_bias_enu_m, biases[1])
+    without = flown(mission_csv, replace(area, gps_fix_bias_std_m=0.0), seed=(7, 2)).sensors
+    with_offset = flown(mission_csv, area, seed=(7, 2)).sensors
+    np.testing.assert_allclose(with_offset.gps_error_enu_m - without.gps_error_enu_m,
+                               np.tile(biases[1], (len(without.gps_error_enu_m), 1)), atol=1e-12)
+    np.testing.assert_array_equal(with_offset.baro_error_m, without.baro_error_m)
+    # horizontal std 1 m, vertical 2 m (the GPS vertical factor), over many flights
+    many = np.array([flown(mission_csv, area, seed=(7, k)).sensors.gps_fix_bias_enu_m for k in range(1, 61)])
+    assert 0.6 < many[:, :2].std() < 1.4 and 1.2 < many[:, 2].std() < 2.8
+
+
+def test_cli_flies_every_mission_into_its_own_folder(mission_csv, tmp_path, capsys):
+    scene_dir = build_demo_world(tmp_path / "world", variant="small", seed=0)
+    out = tmp_path / "out"
+    argv = ["fly", "--mission", str(mission_csv), "--mission", str(mission_csv), "--scene", str(scene_dir),
+            "--out", str(out), "--photo-size", "64", "48", "--photos", "1", "--seed", "5",
+            "--start-utc", "2024-05-01T10:00:00Z"]
+    assert main(argv) == 0
+    assert capsys.readouterr().out.count("GPS fix offset") == 2
+    truths = [json.loads((out / f"flight_0{k}" / "truth.json").read_text(encoding="utf-8")) for k in (1, 2)]
+    for number, truth in enumerate(truths, start=1):
+        assert truth["seed"] == [5, number]
+        assert truth["imperfections"] == Imperfections.area().to_dict()
+        assert (out / f"flight_{number:02d}" / "flight.duml").is_file()
+        assert sorted(p.name for p in (out / f"flight_{number:02d}" / "photos").iterdir()) == ["DJI_0001.JPG"]
+        expected = flown(mission_csv, Imperfections.area(), seed=(5, number)).sensors.gps_fix_bias_enu_m
+        np.testing.assert_allclose(truth["gps_fix_bias_enu_m"], expected, atol=1e-12)
+    landed = dt.datetime.fromisoformat(truths[0]["start_utc"]) + dt.timedelta(seconds=truths[0]["duration_s"])
+    assert dt.datetime.fromisoformat(truths[1]["start_utc"]) == landed + dt.timedelta(seconds=BATTERY_SWAP_S)
+    assert truths[0]["gps_fix_bias_enu_m"] != truths[1]["gps_fix_bias_enu_m"]
