@@ -111,6 +111,14 @@ def test_pcap_with_a_cut_short_file_header_says_so(tmp_path, shared_data):
         list(replay_file(path))
 
 
+def _decode_damaged(path, data: bytearray, original):
+    """Write the damaged capture ``data`` to ``path``; (path, its timed packets, the original's, the problems)."""
+    path.write_bytes(bytes(data))
+    problems = []
+    damaged = list(timed_packets(replay_file(path, problems), Deframer()))
+    return path, damaged, list(timed_packets(replay_file(original), Deframer())), problems
+
+
 def _record_offsets(data: bytes) -> list[int]:
     """Byte offsets of a little-endian pcap's record headers (the real captures are intact)."""
     offsets, position = [], 24
@@ -130,11 +138,7 @@ def test_pcap_record_with_a_corrupt_length_is_named_and_nothing_after_it_is_lost
     offsets = _record_offsets(bytes(data))
     corrupt = offsets[len(offsets) // 2]
     data[corrupt + 8:corrupt + 12] = (0xDEADBEEF).to_bytes(4, "little")
-    path = tmp_path / "corrupt.pcap"
-    path.write_bytes(bytes(data))
-    problems = []
-    damaged = list(timed_packets(replay_file(path, problems), Deframer()))
-    intact = list(timed_packets(replay_file(original), Deframer()))
+    path, damaged, intact, problems = _decode_damaged(tmp_path / "corrupt.pcap", data, original)
     assert problems == [f"{path}: corrupt record at byte {corrupt} (captured length 3735928559, fraction "
                         f"{int.from_bytes(data[corrupt + 4:corrupt + 8], 'little')}: impossible with snap length "
                         "65535): "
@@ -153,11 +157,7 @@ def test_pcap_record_whose_length_is_wrong_but_possible_is_found_by_what_follows
     k = next(i for i in range(len(offsets) // 2, len(offsets)) if offsets[i + 1] - offsets[i] > 40)
     corrupt, length = offsets[k], offsets[k + 1] - offsets[k] - 16
     data[corrupt + 8:corrupt + 16] = struct.pack("<2I", length - 5, length - 5)
-    path = tmp_path / "short_length.pcap"
-    path.write_bytes(bytes(data))
-    problems = []
-    damaged = list(timed_packets(replay_file(path, problems), Deframer()))
-    intact = list(timed_packets(replay_file(original), Deframer()))
+    path, damaged, intact, problems = _decode_damaged(tmp_path / "short_length.pcap", data, original)
     assert problems == [f"{path}: corrupt record at byte {corrupt} (captured length {length - 5} ends at byte "
                         f"{offsets[k + 1] - 5}, where no record header starts): {length} bytes up to the next valid "
                         f"record at byte {offsets[k + 1]} decoded without times"]
