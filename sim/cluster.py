@@ -50,8 +50,11 @@ MAX_BATCH_FRAMES = 32
 PLUGIN_NAME = "aerostereo-renderer"
 #: Dask config of the workers ``local:N`` starts. A nanny sets ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers by
 #: default, which turns off glibc's adaptive mmap threshold: every frame-sized array is then mmap'ed and zeroed
-#: afresh, and a frame costs 1.5-2x the CPU (tools/bench_dask.py). Remote workers need the same (docs/cluster.md).
-WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}
+#: afresh, and a frame costs 1.5-2x the CPU (tools/bench_dask.py). Dask's statistical profiler samples every worker
+#: thread's stack every 10 ms; off, local:2's overhead over the built-in pool fell from +10.3 % to +4.3 % of CPU in
+#: one pair of runs on 2 cores. Remote workers need the same settings (docs/cluster.md).
+WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+                 "distributed.worker.profile.enabled": False}
 #: Task threads of a worker started by ``local:N``: one task renders while the one before it writes its files.
 THREADS_PER_WORKER = 2
 #: Seconds to wait for a scheduler's port to accept a connection before the run is refused.
