@@ -71,6 +71,11 @@ MARGIN_PATHS = ("lawnmower", "loop")
 METERING_WIDTH = 64
 
 
+#: A trajectory is one flight under one sky: every frame has the sun drawn for frame 0, so consecutive frames differ
+#: only by motion (what optical flow, visual odometry and photometric losses assume). Random poses draw one per frame.
+SEQUENCE_SUN = "one per sequence: frame 0's draw, for every frame"
+
+
 class RenderInputError(ValueError):
     """Input that cannot be rendered (scene, geotags, options, output folder); the message names it."""
 
@@ -151,6 +156,7 @@ class RenderOptions:
                                              "frame_rate_hz": self.frame_rate_hz}
             if self.imu_rate_hz is not None:
                 description["imu"] = self.imu_description()
+            description["sun"] = SEQUENCE_SUN
         elif self.replays_scene_cameras:
             description.update(cameras="cameras.json", lighting="unlit (the texture's own shading, UNLIT)")
         else:
@@ -406,7 +412,7 @@ class FrameRenderer:
         """Frame ``index``'s rig, the lighting keywords of :func:`render` and the sampled sun (None for a replay of
         the scene's cameras: each photo's own lens, lit as the photo was, by the texture's shading, :data:`UNLIT`)."""
         if self.lenses is None:
-            sun = random_sun(self.options.seed, index)
+            sun = random_sun(self.options.seed, 0 if self.options.mode == "trajectory" else index)
             return self.rig, {"sun": frame_sun(sun)}, sun
         return build_rig(self.options, self.lenses[index]), UNLIT, None
 

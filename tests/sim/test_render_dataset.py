@@ -510,3 +510,19 @@ def test_overwrite_replaces_a_dataset_of_other_settings_and_keeps_other_files(sc
     capsys.readouterr()
     assert cli_main(_argv(scene_dir, out, frames=2, seed=2, **tiny) + ["--overwrite"]) == 0
     assert "rendered 0 frames" in capsys.readouterr().out  # the same settings resume, even with --overwrite
+
+
+def test_a_trajectory_is_one_flight_under_one_sun_and_random_poses_draw_their_own(scene_dir, tmp_path):
+    """Consecutive trajectory frames differ only by motion (flow and VO assume it): one sun for the sequence,
+    recorded in dataset.json; random frames keep a sun each."""
+    def suns(mode: str) -> list:
+        out = tmp_path / mode
+        assert cli_main(_argv(scene_dir, out, frames=3, width=16, height=8, mode=mode)) == 0
+        sampling = json.loads((out / "dataset.json").read_text())["sampling"]
+        return [json.loads(line)["sun"] for line in (out / "sequences/00/frames.jsonl").read_text().splitlines()], \
+            sampling
+
+    trajectory, sampling = suns("trajectory")
+    assert trajectory[0] == trajectory[1] == trajectory[2] and "one per sequence" in sampling["sun"]
+    random, sampling = suns("random")
+    assert len({json.dumps(sun) for sun in random}) == 3 and "sun" not in sampling
