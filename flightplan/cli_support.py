@@ -248,8 +248,10 @@ def require_disk(folder: Path, bytes_needed: float, what: str) -> None:
 
 
 def format_bytes(count: float) -> str:
-    """``1.5 GiB``, ``730 MiB``, ``12 KiB``, ``3 B`` (binary units; ``inf`` stays ``inf B``)."""
+    """``1.5 GiB``, ``730 MiB``, ``1,020 KiB``, ``3 B``, ``888,178 PiB`` (binary units, three significant digits
+    below 1000 of a unit, whole numbers above; ``inf`` stays ``inf B``)."""
     for unit, size in (("PiB", 1024 ** 5), ("TiB", 1024 ** 4), ("GiB", GIB), ("MiB", 1024 ** 2), ("KiB", 1024)):
         if count >= size:
-            return f"{count / size:.3g} {unit}"
+            value = count / size
+            return f"{value:,.0f} {unit}" if value >= 1000 else f"{value:.3g} {unit}"
     return f"{count:.0f} B"

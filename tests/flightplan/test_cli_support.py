@@ -86,9 +86,9 @@ def test_size_checks_name_what_and_how_much(tmp_path):
     with pytest.raises(BadInput, match=r"--width 1e9 needs about .* of memory; this machine has"):
         require_memory(1e18, "--width 1e9")
     require_disk(tmp_path / "not" / "yet", 1, "a frame")
-    with pytest.raises(BadInput, match=r"needs about 8.88e\+05 PiB on disk"):
+    with pytest.raises(BadInput, match=r"needs about 888,178 PiB on disk"):
         require_disk(tmp_path, 1e21, "1e9 frames")
-    assert format_bytes(1536 * 1024 ** 2) == "1.5 GiB"
+    assert format_bytes(1536 * 1024 ** 2) == "1.5 GiB" and format_bytes(1020 * 1024) == "1,020 KiB"
 
 
 def test_help_shows_real_defaults_once(capsys):
