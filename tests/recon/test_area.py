@@ -7,58 +7,24 @@ import json
 
 import numpy as np
 import pytest
-import trimesh
-from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.area import AreaError, SurfaceQuery, align_area, find_overlaps, icp_pair, load_pieces
 from recon.scene_out import write_scene
 from sim.scene import SceneError
 from sim.synthetic import grid_mesh
-
-AREA = LocalFrame(50.85, -0.15, 40.0)
-PIECE_M, CELL_M = 60.0, 1.0
-
-
-def terrain_height(xy: np.ndarray) -> np.ndarray:
-    """Hills on several scales, in both directions (so that a shift along the ground is observable), metres."""
-    x, y = xy[:, 0], xy[:, 1]
-    return (3.0 * np.sin(x / 9.0) * np.cos(y / 11.0) + 1.5 * np.sin((x + 2.0 * y) / 6.0)
-            + 0.8 * np.cos((3.0 * x - y) / 5.0))
-
-
-def frame_at(east_m: float, north_m: float, up_m: float) -> LocalFrame:
-    """An ENU frame whose origin is at that point of the area's frame."""
-    return LocalFrame(*(float(c) for c in AREA.to_geodetic(east_m, north_m, up_m)))
-
-
-def rigid(rotvec_deg, shift_m, about) -> np.ndarray:
-    """4x4 rotation by ``rotvec_deg`` about the point ``about``, then a shift (area ENU metres)."""
-    m = np.eye(4)
-    m[:3, :3] = Rotation.from_rotvec(np.radians(rotvec_deg)).as_matrix()
-    m[:3, 3] = np.asarray(about) + np.asarray(shift_m) - m[:3, :3] @ np.asarray(about)
-    return m
+from tests.recon.area_pieces import (AREA, PIECE_M, centre_of, correction_error, frame_at, rigid, terrain_height,
+                                     terrain_piece)
 
 
 def write_piece(folder, x0: float, y0: float, error: np.ndarray, origin: LocalFrame, seed: int,
                 noise_m: float = 0.0):
-    """A PIECE_M square of the terrain at ``(x0, y0)`` (area ENU), moved by ``error``, written in ``origin``'s ENU."""
-    vertices, faces, _ = grid_mesh(int(PIECE_M / CELL_M), int(PIECE_M / CELL_M), (x0, x0 + PIECE_M, y0, y0 + PIECE_M))
-    vertices[:, 2] = terrain_height(vertices)
-    vertices[:, 2] += noise_m * np.random.default_rng(seed).standard_normal(len(vertices))
-    moved = vertices @ error[:3, :3].T + error[:3, 3]
-    own = origin.enu_points(*AREA.to_geodetic(*moved.T))
+    """:func:`terrain_piece` written as a scene folder in ``origin``'s ENU."""
+    mesh = terrain_piece(x0, y0, error, seed, noise_m)
+    mesh.vertices = origin.enu_points(*AREA.to_geodetic(*np.asarray(mesh.vertices).T))
     folder.mkdir()
-    grey = np.full((len(own), 4), 160, np.uint8)
-    write_scene(folder, trimesh.Trimesh(own, faces, vertex_colors=grey, process=False), origin, {"test": "area"})
+    write_scene(folder, mesh, origin, {"test": "area"})
     return folder
-
-
-def correction_error(correction: np.ndarray, error: np.ndarray, at: np.ndarray) -> tuple[float, float]:
-    """How far ``correction`` is from undoing ``error``: displacement at ``at`` (mm) and rotation (millideg)."""
-    residual = correction @ error
-    shift = np.linalg.norm(residual[:3, :3] @ at + residual[:3, 3] - at)
-    return 1e3 * shift, 1e3 * np.degrees(Rotation.from_matrix(residual[:3, :3]).magnitude())
 
 
 def row_of_pieces(tmp_path, errors, step_m: float, noise_m: float = 0.0, origins=None):
@@ -66,10 +32,6 @@ def row_of_pieces(tmp_path, errors, step_m: float, noise_m: float = 0.0, origins
     origins = origins or [AREA] * len(errors)
     return [write_piece(tmp_path / f"piece{i}", i * step_m, 0.0, e, o, seed=i, noise_m=noise_m)
             for i, (e, o) in enumerate(zip(errors, origins))]
-
-
-def centre_of(i: int, step_m: float) -> np.ndarray:
-    return np.array([i * step_m + PIECE_M / 2, PIECE_M / 2, 0.0])
 
 
 def test_origin_change_alone_is_undone_by_exact_conversion(tmp_path):
