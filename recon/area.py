@@ -7,7 +7,9 @@ default the first piece's origin) by exact geodetic conversion of each vertex (p
 else ``valid_area_m``) share ground; :func:`icp_pair` aligns piece B onto piece A on that shared ground by
 point-to-plane ICP against A's surface, trimmed by distance; :func:`adjust` solves for one rigid correction per piece
 (piece ``fixed`` stays put) that best satisfies every pairwise alignment at once, so that a chain's errors are spread
-over its loops and redundant overlaps rather than summed along it. :func:`align_area` does all of it and reports the
+over its loops and redundant overlaps rather than summed along it; control points picked on two pieces (recon merge's
+pairs format, :func:`control_link`) join the adjustment as extra constraints. Pieces that do not form one connected
+group through overlaps and control points are refused (:class:`AreaError`). :func:`align_area` does all of it and reports the
 median point-to-surface offset on each overlap before and after.
 
 The transforms are **rigid** (no scale): every piece is already geo-registered with metric scale by its own SfM, and
@@ -30,6 +32,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
+from recon.merge import ControlPairs
 from sim.scene import read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
@@ -45,11 +48,22 @@ class AreaError(BadInput):
 
 @dataclass(frozen=True)
 class Piece:
-    """One scene folder's mesh and footprint in the area's ENU frame (metres)."""
+    """One scene folder's mesh and footprint in the area's ENU frame (metres), and the folder's own origin."""
 
     name: str
     mesh: trimesh.Trimesh
     footprint: np.ndarray  # (K, 2) ground polygon, area ENU x/y
+    origin: LocalFrame
+
+
+@dataclass(frozen=True)
+class Link:
+    """Pieces ``a`` and ``b`` tied at points: ``points_b`` on B should land on ``points_a`` on A (area ENU, metres)."""
+
+    a: int
+    b: int
+    points_a: np.ndarray
+    points_b: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -92,7 +106,18 @@ def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
     footprint = _footprint(meta)
     ground = np.column_stack([footprint, np.full(len(footprint), np.median(vertices[:, 2]))])
     return Piece(str(scene_dir), trimesh.Trimesh(_convert(vertices, own, frame), faces, process=False),
-                 _convert(ground, own, frame)[:, :2])
+                 _convert(ground, own, frame)[:, :2], own)
+
+
+def control_link(pairs: ControlPairs, a: int, b: int, pieces: list[Piece], frame: LocalFrame) -> Link:
+    """Control points picked on pieces ``a`` (``pairs.reference``) and ``b`` (``pairs.moving``), each in its scene's
+    own ENU (recon merge's pairs format), as a :class:`Link` in ``frame``'s ENU."""
+    for i in (a, b):
+        if not 0 <= i < len(pieces):
+            raise AreaError(f"control points name piece {i}, but there are {len(pieces)} pieces (0..{len(pieces) - 1})")
+    if a == b:
+        raise AreaError(f"control points tie piece {a} to itself; they must join two different pieces")
+    return Link(a, b, _convert(pairs.reference, pieces[a].origin, frame), _convert(pairs.moving, pieces[b].origin, frame))
 
 
 def load_pieces(scene_dirs: list[Path], frame: LocalFrame | None = None) -> tuple[LocalFrame, list[Piece]]:
@@ -120,8 +145,7 @@ def _footprint(meta: dict) -> np.ndarray:
 
 
 def find_overlaps(pieces: list[Piece], min_points: int = MIN_OVERLAP_POINTS) -> list[Overlap]:
-    """Pairs ``a < b`` with at least ``min_points`` of B's vertices inside both footprints. Raise :class:`AreaError`
-    when the pieces do not form one connected group (a piece, or a group of them, shares no ground with the rest)."""
+    """Pairs ``a < b`` with at least ``min_points`` of B's vertices inside both footprints."""
     overlaps = []
     for b, piece_b in enumerate(pieces):
         v = np.asarray(piece_b.mesh.vertices)
@@ -130,23 +154,23 @@ def find_overlaps(pieces: list[Piece], min_points: int = MIN_OVERLAP_POINTS) -> 
             inside = own & PolygonPath(pieces[a].footprint).contains_points(v[:, :2])
             if np.count_nonzero(inside) >= min_points:
                 overlaps.append(Overlap(a, b, v[inside]))
-    _check_connected(pieces, overlaps, min_points)
     return overlaps
 
 
-def _check_connected(pieces: list[Piece], overlaps: list[Overlap], min_points: int) -> None:
-    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through overlaps."""
+def _check_connected(pieces: list[Piece], ties: list) -> None:
+    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through ``ties`` (overlaps, links)."""
     reached, grew = {0}, True
     while grew:
         grew = False
-        for o in overlaps:
+        for o in ties:
             if (o.a in reached) != (o.b in reached):
                 reached |= {o.a, o.b}
                 grew = True
     cut_off = [pieces[i].name for i in range(len(pieces)) if i not in reached]
     if cut_off:
-        raise AreaError(f"{', '.join(cut_off)}: shares no ground (>= {min_points} vertices inside both observed "
-                        f"areas) with {pieces[0].name} or its neighbours; cannot join pieces that do not overlap")
+        raise AreaError(f"{', '.join(cut_off)}: shares no ground (>= {MIN_OVERLAP_POINTS} vertices inside both "
+                        f"observed areas) and no control points with {pieces[0].name} or its neighbours; cannot join "
+                        f"pieces that do not overlap")
 
 
 class SurfaceQuery:
@@ -217,12 +241,11 @@ def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ transform[:3, :3].T + transform[:3, 3]
 
 
-def adjust(count: int, pairs: list[tuple[int, int, np.ndarray, np.ndarray]], fixed: int = 0,
-           iterations: int = 5) -> list[np.ndarray]:
-    """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every pairwise
-    alignment ``(a, b, T_ab, points_b)`` at once: least squares over ``X_a(T_ab p) - X_b(p)`` for the pair's points
-    ``p``, Gauss-Newton with small-angle steps about the points' common centroid, each step applied exactly."""
-    anchors = [(a, b, _apply(t, _spread(p)), _spread(p)) for a, b, t, p in pairs]
+def adjust(count: int, links: list[Link], fixed: int = 0, iterations: int = 5) -> list[np.ndarray]:
+    """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every link at once:
+    least squares over ``X_a(q) - X_b(p)`` for each link's points (each point weighs the same), Gauss-Newton with
+    small-angle steps about the points' common centroid, each step applied exactly."""
+    anchors = [(link.a, link.b, link.points_a, link.points_b) for link in links]
     centre = np.mean(np.vstack([p for *_, p in anchors]), axis=0)
     free = [i for i in range(count) if i != fixed]
     column = {piece: 6 * k for k, piece in enumerate(free)}
@@ -260,17 +283,20 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
                      np.stack([-y, x, zero], -1)], axis=1).reshape(-1, 3)
 
 
-def align_area(pieces: list[Piece], fixed: int = 0) -> AreaAlignment:
-    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put)
-    and report the median point-to-surface offset of B's overlap points on A before, after the pair's own ICP and
+def align_area(pieces: list[Piece], fixed: int = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
+    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put; the
+    ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
+    of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the pair's own ICP and
     after the joint adjustment (metres)."""
     overlaps = find_overlaps(pieces)
+    _check_connected(pieces, [*overlaps, *control])
     surfaces = {o.a: SurfaceQuery(pieces[o.a].mesh) for o in overlaps}
     aligned = []
     for o in overlaps:
         start = time.perf_counter()
         aligned.append((o, icp_pair(surfaces[o.a], o.points_b), time.perf_counter() - start))
-    corrections = adjust(len(pieces), [(o.a, o.b, t, o.points_b) for o, t, _ in aligned], fixed=fixed)
+    icp_links = [Link(o.a, o.b, _apply(t, _spread(o.points_b)), _spread(o.points_b)) for o, t, _ in aligned]
+    corrections = adjust(len(pieces), [*icp_links, *control], fixed=fixed)
     reports = []
     for o, t, seconds in aligned:
         surface, p = surfaces[o.a], o.points_b

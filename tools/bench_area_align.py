@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from recon.area import Piece, align_area
-from tests.recon.area_pieces import PIECE_M, centre_of, correction_error, rigid, terrain_piece
+from tests.recon.area_pieces import AREA, PIECE_M, centre_of, correction_error, rigid, terrain_piece
 
 PIECES = (2, 4, 6)
 OVERLAPS_M = (10.0, 20.0, 40.0)
@@ -34,7 +34,8 @@ def row(count: int, overlap_m: float, noise_m: float, seed: int) -> tuple[list[P
     for i, error in enumerate(errors):
         x0 = i * step
         footprint = np.array([[x0, 0.0], [x0 + PIECE_M, 0.0], [x0 + PIECE_M, PIECE_M], [x0, PIECE_M]])
-        pieces.append(Piece(f"piece{i}", terrain_piece(x0, 0.0, error, seed=seed + i, noise_m=noise_m), footprint))
+        pieces.append(Piece(f"piece{i}", terrain_piece(x0, 0.0, error, seed=seed + i, noise_m=noise_m), footprint,
+                            AREA))
     return pieces, errors
 
 

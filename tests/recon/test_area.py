@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from recon.area import AreaError, SurfaceQuery, align_area, find_overlaps, icp_pair, load_pieces
+from recon.area import AreaError, SurfaceQuery, align_area, control_link, find_overlaps, icp_pair, load_pieces
+from recon.merge import ControlPairs
+from recon.similarity import umeyama
 from recon.scene_out import write_scene
 from sim.scene import SceneError
 from sim.synthetic import grid_mesh
@@ -101,7 +103,37 @@ def test_pieces_that_do_not_overlap_are_refused_naming_them(tmp_path):
     folders = row_of_pieces(tmp_path, [np.eye(4), np.eye(4)], 70.0)
     _, pieces = load_pieces(folders)
     with pytest.raises(AreaError, match=r"piece1: shares no ground .*piece0 or its neighbours"):
-        find_overlaps(pieces)
+        align_area(pieces)
+
+
+def test_control_points_join_pieces_whose_overlap_is_too_small_for_icp(tmp_path):
+    """Pieces sharing only a 12 x 11 m corner (156 of B's vertices, under the 200 that ICP needs), tied by 6 picked
+    points in each scene's own ENU (piece 1 written at another origin). Exact picks place piece 1 exactly; picks with
+    3 cm noise place it where the rigid least-squares fit of those picks (Umeyama) says, no better and no worse."""
+    corner, centre = np.array([48.0, 49.0]), np.array([78.0, 79.0, 0.0])
+    error = rigid([0.2, -0.1, 0.3], [0.4, -0.3, 0.25], centre)
+    other = frame_at(90.0, 30.0, 2.0)
+    folders = [write_piece(tmp_path / "piece0", 0.0, 0.0, np.eye(4), AREA, seed=0),
+               write_piece(tmp_path / "piece1", *corner, error, other, seed=1)]
+    frame, pieces = load_pieces(folders)
+    assert find_overlaps(pieces) == []
+    rng = np.random.default_rng(5)
+    ground = np.column_stack([rng.uniform(corner, [60.0, 60.0], (6, 2)), np.zeros(6)])
+    ground[:, 2] = terrain_height(ground)
+    on_b = other.enu_points(*AREA.to_geodetic(*(error[:3, :3] @ ground.T + error[:3, 3:4])))
+    exact = control_link(ControlPairs(moving=on_b, reference=ground), 0, 1, pieces, frame)
+    result = align_area(pieces, control=(exact,))
+    assert result.pairs == []
+    assert correction_error(np.eye(4), error, centre)[0] > 300.0
+    shift_mm, angle_mdeg = correction_error(result.corrections[1], error, centre)
+    assert shift_mm < 0.1 and angle_mdeg < 0.1, (shift_mm, angle_mdeg)
+    picks = ControlPairs(moving=on_b + rng.normal(0, 0.03, (6, 3)), reference=ground + rng.normal(0, 0.03, (6, 3)))
+    link = control_link(picks, 0, 1, pieces, frame)
+    fit = umeyama(link.points_b, link.points_a, with_scale=False).matrix()
+    correction = align_area(pieces, control=(link,)).corrections[1]
+    assert correction_error(correction, np.linalg.inv(fit), centre)[0] < 0.1
+    with pytest.raises(AreaError, match="piece 2, but there are 2 pieces"):
+        control_link(picks, 0, 2, pieces, frame)
 
 
 def test_a_folder_that_is_not_a_scene_is_refused(tmp_path):
