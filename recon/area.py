@@ -9,8 +9,9 @@ point-to-plane ICP against A's surface, trimmed by distance; :func:`adjust` solv
 (piece ``fixed`` stays put) that best satisfies every pairwise alignment at once, so that a chain's errors are spread
 over its loops and redundant overlaps rather than summed along it; control points picked on two pieces (recon merge's
 pairs format, :func:`control_link`) join the adjustment as extra constraints. Pieces that do not form one connected
-group through overlaps and control points are refused (:class:`AreaError`). :func:`align_area` does all of it and reports the
-median point-to-surface offset on each overlap before and after.
+group through overlaps and control points are refused (:class:`AreaError`), and so is an overlap too flat for ICP
+to pin (:class:`FlatOverlapError`) unless control points tie that pair. :func:`align_area` does all of it and
+reports the median point-to-surface offset on each overlap before and after.
 
 The transforms are **rigid** (no scale): every piece is already geo-registered with metric scale by its own SfM, and
 a strip of overlap a few tens of metres wide constrains scale far worse than it constrains shifts and tilts, so a
@@ -38,12 +39,17 @@ from sim.scene import read_scene_json, read_scene_mesh_enu
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
 ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly spread)
 ADJUST_POINTS = 200  # per pair: points whose pairwise alignment the joint adjustment honours
+MIN_CONDITION = 0.01  # weakest / strongest direction ICP may pin (lever-arm scaled); flatter ground is refused
 TRIM_FLOOR_M = 0.05  # ICP keeps pairs within max(3 x median distance, this)
 NEAREST_VERTICES = 3  # candidate triangles for the closest surface point: those around this many nearest vertices
 
 
 class AreaError(BadInput):
     """Pieces that cannot be joined (no overlap, not connected); the message names the scene folders."""
+
+
+class FlatOverlapError(AreaError):
+    """ICP cannot pin every direction on an overlap: the ground there is too flat (or too uniform)."""
 
 
 @dataclass(frozen=True)
@@ -117,7 +123,8 @@ def control_link(pairs: ControlPairs, a: int, b: int, pieces: list[Piece], frame
             raise AreaError(f"control points name piece {i}, but there are {len(pieces)} pieces (0..{len(pieces) - 1})")
     if a == b:
         raise AreaError(f"control points tie piece {a} to itself; they must join two different pieces")
-    return Link(a, b, _convert(pairs.reference, pieces[a].origin, frame), _convert(pairs.moving, pieces[b].origin, frame))
+    return Link(a, b, _convert(pairs.reference, pieces[a].origin, frame),
+                _convert(pairs.moving, pieces[b].origin, frame))
 
 
 def load_pieces(scene_dirs: list[Path], frame: LocalFrame | None = None) -> tuple[LocalFrame, list[Piece]]:
@@ -208,7 +215,8 @@ def icp_pair(surface_a: SurfaceQuery, points_b: np.ndarray, iterations: int = 30
     """Rigid 4x4 taking B's ``points_b`` onto ``surface_a``: point-to-plane ICP (closest points and their
     triangle normals, linearised in a small rotation about the points' centroid, each step applied exactly),
     keeping only pairs within ``max(3 x median distance, TRIM_FLOOR_M)`` so that ground one piece saw differently
-    (edges, trees, holes) does not pull. Stops when a step moves the points by less than ``tolerance_m``."""
+    (edges, trees, holes) does not pull. Stops when a step moves the points by less than ``tolerance_m``.
+    Raise :class:`FlatOverlapError` when the ground does not pin some direction (flat: the shift along it)."""
     step = max(1, len(points_b) // ICP_POINTS)
     source = np.asarray(points_b[::step], dtype=np.float64)
     centre = source.mean(axis=0)
@@ -220,12 +228,23 @@ def icp_pair(surface_a: SurfaceQuery, points_b: np.ndarray, iterations: int = 30
         keep = np.abs(signed) <= max(3.0 * np.median(np.abs(signed)), TRIM_FLOOR_M)
         arm = moved[keep] - centre
         system = np.column_stack([np.cross(arm, normals[keep]), normals[keep]])
+        _check_pinned(system, arm)
         delta, *_ = np.linalg.lstsq(system, -signed[keep], rcond=None)
         update = _rigid_about(delta, centre)
         transform = update @ transform
         if np.max(np.linalg.norm(_apply(update, moved) - moved, axis=1)) < tolerance_m:
             break
     return transform
+
+
+def _check_pinned(system: np.ndarray, arm: np.ndarray) -> None:
+    """Raise :class:`FlatOverlapError` when ICP's point-to-plane system (rotation columns scaled by the points' RMS
+    lever arm, so that all six are metres) has a direction under MIN_CONDITION of its strongest."""
+    scaled = system * np.r_[np.full(3, 1.0 / np.sqrt(np.mean(np.sum(arm**2, axis=1)))), np.ones(3)]
+    singular = np.linalg.svd(scaled, compute_uv=False)
+    if singular[-1] < MIN_CONDITION * singular[0]:
+        raise FlatOverlapError(f"the overlap's ground pins its weakest direction only {singular[-1] / singular[0]:.2g}"
+                               f" as well as its strongest (need {MIN_CONDITION}): too flat for surface alignment")
 
 
 def _rigid_about(delta: np.ndarray, centre: np.ndarray) -> np.ndarray:
@@ -245,21 +264,22 @@ def adjust(count: int, links: list[Link], fixed: int = 0, iterations: int = 5) -
     """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every link at once:
     least squares over ``X_a(q) - X_b(p)`` for each link's points (each point weighs the same), Gauss-Newton with
     small-angle steps about the points' common centroid, each step applied exactly."""
-    anchors = [(link.a, link.b, link.points_a, link.points_b) for link in links]
-    centre = np.mean(np.vstack([p for *_, p in anchors]), axis=0)
+    if not 0 <= fixed < count:
+        raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
+    centre = np.mean(np.vstack([link.points_b for link in links]), axis=0)
     free = [i for i in range(count) if i != fixed]
     column = {piece: 6 * k for k, piece in enumerate(free)}
     corrections = [np.eye(4) for _ in range(count)]
     for _ in range(iterations):
         blocks, rhs = [], []
-        for a, b, q, p in anchors:
-            xa, xb = _apply(corrections[a], q), _apply(corrections[b], p)
-            rows = np.zeros((3 * len(p), 6 * len(free)))
-            for piece, x, sign in ((a, xa, 1.0), (b, xb, -1.0)):
+        for link in links:
+            xa, xb = _apply(corrections[link.a], link.points_a), _apply(corrections[link.b], link.points_b)
+            rows = np.zeros((xa.size, 6 * len(free)))
+            for piece, x, sign in ((link.a, xa, 1.0), (link.b, xb, -1.0)):
                 if piece in column:
                     c = column[piece]
                     rows[:, c:c + 3] = sign * -_skew_rows(x - centre)
-                    rows[:, c + 3:c + 6] = sign * np.tile(np.eye(3), (len(p), 1))
+                    rows[:, c + 3:c + 6] = sign * np.tile(np.eye(3), (len(x), 1))
             blocks.append(rows)
             rhs.append(-(xa - xb).ravel())
         delta, *_ = np.linalg.lstsq(np.vstack(blocks), np.concatenate(rhs), rcond=None)
@@ -286,15 +306,25 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
 def align_area(pieces: list[Piece], fixed: int = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
     """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put; the
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
-    of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the pair's own ICP and
-    after the joint adjustment (metres)."""
+    of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the
+    pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected
+    through overlaps and control points, :class:`FlatOverlapError` for an overlap too flat to align (unless control
+    points tie that pair: then they alone place it)."""
     overlaps = find_overlaps(pieces)
     _check_connected(pieces, [*overlaps, *control])
     surfaces = {o.a: SurfaceQuery(pieces[o.a].mesh) for o in overlaps}
+    tied = [{link.a, link.b} for link in control]
     aligned = []
     for o in overlaps:
         start = time.perf_counter()
-        aligned.append((o, icp_pair(surfaces[o.a], o.points_b), time.perf_counter() - start))
+        try:
+            transform = icp_pair(surfaces[o.a], o.points_b)
+        except FlatOverlapError as exc:
+            if {o.a, o.b} in tied:
+                continue  # the control points between them place B instead
+            raise FlatOverlapError(f"{pieces[o.b].name} on {pieces[o.a].name}: {exc}; add control points "
+                                   f"between them") from None
+        aligned.append((o, transform, time.perf_counter() - start))
     icp_links = [Link(o.a, o.b, _apply(t, _spread(o.points_b)), _spread(o.points_b)) for o, t, _ in aligned]
     corrections = adjust(len(pieces), [*icp_links, *control], fixed=fixed)
     reports = []

@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from recon.area import AreaError, SurfaceQuery, align_area, control_link, find_overlaps, icp_pair, load_pieces
+from recon.area import (AreaError, FlatOverlapError, SurfaceQuery, align_area, control_link, find_overlaps, icp_pair,
+                        load_pieces)
 from recon.merge import ControlPairs
 from recon.similarity import umeyama
 from recon.scene_out import write_scene
@@ -20,9 +21,9 @@ from tests.recon.area_pieces import (AREA, PIECE_M, centre_of, correction_error,
 
 
 def write_piece(folder, x0: float, y0: float, error: np.ndarray, origin: LocalFrame, seed: int,
-                noise_m: float = 0.0):
+                noise_m: float = 0.0, relief: float = 1.0):
     """:func:`terrain_piece` written as a scene folder in ``origin``'s ENU."""
-    mesh = terrain_piece(x0, y0, error, seed, noise_m)
+    mesh = terrain_piece(x0, y0, error, seed, noise_m, relief)
     mesh.vertices = origin.enu_points(*AREA.to_geodetic(*np.asarray(mesh.vertices).T))
     folder.mkdir()
     write_scene(folder, mesh, origin, {"test": "area"})
@@ -134,6 +135,23 @@ def test_control_points_join_pieces_whose_overlap_is_too_small_for_icp(tmp_path)
     assert correction_error(correction, np.linalg.inv(fit), centre)[0] < 0.1
     with pytest.raises(AreaError, match="piece 2, but there are 2 pieces"):
         control_link(picks, 0, 2, pieces, frame)
+
+
+def test_flat_overlap_is_refused_unless_control_points_tie_the_pair(tmp_path):
+    """On flat ground ICP cannot see a shift along it: refused naming both pieces; with control points between the
+    two, those alone place piece 1 (exactly, for exact picks)."""
+    error = rigid([0.0, 0.0, 0.3], [0.4, -0.3, 0.0], centre_of(1, 40.0))
+    folders = [write_piece(tmp_path / f"piece{i}", 40.0 * i, 0.0, e, AREA, seed=i, relief=0.0)
+               for i, e in enumerate([np.eye(4), error])]
+    frame, pieces = load_pieces(folders)
+    with pytest.raises(FlatOverlapError, match=r"piece1 on .*piece0: .*too flat .*add control points"):
+        align_area(pieces)
+    ground = np.array([[42.0, 5.0, 0.0], [58.0, 8.0, 0.0], [45.0, 50.0, 0.0], [55.0, 30.0, 0.0]])
+    picks = ControlPairs(moving=ground @ error[:3, :3].T + error[:3, 3], reference=ground)
+    result = align_area(pieces, control=(control_link(picks, 0, 1, pieces, frame),))
+    assert result.pairs == []
+    shift_mm, angle_mdeg = correction_error(result.corrections[1], error, centre_of(1, 40.0))
+    assert shift_mm < 0.1 and angle_mdeg < 0.1, (shift_mm, angle_mdeg)
 
 
 def test_a_folder_that_is_not_a_scene_is_refused(tmp_path):
