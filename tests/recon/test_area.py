@@ -71,7 +71,8 @@ def test_three_pieces_with_known_errors_are_aligned_back(tmp_path, step_m, shift
 
 
 def test_icp_trims_ground_that_one_piece_saw_differently(tmp_path):
-    """A 3 m tall block on A's part of the overlap that B does not have (a tree, a wrong patch) does not pull B."""
+    """A 3 m tall block on A's part of the overlap that B does not have (a tree, a wrong patch) does not pull B
+    (without the trim it pulls B 0.27 m and 0.67 deg off; with it, 0.25 mm)."""
     error = rigid([0.1, 0.1, -0.2], [0.3, 0.2, 0.1], centre_of(1, 40.0))
     _, pieces = load_pieces(row_of_pieces(tmp_path, [np.eye(4), error], 40.0))
     overlap = find_overlaps(pieces)[0]
@@ -82,7 +83,7 @@ def test_icp_trims_ground_that_one_piece_saw_differently(tmp_path):
     mesh_a.vertices = v
     transform = icp_pair(SurfaceQuery(mesh_a), overlap.points_b)
     shift_mm, angle_mdeg = correction_error(transform, error, centre_of(1, 40.0))
-    assert shift_mm < 10.0 and angle_mdeg < 20.0, (shift_mm, angle_mdeg)
+    assert shift_mm < 1.0 and angle_mdeg < 2.0, (shift_mm, angle_mdeg)
 
 
 def test_joint_adjustment_beats_chaining_pairs_at_the_far_end(tmp_path):
