@@ -35,11 +35,11 @@ def rigid(rotvec_deg, shift_m, about) -> np.ndarray:
 
 
 def terrain_piece(x0: float, y0: float, error: np.ndarray, seed: int, noise_m: float = 0.0,
-                  relief: float = 1.0) -> trimesh.Trimesh:
+                  relief: float = 1.0, cell_m: float = CELL_M) -> trimesh.Trimesh:
     """A PIECE_M square of the terrain (heights times ``relief``; 0: flat) with its south-west corner at ``(x0, y0)``
-    (area ENU), CELL_M grid, heights with ``noise_m`` (1 sigma) of independent noise, moved by the rigid 4x4
-    ``error``; grey vertex colours."""
-    cells = int(PIECE_M / CELL_M)
+    (area ENU), a grid of ``cell_m`` cells, heights with ``noise_m`` (1 sigma) of independent noise, moved by the
+    rigid 4x4 ``error``; grey vertex colours."""
+    cells = int(round(PIECE_M / cell_m))
     vertices, faces, _ = grid_mesh(cells, cells, (x0, x0 + PIECE_M, y0, y0 + PIECE_M))
     noise = noise_m * np.random.default_rng(seed).standard_normal(len(vertices))
     vertices[:, 2] = relief * terrain_height(vertices) + noise
