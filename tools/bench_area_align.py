@@ -80,8 +80,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     print(f"height noise {args.noise_m} m per piece, {args.cell_m} m cells ({round(PIECE_M / args.cell_m + 1) ** 2} "
           f"vertices per {PIECE_M:.0f} m piece)\n")
-    print("| layout | pieces | overlap (m) | pairs | ICP per pair (s) | total (s) | seam offset before (mm) | after (mm) "
-          "| far end, chained pairs (mm) | far end, joint (mm) |")
+    print("| layout | pieces | overlap (m) | pairs | ICP per pair (s) | total (s) | seam offset before (mm) "
+          "| after (mm) | far end, chained pairs (mm) | far end, joint (mm) |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for layout in args.layouts:
         for count in [c for c in args.pieces if layout == "row" or c >= 4]:
