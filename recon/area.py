@@ -1,0 +1,337 @@
+"""Joining separately reconstructed scene folders of one area: one ENU frame, pairwise ICP, joint adjustment.
+
+Each piece is a scene folder (``scene.json`` + mesh, docs/interfaces.md) reconstructed on its own, in the ENU frame
+of its own origin. :func:`load_pieces` brings every mesh and footprint into one ENU frame (the ``frame`` given, by
+default the first piece's origin) by exact geodetic conversion of each vertex (pymap3d through
+:class:`flightplan.geodesy.LocalFrame`). :func:`find_overlaps` pairs pieces whose footprints (``observed_area_m``,
+else ``valid_area_m``) share ground; :func:`icp_pair` aligns piece B onto piece A on that shared ground by
+point-to-plane ICP against A's surface, trimmed by distance; :func:`adjust` solves for one rigid correction per piece
+(piece ``fixed`` stays put) that best satisfies every pairwise alignment at once, so that a chain's errors are spread
+over its loops and redundant overlaps rather than summed along it; control points picked on two pieces (recon merge's
+pairs format, :func:`control_link`) join the adjustment as extra constraints. Pieces that do not form one connected
+group through overlaps and control points are refused (:class:`AreaError`), and so is an overlap too flat for ICP
+to pin (:class:`FlatOverlapError`) unless control points tie that pair. :func:`align_area` does all of it and
+reports the median point-to-surface offset on each overlap before and after.
+
+The transforms are **rigid** (no scale): every piece is already geo-registered with metric scale by its own SfM, and
+a strip of overlap a few tens of metres wide constrains scale far worse than it constrains shifts and tilts, so a
+free scale would soak up noise. All coordinates are metres in the area's ENU frame; a correction ``X`` (4x4) maps a
+piece's loaded coordinates to its aligned ones.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import trimesh
+from matplotlib.path import Path as PolygonPath
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from flightplan.cli_support import BadInput
+from flightplan.geodesy import LocalFrame
+from recon.merge import ControlPairs
+from sim.scene import read_scene_json, read_scene_mesh_enu
+
+MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
+ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly spread)
+ADJUST_POINTS = 200  # per pair: points whose pairwise alignment the joint adjustment honours
+MIN_CONDITION = 0.01  # weakest / strongest direction ICP may pin (lever-arm scaled); flatter ground is refused
+TRIM_FLOOR_M = 0.05  # ICP keeps pairs within max(3 x median distance, this)
+NEAREST_VERTICES = 3  # candidate triangles for the closest surface point: those around this many nearest vertices
+
+
+class AreaError(BadInput):
+    """Pieces that cannot be joined (no overlap, not connected); the message names the scene folders."""
+
+
+class FlatOverlapError(AreaError):
+    """ICP cannot pin every direction on an overlap: the ground there is too flat (or too uniform)."""
+
+
+@dataclass(frozen=True)
+class Piece:
+    """One scene folder's mesh and footprint in the area's ENU frame (metres), and the folder's own origin."""
+
+    name: str
+    mesh: trimesh.Trimesh
+    footprint: np.ndarray  # (K, 2) ground polygon, area ENU x/y
+    origin: LocalFrame
+
+
+@dataclass(frozen=True)
+class Link:
+    """Pieces ``a`` and ``b`` tied at points: ``points_b`` on B should land on ``points_a`` on A (area ENU, metres)."""
+
+    a: int
+    b: int
+    points_a: np.ndarray
+    points_b: np.ndarray
+
+
+@dataclass(frozen=True)
+class Overlap:
+    """Ground seen by pieces ``a`` and ``b``: ``points_b`` are B's vertices inside both footprints (area ENU)."""
+
+    a: int
+    b: int
+    points_b: np.ndarray
+
+
+@dataclass(frozen=True)
+class PairReport:
+    """One neighbouring pair: ICP's B -> A transform (4x4) and the overlap's median point-to-surface offsets (m)."""
+
+    a: int
+    b: int
+    transform_ab: np.ndarray
+    points: int
+    before_m: float
+    after_pair_m: float
+    after_joint_m: float
+    icp_s: float
+
+
+@dataclass(frozen=True)
+class AreaAlignment:
+    """Per-piece rigid corrections (4x4, loaded -> aligned area ENU) and per-pair reports."""
+
+    corrections: list[np.ndarray]
+    pairs: list[PairReport]
+
+
+def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
+    """Read a scene folder and convert its mesh and footprint from its origin's ENU to ``frame``'s ENU exactly."""
+    scene_dir = Path(scene_dir)
+    meta = read_scene_json(scene_dir)
+    vertices, faces, _ = read_scene_mesh_enu(scene_dir, meta)
+    own = LocalFrame.from_dict(meta["origin"])
+    footprint = _footprint(meta)
+    ground = np.column_stack([footprint, np.full(len(footprint), np.median(vertices[:, 2]))])
+    return Piece(str(scene_dir), trimesh.Trimesh(_convert(vertices, own, frame), faces, process=False),
+                 _convert(ground, own, frame)[:, :2], own)
+
+
+def control_link(pairs: ControlPairs, a: int, b: int, pieces: list[Piece], frame: LocalFrame) -> Link:
+    """Control points picked on pieces ``a`` (``pairs.reference``) and ``b`` (``pairs.moving``), each in its scene's
+    own ENU (recon merge's pairs format), as a :class:`Link` in ``frame``'s ENU."""
+    for i in (a, b):
+        if not 0 <= i < len(pieces):
+            raise AreaError(f"control points name piece {i}, but there are {len(pieces)} pieces (0..{len(pieces) - 1})")
+    if a == b:
+        raise AreaError(f"control points tie piece {a} to itself; they must join two different pieces")
+    return Link(a, b, _convert(pairs.reference, pieces[a].origin, frame),
+                _convert(pairs.moving, pieces[b].origin, frame))
+
+
+def load_pieces(scene_dirs: list[Path], frame: LocalFrame | None = None) -> tuple[LocalFrame, list[Piece]]:
+    """Every scene folder in one ENU frame: ``frame``, or the first folder's origin when None."""
+    if len(scene_dirs) < 2:
+        raise AreaError(f"need at least 2 scene folders to join, got {len(scene_dirs)}")
+    if frame is None:
+        frame = LocalFrame.from_dict(read_scene_json(Path(scene_dirs[0]))["origin"])
+    return frame, [load_piece(Path(d), frame) for d in scene_dirs]
+
+
+def _convert(points: np.ndarray, source: LocalFrame, target: LocalFrame) -> np.ndarray:
+    """``(N, 3)`` ENU points of ``source`` -> ENU of ``target`` through geodetic coordinates (no approximation)."""
+    if source == target:
+        return np.asarray(points, dtype=np.float64)
+    return target.enu_points(*source.to_geodetic(*np.asarray(points, dtype=np.float64).T))
+
+
+def _footprint(meta: dict) -> np.ndarray:
+    """The ground a scene observed (``observed_area_m``), else its ``valid_area_m`` rectangle; ``(K, 2)`` metres."""
+    if meta.get("observed_area_m") is not None:
+        return np.asarray(meta["observed_area_m"], dtype=np.float64)
+    r = meta["valid_area_m"]
+    return np.array([[r["xmin"], r["ymin"]], [r["xmax"], r["ymin"]], [r["xmax"], r["ymax"]], [r["xmin"], r["ymax"]]])
+
+
+def find_overlaps(pieces: list[Piece], min_points: int = MIN_OVERLAP_POINTS) -> list[Overlap]:
+    """Pairs ``a < b`` with at least ``min_points`` of B's vertices inside both footprints."""
+    overlaps = []
+    for b, piece_b in enumerate(pieces):
+        v = np.asarray(piece_b.mesh.vertices)
+        own = PolygonPath(piece_b.footprint).contains_points(v[:, :2])
+        for a in range(b):
+            inside = own & PolygonPath(pieces[a].footprint).contains_points(v[:, :2])
+            if np.count_nonzero(inside) >= min_points:
+                overlaps.append(Overlap(a, b, v[inside]))
+    return overlaps
+
+
+def _check_connected(pieces: list[Piece], ties: list) -> None:
+    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through ``ties`` (overlaps, links)."""
+    reached, grew = {0}, True
+    while grew:
+        grew = False
+        for o in ties:
+            if (o.a in reached) != (o.b in reached):
+                reached |= {o.a, o.b}
+                grew = True
+    cut_off = [pieces[i].name for i in range(len(pieces)) if i not in reached]
+    if cut_off:
+        raise AreaError(f"{', '.join(cut_off)}: shares no ground (>= {MIN_OVERLAP_POINTS} vertices inside both "
+                        f"observed areas) and no control points with {pieces[0].name} or its neighbours; cannot join "
+                        f"pieces that do not overlap")
+
+
+class SurfaceQuery:
+    """Closest points on a mesh's surface; the vertex KD-tree (scipy cKDTree) is built once."""
+
+    def __init__(self, mesh: trimesh.Trimesh):
+        self.mesh = mesh
+        self.tree = cKDTree(mesh.vertices)
+        self.vertex_faces = np.asarray(mesh.vertex_faces)
+
+    def closest(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Closest points on the triangles to ``points`` ``(N, 3)`` and those triangles' unit normals.
+
+        Candidates are the triangles around the few nearest vertices, each solved exactly
+        (``trimesh.triangles.closest_point``); right for meshes whose triangles are small against their curvature."""
+        _, nearest = self.tree.query(points, k=NEAREST_VERTICES)
+        candidates = self.vertex_faces[nearest].reshape(len(points), -1)  # -1 pads
+        rows, cols = np.nonzero(candidates >= 0)
+        faces = candidates[rows, cols]
+        closest = trimesh.triangles.closest_point(self.mesh.triangles[faces], points[rows])
+        distance = np.full(candidates.shape, np.inf)
+        distance[rows, cols] = np.linalg.norm(closest - points[rows], axis=1)
+        chosen = np.zeros(candidates.shape, dtype=bool)
+        chosen[np.arange(len(points)), np.argmin(distance, axis=1)] = True
+        pick = chosen[rows, cols]
+        return closest[pick], self.mesh.face_normals[faces[pick]]
+
+    def offsets_m(self, points: np.ndarray) -> np.ndarray:
+        """Distance (m) from each point to the surface."""
+        return np.linalg.norm(points - self.closest(points)[0], axis=1)
+
+
+def icp_pair(surface_a: SurfaceQuery, points_b: np.ndarray, iterations: int = 30,
+             tolerance_m: float = 1e-5) -> np.ndarray:
+    """Rigid 4x4 taking B's ``points_b`` onto ``surface_a``: point-to-plane ICP (closest points and their
+    triangle normals, linearised in a small rotation about the points' centroid, each step applied exactly),
+    keeping only pairs within ``max(3 x median distance, TRIM_FLOOR_M)`` so that ground one piece saw differently
+    (edges, trees, holes) does not pull. Stops when a step moves the points by less than ``tolerance_m``.
+    Raise :class:`FlatOverlapError` when the ground does not pin some direction (flat: the shift along it)."""
+    step = max(1, len(points_b) // ICP_POINTS)
+    source = np.asarray(points_b[::step], dtype=np.float64)
+    centre = source.mean(axis=0)
+    transform = np.eye(4)
+    for _ in range(iterations):
+        moved = _apply(transform, source)
+        closest, normals = surface_a.closest(moved)
+        signed = np.einsum("ij,ij->i", moved - closest, normals)
+        keep = np.abs(signed) <= max(3.0 * np.median(np.abs(signed)), TRIM_FLOOR_M)
+        arm = moved[keep] - centre
+        system = np.column_stack([np.cross(arm, normals[keep]), normals[keep]])
+        _check_pinned(system, arm)
+        delta, *_ = np.linalg.lstsq(system, -signed[keep], rcond=None)
+        update = _rigid_about(delta, centre)
+        transform = update @ transform
+        if np.max(np.linalg.norm(_apply(update, moved) - moved, axis=1)) < tolerance_m:
+            break
+    return transform
+
+
+def _check_pinned(system: np.ndarray, arm: np.ndarray) -> None:
+    """Raise :class:`FlatOverlapError` when ICP's point-to-plane system (rotation columns scaled by the points' RMS
+    lever arm, so that all six are metres) has a direction under MIN_CONDITION of its strongest."""
+    scaled = system * np.r_[np.full(3, 1.0 / np.sqrt(np.mean(np.sum(arm**2, axis=1)))), np.ones(3)]
+    singular = np.linalg.svd(scaled, compute_uv=False)
+    if singular[-1] < MIN_CONDITION * singular[0]:
+        raise FlatOverlapError(f"the overlap's ground pins its weakest direction only {singular[-1] / singular[0]:.2g}"
+                               f" as well as its strongest (need {MIN_CONDITION}): too flat for surface alignment")
+
+
+def _rigid_about(delta: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """4x4 of ``x -> R(delta[:3]) (x - centre) + centre + delta[3:]`` (rotation vector in radians, shift in m)."""
+    m = np.eye(4)
+    m[:3, :3] = Rotation.from_rotvec(delta[:3]).as_matrix()
+    m[:3, 3] = centre + delta[3:] - m[:3, :3] @ centre
+    return m
+
+
+def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 4x4 to ``(N, 3)`` points."""
+    return points @ transform[:3, :3].T + transform[:3, 3]
+
+
+def adjust(count: int, links: list[Link], fixed: int = 0, iterations: int = 5) -> list[np.ndarray]:
+    """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every link at once:
+    least squares over ``X_a(q) - X_b(p)`` for each link's points (each point weighs the same), Gauss-Newton with
+    small-angle steps about the points' common centroid, each step applied exactly."""
+    if not 0 <= fixed < count:
+        raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
+    centre = np.mean(np.vstack([link.points_b for link in links]), axis=0)
+    free = [i for i in range(count) if i != fixed]
+    column = {piece: 6 * k for k, piece in enumerate(free)}
+    corrections = [np.eye(4) for _ in range(count)]
+    for _ in range(iterations):
+        blocks, rhs = [], []
+        for link in links:
+            xa, xb = _apply(corrections[link.a], link.points_a), _apply(corrections[link.b], link.points_b)
+            rows = np.zeros((xa.size, 6 * len(free)))
+            for piece, x, sign in ((link.a, xa, 1.0), (link.b, xb, -1.0)):
+                if piece in column:
+                    c = column[piece]
+                    rows[:, c:c + 3] = sign * -_skew_rows(x - centre)
+                    rows[:, c + 3:c + 6] = sign * np.tile(np.eye(3), (len(x), 1))
+            blocks.append(rows)
+            rhs.append(-(xa - xb).ravel())
+        delta, *_ = np.linalg.lstsq(np.vstack(blocks), np.concatenate(rhs), rcond=None)
+        for piece in free:
+            corrections[piece] = _rigid_about(delta[column[piece]:column[piece] + 6], centre) @ corrections[piece]
+        if np.max(np.abs(delta)) < 1e-9:
+            break
+    return corrections
+
+
+def _spread(points: np.ndarray) -> np.ndarray:
+    """At most ADJUST_POINTS of ``points``, evenly through the array."""
+    return points[:: max(1, len(points) // ADJUST_POINTS)]
+
+
+def _skew_rows(vectors: np.ndarray) -> np.ndarray:
+    """Stacked ``[v]x`` matrices ``(3N, 3)``: ``[v]x w = v x w``."""
+    x, y, z = vectors.T
+    zero = np.zeros_like(x)
+    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
+                     np.stack([-y, x, zero], -1)], axis=1).reshape(-1, 3)
+
+
+def align_area(pieces: list[Piece], fixed: int = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
+    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put; the
+    ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
+    of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the
+    pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected
+    through overlaps and control points, :class:`FlatOverlapError` for an overlap too flat to align (unless control
+    points tie that pair: then they alone place it)."""
+    overlaps = find_overlaps(pieces)
+    _check_connected(pieces, [*overlaps, *control])
+    surfaces = {o.a: SurfaceQuery(pieces[o.a].mesh) for o in overlaps}
+    tied = [{link.a, link.b} for link in control]
+    aligned = []
+    for o in overlaps:
+        start = time.perf_counter()
+        try:
+            transform = icp_pair(surfaces[o.a], o.points_b)
+        except FlatOverlapError as exc:
+            if {o.a, o.b} in tied:
+                continue  # the control points between them place B instead
+            raise FlatOverlapError(f"{pieces[o.b].name} on {pieces[o.a].name}: {exc}; add control points "
+                                   f"between them") from None
+        aligned.append((o, transform, time.perf_counter() - start))
+    icp_links = [Link(o.a, o.b, _apply(t, _spread(o.points_b)), _spread(o.points_b)) for o, t, _ in aligned]
+    corrections = adjust(len(pieces), [*icp_links, *control], fixed=fixed)
+    reports = []
+    for o, t, seconds in aligned:
+        surface, p = surfaces[o.a], o.points_b
+        joint = np.linalg.inv(corrections[o.a]) @ corrections[o.b]
+        reports.append(PairReport(o.a, o.b, t, len(p), float(np.median(surface.offsets_m(p))),
+                                  float(np.median(surface.offsets_m(_apply(t, p)))),
+                                  float(np.median(surface.offsets_m(_apply(joint, p)))), seconds))
+    return AreaAlignment(corrections, reports)

@@ -1,0 +1,179 @@
+"""recon/area.py against known truth: one synthetic terrain cut into overlapping scene folders, each moved by a known
+rigid error (one only by a different ENU origin), aligned back."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from flightplan.geodesy import LocalFrame
+from recon.area import (AreaError, FlatOverlapError, SurfaceQuery, align_area, control_link, find_overlaps, icp_pair,
+                        load_pieces)
+from recon.merge import ControlPairs
+from recon.similarity import umeyama
+from recon.scene_out import write_scene
+from sim.scene import SceneError
+from sim.synthetic import grid_mesh
+from tests.recon.area_pieces import (AREA, PIECE_M, centre_of, correction_error, frame_at, rigid, terrain_height,
+                                     terrain_piece)
+
+
+def write_piece(folder, x0: float, y0: float, error: np.ndarray, origin: LocalFrame, seed: int,
+                noise_m: float = 0.0, relief: float = 1.0):
+    """:func:`terrain_piece` written as a scene folder in ``origin``'s ENU."""
+    mesh = terrain_piece(x0, y0, error, seed, noise_m, relief)
+    mesh.vertices = origin.enu_points(*AREA.to_geodetic(*np.asarray(mesh.vertices).T))
+    folder.mkdir()
+    write_scene(folder, mesh, origin, {"test": "area"})
+    return folder
+
+
+def row_of_pieces(tmp_path, errors, step_m: float, noise_m: float = 0.0, origins=None):
+    """Pieces in a row along east, ``step_m`` apart; returns the scene folders."""
+    origins = origins or [AREA] * len(errors)
+    return [write_piece(tmp_path / f"piece{i}", i * step_m, 0.0, e, o, seed=i, noise_m=noise_m)
+            for i, (e, o) in enumerate(zip(errors, origins))]
+
+
+def test_origin_change_alone_is_undone_by_exact_conversion(tmp_path):
+    """A piece written in the ENU of an origin 300 m away lands on the area's frame to well under a millimetre
+    (0.05 mm: the PLY's float32 vertices, a few micrometres at 100 m, are the only error left)."""
+    other = frame_at(250.0, -170.0, 3.0)
+    folders = row_of_pieces(tmp_path, [np.eye(4), np.eye(4)], 40.0, origins=[AREA, other])
+    frame, pieces = load_pieces(folders)
+    assert frame == AREA
+    truth, _, _ = grid_mesh(60, 60, (40.0, 100.0, 0.0, 60.0))
+    truth[:, 2] = terrain_height(truth)
+    assert np.max(np.abs(np.asarray(pieces[1].mesh.vertices) - truth)) < 5e-5
+
+
+@pytest.mark.parametrize("step_m, shift_mm, angle_mdeg, seam_mm", [
+    (40.0, 0.01, 0.01, 0.01),  # neighbours' grids coincide on the overlap: the same surface, recovered exactly
+    (40.5, 15.0, 25.0, 30.0),  # half a cell apart: two facetings of the hills differ by ~2 cm, the floor here
+])
+def test_three_pieces_with_known_errors_are_aligned_back(tmp_path, step_m, shift_mm, angle_mdeg, seam_mm):
+    """Pieces 1 and 2 tilted, turned and shifted (decimetres, tenths of a degree), piece 3 only in its own origin's
+    ENU: each correction undoes its error (displacement at the piece's centre, rotation), and the overlaps' median
+    point-to-surface offset drops from decimetres to the floor that the two meshes' sampling leaves."""
+    errors = [np.eye(4), rigid([0.2, -0.1, 0.3], [0.4, -0.3, 0.25], centre_of(1, step_m)),
+              rigid([-0.15, 0.2, -0.25], [-0.3, 0.5, -0.2], centre_of(2, step_m)), np.eye(4)]
+    origins = [AREA, AREA, AREA, frame_at(130.0, 40.0, 1.0)]
+    _, pieces = load_pieces(row_of_pieces(tmp_path, errors, step_m, origins=origins))
+    result = align_area(pieces)
+    for i, error in enumerate(errors):
+        shift, angle = correction_error(result.corrections[i], error, centre_of(i, step_m))
+        assert shift < shift_mm and angle < angle_mdeg, (i, shift, angle)
+    assert {(r.a, r.b) for r in result.pairs} == {(0, 1), (1, 2), (2, 3)}
+    assert all(r.before_m > 0.15 for r in result.pairs)
+    assert all(1e3 * r.after_joint_m < seam_mm and 1e3 * r.after_pair_m < seam_mm for r in result.pairs)
+
+
+def test_icp_trims_ground_that_one_piece_saw_differently(tmp_path):
+    """A 3 m tall block on A's part of the overlap that B does not have (a tree, a wrong patch) does not pull B
+    (without the trim it pulls B 0.27 m and 0.67 deg off; with it, 0.25 mm)."""
+    error = rigid([0.1, 0.1, -0.2], [0.3, 0.2, 0.1], centre_of(1, 40.0))
+    _, pieces = load_pieces(row_of_pieces(tmp_path, [np.eye(4), error], 40.0))
+    overlap = find_overlaps(pieces)[0]
+    mesh_a = pieces[0].mesh.copy()
+    v = mesh_a.vertices.copy()
+    block = (v[:, 0] > 42) & (v[:, 0] < 50) & (v[:, 1] > 10) & (v[:, 1] < 25)
+    v[block, 2] += 3.0
+    mesh_a.vertices = v
+    transform = icp_pair(SurfaceQuery(mesh_a), overlap.points_b)
+    shift_mm, angle_mdeg = correction_error(transform, error, centre_of(1, 40.0))
+    assert shift_mm < 1.0 and angle_mdeg < 2.0, (shift_mm, angle_mdeg)
+
+
+def test_joint_adjustment_beats_chaining_pairs_at_the_far_end(tmp_path):
+    """Four noisy pieces (2 cm height noise each) whose overlaps reach two pieces ahead: chaining the neighbours'
+    ICP results sums their errors at piece 3; the joint adjustment also uses 0-2 and 1-3 and lands closer."""
+    step = 22.0
+    errors = [np.eye(4)] + [rigid([0.1 * i, -0.05 * i, 0.1], [0.2, -0.1 * i, 0.1], centre_of(i, step))
+                            for i in (1, 2, 3)]
+    _, pieces = load_pieces(row_of_pieces(tmp_path, errors, step, noise_m=0.02))
+    result = align_area(pieces)
+    pair = {(r.a, r.b): r.transform_ab for r in result.pairs}
+    assert {(0, 2), (1, 3)} <= set(pair)
+    chained = pair[(0, 1)] @ pair[(1, 2)] @ pair[(2, 3)]
+    far = centre_of(3, step) + [PIECE_M / 2, 0, 0]
+    chained_mm, _ = correction_error(chained, errors[3], far)
+    joint_mm, _ = correction_error(result.corrections[3], errors[3], far)
+    assert joint_mm < chained_mm, (joint_mm, chained_mm)
+    assert joint_mm < 10.0
+
+
+def test_pieces_that_do_not_overlap_are_refused_naming_them(tmp_path):
+    folders = row_of_pieces(tmp_path, [np.eye(4), np.eye(4)], 70.0)
+    _, pieces = load_pieces(folders)
+    with pytest.raises(AreaError, match=r"piece1: shares no ground .*piece0 or its neighbours"):
+        align_area(pieces)
+
+
+def test_control_points_join_pieces_whose_overlap_is_too_small_for_icp(tmp_path):
+    """Pieces sharing only a 12 x 11 m corner (156 of B's vertices, under the 200 that ICP needs), tied by 6 picked
+    points in each scene's own ENU (piece 1 written at another origin). Exact picks place piece 1 exactly; picks with
+    3 cm noise place it where the rigid least-squares fit of those picks (Umeyama) says, no better and no worse."""
+    corner, centre = np.array([48.0, 49.0]), np.array([78.0, 79.0, 0.0])
+    error = rigid([0.2, -0.1, 0.3], [0.4, -0.3, 0.25], centre)
+    other = frame_at(90.0, 30.0, 2.0)
+    folders = [write_piece(tmp_path / "piece0", 0.0, 0.0, np.eye(4), AREA, seed=0),
+               write_piece(tmp_path / "piece1", *corner, error, other, seed=1)]
+    frame, pieces = load_pieces(folders)
+    assert find_overlaps(pieces) == []
+    rng = np.random.default_rng(5)
+    ground = np.column_stack([rng.uniform(corner, [60.0, 60.0], (6, 2)), np.zeros(6)])
+    ground[:, 2] = terrain_height(ground)
+    on_b = other.enu_points(*AREA.to_geodetic(*(error[:3, :3] @ ground.T + error[:3, 3:4])))
+    exact = control_link(ControlPairs(moving=on_b, reference=ground), 0, 1, pieces, frame)
+    result = align_area(pieces, control=(exact,))
+    assert result.pairs == []
+    assert correction_error(np.eye(4), error, centre)[0] > 300.0
+    shift_mm, angle_mdeg = correction_error(result.corrections[1], error, centre)
+    assert shift_mm < 0.1 and angle_mdeg < 0.1, (shift_mm, angle_mdeg)
+    picks = ControlPairs(moving=on_b + rng.normal(0, 0.03, (6, 3)), reference=ground + rng.normal(0, 0.03, (6, 3)))
+    link = control_link(picks, 0, 1, pieces, frame)
+    fit = umeyama(link.points_b, link.points_a, with_scale=False).matrix()
+    correction = align_area(pieces, control=(link,)).corrections[1]
+    assert correction_error(correction, np.linalg.inv(fit), centre)[0] < 0.1
+    with pytest.raises(AreaError, match="piece 2, but there are 2 pieces"):
+        control_link(picks, 0, 2, pieces, frame)
+
+
+def test_flat_overlap_is_refused_unless_control_points_tie_the_pair(tmp_path):
+    """On flat ground ICP cannot see a shift along it: refused naming both pieces; with control points between the
+    two, those alone place piece 1 (exactly, for exact picks)."""
+    error = rigid([0.0, 0.0, 0.3], [0.4, -0.3, 0.0], centre_of(1, 40.0))
+    folders = [write_piece(tmp_path / f"piece{i}", 40.0 * i, 0.0, e, AREA, seed=i, relief=0.0)
+               for i, e in enumerate([np.eye(4), error])]
+    frame, pieces = load_pieces(folders)
+    with pytest.raises(FlatOverlapError, match=r"piece1 on .*piece0: .*too flat .*add control points"):
+        align_area(pieces)
+    ground = np.array([[42.0, 5.0, 0.0], [58.0, 8.0, 0.0], [45.0, 50.0, 0.0], [55.0, 30.0, 0.0]])
+    picks = ControlPairs(moving=ground @ error[:3, :3].T + error[:3, 3], reference=ground)
+    result = align_area(pieces, control=(control_link(picks, 0, 1, pieces, frame),))
+    assert result.pairs == []
+    shift_mm, angle_mdeg = correction_error(result.corrections[1], error, centre_of(1, 40.0))
+    assert shift_mm < 0.1 and angle_mdeg < 0.1, (shift_mm, angle_mdeg)
+
+
+def test_a_folder_that_is_not_a_scene_is_refused(tmp_path):
+    good = write_piece(tmp_path / "good", 0.0, 0.0, np.eye(4), AREA, seed=0)
+    (tmp_path / "notes").mkdir()
+    with pytest.raises(SceneError, match="notes/scene.json: scene.json not found"):
+        load_pieces([good, tmp_path / "notes"])
+    with pytest.raises(AreaError, match="at least 2 scene folders"):
+        load_pieces([good])
+
+
+def test_observed_area_limits_the_overlap(tmp_path):
+    """A footprint declared by scene.json's observed_area_m (not the mesh's bounding box) decides the overlap."""
+    folders = row_of_pieces(tmp_path, [np.eye(4), np.eye(4)], 40.0)
+    meta_path = folders[0] / "scene.json"
+    meta = json.loads(meta_path.read_text())
+    meta["observed_area_m"] = [[0.0, 0.0], [45.0, 0.0], [45.0, 60.0], [0.0, 60.0]]
+    meta_path.write_text(json.dumps(meta))
+    _, pieces = load_pieces(folders)
+    points = find_overlaps(pieces)[0].points_b
+    assert points[:, 0].min() >= 40.0 - 1e-6 and points[:, 0].max() <= 45.0 + 1e-6
