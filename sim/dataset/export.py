@@ -11,6 +11,7 @@ written atomically and deterministically, so an interrupted export is simply run
 from __future__ import annotations
 
 import os
+import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -39,7 +40,9 @@ def refuse_overlap(source: Path, out: Path, option: str = "--out") -> None:
 def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> list[str]:
     """Write ``layouts`` (names of :data:`LAYOUTS`) of the dataset in ``source_dir`` under ``out_dir``.
 
-    Everything is checked before the first file is written. Returns one summary line per layout.
+    Everything that can be checked up front is checked before the first file is written; a frame that turns out
+    unreadable (a damaged depth EXR) stops the export, and an ``out_dir`` this export created is removed again, so
+    nothing half-written is left. Returns one summary line per layout.
     """
     unknown = [name for name in layouts if name not in LAYOUT_WRITERS]
     if unknown or not layouts:
@@ -47,7 +50,13 @@ def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> l
     refuse_overlap(Path(source_dir), Path(out_dir))
     source = DatasetSource(Path(source_dir))
     writers = [LAYOUT_WRITERS[name](source, Path(out_dir)) for name in dict.fromkeys(layouts)]
-    for frame in source.frames():
-        for writer in writers:
-            writer.write_frame(frame)
-    return [writer.finish() for writer in writers]
+    created = not Path(out_dir).exists()
+    try:
+        for frame in source.frames():
+            for writer in writers:
+                writer.write_frame(frame)
+        return [writer.finish() for writer in writers]
+    except BaseException:
+        if created:
+            shutil.rmtree(out_dir, ignore_errors=True)
+        raise

@@ -107,8 +107,13 @@ def write_exr(path: Path, values: np.ndarray) -> None:
 
 
 def read_exr(path: Path) -> np.ndarray:
-    """Read the ``Y`` channel of an EXR as a float32 (H, W) array."""
-    with OpenEXR.File(str(path)) as exr:
+    """Read the ``Y`` channel of an EXR as a float32 (H, W) array; ``ValueError`` naming ``path`` if it is missing
+    or not a readable EXR (OpenEXR says so with a ``RuntimeError``)."""
+    try:
+        exr = OpenEXR.File(str(path))
+    except RuntimeError as error:
+        raise ValueError(f"{path}: not a readable EXR ({error})") from None
+    with exr:
         channels = exr.channels()
         if EXR_CHANNEL not in channels:
             raise ValueError(f"{path}: EXR has channels {sorted(channels)}, expected {EXR_CHANNEL!r}")

@@ -82,7 +82,7 @@ def _load_map(path: Path) -> np.ndarray:
         if suffix == ".exr":
             return read_exr(path)
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    except (OSError, ValueError, RuntimeError, TypeError) as error:
+    except (OSError, ValueError, TypeError) as error:
         raise BadInput(f"{path}: not a readable {suffix} prediction ({error})") from None
     if image is None or image.dtype != np.uint16 or image.ndim != 2:
         what = "unreadable" if image is None else f"{image.dtype} with shape {image.shape}"
