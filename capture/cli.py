@@ -18,7 +18,7 @@ import usb.core
 from serial.tools import list_ports
 
 from capture import cli_logs
-from capture.decode import decode_to_csv
+from capture.decode import NoFramesError, decode_to_csv
 from capture.messages import default_registry
 from capture.raw import RawCaptureWriter, index_path
 from capture.recorder import record, stop_after
@@ -127,10 +127,10 @@ def run_decode(args) -> int:
     chunks = replay_file(args.input, problems)
     if not is_pcap(args.input) and not index_path(args.input).exists():
         problems.append(f"{index_path(args.input)} not found, utc_time and monotonic_s are left empty")
-    summary = decode_to_csv(chunks, args.out, default_registry())
-    if not summary.packets:
-        args.out.unlink(missing_ok=True)
-        raise BadInput(f"{args.input}: no DUML frame found in {summary.bytes_read} bytes (not a DUML capture?)")
+    try:
+        summary = decode_to_csv(chunks, args.out, default_registry())
+    except NoFramesError as error:
+        raise BadInput(f"{args.input}: {error}") from None
     print(f"{args.input}: {summary.bytes_read} bytes, {summary.packets} packets, {summary.rows} telemetry rows "
           f"-> {args.out}")
     print("messages: " + ", ".join(f"{kind} {count}" for kind, count in summary.message_counts.items()))

@@ -180,8 +180,16 @@ def _cycle_collector_paused() -> Iterator[None]:
             gc.enable()
 
 
+class NoFramesError(ValueError):
+    """The input held no intact DUML frame: nothing is written (an existing output is left as it was)."""
+
+    def __init__(self, bytes_read: int) -> None:
+        super().__init__(f"no DUML frame found in {bytes_read} bytes (not a DUML capture?)")
+
+
 def decode_to_csv(chunks: Iterable[Chunk], out_path: str | os.PathLike, registry: MessageRegistry) -> DecodeSummary:
-    """Write one row per decoded telemetry message to ``out_path`` (atomically) and summarise."""
+    """Write one row per decoded telemetry message to ``out_path`` (atomically) and summarise;
+    :class:`NoFramesError` (and no file written) when the chunks hold no intact frame."""
     deframer = Deframer(commands=registry.commands)  # other commands are counted, not built, so not decoded
     rows = TelemetryRows(registry)
     count = 0
@@ -198,6 +206,8 @@ def decode_to_csv(chunks: Iterable[Chunk], out_path: str | os.PathLike, registry
                 count, lines = count + len(lines), []
         handle.write("".join(lines))
         count += len(lines)
+        if not deframer.stats.packets:
+            raise NoFramesError(deframer.stats.bytes_fed)  # inside atomic_path: the temporary goes, not the target
     stats = deframer.stats
     registry.count_undecoded(stats.unbuilt_packets)
     return DecodeSummary(count, dict(registry.counts), dict(stats.skipped_bytes), dict(stats.rejected_frames),
