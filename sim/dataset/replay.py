@@ -9,7 +9,6 @@ to ``image_2/NNNNNN.png`` (a copy where the file system has no hard links), so t
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from collections.abc import Mapping, Sequence
@@ -33,7 +32,7 @@ class ReplayFrame:
 
 
 def _image_name(record: Mapping) -> str | None:
-    return record.get("sampler", {}).get("image_name")
+    return (record.get("sampler") or {}).get("image_name")
 
 
 def write_photo_names(layout: KittiLayout, records: Sequence[Mapping]) -> None:
@@ -59,9 +58,11 @@ def replay_frames(folder: Path) -> dict[str, ReplayFrame]:
     if not folder.name.startswith("replay_") or not frames_jsonl.is_file():
         return {}
     depth_dir = folder.parent / f"depth_{folder.name.removeprefix('replay_')}"
+    from sim.dataset.source import read_record  # source -> writer -> this module: imported when called
+
     frames = {}
-    for line in frames_jsonl.read_text(encoding="utf-8").splitlines():
-        record = json.loads(line)
+    for number, line in enumerate(frames_jsonl.read_text(encoding="utf-8").splitlines(), 1):
+        record = read_record(frames_jsonl, number, line)
         name = _image_name(record)
         if name is not None:
             depth = depth_dir / frame_file_name(int(record["frame"]), ".exr")

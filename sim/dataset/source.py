@@ -39,7 +39,7 @@ class DatasetSource:
         if not path.is_file():
             raise DatasetError(f"{path}: not found; the dataset is not finalized (rerun the render until every frame "
                                "is written)")
-        records = [_record(path, number, line)
+        records = [read_record(path, number, line)
                    for number, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1)]
         if [record.get("frame") for record in records] != list(range(frame_count)):
             raise DatasetError(f"{path}: expected the records of frames 0..{frame_count - 1} in order; "
@@ -82,7 +82,7 @@ class DatasetSource:
             yield SourceFrame(self, int(record["frame"]), record)
 
 
-def _record(path: Path, number: int, line: str) -> dict:
+def read_record(path: Path, number: int, line: str) -> dict:
     """Line ``number`` of ``frames.jsonl`` as a JSON object, or an error naming the file and line."""
     try:
         record = loads_json(line)
