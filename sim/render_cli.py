@@ -193,12 +193,12 @@ def effects_from_args(args: argparse.Namespace) -> CameraEffects:
 
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:
-    """Refuse (:class:`BadInput`) a ``--out`` or ``--contact-sheet`` that names the scene (or a file in it), the
-    geotags (or their sidecar) or the other output, and a ``--contact-sheet`` that is a folder."""
+    """Refuse (:class:`BadInput`) a ``--out``, ``--contact-sheet`` or ``--export-out`` that names the scene (or a
+    file in it), the geotags (or their sidecar) or another output, and a ``--contact-sheet`` that is a folder."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     geotags = None if args.geotags is None else [args.geotags, sidecar_path(args.geotags)]
     refuse_clobbering({"--scene": folder_inputs(scene), "--geotags": geotags, "--mission": args.mission},
-                      {"--out": args.out, "--contact-sheet": args.contact_sheet})
+                      {"--out": args.out, "--contact-sheet": args.contact_sheet, "--export-out": args.export_out})
     refuse_folders({"--contact-sheet": args.contact_sheet})
 
 
