@@ -20,6 +20,7 @@ from defusedxml import ElementTree as SafeET
 
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import WGS84, LocalFrame, validate_latlon
+from flightplan.jsonfile import loads_json
 
 #: Most vertices a field may have (the self-intersection test is quadratic in them).
 MAX_VERTICES = 5000
@@ -92,7 +93,7 @@ def _parse_kml_coordinates(text: str, path: Path) -> np.ndarray:
 
 def _geojson_ring(raw: bytes, path: Path) -> np.ndarray:
     try:
-        document = json.loads(raw.decode("utf-8"))
+        document = loads_json(raw.decode("utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise BadInput(f"--area {path}: not GeoJSON ({error})") from None
     geometry = _first_polygon(document)
