@@ -1,0 +1,74 @@
+"""A rendered dataset damaged after the fact: the commands that read it (export, evaluate, compare) name the
+damaged file in one line and exit 2."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from sim.cli import main as render_main
+from tests.bad_input.harness import Case, assert_refused, run_case
+from tests.sim.render_scene_helpers import write_scene
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory) -> Path:
+    """A 2-frame random-mode dataset of the analytic scene, with depth EXRs and a replay-like frames.jsonl."""
+    root = tmp_path_factory.mktemp("dataset")
+    scene = write_scene(root / "scene")
+    out = root / "d"
+    assert render_main(["--scene", str(scene), "--out", str(out), "--frames", "2", "--width", "32", "--height", "16",
+                        "--formats", "depth_exr", "--quiet"]) == 0
+    return out
+
+
+def _copy(dataset: Path, tmp: Path) -> Path:
+    copy = tmp / "d"
+    for path in dataset.rglob("*"):
+        if path.is_file():
+            (copy / path.relative_to(dataset)).parent.mkdir(parents=True, exist_ok=True)
+            (copy / path.relative_to(dataset)).write_bytes(path.read_bytes())
+    return copy
+
+
+def test_a_truncated_depth_exr_is_named_by_export(dataset, tmp_path):
+    exr = _copy(dataset, tmp_path) / "sequences/00/depth_2/000001.exr"
+    exr.write_bytes(exr.read_bytes()[:100])
+    case = Case("export-truncated-depth-exr", "aerostereo-render",
+                ["export", "{tmp}/d", "--layout", "kitti_depth", "--out", "{tmp}/e"],
+                r"depth_2/000001\.exr: not a readable EXR")
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+def test_a_damaged_frames_record_is_named_by_compare(dataset, tmp_path):
+    copy = _copy(dataset, tmp_path)
+    replay, photos = copy / "sequences/00/replay_2", tmp_path / "photos"
+    for folder in (replay, photos):
+        folder.mkdir()
+        cv2.imwrite(str(folder / "DJI_0001.png"), np.zeros((8, 8, 3), np.uint8))
+    (copy / "sequences/00/frames.jsonl").write_text("garbage\n")
+    case = Case("compare-damaged-frames-jsonl", "aerostereo-render",
+                ["compare", "{tmp}/photos", "{tmp}/d/sequences/00/replay_2"],
+                r"frames\.jsonl: line 1 is not JSON")
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+def test_a_failed_decode_keeps_the_output_that_was_there(tmp_path):
+    """A capture with no DUML frame is refused, and the --out the user already had is left as it was."""
+    (tmp_path / "junk.duml").write_bytes(bytes(range(256)) * 20)
+    (tmp_path / "telemetry.csv").write_text("the user's\n")
+    case = Case("decode-junk-keeps-output", "aerostereo-ingest",
+                ["decode", "{tmp}/junk.duml", "--out", "{tmp}/telemetry.csv"], r"junk\.duml: no DUML frame found")
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+    assert (tmp_path / "telemetry.csv").read_text() == "the user's\n"
+
+
+def test_an_export_folder_in_the_scene_is_refused(tmp_path):
+    scene = write_scene(tmp_path / "scene")
+    case = Case("render-export-out-is-the-scene", "aerostereo-render",
+                ["--scene", str(scene), "--out", "{tmp}/d", "--export", "tum", "--export-out", str(scene)],
+                r"--export-out .*scene: is also --scene")
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
