@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import struct
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from io import BytesIO
@@ -156,9 +157,16 @@ def _glb_size(path: Path) -> MeshSize:
             mesh_vertices, mesh_triangles = _mesh_counts(gltf, gltf["meshes"][mesh_index])
             vertices += count * mesh_vertices
             triangles += count * mesh_triangles
-        side = max((_image_side(gltf, image, binary) for image in gltf.get("images", [])), default=0)
     except (KeyError, IndexError, TypeError, ValueError, AttributeError) as error:
         raise MeshFileError(f"{path}: malformed glTF JSON ({type(error).__name__}: {error})") from None
+    try:
+        side = max((_image_side(gltf, image, binary) for image in gltf.get("images", [])), default=0)
+    except (KeyError, IndexError, TypeError, ValueError) as error:
+        raise MeshFileError(f"{path}: malformed glTF image entry ({type(error).__name__}: {error})") from None
+    except Image.DecompressionBombError as error:  # a header declaring more pixels than PIL will ever decode
+        raise MeshFileError(f"{path}: an embedded image cannot be read ({error})") from None
+    except OSError as error:  # not an image PIL knows (its message names only an in-memory buffer)
+        raise MeshFileError(f"{path}: an embedded image cannot be read ({type(error).__name__})") from None
     return MeshSize(vertices, triangles, side)
 
 
@@ -227,5 +235,7 @@ def _image_side(gltf: dict, image: dict, binary: bytes) -> int:
         return 0
     view = gltf["bufferViews"][image["bufferView"]]
     start = int(view.get("byteOffset", 0))
-    with Image.open(BytesIO(binary[start:start + int(view["byteLength"])])) as picture:
-        return max(picture.size)
+    with warnings.catch_warnings():  # only the header is read: a large declared size is judged by the caller
+        warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+        with Image.open(BytesIO(binary[start:start + int(view["byteLength"])])) as picture:
+            return max(picture.size)

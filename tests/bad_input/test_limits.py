@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import struct
+import zlib
 from pathlib import Path
 
 import pytest
@@ -58,6 +59,35 @@ def write_glb_bomb(path: Path, instances: int = 110_000) -> None:
     text += b" " * (-len(text) % 4)
     header = b"glTF" + struct.pack("<II", 2, 12 + 8 + len(text) + len(binary))
     path.write_bytes(header + struct.pack("<II", len(text), 0x4E4F534A) + text + binary)
+
+
+def write_glb_with_image(image: bytes):
+    """A writer of a small GLB whose one embedded image is ``image`` (e.g. a PNG header declaring a huge size)."""
+    def write(path: Path) -> None:
+        data = trimesh.creation.box().export(file_type="glb")
+        json_length = struct.unpack_from("<I", data, 12)[0]
+        gltf = json.loads(data[20:20 + json_length])
+        binary_length = struct.unpack_from("<I", data, 20 + json_length)[0]
+        binary = data[28 + json_length:28 + json_length + binary_length]
+        binary += b"\0" * (-len(binary) % 4)
+        gltf["bufferViews"].append({"buffer": 0, "byteOffset": len(binary), "byteLength": len(image)})
+        gltf["images"] = [{"bufferView": len(gltf["bufferViews"]) - 1, "mimeType": "image/png"}]
+        binary += image + b"\0" * (-len(image) % 4)
+        gltf["buffers"][0]["byteLength"] = len(binary)
+        text = json.dumps(gltf, separators=(",", ":")).encode()
+        text += b" " * (-len(text) % 4)
+        header = b"glTF" + struct.pack("<II", 2, 12 + 8 + len(text) + 8 + len(binary))
+        path.write_bytes(header + struct.pack("<II", len(text), 0x4E4F534A) + text
+                         + struct.pack("<II", len(binary), 0x004E4942) + binary)
+    return write
+
+
+def png_header(width: int, height: int) -> bytes:
+    """An 8-bit RGB PNG of the given size with no pixel data: signature, IHDR, an empty IDAT and IEND."""
+    def chunk(kind: bytes, body: bytes = b"") -> bytes:
+        return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+    ihdr = struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IDAT") + chunk(b"IEND")
 
 
 def write_ply_bomb(path: Path) -> None:
@@ -160,6 +190,12 @@ CASES = [
     Case("scene-glb-instancing-bomb", "aerostereo-render", SCENE,
          r"bomb\.glb: declares \d+ vertices and 2252800000 triangles; the renderer indexes at most",
          setup=scene_with(write_glb_bomb, "bomb.glb")),
+    Case("scene-glb-image-bomb", "aerostereo-render", SCENE,
+         r"image\.glb: an embedded image cannot be read \(Image size \(400000000 pixels\) exceeds limit",
+         setup=scene_with(write_glb_with_image(png_header(20000, 20000)), "image.glb")),
+    Case("scene-glb-image-garbage", "aerostereo-render", SCENE,
+         r"image\.glb: an embedded image cannot be read \(UnidentifiedImageError\)",
+         setup=scene_with(write_glb_with_image(b"not an image at all"), "image.glb")),
     Case("scene-ply-header-bomb", "aerostereo-render", SCENE,
          r"bomb\.ply: header declares 162 vertex, 3000000000 face, which take at least",
          setup=scene_with(write_ply_bomb, "bomb.ply")),
