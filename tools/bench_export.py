@@ -54,7 +54,7 @@ def layout_rows(source: Path, frames: int, scratch: Path) -> list[str]:
 
 def tolerance_rows(source: Path) -> list[str]:
     dataset = DatasetSource(source)
-    baseline = dataset.baseline_m("bench")
+    baseline = dataset.baseline_m("the export benchmark")
     valid = off_image = 0
     occluded = np.zeros(len(TOLERANCES))
     for frame in dataset.frames():

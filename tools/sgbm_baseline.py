@@ -48,7 +48,7 @@ def write_predictions(dataset: Path, out: Path, num_disparities: int, block_size
     """SGBM disparity (KITTI PNG) and depth (EXR) of every frame under ``out/disp`` and ``out/depth``; returns the
     mean SGBM time per frame (s)."""
     source = DatasetSource(dataset)
-    baseline_m = source.baseline_m("sgbm")
+    baseline_m = source.baseline_m("SGBM")
     matcher = make_sgbm(num_disparities, block_size)
     seconds = 0.0
     for frame in source.frames():

@@ -82,7 +82,7 @@ class KittiFlowWriter:
     name = "kitti_flow"
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(self.name)
+        source.require_depth(f"the {self.name} layout")
         self.root = Path(out) / "training"
         self.previous: SourceFrame | None = None
         self.pairs = self.valid = self.hidden = 0
@@ -116,7 +116,7 @@ class FloWriter:
     direction = "forward"
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(self.name)
+        source.require_depth(f"the {self.name} layout")
         self.root = Path(out) / f"flow_{self.direction}"
         self.views = range(source.view_count)
         self.previous: SourceFrame | None = None

@@ -69,9 +69,9 @@ class Kitti2015Writer:
     name = "kitti2015"
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(self.name)
-        source.require_pinhole(self.name)
-        self.baseline_m = source.baseline_m(self.name)
+        source.require_depth(f"the {self.name} layout")
+        source.require_pinhole(f"the {self.name} layout")
+        self.baseline_m = source.baseline_m(f"the {self.name} layout")
         self.root = Path(out) / "training"
         self.frames = self.valid = self.occluded = 0
 

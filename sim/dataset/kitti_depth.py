@@ -39,8 +39,8 @@ class KittiDepthWriter:
     name = "kitti_depth"
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(self.name)
-        source.require_pinhole(self.name)
+        source.require_depth(f"the {self.name} layout")
+        source.require_pinhole(f"the {self.name} layout")
         self.date_dir = Path(out) / DATE
         self.drive_dir = self.date_dir / drive_name(source.sequence)
         self.frames = self.hits = self.too_far = 0

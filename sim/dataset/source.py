@@ -54,26 +54,27 @@ class DatasetSource:
     def view_count(self) -> int:
         return len(self.description["cameras"])
 
-    def require_depth(self, layout: str) -> None:
-        """Refuse a layout that needs depth when the dataset was rendered without depth EXRs."""
+    def require_depth(self, needed_by: str) -> None:
+        """Refuse what needs depth (``needed_by``: "the kitti2015 layout", "--depth") when the dataset was rendered
+        without depth EXRs."""
         if "depth_exr" not in self.description["formats"]:
-            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs the depth maps, but this "
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs the depth maps, but this "
                                f"dataset has formats {self.description['formats']}; render it with --formats "
                                "including depth_exr")
 
-    def require_pinhole(self, layout: str) -> None:
-        """Refuse a layout whose readers assume undistorted pinhole images when a camera has lens distortion."""
+    def require_pinhole(self, needed_by: str) -> None:
+        """Refuse what assumes undistorted pinhole images (``needed_by``) when a camera has lens distortion."""
         lenses = [*self.description["cameras"], *(r["camera"] for r in self.records if "camera" in r)]
         if any(lens.get("dist") or lens.get("model", "pinhole") != "pinhole" for lens in lenses):
-            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs undistorted pinhole images, "
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs undistorted pinhole images, "
                                "but the dataset's cameras have lens distortion")
 
-    def baseline_m(self, layout: str) -> float:
-        """Baseline of rig cameras 0 and 1 (metres); refuses a pair that is not rectified."""
+    def baseline_m(self, needed_by: str) -> float:
+        """Baseline of rig cameras 0 and 1 (metres); refuses a pair that is not rectified (naming ``needed_by``)."""
         try:
             return stereo_baseline_m(self.T_rig_cams[LEFT], self.T_rig_cams[RIGHT])
         except ValueError:
-            raise DatasetError(f"{self.layout.dataset_json}: the {layout} layout needs a rectified stereo pair "
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs a rectified stereo pair "
                                "(right camera at +B along the left camera's x axis, same orientation)") from None
 
     def frames(self) -> Iterator["SourceFrame"]:

@@ -35,8 +35,8 @@ class Vkitti2Writer:
     name = "vkitti2"
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(self.name)
-        source.require_pinhole(self.name)
+        source.require_depth(f"the {self.name} layout")
+        source.require_pinhole(f"the {self.name} layout")
         self.root = Path(out) / f"Scene{source.sequence}" / VARIATION
         self.views = range(source.view_count)
         self.intrinsic_lines = [INTRINSIC_HEADER]

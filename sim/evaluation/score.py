@@ -13,7 +13,6 @@ from sim.dataset.images import disparity_from_depth
 from sim.dataset.kitti import relative_poses
 from sim.dataset.kitti2015 import visible_in_right
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
-from sim.dataset.writer import DatasetError
 from sim.evaluation import depth as depth_metrics
 from sim.evaluation import disparity as disparity_metrics
 from sim.evaluation import trajectory as trajectory_metrics
@@ -45,7 +44,7 @@ def evaluate(dataset: Path, options: EvaluateOptions) -> dict:
     source = DatasetSource(Path(dataset))
     depth_files = _map_inputs(source, options.depth, "--depth")
     disparity_files = _map_inputs(source, options.disparity, "--disparity")
-    baseline_m = _baseline_m(source) if disparity_files else None
+    baseline_m = source.baseline_m("--disparity") if disparity_files else None
     trajectory = _trajectory_input(source, options.trajectory) if options.trajectory is not None else None
     report = {"dataset": str(dataset), "frames": len(source.records)}
     if depth_files:
@@ -61,18 +60,8 @@ def _map_inputs(source: DatasetSource, folder: Path | None, option: str) -> list
     """The per-frame prediction files of ``folder`` (none without it), scored against the depth maps."""
     if folder is None:
         return []
-    if "depth_exr" not in source.description["formats"]:
-        raise BadInput(f"{source.layout.dataset_json}: {option} is scored against the depth maps, but this dataset "
-                       f"has formats {source.description['formats']}; render it with --formats including depth_exr")
+    source.require_depth(option)
     return map_files(folder, len(source.records), option)
-
-
-def _baseline_m(source: DatasetSource) -> float:
-    try:
-        return source.baseline_m("disparity")
-    except DatasetError:
-        raise BadInput(f"{source.layout.dataset_json}: --disparity needs a rectified stereo pair (right camera at +B "
-                       "along the left camera's x axis, same orientation)") from None
 
 
 def _trajectory_input(source: DatasetSource, path: Path) -> tuple[Path, TrajectoryFile, list[int]]:
