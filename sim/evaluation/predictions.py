@@ -153,6 +153,16 @@ def _kitti_pose(path: Path, row: np.ndarray, number: int) -> np.ndarray:
     return pose
 
 
+def _nearest_sorted(sorted_values: np.ndarray, queries: np.ndarray) -> np.ndarray:
+    """Index of the nearest of the increasing ``sorted_values`` to each query (the lower one on a tie), in O(N log N)
+    time and O(N) memory (a poses x frames distance matrix of a long sequence would not fit)."""
+    if len(sorted_values) == 1:
+        return np.zeros(len(queries), dtype=np.int64)
+    above = np.clip(np.searchsorted(sorted_values, queries), 1, len(sorted_values) - 1)
+    below = above - 1
+    return np.where(queries - sorted_values[below] <= sorted_values[above] - queries, below, above)
+
+
 def match_times(trajectory: TrajectoryFile, path: Path, frame_times_s: np.ndarray) -> list[int]:
     """The dataset frame of each pose: KITTI poses are frames 0, 1, ... (one per frame); a TUM pose is the frame
     whose time is within :data:`MAX_TIME_DIFF_S` of its own."""
@@ -162,7 +172,7 @@ def match_times(trajectory: TrajectoryFile, path: Path, frame_times_s: np.ndarra
             raise BadInput(f"{path}: {len(trajectory.poses)} KITTI poses, but the dataset has {frame_count} frames; "
                            "expected one line per frame")
         return list(range(frame_count))
-    nearest = np.abs(trajectory.times_s[:, None] - np.asarray(frame_times_s)[None, :]).argmin(axis=1)
+    nearest = _nearest_sorted(np.asarray(frame_times_s, dtype=np.float64), trajectory.times_s)
     off = np.abs(trajectory.times_s - frame_times_s[nearest]) > MAX_TIME_DIFF_S
     if off.any():
         first = int(np.nonzero(off)[0][0])
