@@ -19,8 +19,6 @@ from .flightcsv import read_flight_csv, sniff_flight_csv
 from .photos import read_photos_track
 from .srt import looks_like_srt, read_srt
 
-KINDS = LOG_KINDS
-
 
 def detect_kind(path) -> str:
     """Which reader fits ``path``, from its content (and suffix); raises LogFormatError if none does."""
@@ -60,4 +58,4 @@ def read_track(path, *, kind: str | None = None, start_time_s: float | None = No
         return read_flight_csv(path, kind)
     if kind == "duml":
         return read_duml_track(path)
-    raise ValueError(f"unknown log kind {kind!r}; known: {KINDS}")
+    raise ValueError(f"unknown log kind {kind!r}; known: {LOG_KINDS}")
