@@ -203,11 +203,21 @@ def summary_text(plan: AreaPlan) -> str:
 
 
 def write_area_plan(plan: AreaPlan, folder: Path, warnings: list[str]) -> list[Path]:
-    """Write every flight's CSV and the overview into ``folder``; return the paths."""
-    written = [write_mission_csv(f.mission, folder / flight_csv_name(n)) for n, f in enumerate(plan.flights, start=1)]
+    """Write every flight's CSV and the overview into ``folder``; return the paths. A write that fails (a full
+    disk, Ctrl-C) removes the files already written, so no half plan is left to block the rerun."""
     kml, geojson, png, summary = (folder / name for name in OVERVIEW_NAMES)
-    written.append(write_text_atomic(kml, overview_kml(plan)))
-    written.append(write_text_atomic(geojson, json.dumps(overview_geojson(plan), indent=1) + "\n"))
-    written.append(write_overview_png(plan, png))
-    written.append(write_text_atomic(summary, json.dumps(summary_dict(plan, warnings), indent=2) + "\n"))
+    writes = [*(lambda n=n, f=f: write_mission_csv(f.mission, folder / flight_csv_name(n))
+                for n, f in enumerate(plan.flights, start=1)),
+              lambda: write_text_atomic(kml, overview_kml(plan)),
+              lambda: write_text_atomic(geojson, json.dumps(overview_geojson(plan), indent=1) + "\n"),
+              lambda: write_overview_png(plan, png),
+              lambda: write_text_atomic(summary, json.dumps(summary_dict(plan, warnings), indent=2) + "\n")]
+    written: list[Path] = []
+    try:
+        for write in writes:
+            written.append(write())
+    except BaseException:
+        for path in written:
+            path.unlink(missing_ok=True)
+        raise
     return written

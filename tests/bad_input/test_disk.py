@@ -131,3 +131,19 @@ def test_recon_on_a_disk_that_fills_up_resumes_after_space_is_freed(flight, tmp_
         assert json.loads((disk / "scene/scene.json").read_text())["mesh"]
         assert not [p for p in disk.rglob("*") if p.is_file() and p.stat().st_size == 0]
         assert not list(disk.rglob(".*"))
+
+
+def test_an_area_plan_on_a_full_disk_leaves_no_half_plan_and_reruns(tmp_path):
+    """Two flights' CSVs fit, the overview does not: the CSVs go again, and after space is freed the same command
+    writes the plan (a half plan would have been refused as 'already holds a plan')."""
+    field = tmp_path / "f.geojson"
+    field.write_text(json.dumps({"type": "Feature", "properties": {}, "geometry": {"type": "Polygon", "coordinates": [
+        [[44.499, 40.179], [44.5, 40.179], [44.5, 40.18], [44.499, 40.18], [44.499, 40.179]]]}}))
+    case = Case("area-full-disk", "aerostereo-mission", ["--area", str(field), "--out", "{tmp}/plan"],
+                r"plan/area\.\w+: No space left on device")
+    with small_disk(tmp_path / "disk", "64k") as disk:
+        assert_refused(run_case(case, disk), case, disk)
+        grow_disk(disk, "1m")
+        rerun = run_case(case, disk)
+        assert rerun.code == 0, rerun.err
+        assert sorted(p.name for p in (disk / "plan").iterdir())[:2] == ["area.geojson", "area.json"]
