@@ -94,7 +94,8 @@ def run_case(case: Case, tmp: Path) -> Result:
 
 
 def assert_refused(result: Result, case: Case, tmp: Path) -> None:
-    """Exit 2, one stderr line naming what was wrong, no traceback or RuntimeWarning, no file left behind."""
+    """Exit 2, one stderr line naming what was wrong, no traceback or RuntimeWarning, no file left behind and none
+    that was there removed."""
     lines = result.err.splitlines()
     assert result.code == 2, f"{case.id}: exit code {result.code}, stderr: {result.err!r}"
     assert "Traceback" not in result.err, f"{case.id}: traceback: {result.err}"
@@ -103,6 +104,8 @@ def assert_refused(result: Result, case: Case, tmp: Path) -> None:
     assert not result.warnings, f"{case.id}: RuntimeWarnings: {result.warnings}"
     left = sorted(str(p.relative_to(tmp)) for p in result.files_after - result.files_before)
     assert not left, f"{case.id}: files left behind: {left}"
+    lost = sorted(str(p.relative_to(tmp)) for p in result.files_before - result.files_after)
+    assert not lost, f"{case.id}: files that were there are gone: {lost}"
 
 
 def _files(folder: Path) -> set[Path]:

@@ -28,3 +28,10 @@ def test_a_file_left_behind_is_caught(tmp_path):
     result = Result(2, "", "x: error: --n\n", [], set(), {left})
     with pytest.raises(AssertionError, match="half.csv"):
         assert_refused(result, Case("c", "aerostereo-mission", [], r"--n"), tmp_path)
+
+
+def test_a_file_removed_is_caught(tmp_path):
+    kept = tmp_path / "telemetry.csv"
+    result = Result(2, "", "x: error: --n\n", [], {kept}, set())
+    with pytest.raises(AssertionError, match="gone: .*telemetry.csv"):
+        assert_refused(result, Case("c", "aerostereo-mission", [], r"--n"), tmp_path)
