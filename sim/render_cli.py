@@ -21,6 +21,7 @@ from sim.dataset.export import export_dataset, refuse_overlap
 from sim.effects import VIGNETTING_MODELS, CameraEffects
 from sim.export_cli import layout_list
 from sim.metrics import compare_folders, summary_table
+from sim.motion.imu import DEFAULT_RATE_HZ
 from sim.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
 from sim.render_dataset import is_demo_scene, render_dataset
 
@@ -115,7 +116,7 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         help="trajectory mode: fly the smooth (twice differentiable) version of the path and write its IMU record "
              "(imu/NN.csv: gyroscope + accelerometer with EuRoC's ADIS16448 noise, the noise-free values, biases "
              "and the true body state); export it with 'export --layout euroc'")
-    add("--imu-rate", type=float, default=200.0,
+    add("--imu-rate", type=float, default=DEFAULT_RATE_HZ,
         help="IMU samples per second with --imu (a whole multiple of --rate)")
     add("--width", type=int, default=defaults.width,
         help=f"image width, pixels (default {DEFAULT_SIZE[0]}; replay of the scene's cameras: each photo's own, "

@@ -45,8 +45,8 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from flightplan.cli_support import path_problem
 from flightplan.atomic import write_text_atomic
+from flightplan.cli_support import BadInput, path_problem, require_disk, require_memory
 from sim.dataset import (
     AsyncFrameWriter,
     DatasetError,
@@ -64,7 +64,6 @@ from sim.frame_renderer import (
     RenderInputError,
     RenderOptions,
 )
-from flightplan.cli_support import BadInput, require_disk, require_memory
 from sim.camera import MAX_SAMPLES_PER_PIXEL
 from sim.dataset.imu_file import write_imu_csv
 from sim.dataset.kitti import KittiLayout
