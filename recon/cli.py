@@ -47,6 +47,14 @@ def positive_int(text: str) -> int:
     return value
 
 
+def hold_out_count(text: str) -> int:
+    """``--hold-out``: 0 (off) or K >= 2; K = 1 is refused by :class:`ReconOptions` with its reason."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 (off) or an every-K-th count >= 2, got {text}")
+    return value
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog=PROGRAM, description="Photos + geotags -> georeferenced textured scene folder "
                                               "(SfM, dense stereo, mesh, texture; resumable). Other command: "
@@ -84,10 +92,10 @@ def build_parser() -> argparse.ArgumentParser:
                         help="atlas: each face from its best photo; ortho: a true orthophoto (for --mesh 2.5d); "
                              "none: vertex colours only (default %(default)s)")
     parser.add_argument("--texel", type=float, help="texel size, m (default: one pixel of the photos on the surface)")
-    parser.add_argument("--hold-out", type=positive_int, default=0, metavar="K",
+    parser.add_argument("--hold-out", type=hold_out_count, default=0, metavar="K",
                         help="register every photo but leave every K-th (name order, K >= 2) out of depth maps, "
                              "fusion and texture, to measure photorealism on photos the texture never saw "
-                             "(cameras.json marks them held_out)")
+                             "(cameras.json marks them held_out; 0: off)")
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
     return parser
 
