@@ -91,8 +91,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one with the same settings "
                                                 "is resumed)")
     add("--overwrite", action="store_true",
-        help="if --out holds a dataset with other settings, delete that dataset's files and render anew (only the "
-             "files the dataset wrote; anything else in the folder is kept)")
+        help="if --out holds a dataset with other settings, delete that dataset and render anew (its image, depth, "
+             "frame_meta and replay folders, whole, and its own files; anything else in --out is kept)")
     add("--frames", type=int, default=defaults.frames, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default=defaults.mode,
         help="random poses (the paper), a trajectory, or replay: the reconstructed scene's own cameras "

@@ -217,16 +217,18 @@ def read_dataset_json(root: Path) -> dict:
 
 
 def remove_dataset(root: Path) -> None:
-    """Delete the dataset in ``root``: the folders and files its ``dataset.json`` says it wrote (frames of every
-    camera and format, frame records, replay names, calib/times/poses/frames.jsonl, the IMU record, their
-    temporaries), then ``dataset.json``, then the layout's folders if left empty. Files the dataset did not write are kept."""
+    """Delete the dataset in ``root``: the folders its ``dataset.json`` says it wrote into, whole (frames of every
+    camera and format, frame records, replay names), its files (calib/times/poses/frames.jsonl, the IMU record,
+    their temporaries), then ``dataset.json``, then the layout's folders if left empty. Files elsewhere in
+    ``root`` are kept. A folder that cannot be removed raises its ``OSError`` before ``dataset.json`` goes, so the
+    next run still sees the old dataset (and refuses or removes it again)."""
     description = read_dataset_json(Path(root))
     layout = KittiLayout(Path(root), description["sequence"])
     views = range(len(description["cameras"]))
     folders = {path.parent for view in views for path in view_files(layout, description["formats"], view, 0)}
     folders |= {layout.frame_meta_dir, *(layout.replay_dir(view) for view in views)}
-    for folder in sorted(folders):
-        shutil.rmtree(folder, ignore_errors=True)
+    for folder in sorted(folder for folder in folders if folder.is_dir()):
+        shutil.rmtree(folder)
     for path in (layout.calib_txt, layout.times_txt, layout.frames_jsonl, layout.poses_txt, layout.imu_csv,
                  layout.dataset_json):
         remove_stale_temps(path)
