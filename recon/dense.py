@@ -145,7 +145,13 @@ def pair_depth(ref_img: np.ndarray, src_img: np.ndarray, ref: View, src: View,
 
     d_near, d_far = focal_baseline / depth_range[0], focal_baseline / depth_range[1]
     min_disp = int(np.floor(d_far)) - 2
-    num_disp = int(np.ceil((d_near - min_disp + 2) / 16.0)) * 16
+    # Search at most half the rectified width: SGBM leaves the first min_disp + num_disp columns without a value
+    # and fails to allocate beyond the width. A wide baseline (two neighbouring orbits of an area) puts the near
+    # end past that; those depths stay unknown from this pair.
+    most_px = (h if vertical else w) // 2
+    num_disp = min(int(np.ceil((d_near - min_disp + 2) / 16.0)), (most_px - min_disp) // 16) * 16
+    if num_disp < 16:
+        return np.full((h, w), np.nan, np.float32)
     rect_disparity = disparity(np.ascontiguousarray(to_canonical(rect_ref)),
                                np.ascontiguousarray(to_canonical(rect_src)), min_disp, num_disp, block)
     rect_disparity = rect_disparity[:, ::-1] if offset > 0 else rect_disparity

@@ -30,6 +30,21 @@ def test_sgbm_recovers_plane_depth(texture, src_offset, yaw_deg):
     assert np.percentile(relative, 90) < 0.03
 
 
+def test_wide_baseline_searches_only_within_the_image(texture):
+    """Two neighbouring orbits of an area give pairs whose near depths lie beyond the image's width in disparity:
+    the search is cut at the image edge (OpenCV's SGBM failed to allocate) and the depths it can still see are
+    right; a pair whose whole range lies beyond the image gives no depth at all."""
+    ref = look_down_view((0.0, 0.0, 30.0), 0.0, tilt_deg=5.0)
+    src = look_down_view((6.0, 0.0, 30.0), 3.0, tilt_deg=-3.0)
+    depth = pair_depth(render_plane(texture, ref), render_plane(texture, src), ref, src, (2.0, 45.0))
+    truth = true_plane_depth(ref)
+    valid = np.isfinite(depth)
+    assert valid.mean() > 0.35  # (0.57 with the range cut to 20 m: the search's half-width leaves fewer columns)
+    assert np.median(np.abs(depth[valid] - truth[valid]) / truth[valid]) < 0.01
+    beyond = pair_depth(render_plane(texture, ref), render_plane(texture, src), ref, src, (0.2, 0.5))
+    assert beyond.shape == depth.shape and not np.isfinite(beyond).any()
+
+
 def test_flat_sky_is_masked_where_sgbm_fills_it_in(texture):
     """The top third of both images is a flat 'sky' (as beyond the demo world's edge, or clipped highlights): SGBM
     carries a depth into it from the plane's edge, the texture mask takes it away again; the plane keeps all of its
