@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.merge import ControlPairs
-from sim.scene import read_scene_json, read_scene_mesh_enu
+from sim.scene import Surface, read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
 ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly spread)
@@ -54,12 +54,15 @@ class FlatOverlapError(AreaError):
 
 @dataclass(frozen=True)
 class Piece:
-    """One scene folder's mesh and footprint in the area's ENU frame (metres), and the folder's own origin."""
+    """One scene folder's mesh and footprint in the area's ENU frame (metres), the folder's own origin, how the mesh
+    is coloured (its vertices in the order of ``mesh.vertices``) and the folder's scene.json."""
 
     name: str
     mesh: trimesh.Trimesh
     footprint: np.ndarray  # (K, 2) ground polygon, area ENU x/y
     origin: LocalFrame
+    surface: Surface | None = None
+    meta: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -107,12 +110,12 @@ def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
     """Read a scene folder and convert its mesh and footprint from its origin's ENU to ``frame``'s ENU exactly."""
     scene_dir = Path(scene_dir)
     meta = read_scene_json(scene_dir)
-    vertices, faces, _ = read_scene_mesh_enu(scene_dir, meta)
+    vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
     own = LocalFrame.from_dict(meta["origin"])
     footprint = _footprint(meta)
     ground = np.column_stack([footprint, np.full(len(footprint), np.median(vertices[:, 2]))])
     return Piece(str(scene_dir), trimesh.Trimesh(_convert(vertices, own, frame), faces, process=False),
-                 _convert(ground, own, frame)[:, :2], own)
+                 _convert(ground, own, frame)[:, :2], own, surface, meta)
 
 
 def control_link(pairs: ControlPairs, a: int, b: int, pieces: list[Piece], frame: LocalFrame) -> Link:
