@@ -263,11 +263,16 @@ def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ transform[:3, :3].T + transform[:3, 3]
 
 
-def adjust(count: int, links: list[Link], fixed: int = 0, iterations: int = 5) -> list[np.ndarray]:
+def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int = 5) -> list[np.ndarray]:
     """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every link at once:
     least squares over ``X_a(q) - X_b(p)`` for each link's points (each point weighs the same), Gauss-Newton with
-    small-angle steps about the points' common centroid, each step applied exactly."""
-    if not 0 <= fixed < count:
+    small-angle steps about the points' common centroid, each step applied exactly.
+
+    ``fixed`` None holds no piece: every step is the least-squares solution of least norm, whose rotation and shift
+    sum to zero over the pieces (the links only see differences between pieces), so the corrections average to
+    none and the area keeps the mean of the pieces' own geo-registrations: independent GPS fixes of separate
+    flights average out instead of the first flight's fix deciding where the whole area lies."""
+    if fixed is not None and not 0 <= fixed < count:
         raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
     centre = np.mean(np.vstack([link.points_b for link in links]), axis=0)
     free = [i for i in range(count) if i != fixed]
@@ -306,8 +311,9 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
                      np.stack([-y, x, zero], -1)], axis=1).reshape(-1, 3)
 
 
-def align_area(pieces: list[Piece], fixed: int = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
-    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put; the
+def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
+    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put, or
+    with None the corrections average to none, see :func:`adjust`; the
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
     of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the
     pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected

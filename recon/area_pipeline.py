@@ -13,7 +13,8 @@ Layout of the output folder ``AREA``::
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
 EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/cluster.py):
 a flight is a few minutes of work, so one task per flight. The area frame's origin is the mean of the pieces' own
-origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area`; joining: :mod:`recon.area_merge`.
+origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area`, holding no piece fixed (the
+corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area_merge`.
 """
 
 from __future__ import annotations
@@ -221,7 +222,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     names = [Path(d).name for d in piece_dirs]
     lap("load")
     log(f"[area] aligning {len(pieces)} pieces")
-    alignment = align_area(pieces)
+    alignment = align_area(pieces, fixed=None)
     lap("align")
     corrections = alignment.corrections
     vertices = [_apply(c, np.asarray(p.mesh.vertices)) for p, c in zip(pieces, corrections)]
