@@ -4,10 +4,14 @@ ENU metres (z up), rotations ``R_world_rig`` with OpenCV camera axes (the rig fr
 ray leaving a camera ``D`` metres above the scene's lowest surface at angle ``theta`` from nadir crosses the
 horizontal plane of that lowest surface at the horizontal distance ``D * tan(theta)``; every surface lies above
 that plane, so the ray hits the scene no farther out. The rays along the image borders bound the view (the
-frustum is a convex cone: a ray inside it is a positive mix of border rays), so when every border ray goes down
-and the cameras and these plane crossings all lie inside a convex covered area (a rectangle), every pixel of the
-frame sees the scene inside that area: nothing beyond its edge, and no sky. A reconstruction's covered area is the
-convex ``observed_area_m`` polygon of its scene.json within its valid rectangle.
+frustum is a convex cone: a ray inside it is a positive mix of border rays), so when every border ray goes down,
+every pixel's ray meets the scene above the convex hull of the cameras and these plane crossings (the view's
+footprint); when that hull lies inside the covered area, the frame sees the scene inside that area only: nothing
+beyond its edge, and no sky. The covered area is the valid rectangle and, for a reconstruction, the
+``observed_area_m`` polygon of its scene.json: a simple polygon (no holes), in general not convex (the union of an
+area's pieces, wavy where their orbits' discs meet). For a convex area the hull is inside when its corners are;
+for a non-convex one, a notch can reach between corners that are all inside, so :func:`hull_inside` also checks
+that no polygon edge crosses the hull.
 
 The margin this needs in a direction is ``D * tan(theta)`` of the border ray reaching farthest that way; its bound
 over all headings is ``D * tan(tilt + half-diagonal field of view)``, and none exists once ``tilt + half-diagonal
@@ -19,6 +23,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from matplotlib.path import Path as PolygonPath
+from scipy.spatial import ConvexHull, QhullError
 
 from sim.camera import Rig
 
@@ -99,21 +105,54 @@ def bounding_area(area: Area, polygon: np.ndarray | None) -> Area:
     return max(area[0], pxmin), min(area[1], pxmax), max(area[2], pymin), min(area[3], pymax)
 
 
-def inside_convex(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Which ``points`` (N, 2) lie inside (or on) the convex ``polygon`` (K, 2), either orientation (ENU metres)."""
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    rel = points[:, None, :] - polygon[None]
-    cross = edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0]
-    doubled_area = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
-    return np.all(np.sign(doubled_area) * cross >= -1e-9, axis=1)
+def inside_polygon(polygon: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Boolean mask of the points ``xy`` (``(..., 2)`` ENU metres; extra trailing columns such as heights are
+    ignored) that lie inside ``polygon`` (``(K, 2)``, any simple polygon, convex or not, either orientation; even-odd
+    rule, matplotlib's); points exactly on an edge may go either way."""
+    points = np.asarray(xy, dtype=np.float64)
+    flat = points.reshape(-1, points.shape[-1])[:, :2]
+    return PolygonPath(np.asarray(polygon, dtype=np.float64)).contains_points(flat).reshape(points.shape[:-1])
+
+
+def _turn(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """The z component of ``(b - a) x (c - a)`` (broadcast over leading axes): > 0 where ``a, b, c`` turn left."""
+    return (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (c[..., 0] - a[..., 0])
+
+
+def _edges(ring: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end points ``(K, 2)`` of the closed ring of vertices ``ring`` (K, 2)."""
+    return ring, np.roll(ring, -1, axis=0)
+
+
+def hull_inside(polygon: np.ndarray, points: np.ndarray) -> bool:
+    """Whether the convex hull of ``points`` (N, 2) lies inside the simple ``polygon`` (K, 2) (ENU metres; convex
+    or not): every hull vertex inside it, no polygon edge properly crossing a hull edge and no polygon vertex
+    strictly inside the hull (which a notch of a non-convex polygon reaching into the hull would need). Contact
+    without crossing (a hull vertex on an edge) is allowed."""
+    try:
+        hull = ConvexHull(points)
+    except QhullError:  # all points on one line: joggled, the hull is that segment
+        hull = ConvexHull(points, qhull_options="QJ")
+    corners = points[hull.vertices]  # counter-clockwise
+    if not np.all(inside_polygon(polygon, corners)):
+        return False
+    polygon = np.asarray(polygon, dtype=np.float64)
+    (a, b), (c, d) = (np.expand_dims(e, 1) for e in _edges(corners)), (np.expand_dims(e, 0) for e in _edges(polygon))
+    crossing = (_turn(a, b, c) * _turn(a, b, d) < 0) & (_turn(c, d, a) * _turn(c, d, b) < 0)
+    if crossing.any():
+        return False
+    # hull facets as n . x + offset <= 0 inside: a polygon vertex is strictly inside when every one is < 0
+    side = polygon @ hull.equations[:, :2].T + hull.equations[:, 2]
+    return not np.any(np.all(side < -1e-9, axis=1))
 
 
 def sees_inside(area: Area, xy, reach: np.ndarray | None, polygon: np.ndarray | None = None) -> bool:
     """Whether a rig at ENU ``xy`` with view ``reach`` (None: the horizon) sees only inside ``area`` and, if
-    given, the convex ``polygon`` (K, 2)."""
+    given, the simple ``polygon`` (K, 2), convex or not: the view's footprint is the convex hull of its reach
+    points (the frustum is a convex cone), so it must lie inside the polygon (:func:`hull_inside`)."""
     if reach is None:
         return False
     points = np.asarray(xy, float)[:2] + reach
     xmin, xmax, ymin, ymax = area
     in_area = np.all((points[:, 0] >= xmin) & (points[:, 0] <= xmax) & (points[:, 1] >= ymin) & (points[:, 1] <= ymax))
-    return bool(in_area and (polygon is None or np.all(inside_convex(polygon, points))))
+    return bool(in_area and (polygon is None or hull_inside(polygon, points)))

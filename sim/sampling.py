@@ -51,7 +51,7 @@ class GroundModel(Protocol):
 
     valid_area: tuple[float, float, float, float]
     z_range: tuple[float, float]  # lowest and highest ENU z of any surface (metres): the frustum margin's
-    covered_polygon: np.ndarray | None  # (K, 2) convex ENU polygon well covered within valid_area, or None
+    covered_polygon: np.ndarray | None  # (K, 2) simple (maybe non-convex) ENU polygon well covered, or None
 
     def ground_height(self, x, y):
         """ENU z (metres) of the ground below ENU (x, y); vectorised over arrays."""

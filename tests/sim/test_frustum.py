@@ -10,12 +10,14 @@ import pytest
 import trimesh
 from matplotlib.path import Path as PolygonPath
 
-from sim.camera import PinholeCamera, Rig, camera_rays
+from sim import sampling
+from sim.camera import PinholeCamera, Rig, camera_rays, pose_from_position
 from sim.frame_renderer import SceneGround
-from sim.frustum import ViewFrustum
+from sim.frustum import ViewFrustum, sees_inside
 from sim.raycast import intersect
 from sim.sampling import RandomPoseSettings, camera_rotation, frustum_margin, lawnmower, random_pose
 from sim.scene import Scene, SceneError, Surface, read_scene_json
+from sim.synthetic import grid_mesh
 
 AREA = (-170.0, 170.0, -130.0, 130.0)
 CAMERA = PinholeCamera.from_fov(48, 27, 80.0)
@@ -124,3 +126,74 @@ def test_scene_json_observed_area_must_be_a_polygon(tmp_path):
                                          encoding="utf-8")
     with pytest.raises(SceneError, match="observed_area_m. must be a list of at least 3"):
         read_scene_json(tmp_path)
+
+
+#: A non-convex covered area: an L (ENU metres, counter-clockwise) whose notch is the north-east quadrant
+#: x > 0, y > 0 of AREA, its reflex corner at the origin.
+L_SHAPE = [[-150.0, -110.0], [150.0, -110.0], [150.0, 0.0], [0.0, 0.0], [0.0, 110.0], [-150.0, 110.0]]
+
+
+@pytest.fixture(scope="module")
+def flat_l_world() -> SceneGround:
+    """A flat ground z = 0 reaching 2 km beyond AREA, covered (scene.json's observed_area_m) by :data:`L_SHAPE`."""
+    vertices, faces, _ = grid_mesh(4, 4, (-2000.0, 2000.0, -2000.0, 2000.0))
+    return SceneGround(Scene(vertices, faces, Surface(vertex_colors=np.full((len(vertices), 3), 150, np.uint8)),
+                             source="<flat L>", valid_area_m=dict(zip(("xmin", "xmax", "ymin", "ymax"), AREA)),
+                             observed_area_m=L_SHAPE))
+
+
+def reach_points_inside(area, xy, reach, polygon) -> bool:
+    """The test before non-convex areas: every reach point inside the rectangle and the polygon (matplotlib)."""
+    points = np.asarray(xy, float)[:2] + reach
+    xmin, xmax, ymin, ymax = area
+    in_area = np.all((points[:, 0] >= xmin) & (points[:, 0] <= xmax) & (points[:, 1] >= ymin) & (points[:, 1] <= ymax))
+    return bool(in_area and PolygonPath(polygon).contains_points(points).all())
+
+
+def test_a_view_whose_reach_points_avoid_the_notch_but_whose_footprint_covers_it_is_refused(flat_l_world):
+    """Nadir from 40 m, turned 45 deg, south-west of the L's reflex corner: the corner pokes into the footprint
+    between two border samples; every reach point is inside the L, yet pixels see into the notch (ray cast)."""
+    rotation, xy = camera_rotation(45.0), (-14.0, -8.0)
+    reach = ViewFrustum.of_rig(RIG).reach(rotation, 40.0)
+    assert reach_points_inside(AREA, xy, reach, np.array(L_SHAPE))
+    assert hits_outside(flat_l_world, pose_from_position((*xy, 40.0), rotation), np.array(L_SHAPE)) > 0
+    assert not sees_inside(AREA, xy, reach, np.array(L_SHAPE))
+    assert sees_inside(AREA, (-40.0, -30.0), reach, np.array(L_SHAPE))  # farther from the corner: all inside
+
+
+def test_random_frames_never_see_into_the_notch_of_a_non_convex_area(flat_l_world, monkeypatch):
+    """Every pixel ray of 200 sampled stereo frames hits the ground inside the L; the same draws tested on their
+    reach points only (right for convex areas) let frames see into the notch (so the check can fail)."""
+    frustum = ViewFrustum.of_rig(RIG)
+    settings = RandomPoseSettings(margin_m=0.0, max_attempts=500)
+    polygon = np.array(L_SHAPE)
+    samples = [random_pose(flat_l_world, 5, index, settings, frustum=frustum) for index in range(200)]
+    assert [hits_outside(flat_l_world, s.T_world_cam, polygon) for s in samples] == [0] * len(samples)
+    monkeypatch.setattr(sampling, "sees_inside", reach_points_inside)
+    points_only = [random_pose(flat_l_world, 5, index, settings, frustum=frustum) for index in range(200)]
+    assert sum(hits_outside(flat_l_world, s.T_world_cam, polygon) > 0 for s in points_only) >= 2
+
+
+def inside_convex(polygon: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The convex test the samplers used before: inside (or on) every edge of a convex polygon, either orientation."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    rel = points[:, None, :] - polygon[None]
+    cross = edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0]
+    doubled_area = np.sum(polygon[:, 0] * np.roll(polygon[:, 1], -1) - np.roll(polygon[:, 0], -1) * polygon[:, 1])
+    return np.all(np.sign(doubled_area) * cross >= -1e-9, axis=1)
+
+
+def test_a_convex_area_gets_the_same_decisions_as_the_convex_test():
+    """400 random views (paper ranges of height and tilt, any heading) over the convex HEXAGON: the exact test
+    decides as the convex one did (every reach point inside), both ways, many times each."""
+    rng = np.random.default_rng(11)
+    frustum, hexagon = ViewFrustum.of_rig(RIG), np.array(HEXAGON)
+    decisions = []
+    for _ in range(400):
+        rotation = camera_rotation(rng.uniform(0.0, 360.0), *rng.uniform(-45.0, 45.0, 2))
+        reach = frustum.reach(rotation, rng.uniform(20.0, 100.0))
+        xy = rng.uniform((-100.0, -80.0), (120.0, 80.0))
+        convex = reach is not None and bool(np.all(inside_convex(hexagon, xy + reach)))
+        decisions.append((sees_inside(AREA, xy, reach, hexagon), convex))
+    assert all(new == old for new, old in decisions)
+    assert sum(new for new, _ in decisions) >= 40 and sum(not new for new, _ in decisions) >= 40
