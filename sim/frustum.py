@@ -105,6 +105,67 @@ def bounding_area(area: Area, polygon: np.ndarray | None) -> Area:
     return max(area[0], pxmin), min(area[1], pxmax), max(area[2], pymin), min(area[3], pymax)
 
 
+#: Cells a side of the grid on which :func:`inner_rectangle` looks for the largest rectangle in a polygon.
+INNER_GRID_CELLS = 128
+
+
+def inner_rectangle(area: Area, polygon: np.ndarray | None, margin_m: float) -> Area | None:
+    """The largest axis-aligned rectangle ``(xmin, xmax, ymin, ymax)`` (ENU metres) whose every point lies at least
+    ``margin_m`` inside the rectangle ``area`` and, if given, inside the simple ``polygon`` (K, 2), convex or not;
+    None when there is none. Without a polygon it is ``area`` less the margin; with one it is found on a grid of
+    :data:`INNER_GRID_CELLS` cells a side over the polygon's part of ``area`` less the margin, taking the cells
+    whose centre lies inside the polygon at least the margin plus half the cell's diagonal from its edges (so every
+    point of the cell is at least the margin inside), then the largest rectangle of such cells."""
+    xmin, xmax, ymin, ymax = bounding_area(area, polygon)
+    inner = (xmin + margin_m, xmax - margin_m, ymin + margin_m, ymax - margin_m)
+    if inner[0] >= inner[1] or inner[2] >= inner[3]:
+        return None
+    if polygon is None:
+        return inner
+    xs = np.linspace(inner[0], inner[1], INNER_GRID_CELLS + 1)
+    ys = np.linspace(inner[2], inner[3], INNER_GRID_CELLS + 1)
+    cx, cy = np.meshgrid((xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2)  # rows: y, columns: x
+    centres = np.column_stack([cx.ravel(), cy.ravel()])
+    clearance = margin_m + 0.5 * np.hypot(xs[1] - xs[0], ys[1] - ys[0])
+    usable = inside_polygon(polygon, centres) & (_distance_to_edges(centres, np.asarray(polygon, float)) >= clearance)
+    cells = _largest_rectangle(usable.reshape(cx.shape))
+    if cells is None:
+        return None
+    row0, row1, col0, col1 = cells
+    return float(xs[col0]), float(xs[col1]), float(ys[row0]), float(ys[row1])
+
+
+def _distance_to_edges(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Distance (metres) from each of ``points`` (N, 2) to the nearest edge of the closed ``polygon`` (K, 2)."""
+    start, end = _edges(polygon)
+    edge = end - start
+    nearest = np.full(len(points), np.inf)
+    for a, d in zip(start, edge):  # one edge at a time: (N,) temporaries only
+        t = np.clip(((points - a) @ d) / max(float(d @ d), 1e-300), 0.0, 1.0)
+        nearest = np.minimum(nearest, np.hypot(*(points - a - t[:, None] * d).T))
+    return nearest
+
+
+def _largest_rectangle(usable: np.ndarray) -> tuple[int, int, int, int] | None:
+    """The largest all-True block of the boolean grid ``usable`` (rows, columns) as ``(row0, row1, col0, col1)``
+    (half-open index ranges), None when no cell is True: per row, the largest rectangle under the histogram of
+    True runs ending at that row (the classic stack method)."""
+    best, heights = None, np.zeros(usable.shape[1], int)
+    best_area = 0
+    for row, line in enumerate(usable):
+        heights = np.where(line, heights + 1, 0)
+        stack: list[int] = []  # columns of increasing height
+        for col in range(len(heights) + 1):
+            height = heights[col] if col < len(heights) else 0
+            while stack and heights[stack[-1]] >= height:
+                top = heights[stack.pop()]
+                left = stack[-1] + 1 if stack else 0
+                if top * (col - left) > best_area:
+                    best_area, best = top * (col - left), (row + 1 - top, row + 1, left, col)
+            stack.append(col)
+    return best
+
+
 def inside_polygon(polygon: np.ndarray, xy: np.ndarray) -> np.ndarray:
     """Boolean mask of the points ``xy`` (``(..., 2)`` ENU metres; extra trailing columns such as heights are
     ignored) that lie inside ``polygon`` (``(K, 2)``, any simple polygon, convex or not, either orientation; even-odd

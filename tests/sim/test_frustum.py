@@ -13,9 +13,10 @@ from matplotlib.path import Path as PolygonPath
 from sim import sampling
 from sim.camera import PinholeCamera, Rig, camera_rays, pose_from_position
 from sim.frame_renderer import SceneGround
-from sim.frustum import ViewFrustum, sees_inside
+from sim.frustum import INNER_GRID_CELLS, ViewFrustum, inner_rectangle, sees_inside
 from sim.raycast import intersect
-from sim.sampling import RandomPoseSettings, camera_rotation, frustum_margin, lawnmower, random_pose
+from sim.sampling import (RANDOM_LOOP_TILT_DEG, RandomPoseSettings, camera_rotation, frustum_margin, lawnmower,
+                          random_loop, random_pose)
 from sim.scene import Scene, SceneError, Surface, read_scene_json
 from sim.synthetic import grid_mesh
 
@@ -197,3 +198,37 @@ def test_a_convex_area_gets_the_same_decisions_as_the_convex_test():
         decisions.append((sees_inside(AREA, xy, reach, hexagon), convex))
     assert all(new == old for new, old in decisions)
     assert sum(new for new, _ in decisions) >= 40 and sum(not new for new, _ in decisions) >= 40
+
+
+@pytest.mark.parametrize("path", ["lawnmower", "loop"])
+def test_paths_with_the_frustum_margin_stay_inside_a_non_convex_area(flat_l_world, path):
+    """The lawnmower and the random loop are flown in the largest rectangle inside the L less the frustum margin:
+    every pixel ray of every frame hits the ground inside the L. Flown over the valid rectangle alone (the same
+    ground without the polygon), they see into the notch."""
+    frustum, polygon = ViewFrustum.of_rig(RIG), np.array(L_SHAPE)
+    tilt = 0.0 if path == "lawnmower" else RANDOM_LOOP_TILT_DEG
+    margin = frustum_margin(flat_l_world, frustum, tilt, 30.0)
+    rectangle = SceneGround(Scene(flat_l_world.scene.vertices, flat_l_world.scene.faces, flat_l_world.scene.surface,
+                                  valid_area_m=flat_l_world.scene.valid_area_m))
+    for world, expect_inside in ((flat_l_world, True), (rectangle, False)):
+        if path == "lawnmower":
+            flown = lawnmower(world, 20.0, 30.0, 5.0, 0.5, margin_m=margin)
+        else:
+            flown = random_loop(world, 3, 30.0, 5.0, 0.5, margin_m=margin)
+        frames = flown.frames_available() or int(flown.length_m / 5.0 * 0.5)
+        outside = [hits_outside(world, flown.pose(world, i).T_world_cam, polygon) for i in range(frames)]
+        assert frames > 15
+        assert (outside == [0] * frames) == expect_inside
+
+
+def test_inner_rectangle_is_the_largest_one_inside_the_polygon_less_the_margin():
+    """In the L less 30 m: the west arm (90 m x 160 m beats the south arm's 240 m x 50 m), to within a grid cell;
+    without a polygon, the valid area less the margin exactly; nothing when the margin eats the polygon."""
+    polygon = np.array(L_SHAPE)
+    xmin, xmax, ymin, ymax = inner_rectangle(AREA, polygon, 30.0)
+    cell = max(150.0 - -150.0, 110.0 - -110.0) / INNER_GRID_CELLS
+    assert xmin >= -120.0 and ymin >= -80.0 and xmax <= -30.0 and ymax <= 80.0  # every point 30 m inside
+    assert xmin == pytest.approx(-120.0, abs=2 * cell) and xmax == pytest.approx(-30.0, abs=2 * cell)
+    assert ymin == pytest.approx(-80.0, abs=2 * cell) and ymax == pytest.approx(80.0, abs=2 * cell)
+    assert inner_rectangle(AREA, None, 30.0) == (-140.0, 140.0, -100.0, 100.0)
+    assert inner_rectangle(AREA, polygon, 80.0) is None  # both arms are 150 m and 110 m wide: nothing is 80 m in
