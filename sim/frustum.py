@@ -198,7 +198,8 @@ def hull_inside(polygon: np.ndarray, points: np.ndarray) -> bool:
     if not np.all(inside_polygon(polygon, corners)):
         return False
     polygon = np.asarray(polygon, dtype=np.float64)
-    (a, b), (c, d) = (np.expand_dims(e, 1) for e in _edges(corners)), (np.expand_dims(e, 0) for e in _edges(polygon))
+    a, b = (end[:, None] for end in _edges(corners))  # hull edges along axis 0
+    c, d = (end[None] for end in _edges(polygon))  # polygon edges along axis 1
     crossing = (_turn(a, b, c) * _turn(a, b, d) < 0) & (_turn(c, d, a) * _turn(c, d, b) < 0)
     if crossing.any():
         return False
