@@ -127,12 +127,18 @@ def inner_rectangle(area: Area, polygon: np.ndarray | None, margin_m: float) -> 
     cx, cy = np.meshgrid((xs[:-1] + xs[1:]) / 2, (ys[:-1] + ys[1:]) / 2)  # rows: y, columns: x
     centres = np.column_stack([cx.ravel(), cy.ravel()])
     clearance = margin_m + 0.5 * np.hypot(xs[1] - xs[0], ys[1] - ys[0])
-    usable = inside_polygon(polygon, centres) & (_distance_to_edges(centres, np.asarray(polygon, float)) >= clearance)
-    cells = _largest_rectangle(usable.reshape(cx.shape))
+    cells = _largest_rectangle(deep_inside(polygon, centres, clearance).reshape(cx.shape))
     if cells is None:
         return None
     row0, row1, col0, col1 = cells
     return float(xs[col0]), float(xs[col1]), float(ys[row0]), float(ys[row1])
+
+
+def deep_inside(polygon: np.ndarray, points: np.ndarray, margin_m: float) -> np.ndarray:
+    """Boolean mask of the ``points`` (N, 2) inside the simple ``polygon`` (K, 2) and at least ``margin_m`` from its
+    edges (ENU metres)."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+    return inside_polygon(polygon, points) & (_distance_to_edges(points, np.asarray(polygon, float)) >= margin_m)
 
 
 def _distance_to_edges(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:

@@ -37,7 +37,7 @@ from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from flightplan.jsonfile import read_json
 from sim.camera import pose_from_position
-from sim.frustum import ViewFrustum, bounding_area, inner_rectangle, placement_area, sees_inside
+from sim.frustum import ViewFrustum, bounding_area, deep_inside, inner_rectangle, placement_area, sees_inside
 from sim.scene_cameras import SceneCamera
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4  # RENDER: anti-aliasing jitter
@@ -132,6 +132,8 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
 
     ``miss_fraction`` is a probe (e.g. a low-resolution ray cast) giving the fraction of a
     view's pixels that hit nothing; the number of redraws is recorded as ``rejected``.
+    Without a ``frustum`` the camera stands ``margin_m`` inside the valid area and, when the ground has a
+    ``covered_polygon``, ``margin_m`` inside that polygon too (drawn in its bounding box, redrawn when not).
     With a ``frustum`` (the rig's view, :mod:`sim.frustum`) the position is drawn, for the drawn height, tilts and
     heading, among those from which the whole view stays inside the valid area (less ``margin_m``; and inside the
     ground's ``covered_polygon`` when it has one: drawn in its bounding box, redrawn when outside), and the pose
@@ -139,7 +141,7 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
     height drawn assumed and the view then reaches past the area.
     """
     rng = frame_rng(seed, index, POSE_STREAM)
-    area = _inner_area(ground, settings.margin_m)
+    area, polygon = _inner_area(ground, settings.margin_m), covered_polygon(ground)
     for attempt in range(settings.max_attempts):
         u_x, u_y = rng.random(), rng.random()  # what rng.uniform(min, max) scales: min + (max - min) * u
         height = rng.uniform(*settings.height_range_m)
@@ -147,7 +149,9 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
         heading = rng.uniform(*settings.heading_range_deg)
         rotation = camera_rotation(heading, tilt_x, tilt_y)
         if frustum is None:
-            position = _above_ground(ground, area, (u_x, u_y), height)
+            position = _above_ground(ground, bounding_area(area, polygon), (u_x, u_y), height)
+            if polygon is not None and not deep_inside(polygon, position[:2], settings.margin_m)[0]:
+                continue
         elif (position := _position_seeing_inside(ground, frustum, rotation, height, area, (u_x, u_y))) is None:
             continue
         T = pose_from_position(position, rotation)

@@ -232,3 +232,20 @@ def test_inner_rectangle_is_the_largest_one_inside_the_polygon_less_the_margin()
     assert ymin == pytest.approx(-80.0, abs=2 * cell) and ymax == pytest.approx(80.0, abs=2 * cell)
     assert inner_rectangle(AREA, None, 30.0) == (-140.0, 140.0, -100.0, 100.0)
     assert inner_rectangle(AREA, polygon, 80.0) is None  # both arms are 150 m and 110 m wide: nothing is 80 m in
+
+
+def test_random_cameras_with_a_fixed_margin_stand_that_far_inside_the_covered_polygon(flat_l_world):
+    """The paper-era fixed margin keeps the camera positions, not the views, inside: 20 m inside the L as well as
+    the valid area; the same draws on the rectangle alone put cameras in the notch or near its edges."""
+    settings = RandomPoseSettings(margin_m=20.0)
+    polygon = np.array(L_SHAPE)
+    rectangle = SceneGround(Scene(flat_l_world.scene.vertices, flat_l_world.scene.faces, flat_l_world.scene.surface,
+                                  valid_area_m=flat_l_world.scene.valid_area_m))
+    for world, expect_inside in ((flat_l_world, True), (rectangle, False)):
+        positions = np.array([random_pose(world, 4, index, settings).T_world_cam[:2, 3] for index in range(100)])
+        inside = PolygonPath(polygon).contains_points(positions)
+        edge_distance = np.min([np.abs(positions[:, 0] - x) for x in (-150.0, 150.0)]
+                               + [np.abs(positions[:, 1] - y) for y in (-110.0, 110.0)], axis=0)
+        notch_distance = np.hypot(np.maximum(-positions[:, 0], 0.0), np.maximum(-positions[:, 1], 0.0))
+        deep = inside & (edge_distance >= 20.0) & (notch_distance >= 20.0)
+        assert deep.all() == expect_inside
