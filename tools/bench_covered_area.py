@@ -32,7 +32,8 @@ THETA = np.linspace(0.0, 2 * np.pi, 360, endpoint=False)
 POLYGONS = {
     "hexagon (convex)": [[-150.0, 0.0], [-80.0, 120.0], [90.0, 125.0], [165.0, 0.0], [90.0, -125.0], [-80.0, -120.0]],
     "L (one notch)": [[-150.0, -110.0], [150.0, -110.0], [150.0, 0.0], [0.0, 0.0], [0.0, 110.0], [-150.0, 110.0]],
-    "wavy star (6 notches)": np.column_stack([np.cos(THETA), np.sin(THETA)]) * (130.0 + 20.0 * np.sin(6 * THETA))[:, None],
+    "wavy star (6 notches)": (np.column_stack([np.cos(THETA), np.sin(THETA)])
+                              * (130.0 + 20.0 * np.sin(6 * THETA))[:, None]),
 }
 
 

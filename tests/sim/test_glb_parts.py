@@ -79,8 +79,9 @@ def test_each_part_keeps_its_own_texture_and_faces_after_degenerate_ones_are_dro
 
 
 def test_a_render_from_above_shows_each_parts_own_colour(two_parts, tmp_path):
-    """Nadir over x = 0 from 9 m (the view spans 10.4 m x 7.8 m of the two squares), unlit (the radiance is the texture): pixels that see the ground west of x = 0
-    are the red JPEG's colour, those east of it the two blues of the stripes, in stripes."""
+    """Nadir over x = 0 from 9 m (the view spans 10.4 m x 7.8 m of the two squares), unlit (the radiance is the
+    texture): pixels that see the ground west of x = 0 are the red JPEG's colour, those east of it the two blues of
+    the stripes, in stripes."""
     scene = load_scene(write_folder(tmp_path, two_parts[0]))
     T = pose_from_position((0.0, 0.0, 9.0), camera_rotation(0.0))
     view = render(scene, Rig((CAMERA,)), T, **UNLIT).views[0]
