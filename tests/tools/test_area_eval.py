@@ -1,0 +1,196 @@
+"""The area loop's evaluation (tools/area_eval.py) on small cases whose answer is known: a hand-made ownership
+grid (known seam distances), pieces moved by a known rigid correction, a nadir view of a flat ground and a tiny
+dataset rendered over a flat scene (every pixel's point on the plane z = 0)."""
+
+from __future__ import annotations
+
+import math
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+from scipy.spatial.transform import Rotation
+
+from flightplan.geodesy import LocalFrame
+from recon.scene_out import write_scene
+from sim.camera import PinholeCamera
+from sim.dataset.source import DatasetSource
+from sim.frame_renderer import RenderOptions
+from sim.render_dataset import render_dataset
+from sim.synthetic import grid_mesh
+from tools.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, dataset_outside_metrics,
+                             pair_truth_offsets, seam_split, view_points)
+
+# -- seams ------------------------------------------------------------------------------------------------------------
+
+
+def two_pieces(cell_m: float = 2.0) -> Ownership:
+    """20 x 20 cells of ``cell_m`` from x = 0 (west edge) and y = 40 m (north edge): piece 0 in columns 0-9,
+    piece 1 in columns 10-19, rows 0-2 (the north strip) owned by nobody. The seam cells are columns 9 and 10."""
+    owner = np.zeros((20, 20), dtype=np.uint16)
+    owner[:, 10:] = 1
+    owner[:3] = NO_OWNER
+    return Ownership(owner, cell_m, 0.0, 20 * cell_m)
+
+
+def cell_centre(ownership: Ownership, row: int, column: int) -> tuple[float, float]:
+    return (ownership.x0_m + (column + 0.5) * ownership.cell_m, ownership.y0_m - (row + 0.5) * ownership.cell_m)
+
+
+def test_seam_distance_is_the_distance_to_the_nearest_cell_beside_another_owner():
+    ownership = two_pieces(cell_m=2.0)
+    distance = ownership.seam_distance_m()
+    for column in range(20):
+        assert distance[10, column] == pytest.approx(2.0 * min(abs(column - 9), abs(column - 10)))
+    # the border with the unowned strip is no seam: the cell below it is as far from the seam as the rows below
+    assert distance[3, 2] == distance[15, 2] == pytest.approx(14.0)
+
+
+def test_a_single_owner_has_no_seam():
+    ownership = Ownership(np.zeros((4, 4), dtype=np.uint16), 1.0, 0.0, 4.0)
+    assert np.isinf(ownership.seam_distance_m()).all()
+
+
+def test_seam_split_puts_points_by_their_cells_distance_to_the_seam():
+    ownership = two_pieces(cell_m=2.0)
+    # column 2 is 14 m from the seam (inside), column 8 is 2 m (seam), column 17 is 14 m (inside, other piece)
+    inside_xy = [cell_centre(ownership, row, column) for row in (5, 12) for column in (2, 17)]
+    seam_xy = [cell_centre(ownership, row, column) for row in (5, 12) for column in (8, 11)]
+    unowned_xy = [cell_centre(ownership, 1, 4), (-3.0, 20.0), (20.0, 41.0)]  # unowned strip, west, north of grid
+    xy = np.array(inside_xy + seam_xy + unowned_xy)
+    errors = np.array([0.1, 0.2, 0.3, 0.4] + [0.5, 0.7, 0.9, 1.1] + [50.0] * 3)
+    split = seam_split(xy, errors, ownership, seam_m=5.0)
+    assert split["inside"] == {"count": 4, "median_m": pytest.approx(0.25), "p90_m": pytest.approx(0.37)}
+    assert split["seams"]["count"] == 4 and split["seams"]["median_m"] == pytest.approx(0.8)
+    assert split["seam_to_inside"] == pytest.approx(0.8 / 0.25)
+    assert split["unowned"] == 3
+    # a wider seam band takes the 14 m points too
+    assert seam_split(xy, errors, ownership, seam_m=15.0)["inside"]["count"] == 0
+
+
+def test_ownership_reads_the_16_bit_png(tmp_path):
+    ownership = two_pieces()
+    assert cv2.imwrite(str(tmp_path / "ownership.png"), ownership.owner)
+    read = Ownership.read(tmp_path, {"file": "ownership.png", "cell_m": 2.0, "x0_m": 0.0, "y0_m": 40.0})
+    assert read.owner.dtype == np.uint16 and np.array_equal(read.owner, ownership.owner)
+    assert cv2.imwrite(str(tmp_path / "eight_bit.png"), ownership.owner.astype(np.uint8))
+    with pytest.raises(ValueError, match="16-bit"):
+        Ownership.read(tmp_path, {"file": "eight_bit.png", "cell_m": 2.0, "x0_m": 0.0, "y0_m": 40.0})
+
+
+# -- pieces against the truth -----------------------------------------------------------------------------------------
+
+
+def rigid(rotation_deg: float, shift) -> np.ndarray:
+    transform = np.eye(4)
+    transform[:3, :3] = Rotation.from_euler("z", rotation_deg, degrees=True).as_matrix()
+    transform[:3, 3] = shift
+    return transform
+
+
+def true_orbit(count: int = 12) -> dict[str, np.ndarray]:
+    """Cameras on a 50 m circle, 30 m up, each turned to its own heading."""
+    poses = {}
+    for i, angle in enumerate(np.linspace(0, 2 * math.pi, count, endpoint=False)):
+        pose = rigid(math.degrees(angle), [50 * math.cos(angle), 50 * math.sin(angle), 30.0])
+        poses[f"DJI_{i:04d}.JPG"] = pose
+    return poses
+
+
+def test_a_known_rigid_correction_removes_the_error_it_was_made_from():
+    truth = true_orbit()
+    correction = rigid(1.5, [2.0, -1.0, 0.5])
+    estimated = {name: np.linalg.inv(correction) @ pose for name, pose in truth.items()}
+    estimated["not_in_truth.JPG"] = np.eye(4)
+    errors = corrected_camera_errors(estimated, truth, correction)
+    assert errors["count"] == len(truth)
+    assert errors["after"]["position_m"]["max"] < 1e-9 and errors["after"]["rotation_deg"]["max"] < 1e-6
+    assert errors["before"]["rotation_deg"]["median"] == pytest.approx(1.5)
+    # before: the inverse correction moved each camera by its rotation about the origin plus the shift
+    moved = [np.linalg.norm(np.linalg.inv(correction)[:3] @ np.append(p[:3, 3], 1) - p[:3, 3]) for p in truth.values()]
+    assert errors["before"]["position_m"]["max"] == pytest.approx(max(moved))
+
+
+def test_pair_offsets_against_the_truth_are_the_difference_of_the_pieces_mean_errors():
+    truth = true_orbit()
+    a = corrected_camera_errors({n: rigid(0, [1.0, 0, 0]) @ p for n, p in truth.items()}, truth,
+                                rigid(0, [-1.0, 0, 0]))
+    b = corrected_camera_errors({n: rigid(0, [-1.0, 0, 0.5]) @ p for n, p in truth.items()}, truth, np.eye(4))
+    assert a["before"]["position_m"]["median"] == pytest.approx(1.0)
+    offsets = pair_truth_offsets({"a": a, "b": b}, "a", "b")
+    assert offsets["before"] == pytest.approx(math.hypot(2.0, 0.5))
+    assert offsets["after"] == pytest.approx(math.hypot(1.0, 0.5))
+
+
+def test_cameras_without_a_true_pose_are_refused():
+    with pytest.raises(ValueError, match="no camera"):
+        corrected_camera_errors({"x.JPG": np.eye(4)}, true_orbit(), np.eye(4))
+
+
+# -- the dataset stays over the covered area --------------------------------------------------------------------------
+
+
+def nadir(height_m: float) -> np.ndarray:
+    """Looking straight down from ``height_m`` with image right = east (image down = south)."""
+    pose = np.eye(4)
+    pose[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    pose[2, 3] = height_m
+    return pose
+
+
+def test_nadir_view_of_flat_ground_back_projects_onto_it():
+    camera = PinholeCamera.from_fov(40, 30, 90.0)  # f = 20 px: 1 px = 0.5 m at 10 m
+    depth = np.full((30, 40), 10.0, dtype=np.float32)
+    depth[0, :5] = np.inf  # sky
+    points, hit = view_points(depth, camera, nadir(10.0))
+    assert hit.sum() == 30 * 40 - 5
+    assert np.abs(points[:, 2]).max() < 1e-5
+    u, v = np.meshgrid(np.arange(40), np.arange(30))
+    np.testing.assert_allclose(points[:, 0], ((u - camera.cx) * 0.5)[hit], atol=1e-5)
+    np.testing.assert_allclose(points[:, 1], (-(v - camera.cy) * 0.5)[hit], atol=1e-5)
+
+
+@pytest.fixture(scope="module")
+def flat_dataset(tmp_path_factory):
+    """Two random stereo frames 48x32 over a flat 600 m ground (z = 0) and the scene's origin."""
+    root = tmp_path_factory.mktemp("flat")
+    vertices, faces, _ = grid_mesh(4, 4, (-300.0, 300.0, -300.0, 300.0))
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=np.tile([120, 140, 100, 255], (len(vertices), 1)))
+    write_scene(root / "scene", mesh, LocalFrame(40.1792, 44.4991, 1000.0), {"generator": "test"})
+    render_dataset(root / "scene", root / "dataset", RenderOptions(frames=2, width=48, height=32, seed=3),
+                   progress=False)
+    return DatasetSource(root / "dataset")
+
+
+def plane_x(frame, view: int) -> np.ndarray:
+    """ENU x where each pixel's ray meets z = 0 (NaN where it does not), from the frame's lens and pose alone."""
+    lens, pose = frame.camera(view), frame.T_world_cam(view)
+    u, v = np.meshgrid(np.arange(lens["width"]), np.arange(lens["height"]))
+    rays = np.stack([(u - lens["cx"]) / lens["fx"], (v - lens["cy"]) / lens["fy"], np.ones(u.shape)], -1) @ pose[:3, :3].T
+    reach = -pose[2, 3] / rays[..., 2]
+    return np.where(reach > 0, pose[0, 3] + reach * rays[..., 0], np.nan)
+
+
+def test_dataset_pixels_past_a_polygon_are_those_whose_ground_point_is_past_it(flat_dataset):
+    views = [(frame, view) for frame in flat_dataset.frames() for view in range(flat_dataset.view_count)]
+    ground_x = [plane_x(frame, view) for frame, view in views]
+    edge = float(np.median(np.concatenate([x.ravel() for x in ground_x])))  # half the pixels on either side
+    west = np.array([[-1000.0, -1000.0], [edge, -1000.0], [edge, 1000.0], [-1000.0, 1000.0]])
+    expected, pixels = 0, 0
+    for (frame, view), x in zip(views, ground_x):
+        depth = frame.depth(view)
+        assert np.isfinite(depth).all()  # the ground fills every view
+        expected += int((x > edge + 1e-6).sum())
+        pixels += x.size
+        points, _ = view_points(depth, PinholeCamera(**{k: frame.camera(view)[k] for k in (
+            "fx", "fy", "cx", "cy", "width", "height")}), frame.T_world_cam(view))
+        assert np.abs(points[:, 2]).max() < 0.05
+    assert 0 < expected < pixels
+    metrics = dataset_outside_metrics(flat_dataset.root, west)
+    assert metrics["frames"] == 2 and metrics["sky_fraction"] == 0.0
+    assert metrics["outside_fraction"] * pixels == pytest.approx(expected, abs=2)  # pixels on the line may go either way
+    far_away = np.array([[5000.0, 5000.0], [5001.0, 5000.0], [5001.0, 5001.0], [5000.0, 5001.0]])
+    everything = dataset_outside_metrics(flat_dataset.root, far_away)
+    assert everything["frames_outside"] == [0, 1] and everything["outside_fraction"] == 1.0
