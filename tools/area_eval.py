@@ -66,12 +66,25 @@ def move_polygon(polygon: np.ndarray, T_target_source: np.ndarray) -> np.ndarray
 # ---------------------------------------------------------------- per flight and per piece
 
 
+def _each(items: dict, compute) -> dict:
+    """``compute(name, value)`` for every item; a failure is kept as ``{"not_measured": why}`` for that name
+    alone."""
+    results = {}
+    for name, value in items.items():
+        try:
+            results[name] = compute(name, value)
+        except (OSError, ValueError, KeyError, RuntimeError) as error:  # pycolmap raises RuntimeError
+            results[name] = {"not_measured": f"{type(error).__name__}: {error}"}
+    return results
+
+
 def flight_metrics(fly_dir: Path, piece_dir: Path) -> dict:
     """Geotag errors of one flight and the SfM camera errors of its piece (its own frame moved by geodetic
     origins), both against the flight's ``truth.json`` (:func:`tools.closed_loop_eval.geotag_metrics`,
     :func:`tools.closed_loop_eval.sfm_metrics`)."""
     truth = read_json(fly_dir / "truth.json")
-    return {"geotag": geotag_metrics(fly_dir / "geotags.csv", truth), "sfm": sfm_metrics(piece_dir, truth)}
+    return _each({"geotag": lambda: geotag_metrics(fly_dir / "geotags.csv", truth),
+                  "sfm": lambda: sfm_metrics(piece_dir, truth)}, lambda name, compute: compute())
 
 
 def corrected_camera_errors(estimated: dict[str, np.ndarray], truth: dict[str, np.ndarray],
@@ -270,17 +283,6 @@ def dataset_outside_metrics(dataset_dir: Path, polygon: np.ndarray) -> dict:
 # ---------------------------------------------------------------- the whole evaluation and its report
 
 
-def _each(names, compute) -> dict:
-    """``compute(name)`` for every name; a failure is kept as ``{"not_measured": why}`` for that name alone."""
-    results = {}
-    for name in names:
-        try:
-            results[name] = compute(name)
-        except (OSError, ValueError, KeyError, RuntimeError) as error:  # pycolmap raises RuntimeError
-            results[name] = {"not_measured": f"{type(error).__name__}: {error}"}
-    return results
-
-
 def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: dict[str, Path], area_dir: Path,
                   dataset_dir: Path) -> dict:
     """Every metric of an area run; a metric whose inputs are missing or unreadable is listed under
@@ -293,15 +295,15 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
         except (OSError, ValueError, KeyError, RuntimeError) as error:
             report["not_measured"][name] = f"{type(error).__name__}: {error}"
 
-    measure("flights", lambda: _each(fly_dirs, lambda n: flight_metrics(fly_dirs[n], area_dir / "pieces" / n)))
+    measure("flights", lambda: _each(fly_dirs, lambda n, fly: flight_metrics(fly, area_dir / "pieces" / n)))
     area_report = read_json(area_dir / "area_report.json") if (area_dir / "area_report.json").is_file() else None
     if area_report is None:
         report["not_measured"]["pieces, pairs, surface"] = f"{area_dir / 'area_report.json'}: not found"
     else:
         frame = scene_frame(area_dir)
         entries = {p["name"]: p for p in area_report["pieces"]}
-        measure("pieces", lambda: _each(entries, lambda n: piece_camera_errors(
-            area_dir / entries[n]["scene"], fly_dirs[n], frame, np.asarray(entries[n]["correction"]))))
+        measure("pieces", lambda: _each(entries, lambda n, entry: piece_camera_errors(
+            area_dir / entry["scene"], fly_dirs[n], frame, np.asarray(entry["correction"]))))
         pieces = report["metrics"].get("pieces", {})
         measure("pairs", lambda: [{**pair, "truth_m": pair_truth_offsets(pieces, pair["a"], pair["b"])
                                    if "count" in pieces.get(pair["a"], {}) and "count" in pieces.get(pair["b"], {})
@@ -313,8 +315,10 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
     measure("oblique", lambda: oblique_metrics(area_dir, world, config["oblique_views"], tuple(config["size"]),
                                                config["fov_deg"], config["seed"]))
     measure("dataset", lambda: dataset_outside_metrics(dataset_dir, observed_polygon(area_dir)))
-    report["complete"] = all(s["status"] in ("ok", "exists") for s in stages) and not report["not_measured"] and not any(
-        "not_measured" in entry for group in ("flights", "pieces") for entry in report["metrics"].get(group, {}).values())
+    gaps = [entry for entry in report["metrics"].get("pieces", {}).values()] + [
+        part for flight in report["metrics"].get("flights", {}).values() for part in flight.values()]
+    report["complete"] = (all(s["status"] in ("ok", "exists") for s in stages) and not report["not_measured"]
+                          and not any("not_measured" in entry for entry in gaps))
     return report
 
 
@@ -330,14 +334,14 @@ def flight_rows(flights: dict) -> list[list[str]]:
     """Per flight: geotag and SfM errors (m, deg) against its truth."""
     rows = []
     for name, m in flights.items():
-        if "not_measured" in m:
-            rows.append([name, f"not measured: {m['not_measured']}", *[""] * 6])
-            continue
         g, s = m["geotag"], m["sfm"]
-        rows.append([name, f"{g['photos']['tagged']}/{g['photos']['taken']}",
-                     f"{_stat(g, 'median')} / {_stat(g, 'max')}", _f(g["horizontal_m"]["rms"]), s["registered"],
-                     f"{_stat(s, 'median')} / {_stat(s, 'max')}", _f(s["horizontal_m"]["rms"]),
-                     f"{_stat(s, 'median', 'rotation_deg')} / {_stat(s, 'max', 'rotation_deg')}"])
+        geotag = ([f"not measured: {g['not_measured']}", "", ""] if "not_measured" in g else
+                  [f"{g['photos']['tagged']}/{g['photos']['taken']}", f"{_stat(g, 'median')} / {_stat(g, 'max')}",
+                   _f(g["horizontal_m"]["rms"])])
+        sfm = ([f"not measured: {s['not_measured']}", "", "", ""] if "not_measured" in s else
+               [s["registered"], f"{_stat(s, 'median')} / {_stat(s, 'max')}", _f(s["horizontal_m"]["rms"]),
+                f"{_stat(s, 'median', 'rotation_deg')} / {_stat(s, 'max', 'rotation_deg')}"])
+        rows.append([name, *geotag, *sfm])
     return rows
 
 
@@ -366,7 +370,10 @@ def pair_rows(pairs: list[dict]) -> list[list[str]]:
 def markdown(report: dict) -> str:
     """report.md: stages (time, memory), then one table per measurement."""
     m, lines = report["metrics"], ["# Closed loop over an area", ""]
-    lines += stage_lines(report["stages"]) + [""]
+    lines += stage_lines(report["stages"])
+    if "evaluation_s" in report:
+        lines.append(f"| evaluation (in-process) | ok | {report['evaluation_s']:.1f} | | |")
+    lines += [""]
     if "flights" in m:
         lines += ["## Per flight: geotags and SfM cameras of its piece vs truth", ""] + _table(
             ["flight", "tagged/taken", "geotag pos median / max m", "geotag horiz RMS m", "SfM registered",

@@ -30,7 +30,7 @@ import json
 import shlex
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -65,8 +65,8 @@ class AreaConfig:
     dense_size: int | None = None
     workers: int | None = None
     scheduler: str | None = None
-    recon_args: list[str] = field(default_factory=list)
-    workers_sweep: list[str] = field(default_factory=list)
+    recon_args: list[str] = dataclasses.field(default_factory=list)
+    workers_sweep: list[str] = dataclasses.field(default_factory=list)
     frames: int = 1000
     size: tuple[int, int] = (640, 360)
     fov_deg: float = 80.0
@@ -113,7 +113,8 @@ def combined(name: str, results: list[StageResult]) -> StageResult:
     ran = [r for r in results if r.status == "ok"]
     rss = [r.max_rss_mib for r in results if r.max_rss_mib is not None]
     detail = "; ".join(r.detail for r in failed) or f"{len(ran)} run, {len(results) - len(ran)} already done"
-    return StageResult(name, "failed" if failed else "ok", sum(r.wall_s for r in results), max(rss, default=None),
+    status = "failed" if failed else "ok" if ran else "exists"
+    return StageResult(name, status, sum(r.wall_s for r in results), max(rss, default=None),
                        [], detail)
 
 
@@ -154,9 +155,10 @@ def run_area_loop(config: AreaConfig, out: Path) -> dict:
         add(done("fly", fly))
     else:
         noise = ["--noise", config.noise] if config.noise else []
+        # several missions: one folder per mission under --out; one: --out is that flight's folder
         add(run("fly", cli("aerostereo-render fly") + [
             arg for m in missions for arg in ("--mission", str(m))] + [
-            "--scene", str(world), "--out", str(fly), "--photo-size", *map(str, config.photo_size),
+            "--scene", str(world), "--out", str(flights[0] if len(flights) == 1 else fly), "--photo-size", *map(str, config.photo_size),
             "--start-utc", config.start_utc, "--seed", str(config.seed), *noise], log_dir))
     if "fly" in ok:
         add(combined("geotag", [
