@@ -118,6 +118,29 @@ def combined(name: str, results: list[StageResult]) -> StageResult:
                        [], detail)
 
 
+def fly_stage(config: AreaConfig, world: Path, missions: list[Path], fly: Path, log_dir: Path) -> StageResult:
+    """``aerostereo-render fly`` of every mission into ``fly/<mission name>/`` (several missions: one folder per
+    mission under ``--out``; one: ``--out`` is that flight's folder); skipped when every flight has its truth."""
+    flights = [fly / m.stem for m in missions]
+    if flights and all((f / "truth.json").is_file() for f in flights):
+        return done("fly", fly)
+    noise = ["--noise", config.noise] if config.noise else []
+    return run("fly", cli("aerostereo-render fly") + [arg for m in missions for arg in ("--mission", str(m))] + [
+        "--scene", str(world), "--out", str(flights[0] if len(flights) == 1 else fly),
+        "--photo-size", *map(str, config.photo_size), "--start-utc", config.start_utc, "--seed", str(config.seed),
+        *noise], log_dir)
+
+
+def geotag_stage(flights: list[Path], log_dir: Path) -> StageResult:
+    """``aerostereo-ingest geotag`` of each flight folder not yet geotagged, as one row (:func:`combined`)."""
+    return combined("geotag", [
+        done("geotag", f / "geotags.csv") if (f / "geotags.csv").is_file() else run(
+            f"geotag_{f.name}", cli("aerostereo-ingest") + [
+                "geotag", "--photos", str(f / "photos"), "--log", str(f / "flight.duml"),
+                "--out", str(f / "geotags.csv")], log_dir)
+        for f in flights])
+
+
 def recon_options(config: AreaConfig) -> list[str]:
     """The options passed through to ``aerostereo-recon area`` (no ``--scheduler``)."""
     options = []
@@ -145,30 +168,13 @@ def run_area_loop(config: AreaConfig, out: Path) -> dict:
     result, field_path = field_stage(config, world, out)
     add(result)
     plan, fly, area = out / "plan", out / "fly", out / "area"
-    add(done("plan", plan / "area.json") if (plan / "area.json").is_file() else run("plan", cli("aerostereo-mission") + [
-        "--area", str(field_path), "--out", str(plan), "--interval", str(config.interval_s)], log_dir))
+    add(done("plan", plan / "area.json") if (plan / "area.json").is_file() else run(
+        "plan", cli("aerostereo-mission") + ["--area", str(field_path), "--out", str(plan), "--interval",
+                                             str(config.interval_s)], log_dir))
     missions = sorted(plan.glob("flight_*.csv"))
     flights = [fly / m.stem for m in missions]
-    if "plan" not in ok:
-        add(skipped("fly", "plan"))
-    elif flights and all((f / "truth.json").is_file() for f in flights):
-        add(done("fly", fly))
-    else:
-        noise = ["--noise", config.noise] if config.noise else []
-        # several missions: one folder per mission under --out; one: --out is that flight's folder
-        add(run("fly", cli("aerostereo-render fly") + [
-            arg for m in missions for arg in ("--mission", str(m))] + [
-            "--scene", str(world), "--out", str(flights[0] if len(flights) == 1 else fly), "--photo-size", *map(str, config.photo_size),
-            "--start-utc", config.start_utc, "--seed", str(config.seed), *noise], log_dir))
-    if "fly" in ok:
-        add(combined("geotag", [
-            done("geotag", f / "geotags.csv") if (f / "geotags.csv").is_file() else run(
-                f"geotag_{f.name}", cli("aerostereo-ingest") + ["geotag", "--photos", str(f / "photos"), "--log",
-                                                                str(f / "flight.duml"), "--out",
-                                                                str(f / "geotags.csv")], log_dir)
-            for f in flights]))
-    else:
-        add(skipped("geotag", "fly"))
+    add(fly_stage(config, world, missions, fly, log_dir) if "plan" in ok else skipped("fly", "plan"))
+    add(geotag_stage(flights, log_dir) if "fly" in ok else skipped("geotag", "fly"))
 
     def recon(name: str, target: Path, scheduler: str | None) -> StageResult:
         if (target / "area_report.json").is_file():

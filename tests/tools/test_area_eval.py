@@ -168,7 +168,8 @@ def plane_x(frame, view: int) -> np.ndarray:
     """ENU x where each pixel's ray meets z = 0 (NaN where it does not), from the frame's lens and pose alone."""
     lens, pose = frame.camera(view), frame.T_world_cam(view)
     u, v = np.meshgrid(np.arange(lens["width"]), np.arange(lens["height"]))
-    rays = np.stack([(u - lens["cx"]) / lens["fx"], (v - lens["cy"]) / lens["fy"], np.ones(u.shape)], -1) @ pose[:3, :3].T
+    rays_cam = np.stack([(u - lens["cx"]) / lens["fx"], (v - lens["cy"]) / lens["fy"], np.ones(u.shape)], -1)
+    rays = rays_cam @ pose[:3, :3].T
     reach = -pose[2, 3] / rays[..., 2]
     return np.where(reach > 0, pose[0, 3] + reach * rays[..., 0], np.nan)
 
@@ -190,7 +191,8 @@ def test_dataset_pixels_past_a_polygon_are_those_whose_ground_point_is_past_it(f
     assert 0 < expected < pixels
     metrics = dataset_outside_metrics(flat_dataset.root, west)
     assert metrics["frames"] == 2 and metrics["sky_fraction"] == 0.0
-    assert metrics["outside_fraction"] * pixels == pytest.approx(expected, abs=2)  # pixels on the line may go either way
+    # pixels whose point lies on the line may go either way
+    assert metrics["outside_fraction"] * pixels == pytest.approx(expected, abs=2)
     far_away = np.array([[5000.0, 5000.0], [5001.0, 5000.0], [5001.0, 5001.0], [5000.0, 5001.0]])
     everything = dataset_outside_metrics(flat_dataset.root, far_away)
     assert everything["frames_outside"] == [0, 1] and everything["outside_fraction"] == 1.0
