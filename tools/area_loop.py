@@ -185,8 +185,9 @@ def run_area_loop(config: AreaConfig, out: Path) -> dict:
 
     add(recon("recon", area, config.scheduler) if "geotag" in ok else skipped("recon", "geotag"))
     for scheduler in config.workers_sweep:
-        label = f"recon {scheduler}"
-        add(recon(label, out / "recon_sweep" / scheduler.replace(":", "_"), scheduler) if "geotag" in ok
+        safe = "".join(c if c.isalnum() else "_" for c in scheduler)  # a file name for the folder and the log
+        label = f"recon_{safe}"
+        add(recon(label, out / "recon_sweep" / safe, scheduler) if "geotag" in ok
             else skipped(label, "geotag"))
     dataset = out / "dataset"
     if "recon" not in ok:
