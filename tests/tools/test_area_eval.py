@@ -196,3 +196,24 @@ def test_dataset_pixels_past_a_polygon_are_those_whose_ground_point_is_past_it(f
     far_away = np.array([[5000.0, 5000.0], [5001.0, 5000.0], [5001.0, 5001.0], [5000.0, 5001.0]])
     everything = dataset_outside_metrics(flat_dataset.root, far_away)
     assert everything["frames_outside"] == [0, 1] and everything["outside_fraction"] == 1.0
+
+
+# -- the default field --------------------------------------------------------------------------------------------
+
+
+def test_default_field_is_the_worlds_rectangle_less_the_inset_as_the_planner_reads_it(tmp_path):
+    from flightplan.field import read_field
+    from sim.scene import read_scene_json
+    from tools.area_loop import AreaConfig, field_stage, world_folder
+
+    world = world_folder("demo:small")
+    box = read_scene_json(world)["valid_area_m"]
+    stage, path = field_stage(AreaConfig(scene="demo:small", field_inset_m=10.0), world, tmp_path)
+    assert stage.status == "ok" and path == tmp_path / "field.geojson"
+    field = read_field(path)
+    width, height = box["xmax"] - box["xmin"] - 20.0, box["ymax"] - box["ymin"] - 20.0
+    assert field.area_m2 == pytest.approx(width * height, rel=1e-3)  # geodesic area vs the ENU rectangle
+    origin = read_scene_json(world)["origin_frame"]
+    corners = np.stack(origin.to_enu(field.lat_deg, field.lon_deg, origin.h0_m)[:2], -1)  # at the origin's height
+    np.testing.assert_allclose(np.sort(corners[:, 0]), [box["xmin"] + 10] * 2 + [box["xmax"] - 10] * 2, atol=1e-6)
+    np.testing.assert_allclose(np.sort(corners[:, 1]), [box["ymin"] + 10] * 2 + [box["ymax"] - 10] * 2, atol=1e-6)
