@@ -105,15 +105,36 @@ def corrected_camera_errors(estimated: dict[str, np.ndarray], truth: dict[str, n
     return result
 
 
+def true_poses_in(fly_dir: Path, frame: LocalFrame) -> dict[str, np.ndarray]:
+    """The flight's true ``T_world_cam`` by photo name (``truth.json``), moved into ``frame``."""
+    truth = read_json(fly_dir / "truth.json")
+    to_frame = LocalFrame.from_dict(truth["origin"]).transform_to(frame)
+    return {name: to_frame @ T for name, T in truth_poses(truth).items()}
+
+
 def piece_camera_errors(piece_dir: Path, fly_dir: Path, area_frame: LocalFrame, correction: np.ndarray) -> dict:
     """:func:`corrected_camera_errors` of a piece folder's registered cameras, both sides moved into the area
     frame by their geodetic origins."""
-    truth = read_json(fly_dir / "truth.json")
     to_area = scene_frame(piece_dir).transform_to(area_frame)
-    truth_to_area = LocalFrame.from_dict(truth["origin"]).transform_to(area_frame)
     estimated = {n: to_area @ T for n, T in scene_camera_poses(piece_dir).items()}
-    true = {n: truth_to_area @ T for n, T in truth_poses(truth).items()}
-    return corrected_camera_errors(estimated, true, np.asarray(correction, dtype=np.float64))
+    return corrected_camera_errors(estimated, true_poses_in(fly_dir, area_frame),
+                                   np.asarray(correction, dtype=np.float64))
+
+
+def merged_camera_errors(area_dir: Path, fly_dirs: dict[str, Path]) -> dict:
+    """Per flight: the merged scene's own cameras (its ``cameras.json``, named ``<flight>/<photo>``, area frame)
+    against the truth (:func:`pose_errors`), which is what a replay of the area's cameras renders from."""
+    frame, by_flight = scene_frame(area_dir), {}
+    for name, pose in scene_camera_poses(area_dir).items():
+        flight, _, photo = name.partition("/")
+        by_flight.setdefault(flight, {})[photo] = pose
+
+    def errors(flight: str, poses: dict) -> dict:
+        truth = true_poses_in(fly_dirs[flight], frame)
+        names = sorted(set(poses) & set(truth))
+        return pose_errors(np.array([poses[n] for n in names]).reshape(-1, 4, 4),
+                           np.array([truth[n] for n in names]).reshape(-1, 4, 4)).to_dict()
+    return _each(by_flight, errors)
 
 
 def pair_truth_offsets(pieces: dict[str, dict], a: str, b: str) -> dict:
@@ -304,6 +325,7 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
         entries = {p["name"]: p for p in area_report["pieces"]}
         measure("pieces", lambda: _each(entries, lambda n, entry: piece_camera_errors(
             area_dir / entry["scene"], fly_dirs[n], frame, np.asarray(entry["correction"]))))
+        measure("merged_cameras", lambda: merged_camera_errors(area_dir, fly_dirs))
         pieces = report["metrics"].get("pieces", {})
         measure("pairs", lambda: [{**pair, "truth_m": pair_truth_offsets(pieces, pair["a"], pair["b"])
                                    if "count" in pieces.get(pair["a"], {}) and "count" in pieces.get(pair["b"], {})
@@ -315,7 +337,7 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
     measure("oblique", lambda: oblique_metrics(area_dir, world, config["oblique_views"], tuple(config["size"]),
                                                config["fov_deg"], config["seed"]))
     measure("dataset", lambda: dataset_outside_metrics(dataset_dir, observed_polygon(area_dir)))
-    gaps = [entry for entry in report["metrics"].get("pieces", {}).values()] + [
+    gaps = [entry for group in ("pieces", "merged_cameras") for entry in report["metrics"].get(group, {}).values()] + [
         part for flight in report["metrics"].get("flights", {}).values() for part in flight.values()]
     report["complete"] = (all(s["status"] in ("ok", "exists") for s in stages) and not report["not_measured"]
                           and not any("not_measured" in entry for entry in gaps))
@@ -345,15 +367,18 @@ def flight_rows(flights: dict) -> list[list[str]]:
     return rows
 
 
-def piece_rows(pieces: dict) -> list[list[str]]:
-    """Per piece: its cameras in the area frame against the truth, before and after its correction (m)."""
+def piece_rows(pieces: dict, merged: dict) -> list[list[str]]:
+    """Per piece: its cameras in the area frame against the truth, before and after its correction, and the
+    merged scene's cameras of that flight (m)."""
     rows = []
     for name, m in pieces.items():
         if "not_measured" in m:
-            rows.append([name, f"not measured: {m['not_measured']}", "", ""])
+            rows.append([name, f"not measured: {m['not_measured']}", "", "", ""])
             continue
+        area = merged.get(name, {"not_measured": "not in the area's cameras.json"})
         rows.append([name, str(m["count"]), f"{_stat(m['before'], 'median')} / {_stat(m['before'], 'max')}",
-                     f"{_stat(m['after'], 'median')} / {_stat(m['after'], 'max')}"])
+                     f"{_stat(m['after'], 'median')} / {_stat(m['after'], 'max')}",
+                     area.get("not_measured") or f"{_stat(area, 'median')} / {_stat(area, 'max')} ({area['count']})"])
     return rows
 
 
@@ -380,7 +405,9 @@ def markdown(report: dict) -> str:
              "SfM pos median / max m", "SfM horiz RMS m", "SfM rot median / max deg"], flight_rows(m["flights"])) + [""]
     if "pieces" in m:
         lines += ["## Per piece: cameras in the area frame vs truth, before / after its correction", ""] + _table(
-            ["piece", "cameras", "before median / max m", "after median / max m"], piece_rows(m["pieces"])) + [""]
+            ["piece", "cameras", "before median / max m", "after median / max m",
+             "area cameras.json median / max m (count)"],
+            piece_rows(m["pieces"], m.get("merged_cameras", {}))) + [""]
     if "pairs" in m:
         lines += ["## Per neighbouring pair: offsets (m)", ""] + _table(
             ["a", "b", "overlap points", "ICP before", "after pair ICP", "after joint", "truth before",

@@ -4,6 +4,7 @@ dataset rendered over a flat scene (every pixel's point on the plane z = 0)."""
 
 from __future__ import annotations
 
+import json
 import math
 
 import cv2
@@ -19,8 +20,9 @@ from sim.dataset.source import DatasetSource
 from sim.frame_renderer import RenderOptions
 from sim.render_dataset import render_dataset
 from sim.synthetic import grid_mesh
+from sim.scene_cameras import SceneCamera
 from tools.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, dataset_outside_metrics,
-                             pair_truth_offsets, seam_split, view_points)
+                             merged_camera_errors, pair_truth_offsets, piece_camera_errors, seam_split, view_points)
 
 # -- seams ------------------------------------------------------------------------------------------------------------
 
@@ -126,6 +128,48 @@ def test_pair_offsets_against_the_truth_are_the_difference_of_the_pieces_mean_er
 def test_cameras_without_a_true_pose_are_refused():
     with pytest.raises(ValueError, match="no camera"):
         corrected_camera_errors({"x.JPG": np.eye(4)}, true_orbit(), np.eye(4))
+
+
+def write_truth(fly_dir, origin: LocalFrame, poses: dict[str, np.ndarray]) -> None:
+    """A ``truth.json`` with just what the evaluation reads: the home origin and each photo's true pose."""
+    photos = []
+    for name, pose in poses.items():
+        qw, qx, qy, qz = Rotation.from_matrix(pose[:3, :3]).as_quat(scalar_first=True)
+        photos.append({"taken": True, "image_name": name, "east_m": pose[0, 3], "north_m": pose[1, 3],
+                       "up_m": pose[2, 3], "qw": qw, "qx": qx, "qy": qy, "qz": qz})
+    fly_dir.mkdir(parents=True)
+    (fly_dir / "truth.json").write_text(json.dumps({"origin": origin.to_dict(), "photos": photos}))
+
+
+def scene_with_cameras(folder, origin: LocalFrame, poses: dict[str, np.ndarray], prefix: str = ""):
+    """A scene folder at ``origin`` (a small flat mesh) whose ``cameras.json`` holds ``poses`` (its ENU)."""
+    vertices, faces, _ = grid_mesh(2, 2, (-100.0, 100.0, -100.0, 100.0))
+    lens = PinholeCamera.from_fov(64, 48, 80.0)
+    cameras = [SceneCamera(prefix + name, lens, pose) for name, pose in poses.items()]
+    write_scene(folder, trimesh.Trimesh(vertices, faces, process=False), origin, {"generator": "test"}, cameras=cameras)
+    return folder
+
+
+def test_cameras_of_pieces_and_of_the_merged_scene_are_scored_in_the_area_frame(tmp_path):
+    home = LocalFrame(40.1792, 44.4991, 1000.0)
+    area = LocalFrame(*map(float, home.to_geodetic(200.0, -50.0, 0.0)))  # the area's origin 206 m from the flight's home
+    piece = LocalFrame(*map(float, home.to_geodetic(-80.0, 30.0, 2.0)))
+    truth = true_orbit()
+    write_truth(tmp_path / "fly" / "flight_01", home, truth)
+    error = rigid(0.0, [0.3, -0.4, 0.0])  # 0.5 m off, in the area frame
+    to_area, to_piece = home.transform_to(area), home.transform_to(piece)
+    scene_with_cameras(tmp_path / "area", area, {n: error @ to_area @ p for n, p in truth.items()}, "flight_01/")
+    scene_with_cameras(tmp_path / "piece", piece, {n: to_piece @ p for n, p in truth.items()})
+    flights = {"flight_01": tmp_path / "fly" / "flight_01"}
+    merged = merged_camera_errors(tmp_path / "area", flights)["flight_01"]
+    assert merged["count"] == len(truth)
+    assert merged["position_m"]["median"] == pytest.approx(0.5, abs=1e-6)
+    assert merged["rotation_deg"]["max"] < 1e-4
+    # the piece is exact where it is; its correction moves it the 0.5 m off
+    errors = piece_camera_errors(tmp_path / "piece", flights["flight_01"], area, error)
+    assert errors["before"]["position_m"]["max"] < 1e-6
+    assert errors["after"]["position_m"]["median"] == pytest.approx(0.5, abs=1e-6)
+    np.testing.assert_allclose(errors["mean_offset_after_enu_m"], [0.3, -0.4, 0.0], atol=1e-6)
 
 
 # -- the dataset stays over the covered area --------------------------------------------------------------------------
