@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.merge import ControlPairs
-from sim.scene import read_scene_json, read_scene_mesh_enu
+from sim.scene import Surface, read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
 ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly spread)
@@ -54,12 +54,15 @@ class FlatOverlapError(AreaError):
 
 @dataclass(frozen=True)
 class Piece:
-    """One scene folder's mesh and footprint in the area's ENU frame (metres), and the folder's own origin."""
+    """One scene folder's mesh and footprint in the area's ENU frame (metres), the folder's own origin, how the mesh
+    is coloured (its vertices in the order of ``mesh.vertices``) and the folder's scene.json."""
 
     name: str
     mesh: trimesh.Trimesh
     footprint: np.ndarray  # (K, 2) ground polygon, area ENU x/y
     origin: LocalFrame
+    surface: Surface | None = None
+    meta: dict | None = None
 
 
 @dataclass(frozen=True)
@@ -107,12 +110,12 @@ def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
     """Read a scene folder and convert its mesh and footprint from its origin's ENU to ``frame``'s ENU exactly."""
     scene_dir = Path(scene_dir)
     meta = read_scene_json(scene_dir)
-    vertices, faces, _ = read_scene_mesh_enu(scene_dir, meta)
+    vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
     own = LocalFrame.from_dict(meta["origin"])
     footprint = _footprint(meta)
     ground = np.column_stack([footprint, np.full(len(footprint), np.median(vertices[:, 2]))])
     return Piece(str(scene_dir), trimesh.Trimesh(_convert(vertices, own, frame), faces, process=False),
-                 _convert(ground, own, frame)[:, :2], own)
+                 _convert(ground, own, frame)[:, :2], own, surface, meta)
 
 
 def control_link(pairs: ControlPairs, a: int, b: int, pieces: list[Piece], frame: LocalFrame) -> Link:
@@ -260,11 +263,16 @@ def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ transform[:3, :3].T + transform[:3, 3]
 
 
-def adjust(count: int, links: list[Link], fixed: int = 0, iterations: int = 5) -> list[np.ndarray]:
+def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int = 5) -> list[np.ndarray]:
     """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every link at once:
     least squares over ``X_a(q) - X_b(p)`` for each link's points (each point weighs the same), Gauss-Newton with
-    small-angle steps about the points' common centroid, each step applied exactly."""
-    if not 0 <= fixed < count:
+    small-angle steps about the points' common centroid, each step applied exactly.
+
+    ``fixed`` None holds no piece: every step is the least-squares solution of least norm, whose rotation and shift
+    sum to zero over the pieces (the links only see differences between pieces), so the corrections average to
+    none and the area keeps the mean of the pieces' own geo-registrations: independent GPS fixes of separate
+    flights average out instead of the first flight's fix deciding where the whole area lies."""
+    if fixed is not None and not 0 <= fixed < count:
         raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
     centre = np.mean(np.vstack([link.points_b for link in links]), axis=0)
     free = [i for i in range(count) if i != fixed]
@@ -303,8 +311,9 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
                      np.stack([-y, x, zero], -1)], axis=1).reshape(-1, 3)
 
 
-def align_area(pieces: list[Piece], fixed: int = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
-    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put; the
+def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
+    """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put, or
+    with None the corrections average to none, see :func:`adjust`; the
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
     of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the
     pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected

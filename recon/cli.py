@@ -1,4 +1,5 @@
-"""``aerostereo-recon``: photos + geotags -> georeferenced scene folder; ``merge``: control-point merge.
+"""``aerostereo-recon``: photos + geotags -> georeferenced scene folder; ``area``: many flights -> one scene
+(recon/area_cli.py); ``merge``: control-point merge.
 
     aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR
                      [--image-size PX] [--max-features N] [--neighbors K] [--sequential N] [--every K]
@@ -57,13 +58,21 @@ def hold_out_count(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = Parser(prog=PROGRAM, description="Photos + geotags -> georeferenced textured scene folder "
-                                              "(SfM, dense stereo, mesh, texture; resumable). Other command: "
+                                              "(SfM, dense stereo, mesh, texture; resumable). Other commands: "
+                                              "'aerostereo-recon area FLIGHT... --out AREA' (each flight on its own, "
+                                              "joined into one scene; 'aerostereo-recon area --help'), "
                                               "'aerostereo-recon merge A B --pairs P --out C' (control-point merge "
                                               "of two meshes; 'aerostereo-recon merge --help').")
     add_version(parser)
     parser.add_argument("--photos", type=Path, required=True, help="folder of photos")
     parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
     parser.add_argument("--out", type=Path, required=True, help="scene folder to write (resumable)")
+    add_recon_options(parser)
+    return parser
+
+
+def add_recon_options(parser: argparse.ArgumentParser) -> None:
+    """The reconstruction's options, shared by a single scene and each piece of an area."""
     parser.add_argument("--image-size", type=positive_int, default=SfmOptions.max_image_size,
                         help="SfM max image side, px (default %(default)s)")
     parser.add_argument("--max-features", type=positive_int, default=8192, help="SIFT features per photo")
@@ -97,7 +106,20 @@ def build_parser() -> argparse.ArgumentParser:
                              "fusion and texture, to measure photorealism on photos the texture never saw "
                              "(cameras.json marks them held_out; 0: off)")
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
-    return parser
+
+
+def recon_options(args: argparse.Namespace) -> ReconOptions:
+    """:class:`ReconOptions` from the options of :func:`add_recon_options`."""
+    return ReconOptions(
+        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features,
+                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every,
+                       mapper=args.mapper, focal=args.focal, num_threads=args.workers),
+        dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
+                           num_threads=args.workers),
+        mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
+        texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
+        atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
+    )
 
 
 def build_merge_parser() -> argparse.ArgumentParser:
@@ -148,16 +170,7 @@ def run_recon(argv) -> int:
                       {"--out": args.out})
     if not args.verbose:
         pycolmap.logging.minloglevel = 2
-    options = ReconOptions(
-        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features,
-                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every,
-                       mapper=args.mapper, focal=args.focal, num_threads=args.workers),
-        dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
-                           num_threads=args.workers),
-        mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
-        texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
-        atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
-    )
+    options = recon_options(args)
     with stdout_to_stderr():  # COLMAP's C++ log and any library print are not the result
         scene = Recon(args.photos, args.geotags, args.out, options).run()
     print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],
@@ -171,6 +184,10 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["merge"]:
         return run_cli(f"{PROGRAM} merge", lambda: run_merge(argv[1:]))
+    if argv[:1] == ["area"]:
+        from recon.area_cli import run_area
+
+        return run_cli(f"{PROGRAM} area", lambda: run_area(argv[1:]), bad_input=(SfmError, DenseError))
     return run_cli(PROGRAM, lambda: run_recon(argv), bad_input=(SfmError, DenseError))
 
 

@@ -63,6 +63,9 @@ def add_fly_parser(subparsers) -> None:
     parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now); with several "
                                                            "--mission, of the first flight, the next ones taking off "
                                                            f"{BATTERY_SWAP_S:.0f} s after the previous landed")
+    parser.add_argument("--home", nargs=2, type=finite_number, metavar=("LAT", "LON"),
+                        help="take-off point, WGS84 degrees, on the scene's ground (default: under the first "
+                             "waypoint); an area plan's take_off (area.json) for its flights")
     parser.add_argument("--photos", type=int, dest="photo_limit", help="render only the first N photos")
     parser.add_argument("--logs", action="store_true", help="also write flight_log.csv (Litchi) and flight.srt")
     parser.add_argument("--geoid-undulation", type=finite_number, default=0.0, metavar="N",
@@ -133,7 +136,8 @@ def run_fly(args) -> int:
     noise = args.noise or ("area" if several else "realistic")
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
-                         photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation)
+                         photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
+                         home=tuple(args.home) if args.home else None)
     scene = load_scene(resolve_scene_dir(args.scene))
     if not several:
         print_flight(run_session(args.mission[0], scene, args.out, options), args.mission[0], scene.source, args.out)

@@ -44,16 +44,25 @@ class SceneError(ValueError):
 
 @dataclass(frozen=True)
 class Surface:
-    """How a mesh is coloured: a texture with per-vertex UVs, or per-vertex colours (both sRGB uint8)."""
+    """How a mesh is coloured (all sRGB uint8): one ``texture`` with per-vertex ``uv``; or several ``textures`` (a
+    scene of several textured parts, each with its own image) with per-vertex ``uv`` and ``face_texture``, the index
+    into ``textures`` of each face; or per-vertex colours."""
 
     texture: np.ndarray | None = None
     uv: np.ndarray | None = None
     vertex_colors: np.ndarray | None = None
+    textures: tuple[np.ndarray, ...] = ()
+    face_texture: np.ndarray | None = None
 
     @functools.cached_property
     def linear_texture(self) -> np.ndarray:
         """The texture in linear light, float32 ``(H, W, 3)``: made on first use (renderers), then kept."""
         return linear_texture(self.texture)
+
+    @functools.cached_property
+    def linear_textures(self) -> tuple[np.ndarray, ...]:
+        """Each of ``textures`` in linear light, float32 ``(H, W, 3)``: made on first use, then kept."""
+        return tuple(linear_texture(texture) for texture in self.textures)
 
 
 @dataclass
@@ -78,7 +87,7 @@ class Scene:
     bounds: np.ndarray = field(init=False)
     embree: rtcore_scene.EmbreeScene = field(init=False, repr=False)
     device: rtcore.EmbreeDevice | None = field(default=None, repr=False)
-    observed_area_m: list | None = None  # scene.json's convex [[x, y], ...] ENU polygon of a reconstruction
+    observed_area_m: list | None = None  # scene.json's [[x, y], ...] ENU polygon (simple, maybe non-convex)
 
     def __post_init__(self) -> None:
         self.vertices = np.asarray(self.vertices, dtype=np.float64)
@@ -90,12 +99,13 @@ class Scene:
         lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
         self.centre_m = (lo + hi) / 2.0
         local32 = (self.vertices - self.centre_m).astype(np.float32)
-        self.faces = _drop_degenerate(local32, faces).astype(np.int32)
+        kept = _non_degenerate(local32, faces)
+        self.faces = faces[kept].astype(np.int32)
         if len(self.faces) == 0:
             raise SceneError(f"{self.source}: every triangle is degenerate (zero area)")
         used = self.vertices[np.unique(self.faces)]
         self.bounds = np.stack([used.min(axis=0), used.max(axis=0)])
-        self.surface = _checked_surface(self.surface, len(self.vertices), self.source)
+        self.surface = _checked_surface(self.surface, len(self.vertices), kept, self.source)
         self.device = self.device or shared_device()
         self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
         mesh_construction.TriangleMesh(self.embree, local32, self.faces)
@@ -126,29 +136,49 @@ class Scene:
         return height.reshape(east.shape)
 
 
-def _checked_surface(surface: Surface, n_vertices: int, source: str) -> Surface:
-    """The surface with float32 (column-major) UVs, after checking it colours every vertex."""
-    if surface.texture is not None:
+def _checked_surface(surface: Surface, n_vertices: int, kept: np.ndarray, source: str) -> Surface:
+    """The surface with float32 (column-major) UVs and, for several textures, the texture index of the faces
+    ``kept`` (a mask over the faces it was made for), after checking it colours every vertex and face."""
+    if surface.texture is not None and surface.textures:
+        raise SceneError(f"{source}: give one texture or several (textures with face_texture), not both")
+    textures = surface.textures or ((surface.texture,) if surface.texture is not None else ())
+    if textures:
         # Column-major: renderers gather U and V separately, each from one contiguous column.
         uv = np.asfortranarray(surface.uv, dtype=np.float32) if surface.uv is not None else None
-        if uv is None or uv.shape != (n_vertices, 2) or surface.texture.ndim != 3 or surface.texture.dtype != np.uint8:
+        if uv is None or uv.shape != (n_vertices, 2) or any(t.ndim != 3 or t.dtype != np.uint8 for t in textures):
             raise SceneError(f"{source}: a texture needs (H, W, 3) uint8 pixels and one UV per vertex")
-        if max(surface.texture.shape[:2]) > MAX_TEXTURE_SIDE:
-            height, width = surface.texture.shape[:2]
-            raise SceneError(f"{source}: texture of {width}x{height} px; the renderer samples at most "
-                             f"{MAX_TEXTURE_SIDE} px a side (split or downscale it)")
-        return Surface(texture=surface.texture, uv=uv)
+        for texture in textures:
+            if max(texture.shape[:2]) > MAX_TEXTURE_SIDE:
+                height, width = texture.shape[:2]
+                raise SceneError(f"{source}: texture of {width}x{height} px; the renderer samples at most "
+                                 f"{MAX_TEXTURE_SIDE} px a side (split or downscale it)")
+        if surface.texture is not None:
+            return Surface(texture=surface.texture, uv=uv)
+        return Surface(uv=uv, textures=tuple(textures),
+                       face_texture=_checked_face_texture(surface.face_texture, len(textures), kept, source))
     colors = surface.vertex_colors
     if colors is None or colors.shape != (n_vertices, 3) or colors.dtype != np.uint8:
         raise SceneError(f"{source}: need a texture with UVs or (N, 3) uint8 vertex colours for all {n_vertices} vertices")
     return surface
 
 
-def _drop_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """Faces whose float32 triangle has non-zero area (zero-area ones are never hit and have no normal)."""
+def _checked_face_texture(index: np.ndarray | None, n_textures: int, kept: np.ndarray, source: str) -> np.ndarray:
+    """The texture index (int32) of the faces ``kept`` (a mask over all faces), after checking ``index`` gives one
+    texture in ``[0, n_textures)`` per face."""
+    index = None if index is None else np.asarray(index)
+    if (index is None or index.shape != kept.shape or not np.issubdtype(index.dtype, np.integer)
+            or index.min() < 0 or index.max() >= n_textures):
+        raise SceneError(f"{source}: several textures need face_texture, one index in [0, {n_textures}) per face "
+                         f"({len(kept)} faces)")
+    return np.ascontiguousarray(index[kept], dtype=np.int32)
+
+
+def _non_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """Mask of the faces whose float32 triangle has non-zero area (zero-area ones are never hit and have no
+    normal)."""
     tri = local32[faces].astype(np.float64)
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    return faces[np.einsum("ij,ij->i", cross, cross) > 0]
+    return np.einsum("ij,ij->i", cross, cross) > 0
 
 
 def read_scene_json(scene_dir: Path) -> dict:
@@ -270,7 +300,11 @@ def mesh_up_axis(meta: dict, georef: dict | None, path: Path) -> str:
 
 def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface, dict | None]:
     """Read a mesh file with trimesh -> float64 vertices (as stored), faces, its :class:`Surface` and its
-    aerostereo georeference (``scenes[0].extras`` of a GLB written by sim/worlds/glb.py; None for other files)."""
+    aerostereo georeference (``scenes[0].extras`` of a GLB written by sim/worlds/glb.py; None for other files).
+
+    A file of several textured geometries (a multi-part GLB, sim/worlds/glb.py, or any scene trimesh loads so) is
+    read part by part, each placed by its node transform and keeping its own texture (:func:`_parts_surface`);
+    any other file is joined into one mesh by trimesh."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"{path}: mesh file not found")
@@ -280,24 +314,55 @@ def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface, dict | None]
         raise SceneError(str(error)) from None
     try:
         loaded = trimesh.load(path, force="scene", process=False)
+        georef = loaded.metadata.get(GEOREF_KEY)
+        if _textured_parts(loaded):
+            return (*_parts_surface(loaded.dump()), georef)
         mesh = loaded.to_mesh()
     except Exception as exc:  # trimesh raises many types for unreadable files
         raise SceneError(f"{path}: trimesh cannot read this mesh ({type(exc).__name__}: {exc})") from None
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise SceneError(f"{path}: no triangles found")
-    georef = loaded.metadata.get(GEOREF_KEY)
     return np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces), _surface_of(mesh, path), georef
 
 
-def _surface_of(mesh: trimesh.Trimesh, path: Path) -> Surface:
-    """Texture + UVs if the mesh has both, else vertex colours, else a clear error."""
+def _textured_parts(loaded: trimesh.Scene) -> bool:
+    """Whether a loaded scene places more than one geometry and every geometry has a texture image with UVs: joining
+    them in one mesh would make trimesh pack their images into one."""
+    geometries = list(loaded.geometry.values())
+    return len(loaded.graph.nodes_geometry) > 1 and all(
+        isinstance(g, trimesh.Trimesh) and _texture_of(g) is not None for g in geometries)
+
+
+def _parts_surface(meshes: list[trimesh.Trimesh]) -> tuple[np.ndarray, np.ndarray, Surface]:
+    """Float64 vertices, faces and a several-texture :class:`Surface` of textured ``meshes`` (already placed by
+    their node transforms, trimesh's ``Scene.dump``) concatenated in order, face ``f`` of part ``k`` textured by
+    texture ``k``."""
+    offsets = np.cumsum([0] + [len(mesh.vertices) for mesh in meshes])
+    faces = np.concatenate([np.asarray(mesh.faces) + offset for mesh, offset in zip(meshes, offsets)])
+    textures, uvs = zip(*(_texture_of(mesh) for mesh in meshes))
+    face_texture = np.repeat(np.arange(len(meshes)), [len(mesh.faces) for mesh in meshes])
+    vertices = np.concatenate([np.asarray(mesh.vertices, dtype=np.float64) for mesh in meshes])
+    return vertices, faces, Surface(uv=np.concatenate(uvs), textures=textures, face_texture=face_texture)
+
+
+def _texture_of(mesh: trimesh.Trimesh) -> tuple[np.ndarray, np.ndarray] | None:
+    """The sRGB uint8 ``(H, W, 3)`` texture and float64 ``(N, 2)`` UVs of a mesh, if it has both."""
     visual = mesh.visual
     if isinstance(visual, trimesh.visual.TextureVisuals):
         image = _material_image(visual.material)
         uv = visual.uv
         if image is not None and uv is not None and len(uv) == len(mesh.vertices):
             texture = np.ascontiguousarray(np.asarray(image.convert("RGB"), dtype=np.uint8))
-            return Surface(texture=texture, uv=np.asarray(uv, dtype=np.float64))
+            return texture, np.asarray(uv, dtype=np.float64)
+    return None
+
+
+def _surface_of(mesh: trimesh.Trimesh, path: Path) -> Surface:
+    """Texture + UVs if the mesh has both, else vertex colours, else a clear error."""
+    textured = _texture_of(mesh)
+    if textured is not None:
+        return Surface(texture=textured[0], uv=textured[1])
+    visual = mesh.visual
     if visual.kind == "vertex":
         colors = np.asarray(visual.vertex_colors)
         return Surface(vertex_colors=np.ascontiguousarray(colors[:, :3], dtype=np.uint8))

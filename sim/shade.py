@@ -1,4 +1,5 @@
-"""Shading: surface colour from the texture (or vertex colours), Lambert sun + sky ambient, sky for misses.
+"""Shading: surface colour from the texture (one, or one per part) or vertex colours, Lambert sun + sky ambient,
+sky for misses.
 
 All radiometry is linear RGB in [0, 1] per unit exposure; 8-bit sRGB happens only at the film
 (:func:`to_srgb8`). A photogrammetry texture already holds the real shading, so the model is
@@ -97,20 +98,35 @@ def sky_radiance(directions: np.ndarray, lighting: Lighting) -> np.ndarray:
 
 
 def surface_albedo(scene: Scene, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Linear albedo ``(N, 3)`` at hits given by triangle index and barycentrics (texture or vertex colours)."""
+    """Linear albedo ``(N, 3)`` at hits given by triangle index and barycentrics (a texture, each face's own texture
+    of several, or vertex colours)."""
     corners = scene.faces.take(tri, axis=0)  # take: ~2.5x faster than fancy indexing here
     w0 = 1.0 - u - v
     surface = scene.surface
     if surface.texture is not None:
-        uv = np.empty((len(tri), 2), np.float32)
-        for axis in range(2):
-            column = surface.uv[:, axis]
-            corner_uv = [column.take(corners[:, corner]) for corner in range(3)]
-            uv[:, axis] = w0 * corner_uv[0] + u * corner_uv[1] + v * corner_uv[2]
-        return sample_linear(surface.linear_texture, uv)
+        return sample_linear(surface.linear_texture, _hit_uv(surface.uv, corners, w0, u, v))
+    if surface.textures:
+        uv = _hit_uv(surface.uv, corners, w0, u, v)
+        which = surface.face_texture.take(tri)
+        albedo = np.empty((len(tri), 3), np.float32)
+        for index in np.unique(which):  # one remap per texture the hits use
+            hits = np.flatnonzero(which == index)
+            albedo[hits] = sample_linear(surface.linear_textures[index], uv[hits])
+        return albedo
     colors = SRGB8_TO_LINEAR[surface.vertex_colors[corners]]  # (N, 3 corners, 3 channels)
     w0, u, v = w0[:, None], u[:, None], v[:, None]
     return (w0 * colors[:, 0] + u * colors[:, 1] + v * colors[:, 2]).astype(np.float32)
+
+
+def _hit_uv(uv: np.ndarray, corners: np.ndarray, w0: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Float32 ``(N, 2)`` UVs at hits: the per-vertex ``uv`` of the hit faces' ``corners`` (N, 3) mixed by the
+    barycentric weights ``w0``, ``u``, ``v``."""
+    hit_uv = np.empty((len(corners), 2), np.float32)
+    for axis in range(2):
+        column = uv[:, axis]
+        corner_uv = [column.take(corners[:, corner]) for corner in range(3)]
+        hit_uv[:, axis] = w0 * corner_uv[0] + u * corner_uv[1] + v * corner_uv[2]
+    return hit_uv
 
 
 def linear_texture(srgb8: np.ndarray) -> np.ndarray:

@@ -32,7 +32,7 @@ from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
 from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
-from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
+from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
 from sim.raycast import default_workers
@@ -68,6 +68,7 @@ class FlyOptions:
     logs: bool = False
     progress: bool = True
     geoid_undulation_m: float = 0.0
+    home: tuple[float, float] | None = None  # take-off (lat, lon) WGS84 degrees; None: under the first waypoint
 
     def __post_init__(self) -> None:
         if not math.isfinite(self.geoid_undulation_m):
@@ -92,12 +93,21 @@ class FlyReport:
     rendered: RenderedPhotos
 
 
-def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfections) -> FlownMission:
-    """Fly the Litchi CSV over ``scene``, taking off below the first waypoint on the scene's ground."""
+def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfections,
+                       home: tuple[float, float] | None = None) -> FlownMission:
+    """Fly the Litchi CSV over ``scene``, taking off from the scene's ground at ``home`` (lat, lon degrees: the
+    pilot's place, e.g. an area plan's ``take_off``) or, when None, below the first waypoint."""
     waypoints = waypoints_from_litchi(read_mission_csv(mission_csv))
-    first = waypoints[0]
-    home = home_below_first_waypoint(waypoints, ground_height_ellipsoid_m(scene, first.latitude_deg, first.longitude_deg))
-    return fly(waypoints, home, imperfections, seed=seed)
+    if home is None:
+        first = waypoints[0]
+        take_off = home_below_first_waypoint(
+            waypoints, ground_height_ellipsoid_m(scene, first.latitude_deg, first.longitude_deg))
+    else:
+        try:
+            take_off = HomePoint(*home, ground_height_ellipsoid_m(scene, *home))
+        except ValueError as error:
+            raise ValueError(f"--home {home[0]} {home[1]}: {error}; expected a take-off point on the scene") from None
+    return fly(waypoints, take_off, imperfections, seed=seed)
 
 
 def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True) -> int:
@@ -155,7 +165,7 @@ def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOpt
 def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyReport:
     """Fly, deliver the telemetry, take the photos and write the truth into ``out_dir`` (module docstring)."""
     out_dir = Path(out_dir)
-    mission = fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections)
+    mission = fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
     clock = MissionClock(options.speedup, options.start_utc)
     check_session(mission, clock.start_utc, options)
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -79,3 +79,25 @@ def test_cli_flies_every_mission_into_its_own_folder(mission_csv, tmp_path, caps
     landed = dt.datetime.fromisoformat(truths[0]["start_utc"]) + dt.timedelta(seconds=truths[0]["duration_s"])
     assert dt.datetime.fromisoformat(truths[1]["start_utc"]) == landed + dt.timedelta(seconds=BATTERY_SWAP_S)
     assert truths[0]["gps_fix_bias_enu_m"] != truths[1]["gps_fix_bias_enu_m"]
+
+
+def test_cli_takes_off_from_home_and_refuses_one_off_the_scene(mission_csv, tmp_path, capsys):
+    """``--home`` (an area plan's take-off) is the flight's origin on the scene's ground, and the drone transits from
+    it to the first waypoint, so the flight lasts longer than one taking off below it; a home with no ground under
+    it is one line naming --home, exit 2, and nothing written."""
+    scene_dir = build_demo_world(tmp_path / "world", variant="small", seed=0)
+    first = waypoints_from_litchi(litchi.read_mission_csv(mission_csv))[0]
+    home = (first.latitude_deg - 0.0004, first.longitude_deg + 0.0004)  # ~ 44 m south, 34 m east of waypoint 1
+    common = ["fly", "--mission", str(mission_csv), "--scene", str(scene_dir), "--photo-size", "64", "48",
+              "--photos", "1", "--start-utc", "2024-05-01T10:00:00Z"]
+    assert main([*common, "--out", str(tmp_path / "below")]) == 0
+    assert main([*common, "--out", str(tmp_path / "home"), "--home", *map(str, home)]) == 0
+    below, from_home = (json.loads((tmp_path / name / "truth.json").read_text(encoding="utf-8"))
+                        for name in ("below", "home"))
+    assert (from_home["origin"]["lat0_deg"], from_home["origin"]["lon0_deg"]) == pytest.approx(home, abs=1e-12)
+    assert from_home["duration_s"] > below["duration_s"] + 2 * 50.0 / 10.0  # there and back at <= 10 m/s
+    capsys.readouterr()
+    assert main([*common, "--out", str(tmp_path / "off"), "--home", "40.0", "44.0"]) == 2
+    error = capsys.readouterr().err.strip().splitlines()
+    assert len(error) == 1 and "--home 40.0 44.0" in error[0] and "no ground" in error[0]
+    assert not (tmp_path / "off").exists()

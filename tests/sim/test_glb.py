@@ -84,26 +84,31 @@ def accessor_array(document: dict, binary: bytes, index: int) -> np.ndarray:
 
 def assert_valid_glb(data: bytes) -> dict:
     """The checks of the Khronos glTF validator that matter for our files: the document against the official glTF
-    2.0 JSON schema (shipped with trimesh, checked by jsonschema), plus the binary rules the schema cannot state."""
+    2.0 JSON schema (shipped with trimesh, checked by jsonschema), plus the binary rules the schema cannot state, for
+    every part (mesh primitive) and image."""
     document, binary = glb_chunks(data)
     validate(document)
     assert document["asset"]["version"] == "2.0"
     assert len(document["buffers"]) == 1 and 0 <= len(binary) - document["buffers"][0]["byteLength"] < 4
     for view in document["bufferViews"]:
         assert view["byteOffset"] % 4 == 0 and view["byteOffset"] + view["byteLength"] <= len(binary)
-    primitive = document["meshes"][0]["primitives"][0]
-    positions = accessor_array(document, binary, primitive["attributes"]["POSITION"])
-    texcoords = accessor_array(document, binary, primitive["attributes"]["TEXCOORD_0"])
-    indices = accessor_array(document, binary, primitive["indices"])
     accessors = document["accessors"]
-    assert [accessors[i]["componentType"] for i in (0, 1, 2)] == [5126, 5126, 5125]
-    # POSITION must carry min and max, equal to the data's (the spec: "MUST be defined" for positions)
-    position = accessors[primitive["attributes"]["POSITION"]]
-    assert position["min"] == positions.min(0).tolist() and position["max"] == positions.max(0).tolist()
-    assert len(texcoords) == len(positions) and indices.size % 3 == 0 and indices.max() < len(positions)
-    image_view = document["bufferViews"][document["images"][0]["bufferView"]]
-    image = binary[image_view["byteOffset"]:image_view["byteOffset"] + image_view["byteLength"]]
-    assert document["images"][0]["mimeType"] == "image/jpeg" and image[:3] == b"\xff\xd8\xff"
+    for mesh in document["meshes"]:  # one primitive per part, each with its own texture
+        (primitive,) = mesh["primitives"]
+        attributes = primitive["attributes"]
+        positions = accessor_array(document, binary, attributes["POSITION"])
+        texcoords = accessor_array(document, binary, attributes["TEXCOORD_0"])
+        indices = accessor_array(document, binary, primitive["indices"])
+        used = (attributes["POSITION"], attributes["TEXCOORD_0"], primitive["indices"])
+        assert [accessors[i]["componentType"] for i in used] == [5126, 5126, 5125]
+        # POSITION must carry min and max, equal to the data's (the spec: "MUST be defined" for positions)
+        position = accessors[attributes["POSITION"]]
+        assert position["min"] == positions.min(0).tolist() and position["max"] == positions.max(0).tolist()
+        assert len(texcoords) == len(positions) and indices.size % 3 == 0 and indices.max() < len(positions)
+    for image in document["images"]:
+        image_view = document["bufferViews"][image["bufferView"]]
+        data = binary[image_view["byteOffset"]:image_view["byteOffset"] + image_view["byteLength"]]
+        assert image["mimeType"] == "image/jpeg" and data[:3] == b"\xff\xd8\xff"
     return document
 
 

@@ -1,0 +1,72 @@
+"""``aerostereo-recon area``: every flight of an area reconstructed on its own, then joined into one scene.
+
+    aerostereo-recon area FLIGHT_DIR FLIGHT_DIR [...] --out AREA [--scheduler local:N|tcp://HOST:PORT]
+                          [--cell M] [--blend-width M] [the single reconstruction's options]
+
+Each FLIGHT_DIR holds ``photos/`` and ``geotags.csv`` (as ``aerostereo-render fly`` + ``aerostereo-ingest geotag``
+write them; without geotags.csv the photos' own GPS). The report (JSON) is the only thing on stdout; progress goes
+to stderr. A rerun resumes the pieces whose inputs and options are unchanged and joins them again. Layout and method:
+recon/area_pipeline.py, recon/area_merge.py, docs/recon.md ("An area").
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import pycolmap
+
+from flightplan.cli_support import Parser, add_version, folder_inputs, refuse_clobbering, stdout_to_stderr
+from recon.area_pipeline import AreaOptions, flight_inputs, flights_of, merge_area, reconstruct_pieces
+from recon.cli import PROGRAM, add_recon_options, recon_options
+
+
+def build_area_parser() -> Parser:
+    parser = Parser(prog=f"{PROGRAM} area",
+                    description="Reconstruct each flight of an area on its own (AREA/pieces/<flight>/, resumable; "
+                                "Dask tasks with --scheduler), align the pieces on their overlaps (point-to-surface "
+                                "ICP, all adjusted together), give each patch of ground to the piece that sees it "
+                                "best, blend the seams in geometry and colour, and write one scene into AREA.")
+    add_version(parser)
+    parser.add_argument("flights", type=Path, nargs="+", metavar="FLIGHT_DIR",
+                        help="flight folders, each with photos/ and geotags.csv (at least 2)")
+    parser.add_argument("--out", type=Path, required=True, help="area folder to write (resumable)")
+    parser.add_argument("--scheduler", help="reconstruct the flights as tasks on Dask: local:N (N worker processes "
+                                            "here) or tcp://HOST:PORT (a running scheduler; the flight and area "
+                                            "folders must be the same paths on every worker); default: one after "
+                                            "another in this process")
+    parser.add_argument("--cell", type=float, default=AreaOptions.cell_m,
+                        help="ground cell of the ownership grid, m (default %(default)s)")
+    parser.add_argument("--blend-width", type=float, default=AreaOptions.blend_width_m,
+                        help="seam blend band on each side, m (default %(default)s)")
+    add_recon_options(parser)
+    return parser
+
+
+def run_area(argv) -> int:
+    args = build_area_parser().parse_args(argv)
+    options = AreaOptions(cell_m=args.cell, blend_width_m=args.blend_width)
+    flights = flights_of(args.flights)
+    refuse_clobbering({"FLIGHT_DIR": [p for f in flights for p in folder_inputs(f.photos)] + flight_inputs(flights)},
+                      {"--out": args.out})
+    scheduler = None
+    if args.scheduler:
+        from sim.cluster import check_reachable, parse_scheduler
+
+        scheduler = parse_scheduler(args.scheduler)
+        check_reachable(scheduler)
+    if not args.verbose:
+        pycolmap.logging.minloglevel = 2
+    with stdout_to_stderr():
+        pieces = reconstruct_pieces(flights, args.out, recon_options(args), scheduler, log=_log)
+        report = merge_area(pieces, args.out, options, log=_log)
+    print(json.dumps({"scene": str(args.out / "scene.json"), "pieces": len(pieces),
+                      "covered_area_m2": report["covered_area_m2"],
+                      "pairs": [{k: pair[k] for k in ("a", "b", "before_m", "after_joint_m")}
+                                for pair in report["pairs"]]}, indent=2))
+    return 0
+
+
+def _log(line: str) -> None:
+    print(line, file=sys.stderr, flush=True)

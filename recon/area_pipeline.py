@@ -1,0 +1,306 @@
+"""``aerostereo-recon area``: reconstruct each flight of an area on its own, then join them into one scene.
+
+Layout of the output folder ``AREA``::
+
+    AREA/pieces/<flight>/     one scene folder per flight (the single reconstruction, resumable)
+    AREA/area.glb             the merged mesh: one textured part per piece (area.ply with vertex colours when the
+                              pieces have no texture), +Y up, georeferenced (sim/worlds/glb.py)
+    AREA/cameras.json         every piece's registered photos in the area frame, named <flight>/<photo>
+    AREA/ownership.png        16-bit: per ground cell the index of the piece that owns it (65535: none)
+    AREA/area_report.json     pieces, corrections, pair offsets before/after, seams, colour gains, timings
+    AREA/scene.json           written last: the scene renders as one (aerostereo-render --scene AREA)
+
+Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
+EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/cluster.py):
+a flight is a few minutes of work, so one task per flight. The area frame's origin is the mean of the pieces' own
+origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area`, holding no piece fixed (the
+corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area_merge`.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import trimesh
+
+from capture.geotag_io import sidecar_path
+from flightplan.atomic import atomic_path, write_text_atomic
+from flightplan.cli_support import BadInput
+from flightplan.geodesy import LocalFrame
+from recon.area import AreaAlignment, Piece, SurfaceQuery, align_area, load_pieces
+from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, kept_faces, look_at_points,
+                              ownership, seam_neighbours, surface_mask)
+from recon.pipeline import Recon, ReconOptions
+from recon.scene_out import CAMERAS_FILE, scene_metadata
+from sim.scene import Scene, read_scene_cameras, read_scene_json
+from sim.scene_cameras import SceneCamera, write_cameras
+from sim.shade import SRGB8_TO_LINEAR, to_srgb8
+from sim.worlds.glb import TexturedPart, encode_textured_glb_parts
+
+PIECES = "pieces"
+REPORT = "area_report.json"
+OWNERSHIP = "ownership.png"
+NO_OWNER_PIXEL = 65535
+JPEG_QUALITY = 95
+
+
+@dataclass(frozen=True)
+class Flight:
+    """One flight's inputs: its ``name`` (the folder's), ``photos`` folder and ``geotags`` CSV (None: EXIF)."""
+
+    name: str
+    photos: Path
+    geotags: Path | None
+
+
+@dataclass(frozen=True)
+class AreaOptions:
+    """How pieces are joined: ground cell (m), seam blend band (m), the largest seam step blended (m)."""
+
+    cell_m: float = 1.0
+    blend_width_m: float = 4.0
+    max_blend_step_m: float = 0.5
+
+    def __post_init__(self) -> None:
+        for name in ("cell_m", "blend_width_m", "max_blend_step_m"):
+            if not 0 < getattr(self, name) < 1e4:
+                raise ValueError(f"{name.replace('_m', '').replace('_', ' ')} must be a positive number of metres "
+                                 f"below 10 km, got {getattr(self, name)}")
+
+
+def flights_of(folders: Sequence[Path]) -> list[Flight]:
+    """Check the flight folders (each with ``photos/``; ``geotags.csv`` optional) and name them by folder name;
+    :class:`BadInput` naming the folder when one is missing, lacks photos or two share a name."""
+    if len(folders) < 2:
+        raise BadInput(f"need at least 2 flight folders to join into an area, got {len(folders)}")
+    flights, seen = [], {}
+    for folder in folders:
+        folder = Path(folder)
+        if not (folder / "photos").is_dir():
+            raise BadInput(f"{folder}: no photos/ folder inside; expected a flight folder holding photos/ "
+                           "(and geotags.csv), as aerostereo-render fly and aerostereo-ingest geotag write it")
+        name = folder.resolve().name
+        if name in seen:
+            raise BadInput(f"{folder}: same folder name as {seen[name]}; each flight's piece is named after its "
+                           "folder, so the names must differ")
+        seen[name] = folder
+        geotags = folder / "geotags.csv"
+        flights.append(Flight(name, folder / "photos", geotags if geotags.is_file() else None))
+    return flights
+
+
+def flight_inputs(flights: Sequence[Flight]) -> list[Path]:
+    """Every file and folder the flights read (for the output-names-an-input refusal)."""
+    paths = []
+    for flight in flights:
+        paths.append(flight.photos)
+        if flight.geotags is not None:
+            paths += [flight.geotags, sidecar_path(flight.geotags)]
+    return paths
+
+
+def reconstruct_piece(flight: Flight, out: Path, options: ReconOptions) -> str:
+    """Reconstruct one flight into ``out`` (resumes a finished or partial run with the same options); returns the
+    scene folder. Runs in a Dask worker too: it silences COLMAP's log like the CLI does."""
+    import pycolmap
+
+    pycolmap.logging.minloglevel = 2
+    Recon(flight.photos, flight.geotags, out, options).run()
+    return str(out)
+
+
+def reconstruct_pieces(flights: Sequence[Flight], area_dir: Path, options: ReconOptions, scheduler=None,
+                       log: Callable[[str], None] = print) -> list[Path]:
+    """Every flight's scene folder under ``area_dir/pieces`` (in flight order), run here one after another or as
+    one Dask task per flight on ``scheduler`` (sim.cluster.Scheduler); the first failure stops the run with it."""
+    folders = [area_dir / PIECES / flight.name for flight in flights]
+    if scheduler is None:
+        for number, (flight, folder) in enumerate(zip(flights, folders), start=1):
+            log(f"[area] piece {number}/{len(flights)}: {flight.name}")
+            reconstruct_piece(flight, folder, options)
+        return folders
+    import distributed
+
+    from sim.cluster import connect, dashboard_line
+
+    with connect(scheduler) as client:
+        log(dashboard_line(client))
+        futures = {client.submit(reconstruct_piece, flight, folder, options, pure=False, retries=0): flight.name
+                   for flight, folder in zip(flights, folders)}
+        try:
+            for done, future in enumerate(distributed.as_completed(futures), start=1):
+                future.result()
+                log(f"[area] piece {done}/{len(flights)} done: {futures[future]}")
+        finally:
+            client.cancel(list(futures))
+    return folders
+
+
+def area_frame(piece_dirs: Sequence[Path]) -> LocalFrame:
+    """The area's ENU frame: at the mean latitude, longitude and height of the pieces' own origins."""
+    origins = np.array([[f.lat0_deg, f.lon0_deg, f.h0_m] for f in
+                        (read_scene_json(Path(d))["origin_frame"] for d in piece_dirs)])
+    return LocalFrame(*(float(v) for v in origins.mean(axis=0)))
+
+
+def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
+    return points @ transform[:3, :3].T + transform[:3, 3]
+
+
+def area_cameras(piece: Piece, name: str, frame: LocalFrame, correction: np.ndarray) -> list[SceneCamera]:
+    """The piece's registered photos in the aligned area frame, named ``<name>/<photo>``."""
+    to_area = correction @ piece.origin.transform_to(frame)
+    return [SceneCamera(f"{name}/{c.name}", c.camera, to_area @ c.T_world_cam, c.exposure_gain, c.held_out)
+            for c in read_scene_cameras(Path(piece.name), piece.meta)]
+
+
+@dataclass
+class MergedPiece:
+    """A piece's kept faces (compacted) in the aligned area frame, with its colouring."""
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    uv: np.ndarray | None
+    texture: np.ndarray | None
+    vertex_colors: np.ndarray | None
+
+
+def compact(vertices: np.ndarray, faces: np.ndarray, keep: np.ndarray, piece: Piece) -> MergedPiece:
+    """The kept faces with only the vertices they use (UVs or colours carried along)."""
+    used, remap = np.unique(faces[keep], return_inverse=True)
+    surface = piece.surface
+    return MergedPiece(vertices[used], remap.reshape(-1, 3), None if surface.uv is None else surface.uv[used],
+                       surface.texture, None if surface.vertex_colors is None else surface.vertex_colors[used])
+
+
+def gained(srgb8: np.ndarray, gain: np.ndarray) -> np.ndarray:
+    """sRGB uint8 colours scaled by a linear-light gain per channel."""
+    return to_srgb8(SRGB8_TO_LINEAR[srgb8] * gain.astype(np.float32))
+
+
+def encode_merged(pieces: list[MergedPiece], gains: np.ndarray, frame: LocalFrame) -> tuple[str, bytes | trimesh.Trimesh]:
+    """The merged mesh file: (``area.glb``, GLB bytes) with one textured part per piece, or (``area.ply``, a trimesh
+    with vertex colours) when no piece has a texture; :class:`BadInput` when the pieces mix the two."""
+    textured = [p.texture is not None for p in pieces]
+    if all(textured):
+        parts = []
+        for piece, gain in zip(pieces, gains):
+            ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(gained(piece.texture, gain), cv2.COLOR_RGB2BGR),
+                                    [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
+            parts.append(TexturedPart(piece.vertices, piece.faces, piece.uv, jpeg.tobytes()))
+        return "area.glb", encode_textured_glb_parts(parts, "recon.area_pipeline", frame)
+    if any(textured):
+        raise BadInput("the pieces mix textured and vertex-coloured meshes; reconstruct every flight with the same "
+                       "--texture")
+    offsets = np.cumsum([0] + [len(p.vertices) for p in pieces[:-1]])
+    mesh = trimesh.Trimesh(np.vstack([p.vertices for p in pieces]),
+                           np.vstack([p.faces + o for p, o in zip(pieces, offsets)]),
+                           vertex_colors=np.vstack([gained(p.vertex_colors, g) for p, g in zip(pieces, gains)]),
+                           process=False)
+    return "area.ply", mesh
+
+
+def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions = AreaOptions(),
+               log: Callable[[str], None] = print) -> dict:
+    """Align the pieces, decide ownership, blend seams and colours, and write the merged scene into ``area_dir``
+    (module docstring); returns the report (also ``area_report.json``)."""
+    timings, start = {}, time.perf_counter()
+
+    def lap(name: str) -> None:
+        nonlocal start
+        timings[name] = round(time.perf_counter() - start, 3)
+        start = time.perf_counter()
+
+    frame = area_frame(piece_dirs)
+    frame, pieces = load_pieces(list(piece_dirs), frame)
+    names = [Path(d).name for d in piece_dirs]
+    lap("load")
+    log(f"[area] aligning {len(pieces)} pieces")
+    alignment = align_area(pieces, fixed=None)
+    lap("align")
+    corrections = alignment.corrections
+    vertices = [_apply(c, np.asarray(p.mesh.vertices)) for p, c in zip(pieces, corrections)]
+    faces = [np.asarray(p.mesh.faces) for p in pieces]
+    cameras = [area_cameras(p, n, frame, c) for p, n, c in zip(pieces, names, corrections)]
+    grid = Grid.covering(np.vstack([v[:, :2] for v in vertices]), options.cell_m)
+    scenes = [Scene(v, f, p.surface) for v, f, p in zip(vertices, faces, pieces)]
+    surfaces = [surface_mask(s, grid) for s in scenes]
+    ground_z = [float(np.median(v[:, 2])) for v in vertices]
+    look_ats = [look_at_points(np.array([c.T_world_cam for c in cams]), z) for cams, z in zip(cameras, ground_z)]
+    owner = ownership(grid, surfaces, look_ats)
+    neighbours = seam_neighbours(owner)
+    lap("ownership")
+    log(f"[area] blending seams between {sum(len(n) for n in neighbours.values()) // 2} neighbouring pairs")
+    keep = [kept_faces(v, f, owner, grid, k) for k, (v, f) in enumerate(zip(vertices, faces))]
+    merged = [compact(v, f, k, p) for v, f, k, p in zip(vertices, faces, keep, pieces)]
+    queries = {b: SurfaceQuery(trimesh.Trimesh(vertices[b], faces[b], process=False))
+               for b in {n for ns in neighbours.values() for n in ns}}
+    blended = blend_seams([m.vertices for m in merged], queries, owner, grid, neighbours, options.blend_width_m,
+                          options.max_blend_step_m)
+    for piece, moved in zip(merged, blended):
+        piece.vertices = moved
+    lap("seams")
+    gains, colour_pairs = colour_gains(scenes, surfaces, grid, neighbours)
+    lap("colour")
+    footprints = [_apply(c, np.column_stack([p.footprint, np.full(len(p.footprint), z)]))[:, :2]
+                  for p, c, z in zip(pieces, corrections, ground_z)]
+    polygon, holes_m2 = covered_polygon(grid, footprints, owner)
+    mesh_name, encoded = encode_merged(merged, gains, frame)
+    lap("encode")
+    report = area_report(names, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2, merged)
+    report["timings_s"] = timings
+    write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
+               report)
+    lap("write")
+    report["timings_s"] = timings
+    write_text_atomic(area_dir / REPORT, json.dumps(report, indent=2) + "\n")
+    return report
+
+
+def area_report(names, alignment: AreaAlignment, grid: Grid, owner, neighbours, gains, colour_pairs, polygon,
+                holes_m2, merged) -> dict:
+    """The JSON-ready report of a merge (docs/recon.md, "An area")."""
+    owned = [int(np.count_nonzero(owner == k)) for k in range(len(names))]
+    return {
+        "pieces": [{"name": n, "scene": f"{PIECES}/{n}", "correction": c.tolist(), "faces": int(len(m.faces)),
+                    "owned_m2": o * grid.cell_m ** 2, "colour_gain": g.tolist()}
+                   for n, c, m, o, g in zip(names, alignment.corrections, merged, owned, gains)],
+        "pairs": [{"a": r.a, "b": r.b, "points": r.points, "before_m": r.before_m, "after_pair_m": r.after_pair_m,
+                   "after_joint_m": r.after_joint_m, "icp_s": r.icp_s} for r in alignment.pairs],
+        "seams": {"pairs": sorted([a, b] for a in neighbours for b in neighbours[a] if a < b),
+                  "colour": colour_pairs},
+        "ownership": {"file": OWNERSHIP, **grid.to_dict(), "no_owner": NO_OWNER_PIXEL},
+        "covered_area_m2": float(abs(_shoelace(polygon))), "covered_holes_m2": holes_m2,
+    }
+
+
+def _shoelace(polygon: np.ndarray) -> float:
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
+
+def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merged: list[MergedPiece],
+               cameras: list[SceneCamera], owner: np.ndarray, polygon: np.ndarray, report: dict) -> None:
+    """The merged scene's files, each atomically, scene.json last."""
+    with atomic_path(area_dir / mesh_name) as tmp:
+        if isinstance(encoded, bytes):
+            tmp.write_bytes(encoded)
+        else:
+            encoded.export(tmp, file_type="ply")
+    write_cameras(area_dir / CAMERAS_FILE, cameras)
+    _, png = cv2.imencode(".png", np.where(owner == NO_OWNER, NO_OWNER_PIXEL, owner).astype(np.uint16))
+    with atomic_path(area_dir / OWNERSHIP) as tmp:
+        tmp.write_bytes(png.tobytes())
+    everything = trimesh.Trimesh(np.vstack([m.vertices for m in merged]), process=False)
+    meta = scene_metadata(everything, mesh_name, frame, {"generator": "aerostereo-recon area",
+                                                         "pieces": [p["scene"] for p in report["pieces"]],
+                                                         "report": REPORT})
+    meta["cameras"] = CAMERAS_FILE
+    meta["observed_area_m"] = polygon.round(3).tolist()
+    write_text_atomic(area_dir / "scene.json", json.dumps(meta, indent=2))
