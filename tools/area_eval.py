@@ -145,19 +145,32 @@ def pair_truth_offsets(pieces: dict[str, dict], a: str, b: str) -> dict:
             for label in ("before", "after")}
 
 
+def pair_metrics(area_report: dict, pieces: dict) -> list[dict]:
+    """``area_report.json``'s neighbouring pairs (``a``, ``b``: piece indices) by piece name, each with its true
+    relative offset (:func:`pair_truth_offsets`) where both pieces were measured (else None)."""
+    names = [piece["name"] for piece in area_report["pieces"]]
+    pairs = []
+    for pair in area_report["pairs"]:
+        a, b = names[pair["a"]], names[pair["b"]]
+        measured = "count" in pieces.get(a, {}) and "count" in pieces.get(b, {})
+        pairs.append({**pair, "a": a, "b": b, "truth_m": pair_truth_offsets(pieces, a, b) if measured else None})
+    return pairs
+
+
 # ---------------------------------------------------------------- surface inside pieces and in seams
 
 
 @dataclass(frozen=True)
 class Ownership:
     """The area's ownership grid: ``owner[r, c]`` is the piece owning the ground cell centred at ENU
-    ``x = x0_m + (c + 0.5) cell_m``, ``y = y0_m - (r + 0.5) cell_m`` (row 0 north), :data:`NO_OWNER` where no
-    piece has surface."""
+    ``x = x0_m + (c + 0.5) cell_m``, ``y = y0_m - (r + 0.5) cell_m`` (row 0 north), ``no_owner`` (the report's,
+    else :data:`NO_OWNER`) where no piece has surface."""
 
     owner: np.ndarray
     cell_m: float
     x0_m: float
     y0_m: float
+    no_owner: int = NO_OWNER
 
     @classmethod
     def read(cls, area_dir: Path, spec: dict) -> "Ownership":
@@ -166,7 +179,8 @@ class Ownership:
         owner = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if owner is None or owner.dtype != np.uint16 or owner.ndim != 2:
             raise ValueError(f"{path}: expected a 16-bit single-channel PNG (piece index per ground cell)")
-        return cls(owner, float(spec["cell_m"]), float(spec["x0_m"]), float(spec["y0_m"]))
+        return cls(owner, float(spec["cell_m"]), float(spec["x0_m"]), float(spec["y0_m"]),
+                   int(spec.get("no_owner", NO_OWNER)))
 
     def cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Row and column of the cell under each point ``(N, 2)`` (area ENU m), and whether it lies on the grid."""
@@ -182,7 +196,7 @@ class Ownership:
         seam = np.zeros(owner.shape, dtype=bool)
         for axis in (0, 1):
             a, b = (owner[:-1], owner[1:]) if axis == 0 else (owner[:, :-1], owner[:, 1:])
-            differ = (a != b) & (a != NO_OWNER) & (b != NO_OWNER)
+            differ = (a != b) & (a != self.no_owner) & (b != self.no_owner)
             if axis == 0:
                 seam[:-1] |= differ
                 seam[1:] |= differ
@@ -208,7 +222,7 @@ def seam_split(points_xy: np.ndarray, errors_m: np.ndarray, ownership: Ownership
     ``seams`` (<= ``seam_m``) and ``inside`` (farther), with ``seam_to_inside`` = ratio of the medians (the
     issue's bound: <= 1.5); points off the grid or on cells nobody owns are counted as ``unowned``."""
     row, column, on_grid = ownership.cells(np.asarray(points_xy, dtype=np.float64))
-    owned = on_grid & (ownership.owner[row, column] != NO_OWNER)
+    owned = on_grid & (ownership.owner[row, column] != ownership.no_owner)
     distance = ownership.seam_distance_m()[row, column]
     errors = np.asarray(errors_m, dtype=np.float64)
     seams, inner = _percentiles(errors[owned & (distance <= seam_m)]), _percentiles(errors[owned & (distance > seam_m)])
@@ -326,10 +340,7 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
         measure("pieces", lambda: _each(entries, lambda n, entry: piece_camera_errors(
             area_dir / entry["scene"], fly_dirs[n], frame, np.asarray(entry["correction"]))))
         measure("merged_cameras", lambda: merged_camera_errors(area_dir, fly_dirs))
-        pieces = report["metrics"].get("pieces", {})
-        measure("pairs", lambda: [{**pair, "truth_m": pair_truth_offsets(pieces, pair["a"], pair["b"])
-                                   if "count" in pieces.get(pair["a"], {}) and "count" in pieces.get(pair["b"], {})
-                                   else None} for pair in area_report["pairs"]])
+        measure("pairs", lambda: pair_metrics(area_report, report["metrics"].get("pieces", {})))
         measure("surface", lambda: surface_seam_metrics(
             area_dir, world, Ownership.read(area_dir, area_report["ownership"]), config["surface_samples"],
             config["seam_m"], config["seed"]))
