@@ -19,10 +19,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 import trimesh
-from scipy import ndimage
 
 from flightplan.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame
+from recon.area_merge import distance_to_owner
 from recon.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
 from recon.observed import inside
 from recon.oblique import TwinFrame, render_view, sample_views, score_view, summarise
@@ -190,22 +190,16 @@ class Ownership:
         return np.where(on_grid, row, 0), np.where(on_grid, column, 0), on_grid
 
     def seam_distance_m(self) -> np.ndarray:
-        """Per cell: the distance (m, centre to centre) to the nearest seam cell, an owned cell with a 4-neighbour
-        owned by another piece (cells with no owner make no seam); +inf when there is no seam."""
-        owner = self.owner
-        seam = np.zeros(owner.shape, dtype=bool)
-        for axis in (0, 1):
-            a, b = (owner[:-1], owner[1:]) if axis == 0 else (owner[:, :-1], owner[:, 1:])
-            differ = (a != b) & (a != self.no_owner) & (b != self.no_owner)
-            if axis == 0:
-                seam[:-1] |= differ
-                seam[1:] |= differ
-            else:
-                seam[:, :-1] |= differ
-                seam[:, 1:] |= differ
-        if not seam.any():
-            return np.full(owner.shape, np.inf)
-        return ndimage.distance_transform_edt(~seam) * self.cell_m
+        """Per cell: about the distance (m) from its centre to the nearest seam, i.e. to the nearest cell of
+        another piece (:func:`recon.area_merge.distance_to_owner`, the merge's own measure); cells with no owner
+        make no seam; +inf where there is no other piece."""
+        distance = np.full(self.owner.shape, np.inf)
+        for piece in np.unique(self.owner):
+            if piece != self.no_owner:
+                others = self.owner != piece
+                distance[others] = np.minimum(distance[others],
+                                              distance_to_owner(self.owner, int(piece), self.cell_m)[others])
+        return distance
 
 
 def _percentiles(values: np.ndarray) -> dict:

@@ -29,7 +29,7 @@ from tools.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, datas
 
 def two_pieces(cell_m: float = 2.0) -> Ownership:
     """20 x 20 cells of ``cell_m`` from x = 0 (west edge) and y = 40 m (north edge): piece 0 in columns 0-9,
-    piece 1 in columns 10-19, rows 0-2 (the north strip) owned by nobody. The seam cells are columns 9 and 10."""
+    piece 1 in columns 10-19, rows 0-2 (the north strip) owned by nobody. The seam is the line x = 10 cells."""
     owner = np.zeros((20, 20), dtype=np.uint16)
     owner[:, 10:] = 1
     owner[:3] = NO_OWNER
@@ -40,23 +40,25 @@ def cell_centre(ownership: Ownership, row: int, column: int) -> tuple[float, flo
     return (ownership.x0_m + (column + 0.5) * ownership.cell_m, ownership.y0_m - (row + 0.5) * ownership.cell_m)
 
 
-def test_seam_distance_is_the_distance_to_the_nearest_cell_beside_another_owner():
+def test_seam_distance_is_the_distance_from_the_cell_centre_to_the_seam_line():
     ownership = two_pieces(cell_m=2.0)
     distance = ownership.seam_distance_m()
     for column in range(20):
-        assert distance[10, column] == pytest.approx(2.0 * min(abs(column - 9), abs(column - 10)))
+        centre_x = (column + 0.5) * 2.0
+        assert distance[10, column] == pytest.approx(abs(centre_x - 20.0))
     # the border with the unowned strip is no seam: the cell below it is as far from the seam as the rows below
-    assert distance[3, 2] == distance[15, 2] == pytest.approx(14.0)
+    assert distance[3, 2] == distance[15, 2] == pytest.approx(15.0)
 
 
 def test_a_single_owner_has_no_seam():
-    ownership = Ownership(np.zeros((4, 4), dtype=np.uint16), 1.0, 0.0, 4.0)
-    assert np.isinf(ownership.seam_distance_m()).all()
+    owner = np.zeros((4, 4), dtype=np.uint16)
+    owner[0] = NO_OWNER
+    assert np.isinf(Ownership(owner, 1.0, 0.0, 4.0).seam_distance_m()[1:]).all()
 
 
 def test_seam_split_puts_points_by_their_cells_distance_to_the_seam():
     ownership = two_pieces(cell_m=2.0)
-    # column 2 is 14 m from the seam (inside), column 8 is 2 m (seam), column 17 is 14 m (inside, other piece)
+    # columns 2 and 17 are 15 m from the seam (inside), columns 8 and 11 are 3 m (seam)
     inside_xy = [cell_centre(ownership, row, column) for row in (5, 12) for column in (2, 17)]
     seam_xy = [cell_centre(ownership, row, column) for row in (5, 12) for column in (8, 11)]
     unowned_xy = [cell_centre(ownership, 1, 4), (-3.0, 20.0), (20.0, 41.0)]  # unowned strip, west, north of grid
@@ -67,7 +69,8 @@ def test_seam_split_puts_points_by_their_cells_distance_to_the_seam():
     assert split["seams"]["count"] == 4 and split["seams"]["median_m"] == pytest.approx(0.8)
     assert split["seam_to_inside"] == pytest.approx(0.8 / 0.25)
     assert split["unowned"] == 3
-    # a wider seam band takes the 14 m points too
+    # a band of 2 m takes none of them, one of 15 m all
+    assert seam_split(xy, errors, ownership, seam_m=2.0)["seams"]["count"] == 0
     assert seam_split(xy, errors, ownership, seam_m=15.0)["inside"]["count"] == 0
 
 
