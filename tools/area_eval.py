@@ -22,8 +22,9 @@ import trimesh
 
 from flightplan.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame
-from recon.area_merge import distance_to_owner
 from recon.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
+from recon.area_merge import distance_to_owner
+from recon.area_pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "no piece has surface here"
 from recon.observed import inside
 from recon.oblique import TwinFrame, render_view, sample_views, score_view, summarise
 from recon.scene_cameras import scene_camera_poses, truth_poses
@@ -35,8 +36,6 @@ from sim.sampling import random_sun
 from sim.scene import load_scene, read_scene_json
 from tools.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines
 
-#: ``ownership.png`` value of a ground cell no piece has surface on.
-NO_OWNER = 65535
 #: Surface points within this many metres of a seam count as "seam", the others as "inside" a piece.
 SEAM_DISTANCE_M = 5.0
 

@@ -41,7 +41,7 @@ if str(ROOT) not in sys.path:
 
 from flightplan.atomic import write_text_atomic  # noqa: E402
 from sim.scene import SceneError, read_scene_json  # noqa: E402
-from tools.area_eval import evaluate_area, write_report  # noqa: E402
+from tools.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
 from tools.closed_loop import StageResult, cli, run, skipped, world_folder  # noqa: E402
 
 
@@ -72,7 +72,7 @@ class AreaConfig:
     fov_deg: float = 80.0
     oblique_views: int = 50
     surface_samples: int = 20000
-    seam_m: float = 5.0
+    seam_m: float = SEAM_DISTANCE_M
 
 
 def world_rectangle_field(world: Path, inset_m: float) -> tuple[dict, float]:
