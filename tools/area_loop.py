@@ -7,8 +7,8 @@ the child's own peak RSS):
 1. field: a GeoJSON polygon, by default the true world's ``valid_area_m`` rectangle less ``--field-inset`` metres
    (demo:large, 480 x 324 m, less 3 m: 474 x 318 m = 150,732 m^2, the paper's size); or ``--field FILE``;
 2. ``aerostereo-mission --area FIELD --out plan`` (``--interval`` thins the photos, default 20 s);
-3. ``aerostereo-render fly --mission plan/flight_01.csv ...`` flies every flight (telemetry to a file, each
-   flight its own GPS fix bias) into ``fly/flight_XX/``;
+3. ``aerostereo-render fly --mission plan/flight_01.csv ... --home TAKE_OFF`` flies every flight from the plan's
+   take-off point (telemetry to a file, each flight its own GPS fix bias) into ``fly/flight_XX/``;
 4. ``aerostereo-ingest geotag`` per flight into ``fly/flight_XX/geotags.csv``;
 5. ``aerostereo-recon area fly/flight_XX ... --out area`` (recon options passed through; ``--scheduler``);
    with ``--workers-sweep local:1,local:2`` the same again per scheduler into ``recon_sweep/`` for its cost;
@@ -118,15 +118,20 @@ def combined(name: str, results: list[StageResult]) -> StageResult:
                        [], detail)
 
 
-def fly_stage(config: AreaConfig, world: Path, missions: list[Path], fly: Path, log_dir: Path) -> StageResult:
-    """``aerostereo-render fly`` of every mission into ``fly/<mission name>/`` (several missions: one folder per
-    mission under ``--out``; one: ``--out`` is that flight's folder); skipped when every flight has its truth."""
+def fly_stage(config: AreaConfig, world: Path, plan: Path, fly: Path, log_dir: Path) -> StageResult:
+    """``aerostereo-render fly`` of every mission of the plan into ``fly/<mission name>/`` (several missions: one
+    folder per mission under ``--out``; one: ``--out`` is that flight's folder), taking off from the plan's
+    ``take_off`` (the pilot's place: under an edge orbit's first waypoint there may be no ground); skipped when
+    every flight has its truth."""
+    missions = sorted(plan.glob("flight_*.csv"))
     flights = [fly / m.stem for m in missions]
     if flights and all((f / "truth.json").is_file() for f in flights):
         return done("fly", fly)
+    take_off = json.loads((plan / "area.json").read_text(encoding="utf-8"))["take_off"]
     noise = ["--noise", config.noise] if config.noise else []
     return run("fly", cli("aerostereo-render fly") + [arg for m in missions for arg in ("--mission", str(m))] + [
         "--scene", str(world), "--out", str(flights[0] if len(flights) == 1 else fly),
+        "--home", f"{take_off['lat_deg']:.9f}", f"{take_off['lon_deg']:.9f}",
         "--photo-size", *map(str, config.photo_size), "--start-utc", config.start_utc, "--seed", str(config.seed),
         *noise], log_dir)
 
@@ -171,9 +176,8 @@ def run_area_loop(config: AreaConfig, out: Path) -> dict:
     add(done("plan", plan / "area.json") if (plan / "area.json").is_file() else run(
         "plan", cli("aerostereo-mission") + ["--area", str(field_path), "--out", str(plan), "--interval",
                                              str(config.interval_s)], log_dir))
-    missions = sorted(plan.glob("flight_*.csv"))
-    flights = [fly / m.stem for m in missions]
-    add(fly_stage(config, world, missions, fly, log_dir) if "plan" in ok else skipped("fly", "plan"))
+    flights = [fly / m.stem for m in sorted(plan.glob("flight_*.csv"))]
+    add(fly_stage(config, world, plan, fly, log_dir) if "plan" in ok else skipped("fly", "plan"))
     add(geotag_stage(flights, log_dir) if "fly" in ok else skipped("geotag", "fly"))
 
     def recon(name: str, target: Path, scheduler: str | None) -> StageResult:
