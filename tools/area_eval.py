@@ -403,6 +403,9 @@ def markdown(report: dict) -> str:
     if "evaluation_s" in report:
         lines.append(f"| evaluation (in-process) | ok | {report['evaluation_s']:.1f} | | |")
     lines += [""]
+    if report.get("timings_s"):
+        lines += ["recon area's own stages (area_report.json), s: " + ", ".join(
+            f"{stage} {seconds:.1f}" for stage, seconds in report["timings_s"].items()), ""]
     if "flights" in m:
         lines += ["## Per flight: geotags and SfM cameras of its piece vs truth", ""] + _table(
             ["flight", "tagged/taken", "geotag pos median / max m", "geotag horiz RMS m", "SfM registered",

@@ -264,3 +264,12 @@ def test_default_field_is_the_worlds_rectangle_less_the_inset_as_the_planner_rea
     corners = np.stack(origin.to_enu(field.lat_deg, field.lon_deg, origin.h0_m)[:2], -1)  # at the origin's height
     np.testing.assert_allclose(np.sort(corners[:, 0]), [box["xmin"] + 10] * 2 + [box["xmax"] - 10] * 2, atol=1e-6)
     np.testing.assert_allclose(np.sort(corners[:, 1]), [box["ymin"] + 10] * 2 + [box["ymax"] - 10] * 2, atol=1e-6)
+
+
+def test_reevaluate_without_a_finished_run_is_one_line_and_exit_2(tmp_path, capsys):
+    from tools.area_loop import main
+
+    assert main(["--out", str(tmp_path), "--scene", "demo:small", "--reevaluate"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("area_loop: error:") and "report.json: not found" in err[0]
+    assert list(tmp_path.iterdir()) == []
