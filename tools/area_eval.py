@@ -34,7 +34,7 @@ from sim.frame_renderer import frame_sun
 from sim.raycast import default_workers
 from sim.sampling import random_sun
 from sim.scene import load_scene, read_scene_json
-from tools.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines
+from tools.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines, surface_metrics
 
 #: Surface points within this many metres of a seam count as "seam", the others as "inside" a piece.
 SEAM_DISTANCE_M = 5.0
@@ -154,6 +154,24 @@ def pair_metrics(area_report: dict, pieces: dict) -> list[dict]:
         measured = "count" in pieces.get(a, {}) and "count" in pieces.get(b, {})
         pairs.append({**pair, "a": a, "b": b, "truth_m": pair_truth_offsets(pieces, a, b) if measured else None})
     return pairs
+
+
+def thinning_metrics(thinned: tuple[Path, Path], fuller: tuple[Path, Path], world_dir: Path, samples: int) -> dict:
+    """One flight flown twice, thinned (the area run: its fly folder and piece) and with denser photos (``fuller``:
+    fly folder and its own reconstruction): photos, SfM camera errors and the shape of the surface (georeference
+    error removed, :func:`tools.closed_loop_eval.surface_metrics`) in the same disc of world ENU, around the
+    thinned piece's ``observed_area_m`` centroid with half its equivalent radius. The two flights share route and
+    seed, not their GPS fix bias, so absolute positions are not compared, shapes are."""
+    polygon = move_polygon(observed_polygon(thinned[1]), scene_frame(thinned[1]).transform_to(scene_frame(world_dir)))
+    x, y = polygon[:, 0], polygon[:, 1]
+    area_m2 = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y)))
+    centre, radius = polygon.mean(axis=0), 0.5 * math.sqrt(area_m2 / math.pi)
+    result = {"disc": {"centre_m": centre.tolist(), "radius_m": radius}}
+    for label, (fly_dir, recon_dir) in (("thinned", thinned), ("fuller", fuller)):
+        truth = read_json(fly_dir / "truth.json")
+        result[label] = {"photos": len(truth_poses(truth)), "sfm": sfm_metrics(recon_dir, truth),
+                         "shape": surface_metrics(recon_dir, world_dir, centre, radius, samples, truth)}
+    return result
 
 
 # ---------------------------------------------------------------- surface inside pieces and in seams
@@ -312,7 +330,7 @@ def dataset_outside_metrics(dataset_dir: Path, polygon: np.ndarray) -> dict:
 
 
 def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: dict[str, Path], area_dir: Path,
-                  dataset_dir: Path) -> dict:
+                  dataset_dir: Path, fuller_dir: Path | None = None) -> dict:
     """Every metric of an area run; a metric whose inputs are missing or unreadable is listed under
     ``not_measured`` with the reason."""
     report = {"config": config, "stages": stages, "metrics": {}, "not_measured": {}}
@@ -338,6 +356,11 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
             area_dir, world, Ownership.read(area_dir, area_report["ownership"]), config["surface_samples"],
             config["seam_m"], config["seed"]))
         report["timings_s"] = area_report.get("timings_s", {})
+    name = config.get("fuller_flight")
+    if name and fuller_dir is not None:
+        measure("thinning", lambda: thinning_metrics((fly_dirs[name], area_dir / "pieces" / name),
+                                                     (fuller_dir / name, fuller_dir / f"recon_{name}"), world,
+                                                     config["surface_samples"]))
     measure("oblique", lambda: oblique_metrics(area_dir, world, config["oblique_views"], tuple(config["size"]),
                                                config["fov_deg"], config["seed"]))
     measure("dataset", lambda: dataset_outside_metrics(dataset_dir, observed_polygon(area_dir)))
@@ -427,6 +450,16 @@ def markdown(report: dict) -> str:
             for region in ("inside", "seams", "all")])
         lines += ["", f"seam / inside median: {_f(s['seam_to_inside'], 2)} (done when <= 1.5); "
                       f"{s['unowned']} points on unowned cells", ""]
+    if "thinning" in m:
+        t = m["thinning"]
+        lines += [f"## What the thinning costs: {report['config']['fuller_flight']} flown again with a photo every "
+                  f"{report['config']['fuller_interval_s']:g} s (shape: disc of {t['disc']['radius_m']:.0f} m, "
+                  "georeference error removed)", ""] + _table(
+            ["run", "photos", "SfM registered", "SfM rot median deg", "shape median / p90 m", "completeness"],
+            [[label, str(t[label]["photos"]), t[label]["sfm"]["registered"],
+              _stat(t[label]["sfm"], "median", "rotation_deg"),
+              f"{_f(t[label]['shape']['accuracy_median_m'])} / {_f(t[label]['shape']['accuracy_p90_m'])}",
+              f"{100 * t[label]['shape']['completeness']:.1f} %"] for label in ("thinned", "fuller")]) + [""]
     if "oblique" in m:
         o = m["oblique"]
         lines += [f"## Twin vs truth at {o['views']} random oblique poses over the area", ""] + _table(

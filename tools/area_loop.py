@@ -39,6 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
+from flightplan import litchi  # noqa: E402
 from flightplan.atomic import write_text_atomic  # noqa: E402
 from sim.scene import SceneError, read_scene_json  # noqa: E402
 from tools.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
@@ -67,6 +68,8 @@ class AreaConfig:
     scheduler: str | None = None
     recon_args: list[str] = dataclasses.field(default_factory=list)
     workers_sweep: list[str] = dataclasses.field(default_factory=list)
+    fuller_flight: str | None = None      # e.g. flight_01: fly and reconstruct it again with denser photos
+    fuller_interval_s: float = 2.0
     frames: int = 1000
     size: tuple[int, int] = (640, 360)
     fov_deg: float = 80.0
@@ -146,6 +149,46 @@ def geotag_stage(flights: list[Path], log_dir: Path) -> StageResult:
         for f in flights])
 
 
+def denser_mission(mission_csv: Path, interval_s: float, out_csv: Path) -> None:
+    """The same route with a photo every ``interval_s`` seconds where the mission takes timed photos."""
+    mission = litchi.read_mission_csv(mission_csv)
+    litchi.write_mission_csv(litchi.Mission(tuple(
+        dataclasses.replace(w, photo_time_interval_s=interval_s) if w.photo_time_interval_s > 0 else w
+        for w in mission.waypoints)), out_csv)
+
+
+def fuller_stages(config: AreaConfig, world: Path, plan: Path, fuller: Path, log_dir: Path) -> list[StageResult]:
+    """``--fuller-flight F``: flight F's mission with a photo every ``--fuller-interval`` s, flown from the same
+    take-off (same seed and noise, so the same wind and imperfections draws where they do not depend on the photo
+    count), geotagged and reconstructed on its own into ``fuller/``: what the area run's thinning costs."""
+    name, flight = config.fuller_flight, fuller / config.fuller_flight
+    mission = fuller / f"{name}.csv"
+    if not (plan / f"{name}.csv").is_file():
+        return [StageResult("fuller", "failed", detail=f"--fuller-flight {name}: no {plan / name}.csv in the plan")]
+    fuller.mkdir(exist_ok=True)
+    denser_mission(plan / f"{name}.csv", config.fuller_interval_s, mission)
+    take_off = json.loads((plan / "area.json").read_text(encoding="utf-8"))["take_off"]
+    noise = ["--noise", config.noise or "area"]
+    stages = [done("fuller_fly", flight / "truth.json") if (flight / "truth.json").is_file() else run(
+        "fuller_fly", cli("aerostereo-render fly") + [
+            "--mission", str(mission), "--scene", str(world), "--out", str(flight),
+            "--home", f"{take_off['lat_deg']:.9f}", f"{take_off['lon_deg']:.9f}",
+            "--photo-size", *map(str, config.photo_size), "--start-utc", config.start_utc, "--seed",
+            str(config.seed), *noise], log_dir)]
+    stages.append(geotag_stage([flight], log_dir) if stages[-1].status in DONE else skipped("fuller_geotag", "fly"))
+    stages[-1].name = "fuller_geotag"
+    recon_dir = fuller / f"recon_{name}"
+    if stages[-1].status not in DONE:
+        stages.append(skipped("fuller_recon", "fuller_geotag"))
+    elif (recon_dir / "scene.json").is_file():
+        stages.append(done("fuller_recon", recon_dir))
+    else:
+        stages.append(run("fuller_recon", cli("aerostereo-recon") + [
+            "--photos", str(flight / "photos"), "--geotags", str(flight / "geotags.csv"), "--out", str(recon_dir),
+            *recon_options(config)], log_dir))
+    return stages
+
+
 def recon_options(config: AreaConfig) -> list[str]:
     """The options passed through to ``aerostereo-recon area`` (no ``--scheduler``)."""
     options = []
@@ -188,6 +231,10 @@ def run_area_loop(config: AreaConfig, out: Path) -> dict:
                                                    *(["--scheduler", scheduler] if scheduler else [])], log_dir)
 
     add(recon("recon", area, config.scheduler) if "geotag" in ok else skipped("recon", "geotag"))
+    if config.fuller_flight:
+        for stage in (fuller_stages(config, world, plan, out / "fuller", log_dir) if "plan" in ok
+                      else [skipped("fuller", "plan")]):
+            add(stage)
     for scheduler in config.workers_sweep:
         safe = "".join(c if c.isalnum() else "_" for c in scheduler)  # a file name for the folder and the log
         label = f"recon_{safe}"
@@ -211,7 +258,7 @@ def evaluate_run(config: dict, stages: list[dict], world: Path, out: Path) -> di
     t0 = time.perf_counter()
     flights = {path.name: path for path in sorted((out / "fly").glob("flight_*")) if path.is_dir()}
     report = evaluate_area(config=config, stages=stages, world=world, fly_dirs=flights, area_dir=out / "area",
-                           dataset_dir=out / "dataset")
+                           dataset_dir=out / "dataset", fuller_dir=out / "fuller")
     report["evaluation_s"] = time.perf_counter() - t0
     write_report(report, out)
     return report
@@ -256,6 +303,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     add("--recon-args", type=shlex.split, default=[], help="more recon options, one quoted string")
     add("--workers-sweep", type=schedulers, default=[], metavar="S1,S2",
         help="also run recon area once per scheduler (e.g. local:1,local:2) for its cost")
+    add("--fuller-flight", metavar="FLIGHT", help="also fly and reconstruct this flight (e.g. flight_01) with a "
+        "photo every --fuller-interval s, to measure what the thinning costs")
+    add("--fuller-interval", type=float, default=defaults.fuller_interval_s, dest="fuller_interval_s", metavar="S")
     add("--frames", type=int, default=defaults.frames, help="dataset frames at random poses")
     add("--size", nargs=2, type=int, default=defaults.size, metavar=("W", "H"),
         help="dataset and oblique image size")
