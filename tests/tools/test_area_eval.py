@@ -4,6 +4,7 @@ dataset rendered over a flat scene (every pixel's point on the plane z = 0)."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -273,3 +274,18 @@ def test_reevaluate_without_a_finished_run_is_one_line_and_exit_2(tmp_path, caps
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("area_loop: error:") and "report.json: not found" in err[0]
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_fuller_mission_is_the_same_route_with_denser_timed_photos(tmp_path):
+    from flightplan import litchi
+    from flightplan.orbit import OrbitRequest, plan_orbit
+    from tools.area_loop import denser_mission
+
+    plan = plan_orbit(OrbitRequest(40.1792, 44.4991, photo_interval_s=20.0))
+    litchi.write_mission_csv(plan.mission, tmp_path / "flight_01.csv")
+    denser_mission(tmp_path / "flight_01.csv", 2.0, tmp_path / "fuller.csv")
+    before, after = (litchi.read_mission_csv(tmp_path / name).waypoints for name in ("flight_01.csv", "fuller.csv"))
+    assert len(before) == len(after)
+    assert {w.photo_time_interval_s for w in before} == {20.0}
+    assert {w.photo_time_interval_s for w in after} == {2.0}
+    assert [dataclasses.replace(w, photo_time_interval_s=20.0) for w in after] == list(before)  # nothing else moved
