@@ -12,6 +12,8 @@ the child's own peak RSS):
 4. ``aerostereo-ingest geotag`` per flight into ``fly/flight_XX/geotags.csv``;
 5. ``aerostereo-recon area fly/flight_XX ... --out area`` (recon options passed through; ``--scheduler``);
    with ``--workers-sweep local:1,local:2`` the same again per scheduler into ``recon_sweep/`` for its cost;
+   with ``--fuller-flight F`` flight F is flown and reconstructed again with denser photos into ``fuller/``
+   (what the thinning costs);
 6. ``aerostereo-render --scene area --frames N`` renders the dataset at random poses from the merged twin;
 7. the evaluation (:mod:`tools.area_eval`) writes ``report.json`` and ``report.md`` and prints the tables.
 
