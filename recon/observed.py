@@ -3,15 +3,17 @@
 A flight observes well what lies under the ring or block of its camera positions; outside it the ground is seen
 only at grazing angles. :func:`observed_area` is the convex hull of the cameras' horizontal positions (for a
 50 m orbit: the 50 m disc), :func:`viewed_area` adds the ground points the cameras' optical axes meet (a short
-arc of an orbit looks at its centre), :func:`inside` tests ground points against such a polygon. Both work in one ENU
-frame (x east, y north, metres); heights are ignored.
+arc of an orbit looks at its centre), :func:`inside` (:func:`sim.frustum.inside_polygon`, the one point-in-polygon
+test of the project) tests ground points against such a polygon. Both work in one ENU frame (x east, y north,
+metres); heights are ignored.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError
+
+from sim.frustum import inside_polygon as inside  # noqa: F401  (re-exported: recon's name for it)
 
 
 def observed_area(centres_enu: np.ndarray) -> np.ndarray:
@@ -38,12 +40,3 @@ def viewed_area(T_world_cams: np.ndarray, ground_z: float) -> np.ndarray:
     reach = (ground_z - centres[looking_down, 2]) / axes[looking_down, 2]
     ground = centres[looking_down] + reach[:, None] * axes[looking_down]
     return observed_area(np.concatenate([centres[:, :2], ground[reach > 0, :2]]))
-
-
-def inside(polygon: np.ndarray, xy: np.ndarray) -> np.ndarray:
-    """Boolean mask of the points ``xy`` (``(..., 2)`` ENU metres; extra trailing columns such as heights are
-    ignored) that lie inside ``polygon`` (``(K, 2)``, any simple polygon); points exactly on an edge may go
-    either way."""
-    points = np.asarray(xy, dtype=np.float64)
-    flat = points.reshape(-1, points.shape[-1])[:, :2]
-    return PolygonPath(np.asarray(polygon, dtype=np.float64)).contains_points(flat).reshape(points.shape[:-1])

@@ -65,7 +65,8 @@ SCENE_REPLAY_FORMATS = ("depth_exr",)
 #: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
-#: The trajectories kept inside the valid area less the margin (orbit and flight are placed by the user).
+#: The trajectories kept inside the valid area (and the scene's observed_area_m polygon) less the margin: flown in the
+#: largest rectangle inside both (sim/frustum.py inner_rectangle). Orbit and flight are placed by the user.
 MARGIN_PATHS = ("lawnmower", "loop")
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
@@ -163,7 +164,8 @@ class RenderOptions:
             description["geotags"] = Path(self.geotags).name
         inside_margin = self.mode == "random" or (self.mode == "trajectory" and self.trajectory in MARGIN_PATHS)
         if inside_margin and self.margin_m is None:
-            description["margin"] = "frustum: every ray of every frame stays inside the valid area (sim/frustum.py)"
+            description["margin"] = ("frustum: every ray of every frame stays inside the valid area and the scene's "
+                                     "observed_area_m polygon if any (sim/frustum.py)")
         elif inside_margin and self.mode == "trajectory":
             description["trajectory"]["margin_m"] = self.margin_m
         if self.effects.enabled:

@@ -14,7 +14,9 @@ rotates about the camera x axis (positive tilts the view forward, towards the im
 
 The scene is seen through :class:`GroundModel`: ``ground_height(x, y)`` (vectorised, ENU metres)
 and ``valid_area`` ``(xmin, xmax, ymin, ymax)`` where the scene has real content, and for a margin derived from
-the view frustum (:mod:`sim.frustum`) ``z_range``, the lowest and highest surface ENU z.
+the view frustum (:mod:`sim.frustum`) ``z_range``, the lowest and highest surface ENU z; ``covered_polygon``, where
+it has one, is the simple (maybe non-convex) polygon of a reconstruction's ``observed_area_m`` that random poses
+(with the frustum margin) and the lawnmower and random loop keep their views inside.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from flightplan.jsonfile import read_json
 from sim.camera import pose_from_position
-from sim.frustum import ViewFrustum, bounding_area, placement_area, sees_inside
+from sim.frustum import ViewFrustum, bounding_area, deep_inside, inner_rectangle, placement_area, sees_inside
 from sim.scene_cameras import SceneCamera
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4  # RENDER: anti-aliasing jitter
@@ -51,7 +53,7 @@ class GroundModel(Protocol):
 
     valid_area: tuple[float, float, float, float]
     z_range: tuple[float, float]  # lowest and highest ENU z of any surface (metres): the frustum margin's
-    covered_polygon: np.ndarray | None  # (K, 2) convex ENU polygon well covered within valid_area, or None
+    covered_polygon: np.ndarray | None  # (K, 2) simple (maybe non-convex) ENU polygon well covered, or None
 
     def ground_height(self, x, y):
         """ENU z (metres) of the ground below ENU (x, y); vectorised over arrays."""
@@ -90,11 +92,20 @@ def _height_above_ground(ground: GroundModel, position) -> float:
     return float(position[2] - np.asarray(ground.ground_height(position[0], position[1])))
 
 
-def _inner_area(ground: GroundModel, margin_m: float) -> tuple[float, float, float, float]:
-    xmin, xmax, ymin, ymax = ground.valid_area
-    inner = (xmin + margin_m, xmax - margin_m, ymin + margin_m, ymax - margin_m)
-    if inner[0] >= inner[1] or inner[2] >= inner[3]:
-        raise ValueError(f"a margin of {margin_m} m leaves nothing of the valid area {ground.valid_area}")
+def covered_polygon(ground: GroundModel) -> np.ndarray | None:
+    """The ground's covered polygon (``covered_polygon``), None for a ground that has none or does not say (an
+    analytic ground with only ``valid_area`` and ``ground_height`` flies paths over its whole valid area)."""
+    return getattr(ground, "covered_polygon", None)
+
+
+def _inner_area(ground: GroundModel, margin_m: float,
+                polygon: np.ndarray | None = None) -> tuple[float, float, float, float]:
+    """The valid area less ``margin_m``; with a covered ``polygon``, its largest rectangle at least ``margin_m``
+    inside both (:func:`sim.frustum.inner_rectangle`: where paths are flown)."""
+    inner = inner_rectangle(ground.valid_area, polygon, margin_m)
+    if inner is None:
+        covered = "" if polygon is None else " and the covered polygon (observed_area_m)"
+        raise ValueError(f"a margin of {margin_m} m leaves nothing of the valid area {ground.valid_area}{covered}")
     return inner
 
 
@@ -121,6 +132,8 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
 
     ``miss_fraction`` is a probe (e.g. a low-resolution ray cast) giving the fraction of a
     view's pixels that hit nothing; the number of redraws is recorded as ``rejected``.
+    Without a ``frustum`` the camera stands ``margin_m`` inside the valid area and, when the ground has a
+    ``covered_polygon``, ``margin_m`` inside that polygon too (drawn in its bounding box, redrawn when not).
     With a ``frustum`` (the rig's view, :mod:`sim.frustum`) the position is drawn, for the drawn height, tilts and
     heading, among those from which the whole view stays inside the valid area (less ``margin_m``; and inside the
     ground's ``covered_polygon`` when it has one: drawn in its bounding box, redrawn when outside), and the pose
@@ -128,7 +141,7 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
     height drawn assumed and the view then reaches past the area.
     """
     rng = frame_rng(seed, index, POSE_STREAM)
-    area = _inner_area(ground, settings.margin_m)
+    area, polygon = _inner_area(ground, settings.margin_m), covered_polygon(ground)
     for attempt in range(settings.max_attempts):
         u_x, u_y = rng.random(), rng.random()  # what rng.uniform(min, max) scales: min + (max - min) * u
         height = rng.uniform(*settings.height_range_m)
@@ -136,7 +149,9 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
         heading = rng.uniform(*settings.heading_range_deg)
         rotation = camera_rotation(heading, tilt_x, tilt_y)
         if frustum is None:
-            position = _above_ground(ground, area, (u_x, u_y), height)
+            position = _above_ground(ground, bounding_area(area, polygon), (u_x, u_y), height)
+            if polygon is not None and not deep_inside(polygon, position[:2], settings.margin_m)[0]:
+                continue
         elif (position := _position_seeing_inside(ground, frustum, rotation, height, area, (u_x, u_y))) is None:
             continue
         T = pose_from_position(position, rotation)
@@ -314,12 +329,14 @@ def orbit(ground: GroundModel, center_xy, radius_m: float, height_m: float, spee
 
 def lawnmower(ground: GroundModel, spacing_m: float, height_m: float, speed_m_s: float, frame_rate_hz: float,
               margin_m: float = 20.0, tilt_deg: float = 0.0) -> Trajectory:
-    """East-west rows ``spacing_m`` apart over the valid area, joined by half-circle turns; terrain following."""
-    xmin, xmax, ymin, ymax = _inner_area(ground, margin_m)
+    """East-west rows ``spacing_m`` apart over the valid area (its largest rectangle inside the covered polygon when
+    the ground has one) less ``margin_m``, joined by half-circle turns; terrain following."""
+    xmin, xmax, ymin, ymax = _inner_area(ground, margin_m, covered_polygon(ground))
     radius = spacing_m / 2
     rows = np.arange(ymin, ymax + 1e-9, spacing_m)
     if len(rows) < 2 or xmax - xmin <= spacing_m:
-        raise ValueError(f"the valid area {ground.valid_area} with margin {margin_m} m is too small for "
+        inside = "" if covered_polygon(ground) is None else " (its largest rectangle inside the covered polygon)"
+        raise ValueError(f"the valid area {ground.valid_area}{inside} with margin {margin_m} m is too small for "
                          f"{spacing_m} m row spacing")
     west, east = xmin + radius, xmax - radius
     row_x = np.arange(west, east, PATH_STEP_M)
@@ -338,9 +355,10 @@ def lawnmower(ground: GroundModel, spacing_m: float, height_m: float, speed_m_s:
 
 def random_loop(ground: GroundModel, seed: int, height_m: float, speed_m_s: float, frame_rate_hz: float,
                 control_points: int = 8, margin_m: float = 20.0, tilt_deg: float = RANDOM_LOOP_TILT_DEG) -> Trajectory:
-    """A smooth random closed loop (periodic cubic spline through random points around the area's centre)."""
+    """A smooth random closed loop (periodic cubic spline through random points around the centre of the valid
+    area, or of its largest rectangle inside the covered polygon when the ground has one, less ``margin_m``)."""
     rng = np.random.default_rng([seed, PATH_STREAM])
-    xmin, xmax, ymin, ymax = _inner_area(ground, margin_m)
+    xmin, xmax, ymin, ymax = _inner_area(ground, margin_m, covered_polygon(ground))
     centre, half = np.array([(xmin + xmax) / 2, (ymin + ymax) / 2]), np.array([(xmax - xmin) / 2, (ymax - ymin) / 2])
     # One point per sector, not too close to the centre: a star-shaped loop without tight kinks.
     angles = (np.arange(control_points) + rng.uniform(0.2, 0.8, control_points)) * 2 * math.pi / control_points

@@ -8,15 +8,15 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sim.camera import PinholeCamera, Rig, pose_from_position
+from sim.camera import PinholeCamera, Rig, camera_rays, pose_from_position
 from sim.raycast import intersect
-from sim.camera import camera_rays
 from sim.render import render
 from sim.sampling import camera_rotation
 from sim.scene import Scene, SceneError, Surface, load_scene
 from sim.shade import UNLIT
 from sim.worlds.glb import TexturedPart, encode_textured_glb_parts
 from test_glb import ORIGIN, assert_valid_glb, jpeg, write_folder
+from test_scene import write_scene
 
 RED = (200, 30, 30)
 #: The blue-ish part's texture: 8 px stripes of two blues (columns), so the part shows a pattern, not a flat colour.
@@ -79,8 +79,9 @@ def test_each_part_keeps_its_own_texture_and_faces_after_degenerate_ones_are_dro
 
 
 def test_a_render_from_above_shows_each_parts_own_colour(two_parts, tmp_path):
-    """Nadir over x = 0 from 9 m (the view spans 10.4 m x 7.8 m of the two squares), unlit (the radiance is the texture): pixels that see the ground west of x = 0
-    are the red JPEG's colour, those east of it the two blues of the stripes, in stripes."""
+    """Nadir over x = 0 from 9 m (the view spans 10.4 m x 7.8 m of the two squares), unlit (the radiance is the
+    texture): pixels that see the ground west of x = 0 are the red JPEG's colour, those east of it the two blues of
+    the stripes, in stripes."""
     scene = load_scene(write_folder(tmp_path, two_parts[0]))
     T = pose_from_position((0.0, 0.0, 9.0), camera_rotation(0.0))
     view = render(scene, Rig((CAMERA,)), T, **UNLIT).views[0]
@@ -107,3 +108,28 @@ def test_several_textures_need_one_texture_index_per_face_in_range():
     with pytest.raises(SceneError, match="texture of 32768x1 px"):
         Scene(vertices, faces, Surface(uv=uv, textures=(textures[0], np.zeros((1, 32768, 3), np.uint8)),
                                        face_texture=np.array([0, 1, 1])))
+
+
+def flat_textured(colour) -> trimesh.Trimesh:
+    """A 10 m square at the origin (z = 0) with a one-colour 8x8 texture spanning it."""
+    vertices = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0], [10.0, 10.0, 0.0], [0.0, 10.0, 0.0]])
+    material = trimesh.visual.material.SimpleMaterial(image=Image.new("RGB", (8, 8), colour))
+    return trimesh.Trimesh(vertices, [[0, 1, 2], [0, 2, 3]], process=False,
+                           visual=trimesh.visual.TextureVisuals(uv=vertices[:, :2] / 10.0, material=material))
+
+
+@pytest.mark.parametrize("suffix", ["glb", "obj"])
+def test_any_file_trimesh_reads_as_several_textured_meshes_keeps_their_textures_and_placements(tmp_path, suffix):
+    """trimesh's own GLB (the second square placed 10 m east by its node transform) and OBJ (two materials, two
+    PNGs): each square keeps its own texture and its place."""
+    parts = trimesh.Scene()
+    parts.add_geometry(flat_textured(RED), node_name="west", geom_name="west")
+    parts.add_geometry(flat_textured(tuple(BLUES[0])), node_name="east", geom_name="east",
+                       transform=trimesh.transformations.translation_matrix([10.0, 0.0, 0.0]))
+    parts.export(tmp_path / f"parts.{suffix}")
+    scene = load_scene(write_scene(tmp_path, f"parts.{suffix}"))  # ENU, z up
+    assert len(scene.surface.textures) == 2
+    np.testing.assert_array_equal(scene.bounds[:, :2], [[0.0, 0.0], [20.0, 10.0]])
+    centre_x = scene.vertices[scene.faces].mean(axis=1)[:, 0]
+    face_colour = np.array([scene.surface.textures[k][0, 0] for k in scene.surface.face_texture])
+    np.testing.assert_array_equal(face_colour, np.where(centre_x[:, None] < 10.0, RED, BLUES[0]))
