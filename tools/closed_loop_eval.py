@@ -258,12 +258,18 @@ def total_wall_s(report: dict) -> float:
     return sum(s["wall_s"] for s in report["stages"] if s["name"] != "record") + report["evaluation_s"]
 
 
-def markdown(report: dict) -> str:
-    """The Markdown report: stages (time, memory), the errors table, notes, the plot."""
-    lines = ["# Closed-loop report", "", "| stage | status | wall s | peak RSS MiB | detail |", "|---|---|---|---|---|"]
-    for s in report["stages"]:
+def stage_lines(stages: list[dict]) -> list[str]:
+    """Markdown table of the stages: status, wall time (s), the child's peak RSS (MiB), detail."""
+    lines = ["| stage | status | wall s | peak RSS MiB | detail |", "|---|---|---|---|---|"]
+    for s in stages:
         rss = "" if s["max_rss_mib"] is None else f"{s['max_rss_mib']:.0f}"
         lines.append(f"| {s['name']} | {s['status']} | {s['wall_s']:.1f} | {rss} | {s['detail']} |")
+    return lines
+
+
+def markdown(report: dict) -> str:
+    """The Markdown report: stages (time, memory), the errors table, notes, the plot."""
+    lines = ["# Closed-loop report", "", *stage_lines(report["stages"])]
     lines += [f"| evaluation (in-process) | ok | {report['evaluation_s']:.1f} | | |",
               f"| **total** | | **{total_wall_s(report):.1f}** | | record overlaps fly (not counted) |",
               "", "| quantity | value |", "|---|---|"]
