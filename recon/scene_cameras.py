@@ -9,6 +9,7 @@ frame of its ``origin`` (the true home).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
@@ -67,3 +68,21 @@ def shape_alignment(scene_dir: Path, truth: dict) -> np.ndarray:
         raise ValueError(f"{scene_dir}: {len(names)} registered cameras are in the truth; need at least 2")
     estimated = transform_poses(to_truth, np.array([poses[n] for n in names]))
     return pose_alignment(estimated, np.array([true[n] for n in names])) @ to_truth
+
+
+def area_shape_alignment(area_dir: Path, truths: Mapping[str, dict], target: LocalFrame) -> np.ndarray:
+    """4x4 similarity from a joined area's ENU frame (``aerostereo-recon area``, cameras named
+    ``<flight>/<photo>``) into ``target``'s ENU that takes its registered cameras onto the true ones; ``truths`` maps
+    a flight name to its ``truth.json``. It removes the area's georeferencing error (the flights' mean GPS offset)
+    and leaves the error of its shape, seams included."""
+    poses, to_target = registered_poses(area_dir, {"origin": target.to_dict()})
+    estimated, true = [], []
+    for flight, truth in truths.items():
+        flight_to_target = LocalFrame.from_dict(truth["origin"]).transform_to(target)
+        for photo, T in truth_poses(truth).items():
+            if f"{flight}/{photo}" in poses:
+                estimated.append(poses[f"{flight}/{photo}"])
+                true.append(flight_to_target @ T)
+    if len(estimated) < 2:
+        raise ValueError(f"{area_dir}: {len(estimated)} registered cameras are in the flights' truth; need at least 2")
+    return pose_alignment(transform_poses(to_target, np.array(estimated)), np.array(true)) @ to_target

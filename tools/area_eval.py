@@ -27,7 +27,7 @@ from recon.area_merge import distance_to_owner
 from recon.area_pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "no piece has surface here"
 from recon.observed import inside
 from recon.oblique import TwinFrame, render_view, sample_views, score_view, summarise
-from recon.scene_cameras import scene_camera_poses, truth_poses
+from recon.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
 from sim.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.frame_renderer import frame_sun
@@ -243,16 +243,18 @@ def seam_split(points_xy: np.ndarray, errors_m: np.ndarray, ownership: Ownership
 
 
 def surface_seam_metrics(area_dir: Path, world_dir: Path, ownership: Ownership, samples: int,
-                         seam_m: float = SEAM_DISTANCE_M, seed: int = 0) -> dict:
+                         seam_m: float = SEAM_DISTANCE_M, seed: int = 0, to_world: np.ndarray | None = None) -> dict:
     """The merged twin's surface against the true world: ``samples`` points drawn uniformly on the twin's mesh,
     those over its ``observed_area_m`` kept, each one's exact distance to the true surface (m,
-    :func:`recon.accuracy.distances_to_surface`; the twin moved into the world by geodetic origins, so the
-    absolute error), split into seams and inside (:func:`seam_split`)."""
+    :func:`recon.accuracy.distances_to_surface`), split into seams and inside (:func:`seam_split`). The twin is
+    moved into the world by ``to_world`` (4x4; e.g. :func:`recon.scene_cameras.area_shape_alignment`, the error of
+    its shape) or, when None, by its geodetic origin (the absolute error, the flights' mean GPS offset included)."""
     twin, twin_frame = scene_mesh_enu(area_dir)
     world, world_frame = scene_mesh_enu(world_dir)
     points = trimesh.sample.sample_surface(twin, samples, seed=np.random.default_rng(seed))[0]
     points = points[inside(observed_polygon(area_dir), points)]
-    to_world = twin_frame.transform_to(world_frame)
+    if to_world is None:
+        to_world = twin_frame.transform_to(world_frame)
     points_world = points @ to_world[:3, :3].T + to_world[:3, 3]
     lo, hi = points_world[:, :2].min(axis=0) - 5.0, points_world[:, :2].max(axis=0) + 5.0
     centres = world.triangles_center[:, :2]
@@ -267,13 +269,13 @@ def surface_seam_metrics(area_dir: Path, world_dir: Path, ownership: Ownership, 
 
 
 def oblique_metrics(area_dir: Path, world_dir: Path, views: int, size: tuple[int, int], fov_deg: float,
-                    seed: int) -> dict:
+                    seed: int, to_world: np.ndarray | None = None) -> dict:
     """The paper's random poses over the merged ``observed_area_m`` (:func:`recon.oblique.sample_views`),
     rendered in the true world and in the twin (placed by geodetic origins: the absolute error), scored by
     :func:`recon.oblique.score_view` and :func:`recon.oblique.summarise`; the sun of frame ``i`` is the dataset
     renderer's."""
     world, twin = load_scene(world_dir), load_scene(area_dir)
-    frame = TwinFrame(twin.origin.transform_to(world.origin))
+    frame = TwinFrame(twin.origin.transform_to(world.origin) if to_world is None else to_world)
     polygon = move_polygon(observed_polygon(area_dir), frame.T_world_twin)
     camera = PinholeCamera.from_fov(*size, fov_deg)
     scores = []
@@ -342,6 +344,11 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
             report["not_measured"][name] = f"{type(error).__name__}: {error}"
 
     measure("flights", lambda: _each(fly_dirs, lambda n, fly: flight_metrics(fly, area_dir / "pieces" / n)))
+
+    def shape() -> np.ndarray:
+        """The twin's frame in the world's with the area's georeferencing error removed (its cameras fitted)."""
+        truths = {name: read_json(fly / "truth.json") for name, fly in fly_dirs.items()}
+        return area_shape_alignment(area_dir, truths, scene_frame(world))
     area_report = read_json(area_dir / "area_report.json") if (area_dir / "area_report.json").is_file() else None
     if area_report is None:
         report["not_measured"]["pieces, pairs, surface"] = f"{area_dir / 'area_report.json'}: not found"
@@ -352,9 +359,12 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
             area_dir / entry["scene"], fly_dirs[n], frame, np.asarray(entry["correction"]))))
         measure("merged_cameras", lambda: merged_camera_errors(area_dir, fly_dirs))
         measure("pairs", lambda: pair_metrics(area_report, report["metrics"].get("pieces", {})))
-        measure("surface", lambda: surface_seam_metrics(
-            area_dir, world, Ownership.read(area_dir, area_report["ownership"]), config["surface_samples"],
-            config["seam_m"], config["seed"]))
+        ownership = Ownership.read(area_dir, area_report["ownership"])
+        measure("surface", lambda: surface_seam_metrics(area_dir, world, ownership, config["surface_samples"],
+                                                        config["seam_m"], config["seed"], shape()))
+        measure("surface_absolute", lambda: surface_seam_metrics(area_dir, world, ownership,
+                                                                 config["surface_samples"], config["seam_m"],
+                                                                 config["seed"]))
         report["timings_s"] = area_report.get("timings_s", {})
     name = config.get("fuller_flight")
     if name and fuller_dir is not None:
@@ -362,7 +372,7 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
                                                      (fuller_dir / name, fuller_dir / f"recon_{name}"), world,
                                                      config["surface_samples"]))
     measure("oblique", lambda: oblique_metrics(area_dir, world, config["oblique_views"], tuple(config["size"]),
-                                               config["fov_deg"], config["seed"]))
+                                               config["fov_deg"], config["seed"], shape()))
     measure("dataset", lambda: dataset_outside_metrics(dataset_dir, observed_polygon(area_dir)))
     gaps = [entry for group in ("pieces", "merged_cameras") for entry in report["metrics"].get(group, {}).values()] + [
         part for flight in report["metrics"].get("flights", {}).values() for part in flight.values()]
@@ -442,9 +452,14 @@ def markdown(report: dict) -> str:
         lines += ["## Per neighbouring pair: offsets (m)", ""] + _table(
             ["a", "b", "overlap points", "ICP before", "after pair ICP", "after joint", "truth before",
              "truth after"], pair_rows(m["pairs"])) + [""]
-    if "surface" in m:
-        s = m["surface"]
-        lines += [f"## Surface of the merged twin vs the true world (seam: within {s['seam_distance_m']:g} m)", ""]
+    for key, what in (("surface", "shape: the area's georeference error removed by its cameras"),
+                      ("surface_absolute", "absolute: placed by its geodetic origin, the flights' mean GPS offset "
+                                           "included")):
+        if key not in m:
+            continue
+        s = m[key]
+        lines += [f"## Surface of the merged twin vs the true world, {what} (seam: within "
+                  f"{s['seam_distance_m']:g} m)", ""]
         lines += _table(["region", "points", "median m", "p90 m"], [
             [region, str(s[region]["count"]), _f(s[region]["median_m"]), _f(s[region]["p90_m"])]
             for region in ("inside", "seams", "all")])

@@ -1,6 +1,7 @@
 """A reduced area through the command lines, measured against the virtual drone's truth: two small orbits over the
 small demo world, each flown on its own battery (its own GPS fix offset), geotagged, reconstructed and joined by
-``aerostereo-recon area``; the seam must be no worse than the inside."""
+``aerostereo-recon area`` with the flights as tasks on a two-process Dask LocalCluster; the seam must be no worse
+than the inside."""
 
 from __future__ import annotations
 
@@ -13,11 +14,9 @@ from matplotlib.path import Path as PolygonPath
 
 from capture.cli import main as ingest
 from flightplan.cli import main as mission
-from flightplan.geodesy import LocalFrame
-from recon.accuracy import pose_alignment, transform_poses
 from recon.area_merge import NO_OWNER, Grid, distance_to_owner
 from recon.cli import main as recon
-from recon.scene_cameras import truth_poses
+from recon.scene_cameras import area_shape_alignment
 from sim.cli import main as render
 from sim.scene import Scene, load_scene
 from sim.render_dataset import resolve_scene_dir
@@ -44,29 +43,9 @@ def area(tmp_path_factory):
     for flight in flights:
         assert ingest(["geotag", "--photos", str(flight / "photos"), "--log", str(flight / "flight.duml"),
                        "--out", str(flight / "geotags.csv")]) == 0
-    assert recon(["area", *map(str, flights), "--out", str(root / "area"), "--image-size", "480",
-                  "--dense-size", "320", "--workers", "2"]) == 0
+    assert recon(["area", *map(str, flights), "--out", str(root / "area"), "--scheduler", "local:2",
+                  "--image-size", "480", "--dense-size", "320", "--workers", "1"]) == 0
     return root, flights
-
-
-def world_alignment(root, flights) -> np.ndarray:
-    """4x4 taking the merged scene's frame onto the true world's, fitted on every registered camera (removes the
-    flights' mean GPS offset, leaving the error of the scene's shape)."""
-    world = load_scene(resolve_scene_dir("demo:small"))
-    scene = load_scene(root / "area")
-    estimated, true = [], []
-    for flight in flights:
-        truth = json.loads((flight / "truth.json").read_text(encoding="utf-8"))
-        to_world = LocalFrame.from_dict(truth["origin"]).transform_to(world.origin)
-        poses = truth_poses(truth)
-        for camera in scene.cameras:
-            name = camera.name.split("/", 1)
-            if name[0] == flight.name and name[1] in poses:
-                estimated.append(camera.T_world_cam)
-                true.append(to_world @ poses[name[1]])
-    assert len(estimated) >= 40
-    to_world = scene.origin.transform_to(world.origin)
-    return pose_alignment(transform_poses(to_world, np.array(estimated)), np.array(true)) @ to_world
 
 
 @pytest.mark.slow
@@ -78,7 +57,8 @@ def test_two_flights_join_with_a_seam_no_worse_than_the_inside(area):
     assert pair["after_joint_m"] < 0.15
     scene = load_scene(root / "area")
     world = load_scene(resolve_scene_dir("demo:small"))
-    to_world = world_alignment(root, flights)
+    truths = {f.name: json.loads((f / "truth.json").read_text(encoding="utf-8")) for f in flights}
+    to_world = area_shape_alignment(root / "area", truths, world.origin)  # the flights' mean GPS offset removed
     aligned = Scene(scene.vertices @ to_world[:3, :3].T + to_world[:3, 3], scene.faces, scene.surface)
     grid = Grid(**{k: report["ownership"][k] for k in ("x0_m", "y0_m", "cell_m", "rows", "cols")})
     owner = cv2.imread(str(root / "area" / "ownership.png"), cv2.IMREAD_UNCHANGED).astype(np.int64)
