@@ -13,7 +13,7 @@ of ``cell_m`` cells (:class:`Grid`, row 0 north). Steps:
    surfaces meet half-way, a band's width away each is itself. Offsets over ``max_step_m`` (a wall of one piece
    against the ground of the other) are left alone.
 4. **Seams in colour** (:func:`colour_gains`): one gain per piece and colour channel (linear light), from the median
-   log-ratio of the two pieces' albedo on the cells both have surface in, solved jointly (geometric mean gain 1),
+   log-ratio of the two pieces' mean albedo over 8 m blocks both have surface in, solved jointly (geometric mean 1),
    so a flight flown in brighter light does not leave a patchwork.
 5. **Covered area** (:func:`covered_polygon`): the union of the pieces' observed areas where the owner has surface,
    shrunk by two cells, as one polygon (non-convex in general): scene.json's ``observed_area_m``.
@@ -36,6 +36,8 @@ from sim.raycast import intersect
 NO_OWNER = -1
 #: Look-at points of cameras whose optical axis rises or meets the ground beyond this many metres are left out.
 MAX_LOOK_AT_M = 1000.0
+#: Colours of neighbouring pieces are compared as means over blocks this wide (metres).
+COLOUR_BLOCK_M = 8.0
 
 
 @dataclass(frozen=True)
@@ -174,24 +176,39 @@ def albedo_under(scene: Scene, xy: np.ndarray) -> np.ndarray:
     return albedo
 
 
+def block_log_colours(colours: np.ndarray, cells: np.ndarray, grid: Grid, block_m: float) -> dict[int, np.ndarray]:
+    """Log of the mean linear colour per ``block_m`` square block of the grid, from ``colours`` ``(N, 3)`` sampled at
+    the flat cell indices ``cells``; only blocks with at least half their cells sampled (validly) count."""
+    side = max(1, int(round(block_m / grid.cell_m)))
+    row, col = np.divmod(cells, grid.cols)
+    block = (row // side) * (grid.cols // side + 1) + col // side
+    valid = np.all(colours > 1e-3, axis=1)
+    ids, inverse, counts = np.unique(block[valid], return_inverse=True, return_counts=True)
+    sums = np.zeros((len(ids), 3))
+    np.add.at(sums, inverse, colours[valid])
+    full = counts >= side * side / 2
+    return dict(zip(ids[full].tolist(), np.log(sums[full] / counts[full, None])))
+
+
 def colour_gains(scenes: list[Scene], surfaces: list[np.ndarray], grid: Grid, neighbours: dict[int, set[int]],
-                 samples: int = 4000) -> tuple[np.ndarray, list[dict]]:
-    """Per piece, a gain per linear RGB channel ``(K, 3)`` that best matches neighbouring pieces' albedo where both
-    have surface (median log-ratio per pair, joint least squares, geometric mean of the gains 1), and per pair the
-    median absolute log-ratio before and after (``{"a", "b", "cells", "before", "after"}``, a ratio of 0.05 is 5 %)."""
+                 block_m: float = COLOUR_BLOCK_M) -> tuple[np.ndarray, list[dict]]:
+    """Per piece, a gain per linear RGB channel ``(K, 3)`` that best matches neighbouring pieces' colour where both
+    have surface, and per pair the median absolute log-ratio before and after (``{"a", "b", "blocks", "before",
+    "after"}``; 0.05 is 5 %). Colours are compared as means over ``block_m`` blocks: cell by cell the texture's
+    detail and the pieces' residual misalignment (centimetres to decimetres) would drown an exposure difference.
+    The gains are the joint least-squares fit of the pairs' median block log-ratios (geometric mean gain 1)."""
     centres = grid.centres()
     rows, ratios = [], []
     for a in sorted(neighbours):
         for b in sorted(n for n in neighbours[a] if n > a):
             both = np.flatnonzero((surfaces[a] & surfaces[b]).ravel())
-            pick = both[np.linspace(0, len(both) - 1, min(samples, len(both))).astype(int)] if len(both) else both
-            colour_a, colour_b = albedo_under(scenes[a], centres[pick]), albedo_under(scenes[b], centres[pick])
-            valid = np.all((colour_a > 1e-3) & (colour_b > 1e-3), axis=1)
-            if np.count_nonzero(valid) < 50:
+            blocks_a, blocks_b = (block_log_colours(albedo_under(scenes[k], centres[both]), both, grid, block_m)
+                                  for k in (a, b))
+            shared = sorted(set(blocks_a) & set(blocks_b))
+            if len(shared) < 3:
                 continue
-            log_ratio = np.log(colour_a[valid]) - np.log(colour_b[valid])
-            rows.append((a, b, int(np.count_nonzero(valid))))
-            ratios.append(log_ratio)
+            rows.append((a, b, len(shared)))
+            ratios.append(np.array([blocks_a[k] - blocks_b[k] for k in shared]))
     count = len(scenes)
     if not rows:
         return np.ones((count, 3)), []
@@ -201,10 +218,10 @@ def colour_gains(scenes: list[Scene], surfaces: list[np.ndarray], grid: Grid, ne
     system[-1] = 1.0  # the gains' geometric mean is 1
     medians = np.array([np.median(r, axis=0) for r in ratios])
     log_gain, *_ = np.linalg.lstsq(system, np.vstack([-medians, np.zeros((1, 3))]), rcond=None)
-    report = [{"a": a, "b": b, "cells": cells,
+    report = [{"a": a, "b": b, "blocks": blocks,
                "before": float(np.median(np.abs(r))),
                "after": float(np.median(np.abs(r + log_gain[a] - log_gain[b])))}
-              for (a, b, cells), r in zip(rows, ratios)]
+              for (a, b, blocks), r in zip(rows, ratios)]
     return np.exp(log_gain), report
 
 
