@@ -45,7 +45,7 @@ from flightplan import litchi  # noqa: E402
 from flightplan.atomic import write_text_atomic  # noqa: E402
 from sim.scene import SceneError, read_scene_json  # noqa: E402
 from tools.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
-from tools.closed_loop import StageResult, cli, run, skipped, world_folder  # noqa: E402
+from tools.closed_loop import StageResult, cli, finished_report, run, skipped, world_folder  # noqa: E402
 
 
 #: Stage statuses that let the next stage run: it ran now, or its output was there from an earlier run.
@@ -268,10 +268,7 @@ def evaluate_run(config: dict, stages: list[dict], world: Path, out: Path) -> di
 
 def reevaluate(out: Path) -> dict:
     """Evaluate a finished run folder again (its ``report.json`` gives the stages and settings)."""
-    path = out / "report.json"
-    if not path.is_file():
-        raise ValueError(f"{path}: not found; --reevaluate needs the folder of a finished run")
-    previous = json.loads(path.read_text(encoding="utf-8"))
+    previous = json.loads(finished_report(out).read_text(encoding="utf-8"))
     return evaluate_run(previous["config"], previous["stages"], world_folder(previous["config"]["scene"]), out)
 
 
