@@ -13,7 +13,7 @@ of ``cell_m`` cells (:class:`Grid`, row 0 north). Steps:
    surfaces meet half-way, a band's width away each is itself. Offsets over ``max_step_m`` (a wall of one piece
    against the ground of the other) are left alone.
 4. **Seams in colour** (:func:`colour_gains`): one gain per piece and colour channel (linear light), from the median
-   log-ratio of the two pieces' mean albedo over 8 m blocks both have surface in, solved jointly (geometric mean 1),
+   log-ratio of the two pieces' mean albedo over 8 m blocks both saw well, solved jointly (geometric mean 1),
    so a flight flown in brighter light does not leave a patchwork.
 5. **Covered area** (:func:`covered_polygon`): the union of the pieces' observed areas where the owner has surface,
    shrunk by two cells, as one polygon (non-convex in general): scene.json's ``observed_area_m``.
@@ -190,10 +190,11 @@ def block_log_colours(colours: np.ndarray, cells: np.ndarray, grid: Grid, block_
     return dict(zip(ids[full].tolist(), np.log(sums[full] / counts[full, None])))
 
 
-def colour_gains(scenes: list[Scene], surfaces: list[np.ndarray], grid: Grid, neighbours: dict[int, set[int]],
+def colour_gains(scenes: list[Scene], well_seen: list[np.ndarray], grid: Grid, neighbours: dict[int, set[int]],
                  block_m: float = COLOUR_BLOCK_M) -> tuple[np.ndarray, list[dict]]:
     """Per piece, a gain per linear RGB channel ``(K, 3)`` that best matches neighbouring pieces' colour where both
-    have surface, and per pair the median absolute log-ratio before and after (``{"a", "b", "blocks", "before",
+    saw the ground well (``well_seen``: surface inside the observed footprint; elsewhere a texture holds the few
+    photos that grazed it), and per pair the median absolute log-ratio before and after (``{"a", "b", "blocks", "before",
     "after"}``; 0.05 is 5 %). Colours are compared as means over ``block_m`` blocks: cell by cell the texture's
     detail and the pieces' residual misalignment (centimetres to decimetres) would drown an exposure difference.
     The gains are the joint least-squares fit of the pairs' median block log-ratios (geometric mean gain 1)."""
@@ -201,7 +202,7 @@ def colour_gains(scenes: list[Scene], surfaces: list[np.ndarray], grid: Grid, ne
     rows, ratios = [], []
     for a in sorted(neighbours):
         for b in sorted(n for n in neighbours[a] if n > a):
-            both = np.flatnonzero((surfaces[a] & surfaces[b]).ravel())
+            both = np.flatnonzero((well_seen[a] & well_seen[b]).ravel())
             blocks_a, blocks_b = (block_log_colours(albedo_under(scenes[k], centres[both]), both, grid, block_m)
                                   for k in (a, b))
             shared = sorted(set(blocks_a) & set(blocks_b))
@@ -225,15 +226,16 @@ def colour_gains(scenes: list[Scene], surfaces: list[np.ndarray], grid: Grid, ne
     return np.exp(log_gain), report
 
 
-def covered_polygon(grid: Grid, footprints: list[np.ndarray], owner: np.ndarray) -> tuple[np.ndarray, float]:
+def footprint_mask(grid: Grid, footprint: np.ndarray) -> np.ndarray:
+    """``(rows, cols)`` True where the cell centre lies inside the ``(K, 2)`` ENU polygon."""
+    return PolygonPath(footprint).contains_points(grid.centres()).reshape(grid.rows, grid.cols)
+
+
+def covered_polygon(grid: Grid, seen: list[np.ndarray], owner: np.ndarray) -> tuple[np.ndarray, float]:
     """The well-covered ground as one polygon ``(K, 2)`` (ENU metres): cells inside any piece's observed footprint
-    whose owner has surface, shrunk by two cells (so the simplified outline stays inside), the largest
-    connected part. Also the area (m²) of uncovered holes inside it (0 when there are none)."""
-    centres = grid.centres()
-    inside = np.zeros(len(centres), bool)
-    for footprint in footprints:
-        inside |= PolygonPath(footprint).contains_points(centres)
-    mask = (inside.reshape(owner.shape) & (owner != NO_OWNER)).astype(np.uint8)
+    (``seen``, :func:`footprint_mask`) whose owner has surface, shrunk by two cells (so the simplified outline stays
+    inside), the largest connected part. Also the area (m²) of uncovered holes inside it (0 when there are none)."""
+    mask = (np.logical_or.reduce(seen) & (owner != NO_OWNER)).astype(np.uint8)
     mask = cv2.erode(mask, np.ones((3, 3), np.uint8), iterations=2)
     count, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=4)
     if count < 2:

@@ -34,8 +34,8 @@ from flightplan.atomic import atomic_path, write_text_atomic
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.area import AreaAlignment, Piece, SurfaceQuery, align_area, load_pieces
-from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, kept_faces, look_at_points,
-                              ownership, seam_neighbours, surface_mask)
+from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
+                              look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.pipeline import Recon, ReconOptions
 from recon.scene_out import CAMERAS_FILE, scene_metadata
 from sim.scene import Scene, read_scene_cameras, read_scene_json
@@ -246,11 +246,11 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     for piece, moved in zip(merged, blended):
         piece.vertices = moved
     lap("seams")
-    gains, colour_pairs = colour_gains(scenes, surfaces, grid, neighbours)
+    seen = [footprint_mask(grid, _apply(c, np.column_stack([p.footprint, np.full(len(p.footprint), z)]))[:, :2])
+            for p, c, z in zip(pieces, corrections, ground_z)]
+    gains, colour_pairs = colour_gains(scenes, [s & f for s, f in zip(surfaces, seen)], grid, neighbours)
     lap("colour")
-    footprints = [_apply(c, np.column_stack([p.footprint, np.full(len(p.footprint), z)]))[:, :2]
-                  for p, c, z in zip(pieces, corrections, ground_z)]
-    polygon, holes_m2 = covered_polygon(grid, footprints, owner)
+    polygon, holes_m2 = covered_polygon(grid, seen, owner)
     mesh_name, encoded = encode_merged(merged, gains, frame)
     lap("encode")
     report = area_report(names, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2, merged)
