@@ -44,6 +44,8 @@ MESHES = Files({"a.ply": b"ply A", "b.ply": b"ply B", "pairs.txt": b"0 0 0 0 0 0
 DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'})
 MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
 FOLDER = Files({}, folders=("folder",))
+FLIGHTS = Files({**{f"{f}/photos/DJI_0001.JPG": JPEG for f in ("f1", "f2", "other/f1")}, "f1/geotags.csv": b"image_name\n",
+                 "f1/geotags.json": b"{}\n"}, folders=("folder",))
 
 CASES = [
     # aerostereo-mission
@@ -149,6 +151,20 @@ CASES = [
     Case("recon-out-is-geotags-sidecar", RECON, ["--photos", "{tmp}/photos", "--geotags", "{tmp}/geotags.csv",
                                                  "--out", "{tmp}/geotags.json"],
          r"--out .*geotags\.json: is also --geotags", GEOTAGS),
+    Case("area-one-flight", RECON, ["area", "{tmp}/f1", "--out", "{tmp}/area"],
+         r"^aerostereo-recon area: .*need at least 2 flight folders", FLIGHTS),
+    Case("area-flight-without-photos", RECON, ["area", "{tmp}/f1", "{tmp}/folder", "--out", "{tmp}/area"],
+         r"folder: no photos/ folder inside", FLIGHTS),
+    Case("area-same-flight-name", RECON, ["area", "{tmp}/f1", "{tmp}/other/f1", "--out", "{tmp}/area"],
+         r"other/f1: same folder name as", FLIGHTS),
+    Case("area-out-is-photos", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/f2/photos"],
+         r"--out .*f2/photos: is also FLIGHT_DIR", FLIGHTS),
+    Case("area-out-is-geotags", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/f1/geotags.csv"],
+         r"--out .*f1/geotags\.csv: is also FLIGHT_DIR", FLIGHTS),
+    Case("area-cell-zero", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--cell", "0"],
+         r"cell must be a positive number of metres", FLIGHTS),
+    Case("area-bad-scheduler", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--scheduler",
+                                       "local:0"], r"--scheduler must be local:N", FLIGHTS),
     Case("merge-no-pairs", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--out", "{tmp}/c.ply"],
          r"^aerostereo-recon merge: .*required: --pairs", MESHES),
     Case("merge-out-is-a", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt",
@@ -316,7 +332,7 @@ def test_refused(case, tmp_path):
 def test_every_program_and_subcommand_has_cases():
     covered = {(case.program, case.argv[0] if case.argv and not case.argv[0].startswith("-") else "")
                for case in CASES}
-    expected = {(MISSION, ""), (RECON, ""), (RECON, "merge"), (RENDER, ""), (RENDER, "compare"), (RENDER, "fly"),
+    expected = {(MISSION, ""), (RECON, ""), (RECON, "merge"), (RECON, "area"), (RENDER, ""), (RENDER, "compare"), (RENDER, "fly"),
                 (RENDER, "export"), (RENDER, "evaluate")}
     expected |= {(INGEST, command) for command in ("record", "decode", "geotag", "track", "list")}
     assert expected <= covered
