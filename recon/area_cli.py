@@ -60,7 +60,8 @@ def run_area(argv) -> int:
         pycolmap.logging.minloglevel = 2
     with stdout_to_stderr():
         pieces = reconstruct_pieces(flights, args.out, recon_options(args), scheduler, log=_log)
-        report = merge_area(pieces, args.out, options, log=_log)
+        report = merge_area([folder for folder, _ in pieces], args.out, options, log=_log,
+                            flights=[flight for _, flight in pieces])
     print(json.dumps({"scene": str(args.out / "scene.json"), "pieces": len(pieces),
                       "covered_area_m2": report["covered_area_m2"],
                       "pairs": [{k: pair[k] for k in ("a", "b", "before_m", "after_joint_m")}

@@ -44,6 +44,10 @@ from sim.shade import SRGB8_TO_LINEAR, to_srgb8
 from sim.worlds.glb import TexturedPart, encode_textured_glb_parts
 
 PIECES = "pieces"
+REST = "rest"
+#: A flight's photos that SfM left out are reconstructed as a piece of their own when there are at least this many.
+MIN_REST_PHOTOS = 8
+MAX_PARTS = 3
 REPORT = "area_report.json"
 OWNERSHIP = "ownership.png"
 NO_OWNER_PIXEL = 65535
@@ -105,41 +109,64 @@ def flight_inputs(flights: Sequence[Flight]) -> list[Path]:
     return paths
 
 
-def reconstruct_piece(flight: Flight, out: Path, options: ReconOptions) -> str:
-    """Reconstruct one flight into ``out`` (resumes a finished or partial run with the same options); returns the
-    scene folder. Runs in a Dask worker too: it silences COLMAP's log like the CLI does."""
+def reconstruct_flight(flight: Flight, area_dir: Path, options: ReconOptions) -> list[str]:
+    """Reconstruct one flight into ``area_dir/pieces/<flight>`` (resumes a finished or partial run with the same
+    options). SfM keeps the largest connected model; when it leaves at least :data:`MIN_REST_PHOTOS` photos out (two
+    orbits of one flight that share too few features to join), those photos are reconstructed again on their own as
+    piece ``<flight>-2`` (their links in ``area_dir/rest/``), and so on, up to :data:`MAX_PARTS` pieces per flight.
+    Returns the scene folders. Runs in a Dask worker too: it silences COLMAP's log like the CLI does."""
     import pycolmap
 
     pycolmap.logging.minloglevel = 2
-    Recon(flight.photos, flight.geotags, out, options).run()
-    return str(out)
+    folders, photos = [], flight.photos
+    for part in range(1, MAX_PARTS + 1):
+        name = flight.name if part == 1 else f"{flight.name}-{part}"
+        folder = area_dir / PIECES / name
+        Recon(photos, flight.geotags, folder, options).run()
+        folders.append(str(folder))
+        left_out = read_scene_json(folder)["provenance"]["sfm"]["unregistered"]
+        if len(left_out) < MIN_REST_PHOTOS:
+            break
+        photos = linked_photos(area_dir / REST / f"{flight.name}-{part + 1}", photos, left_out)
+    return folders
+
+
+def linked_photos(folder: Path, source: Path, names: Sequence[str]) -> Path:
+    """``folder`` holding symbolic links to the photos ``names`` of ``source`` (made anew each time)."""
+    if folder.exists():
+        for link in folder.iterdir():
+            link.unlink()
+    folder.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        (folder / name).symlink_to((source / name).resolve())
+    return folder
 
 
 def reconstruct_pieces(flights: Sequence[Flight], area_dir: Path, options: ReconOptions, scheduler=None,
-                       log: Callable[[str], None] = print) -> list[Path]:
-    """Every flight's scene folder under ``area_dir/pieces`` (in flight order), run here one after another or as
-    one Dask task per flight on ``scheduler`` (sim.cluster.Scheduler); the first failure stops the run with it."""
-    folders = [area_dir / PIECES / flight.name for flight in flights]
+                       log: Callable[[str], None] = print) -> list[tuple[Path, str]]:
+    """Every flight's scene folders under ``area_dir/pieces`` (:func:`reconstruct_flight`, in flight order) with the
+    flight each belongs to, run here one after another or as one Dask task per flight on ``scheduler``
+    (sim.cluster.Scheduler); the first failure stops the run with it."""
     if scheduler is None:
-        for number, (flight, folder) in enumerate(zip(flights, folders), start=1):
-            log(f"[area] piece {number}/{len(flights)}: {flight.name}")
-            reconstruct_piece(flight, folder, options)
-        return folders
+        pieces = []
+        for number, flight in enumerate(flights, start=1):
+            log(f"[area] flight {number}/{len(flights)}: {flight.name}")
+            pieces += [(Path(f), flight.name) for f in reconstruct_flight(flight, area_dir, options)]
+        return pieces
     import distributed
 
     from sim.cluster import connect, dashboard_line
 
     with connect(scheduler) as client:
         log(dashboard_line(client))
-        futures = {client.submit(reconstruct_piece, flight, folder, options, pure=False, retries=0): flight.name
-                   for flight, folder in zip(flights, folders)}
+        futures = [client.submit(reconstruct_flight, flight, area_dir, options, pure=False, retries=0)
+                   for flight in flights]
         try:
             for done, future in enumerate(distributed.as_completed(futures), start=1):
-                future.result()
-                log(f"[area] piece {done}/{len(flights)} done: {futures[future]}")
+                log(f"[area] flight {done}/{len(flights)} done: {', '.join(Path(f).name for f in future.result())}")
+            return [(Path(f), flight.name) for flight, future in zip(flights, futures) for f in future.result()]
         finally:
-            client.cancel(list(futures))
-    return folders
+            client.cancel(futures)
 
 
 def area_frame(piece_dirs: Sequence[Path]) -> LocalFrame:
@@ -207,9 +234,10 @@ def encode_merged(pieces: list[MergedPiece], gains: np.ndarray, frame: LocalFram
 
 
 def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions = AreaOptions(),
-               log: Callable[[str], None] = print) -> dict:
+               log: Callable[[str], None] = print, flights: Sequence[str] | None = None) -> dict:
     """Align the pieces, decide ownership, blend seams and colours, and write the merged scene into ``area_dir``
-    (module docstring); returns the report (also ``area_report.json``)."""
+    (module docstring); returns the report (also ``area_report.json``). ``flights``: the flight of each piece, which
+    names its photos in the merged cameras.json (default: the piece folders' names)."""
     timings, start = {}, time.perf_counter()
 
     def lap(name: str) -> None:
@@ -220,6 +248,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     frame = area_frame(piece_dirs)
     frame, pieces = load_pieces(list(piece_dirs), frame)
     names = [Path(d).name for d in piece_dirs]
+    flights = list(flights or names)
     lap("load")
     log(f"[area] aligning {len(pieces)} pieces")
     alignment = align_area(pieces, fixed=None)
@@ -227,7 +256,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     corrections = alignment.corrections
     vertices = [_apply(c, np.asarray(p.mesh.vertices)) for p, c in zip(pieces, corrections)]
     faces = [np.asarray(p.mesh.faces) for p in pieces]
-    cameras = [area_cameras(p, n, frame, c) for p, n, c in zip(pieces, names, corrections)]
+    cameras = [area_cameras(p, f, frame, c) for p, f, c in zip(pieces, flights, corrections)]
     grid = Grid.covering(np.vstack([v[:, :2] for v in vertices]), options.cell_m)
     scenes = [Scene(v, f, p.surface) for v, f, p in zip(vertices, faces, pieces)]
     surfaces = [surface_mask(s, grid) for s in scenes]
@@ -253,7 +282,8 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     polygon, holes_m2 = covered_polygon(grid, seen, owner)
     mesh_name, encoded = encode_merged(merged, gains, frame)
     lap("encode")
-    report = area_report(names, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2, merged)
+    report = area_report(names, flights, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2,
+                         merged)
     report["timings_s"] = timings
     write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
                report)
@@ -263,14 +293,14 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     return report
 
 
-def area_report(names, alignment: AreaAlignment, grid: Grid, owner, neighbours, gains, colour_pairs, polygon,
-                holes_m2, merged) -> dict:
+def area_report(names, flights, alignment: AreaAlignment, grid: Grid, owner, neighbours, gains, colour_pairs,
+                polygon, holes_m2, merged) -> dict:
     """The JSON-ready report of a merge (docs/recon.md, "An area")."""
     owned = [int(np.count_nonzero(owner == k)) for k in range(len(names))]
     return {
-        "pieces": [{"name": n, "scene": f"{PIECES}/{n}", "correction": c.tolist(), "faces": int(len(m.faces)),
-                    "owned_m2": o * grid.cell_m ** 2, "colour_gain": g.tolist()}
-                   for n, c, m, o, g in zip(names, alignment.corrections, merged, owned, gains)],
+        "pieces": [{"name": n, "flight": f, "scene": f"{PIECES}/{n}", "correction": c.tolist(),
+                    "faces": int(len(m.faces)), "owned_m2": o * grid.cell_m ** 2, "colour_gain": g.tolist()}
+                   for n, f, c, m, o, g in zip(names, flights, alignment.corrections, merged, owned, gains)],
         "pairs": [{"a": r.a, "b": r.b, "points": r.points, "before_m": r.before_m, "after_pair_m": r.after_pair_m,
                    "after_joint_m": r.after_joint_m, "icp_s": r.icp_s} for r in alignment.pairs],
         "seams": {"pairs": sorted([a, b] for a in neighbours for b in neighbours[a] if a < b),

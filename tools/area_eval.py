@@ -356,7 +356,7 @@ def evaluate_area(*, config: dict, stages: list[dict], world: Path, fly_dirs: di
         frame = scene_frame(area_dir)
         entries = {p["name"]: p for p in area_report["pieces"]}
         measure("pieces", lambda: _each(entries, lambda n, entry: piece_camera_errors(
-            area_dir / entry["scene"], fly_dirs[n], frame, np.asarray(entry["correction"]))))
+            area_dir / entry["scene"], fly_dirs[entry.get("flight", n)], frame, np.asarray(entry["correction"]))))
         measure("merged_cameras", lambda: merged_camera_errors(area_dir, fly_dirs))
         measure("pairs", lambda: pair_metrics(area_report, report["metrics"].get("pieces", {})))
         ownership = Ownership.read(area_dir, area_report["ownership"])
