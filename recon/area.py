@@ -22,7 +22,7 @@ piece's loaded coordinates to its aligned ones.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -100,10 +100,12 @@ class PairReport:
 
 @dataclass(frozen=True)
 class AreaAlignment:
-    """Per-piece rigid corrections (4x4, loaded -> aligned area ENU) and per-pair reports."""
+    """Per-piece rigid corrections (4x4, loaded -> aligned area ENU), per-pair reports, and why overlaps that ICP
+    could not pin were left out (the others still joined every piece)."""
 
     corrections: list[np.ndarray]
     pairs: list[PairReport]
+    unpinned: list[str] = field(default_factory=list)
 
 
 def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
@@ -167,8 +169,8 @@ def find_overlaps(pieces: list[Piece], min_points: int = MIN_OVERLAP_POINTS) -> 
     return overlaps
 
 
-def _check_connected(pieces: list[Piece], ties: list) -> None:
-    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through ``ties`` (overlaps, links)."""
+def _cut_off(count: int, ties: list) -> list[int]:
+    """The pieces (of ``count``) not reachable from piece 0 through ``ties`` (overlaps, links: ``.a``, ``.b``)."""
     reached, grew = {0}, True
     while grew:
         grew = False
@@ -176,7 +178,12 @@ def _check_connected(pieces: list[Piece], ties: list) -> None:
             if (o.a in reached) != (o.b in reached):
                 reached |= {o.a, o.b}
                 grew = True
-    cut_off = [pieces[i].name for i in range(len(pieces)) if i not in reached]
+    return [i for i in range(count) if i not in reached]
+
+
+def _check_connected(pieces: list[Piece], ties: list) -> None:
+    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through ``ties`` (overlaps, links)."""
+    cut_off = [pieces[i].name for i in _cut_off(len(pieces), ties)]
     if cut_off:
         raise AreaError(f"{', '.join(cut_off)}: shares no ground (>= {MIN_OVERLAP_POINTS} vertices inside both "
                         f"observed areas) and no control points with {pieces[0].name} or its neighbours; cannot join "
@@ -317,23 +324,25 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
     of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the
     pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected
-    through overlaps and control points, :class:`FlatOverlapError` for an overlap too flat to align (unless control
-    points tie that pair: then they alone place it)."""
+    through overlaps and control points. An overlap too flat for ICP to pin is left out (and listed) when the other
+    overlaps and control points still join every piece; else :class:`FlatOverlapError` (control points tying that
+    pair place it instead)."""
     overlaps = find_overlaps(pieces)
     _check_connected(pieces, [*overlaps, *control])
     surfaces = {o.a: SurfaceQuery(pieces[o.a].mesh) for o in overlaps}
     tied = [{link.a, link.b} for link in control]
-    aligned = []
+    aligned, unpinned = [], []
     for o in overlaps:
         start = time.perf_counter()
         try:
             transform = icp_pair(surfaces[o.a], o.points_b)
         except FlatOverlapError as exc:
-            if {o.a, o.b} in tied:
-                continue  # the control points between them place B instead
-            raise FlatOverlapError(f"{pieces[o.b].name} on {pieces[o.a].name}: {exc}; add control points "
-                                   f"between them") from None
+            if {o.a, o.b} not in tied:  # else the control points between them place B instead
+                unpinned.append((o, f"{pieces[o.b].name} on {pieces[o.a].name}: {exc}"))
+            continue
         aligned.append((o, transform, time.perf_counter() - start))
+    if unpinned and _cut_off(len(pieces), [*(o for o, _, _ in aligned), *control]):
+        raise FlatOverlapError(f"{unpinned[0][1]}; add control points between them")
     icp_links = [Link(o.a, o.b, _apply(t, _spread(o.points_b)), _spread(o.points_b)) for o, t, _ in aligned]
     corrections = adjust(len(pieces), [*icp_links, *control], fixed=fixed)
     reports = []
@@ -343,4 +352,4 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
         reports.append(PairReport(o.a, o.b, t, len(p), float(np.median(surface.offsets_m(p))),
                                   float(np.median(surface.offsets_m(_apply(t, p)))),
                                   float(np.median(surface.offsets_m(_apply(joint, p)))), seconds))
-    return AreaAlignment(corrections, reports)
+    return AreaAlignment(corrections, reports, [why for _, why in unpinned])

@@ -303,6 +303,7 @@ def area_report(names, flights, alignment: AreaAlignment, grid: Grid, owner, nei
                    for n, f, c, m, o, g in zip(names, flights, alignment.corrections, merged, owned, gains)],
         "pairs": [{"a": r.a, "b": r.b, "points": r.points, "before_m": r.before_m, "after_pair_m": r.after_pair_m,
                    "after_joint_m": r.after_joint_m, "icp_s": r.icp_s} for r in alignment.pairs],
+        "unpinned_overlaps": alignment.unpinned,
         "seams": {"pairs": sorted([a, b] for a in neighbours for b in neighbours[a] if a < b),
                   "colour": colour_pairs},
         "ownership": {"file": OWNERSHIP, **grid.to_dict(), "no_owner": NO_OWNER_PIXEL},

@@ -194,3 +194,28 @@ def test_with_no_piece_held_the_pieces_own_errors_average_out(tmp_path):
     np.testing.assert_allclose(residual[0][:3, 3], shifts.mean(axis=0), atol=5e-3)
     np.testing.assert_allclose(held.corrections[0], np.eye(4))
     assert [r.after_joint_m for r in free.pairs] == pytest.approx([r.after_joint_m for r in held.pairs], abs=1e-5)
+
+
+def test_an_unpinned_overlap_is_left_out_while_the_others_join_every_piece(tmp_path, monkeypatch):
+    """Three pieces overlapping two ahead: when ICP cannot pin the 0-2 overlap (made to fail here), the 0-1 and 1-2
+    overlaps still join all three: it is listed, not fatal, and the corrections still undo the errors."""
+    import recon.area as area
+
+    errors = [np.eye(4), rigid([0.1, 0.0, 0.2], [0.3, -0.2, 0.1], centre_of(1, 20.0)),
+              rigid([0.0, -0.1, -0.2], [-0.2, 0.3, 0.2], centre_of(2, 20.0))]
+    _, pieces = load_pieces(row_of_pieces(tmp_path, errors, 20.0))
+    real, calls = area.icp_pair, []
+
+    def icp_failing_on_0_2(surface, points):
+        calls.append(surface)
+        if surface.mesh is pieces[0].mesh and len(calls) > 1:
+            raise FlatOverlapError("too flat (test)")
+        return real(surface, points)
+
+    monkeypatch.setattr(area, "icp_pair", icp_failing_on_0_2)
+    result = align_area(pieces)
+    assert {(r.a, r.b) for r in result.pairs} == {(0, 1), (1, 2)}
+    assert len(result.unpinned) == 1 and "piece2 on" in result.unpinned[0] and "piece0" in result.unpinned[0]
+    for i, error in enumerate(errors):
+        shift, angle = correction_error(result.corrections[i], error, centre_of(i, 20.0))
+        assert shift < 0.01 and angle < 0.01, (i, shift, angle)
