@@ -106,6 +106,7 @@ class AreaAlignment:
     corrections: list[np.ndarray]
     pairs: list[PairReport]
     unpinned: list[str] = field(default_factory=list)
+    left_out: list[int] = field(default_factory=list)
 
 
 def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
@@ -181,9 +182,10 @@ def _cut_off(count: int, ties: list) -> list[int]:
     return [i for i in range(count) if i not in reached]
 
 
-def _check_connected(pieces: list[Piece], ties: list) -> None:
-    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through ``ties`` (overlaps, links)."""
-    cut_off = [pieces[i].name for i in _cut_off(len(pieces), ties)]
+def _check_connected(pieces: list[Piece], ties: list, optional=frozenset()) -> None:
+    """Raise :class:`AreaError` naming the pieces not reachable from piece 0 through ``ties`` (overlaps, links),
+    unless they are all ``optional``."""
+    cut_off = [pieces[i].name for i in _cut_off(len(pieces), ties) if i not in optional]
     if cut_off:
         raise AreaError(f"{', '.join(cut_off)}: shares no ground (>= {MIN_OVERLAP_POINTS} vertices inside both "
                         f"observed areas) and no control points with {pieces[0].name} or its neighbours; cannot join "
@@ -318,7 +320,8 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
                      np.stack([-y, x, zero], -1)], axis=1).reshape(-1, 3)
 
 
-def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, ...] = ()) -> AreaAlignment:
+def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, ...] = (),
+               optional=frozenset()) -> AreaAlignment:
     """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put, or
     with None the corrections average to none, see :func:`adjust`; the
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
@@ -326,9 +329,10 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
     pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected
     through overlaps and control points. An overlap too flat for ICP to pin is left out (and listed) when the other
     overlaps and control points still join every piece; else :class:`FlatOverlapError` (control points tying that
-    pair place it instead)."""
+    pair place it instead). Pieces in ``optional`` (indices) that end up joined to none are left out instead
+    (listed in ``left_out``; their corrections are the identity)."""
     overlaps = find_overlaps(pieces)
-    _check_connected(pieces, [*overlaps, *control])
+    _check_connected(pieces, [*overlaps, *control], optional)
     surfaces = {o.a: SurfaceQuery(pieces[o.a].mesh) for o in overlaps}
     tied = [{link.a, link.b} for link in control]
     aligned, unpinned = [], []
@@ -341,8 +345,10 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
                 unpinned.append((o, f"{pieces[o.b].name} on {pieces[o.a].name}: {exc}"))
             continue
         aligned.append((o, transform, time.perf_counter() - start))
-    if unpinned and _cut_off(len(pieces), [*(o for o, _, _ in aligned), *control]):
+    cut_off = _cut_off(len(pieces), [*(o for o, _, _ in aligned), *control])
+    if unpinned and set(cut_off) - set(optional):
         raise FlatOverlapError(f"{unpinned[0][1]}; add control points between them")
+    aligned = [(o, t, seconds) for o, t, seconds in aligned if o.a not in cut_off and o.b not in cut_off]
     icp_links = [Link(o.a, o.b, _apply(t, _spread(o.points_b)), _spread(o.points_b)) for o, t, _ in aligned]
     corrections = adjust(len(pieces), [*icp_links, *control], fixed=fixed)
     reports = []
@@ -352,4 +358,4 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
         reports.append(PairReport(o.a, o.b, t, len(p), float(np.median(surface.offsets_m(p))),
                                   float(np.median(surface.offsets_m(_apply(t, p)))),
                                   float(np.median(surface.offsets_m(_apply(joint, p)))), seconds))
-    return AreaAlignment(corrections, reports, [why for _, why in unpinned])
+    return AreaAlignment(corrections, reports, [why for _, why in unpinned], cut_off)

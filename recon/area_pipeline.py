@@ -19,6 +19,7 @@ corrections average to none, so every flight's own GPS fix counts the same); joi
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import time
 from collections.abc import Callable, Sequence
@@ -251,7 +252,11 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     flights = list(flights or names)
     lap("load")
     log(f"[area] aligning {len(pieces)} pieces")
-    alignment = align_area(pieces, fixed=None)
+    alignment = align_area(pieces, fixed=None, optional={k for k, (n, f) in enumerate(zip(names, flights)) if n != f})
+    left_out = [names[k] for k in alignment.left_out]
+    if left_out:
+        log(f"[area] left out, joined to no other piece: {', '.join(left_out)}")
+        pieces, names, flights, alignment = without_pieces(alignment, pieces, names, flights)
     lap("align")
     corrections = alignment.corrections
     vertices = [_apply(c, np.asarray(p.mesh.vertices)) for p, c in zip(pieces, corrections)]
@@ -284,6 +289,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     lap("encode")
     report = area_report(names, flights, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2,
                          merged)
+    report["left_out"] = left_out
     report["timings_s"] = timings
     write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
                report)
@@ -291,6 +297,15 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report["timings_s"] = timings
     write_text_atomic(area_dir / REPORT, json.dumps(report, indent=2) + "\n")
     return report
+
+
+def without_pieces(alignment: AreaAlignment, pieces: list[Piece], names: list[str], flights: list[str]):
+    """The pieces, names, flights and alignment without the alignment's ``left_out`` pieces (pairs renumbered)."""
+    keep = [k for k in range(len(pieces)) if k not in alignment.left_out]
+    number = {old: new for new, old in enumerate(keep)}
+    pairs = [dataclasses.replace(r, a=number[r.a], b=number[r.b]) for r in alignment.pairs]
+    return ([pieces[k] for k in keep], [names[k] for k in keep], [flights[k] for k in keep],
+            AreaAlignment([alignment.corrections[k] for k in keep], pairs, alignment.unpinned))
 
 
 def area_report(names, flights, alignment: AreaAlignment, grid: Grid, owner, neighbours, gains, colour_pairs,

@@ -156,6 +156,8 @@ def test_flat_overlap_is_refused_unless_control_points_tie_the_pair(tmp_path):
     assert result.pairs == []
     shift_mm, angle_mdeg = correction_error(result.corrections[1], error, centre_of(1, 40.0))
     assert shift_mm < 0.1 and angle_mdeg < 0.1, (shift_mm, angle_mdeg)
+    optional = align_area(pieces, optional={1})  # a piece that may go (a split flight's rest): left out, listed
+    assert optional.left_out == [1] and optional.pairs == [] and "piece1 on" in optional.unpinned[0]
 
 
 def test_a_folder_that_is_not_a_scene_is_refused(tmp_path):
