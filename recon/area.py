@@ -283,6 +283,8 @@ def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int
     flights average out instead of the first flight's fix deciding where the whole area lies."""
     if fixed is not None and not 0 <= fixed < count:
         raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
+    if not links:
+        return [np.eye(4) for _ in range(count)]
     centre = np.mean(np.vstack([link.points_b for link in links]), axis=0)
     free = [i for i in range(count) if i != fixed]
     column = {piece: 6 * k for k, piece in enumerate(free)}
