@@ -41,7 +41,8 @@ ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly
 ADJUST_POINTS = 200  # per pair: points whose pairwise alignment the joint adjustment honours
 MIN_CONDITION = 0.01  # weakest / strongest direction ICP may pin (lever-arm scaled); flatter ground is refused
 TRIM_FLOOR_M = 0.05  # ICP keeps pairs within max(3 x median distance, this)
-NEAREST_VERTICES = 3  # candidate triangles for the closest surface point: those around this many nearest vertices
+NEAREST_VERTICES = 3
+TIE_POINT_M = 0.05  # without a prior: the sigma of one overlap point's point-to-plane residual (m)  # candidate triangles for the closest surface point: those around this many nearest vertices
 
 
 class AreaError(BadInput):
@@ -73,6 +74,36 @@ class Link:
     b: int
     points_a: np.ndarray
     points_b: np.ndarray
+
+
+@dataclass(frozen=True)
+class PairTie:
+    """Pieces ``a`` and ``b`` tied by an ICP result: ``transform_ab`` (4x4) takes B's loaded points onto A's, known
+    as well as ``information`` (6x6, rotation vector then shift of ``centre``, in 1/rad² and 1/m²) says: the
+    point-to-plane system at convergence, so a direction the overlap does not pin (a shift along flat ground)
+    carries no weight."""
+
+    a: int
+    b: int
+    transform_ab: np.ndarray
+    information: np.ndarray
+    centre: np.ndarray
+
+
+@dataclass(frozen=True)
+class Prior:
+    """How far each piece's own geo-registration may be off (1 sigma) and how well an overlap point ties two
+    pieces: shift east/north and up (m), rotation (rad), point-to-plane residual (m). A consumer GPS fix re-acquired
+    per battery is ~1-2 m off horizontally and twice that vertically; SfM levels a piece to a few tenths of a degree."""
+
+    horizontal_m: float = 1.5
+    vertical_m: float = 3.0
+    rotation_rad: float = 0.01
+    point_m: float = 0.1
+
+    def sigmas(self) -> np.ndarray:
+        """The six sigmas in the order of a correction's parameters (rotation vector, shift)."""
+        return np.array([self.rotation_rad] * 3 + [self.horizontal_m] * 2 + [self.vertical_m])
 
 
 @dataclass(frozen=True)
@@ -272,41 +303,121 @@ def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
     return points @ transform[:3, :3].T + transform[:3, 3]
 
 
-def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int = 5) -> list[np.ndarray]:
-    """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every link at once:
-    least squares over ``X_a(q) - X_b(p)`` for each link's points (each point weighs the same), Gauss-Newton with
-    small-angle steps about the points' common centroid, each step applied exactly.
+def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int = 5,
+           prior: Prior | None = None, ties: list[PairTie] = ()) -> list[np.ndarray]:
+    """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every tie and link at
+    once: Gauss-Newton over small steps about each piece's own centre, each step applied exactly.
 
-    ``fixed`` None holds no piece: every step is the least-squares solution of least norm, whose rotation and shift
-    sum to zero over the pieces (the links only see differences between pieces), so the corrections average to
-    none and the area keeps the mean of the pieces' own geo-registrations: independent GPS fixes of separate
-    flights average out instead of the first flight's fix deciding where the whole area lies."""
+    ``ties`` (ICP results, :class:`PairTie`): ``X_a^-1 X_b`` should be ``transform_ab``, weighted by the tie's
+    information matrix. ``links`` (control points): each point of B should land on its point of A, in all three
+    axes, counted in units of ``prior.point_m`` (1 m without a prior). ``prior`` (given): every free piece also stays
+    near its own geo-registration within the prior's sigmas, so directions no overlap pins keep the piece's own GPS
+    placement and the area lies where the flights' fixes average out. ``fixed`` None takes the default
+    :class:`Prior` when none is given: something must say where the area lies."""
     if fixed is not None and not 0 <= fixed < count:
         raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
-    if not links:
+    if not links and not ties:
         return [np.eye(4) for _ in range(count)]
-    centre = np.mean(np.vstack([link.points_b for link in links]), axis=0)
+    if fixed is None and prior is None:
+        prior = Prior()  # something must say where the area lies: the pieces' own geo-registrations
+    point_m = prior.point_m if prior else 1.0
+    centres = _piece_centres(count, links, ties)
     free = [i for i in range(count) if i != fixed]
     column = {piece: 6 * k for k, piece in enumerate(free)}
     corrections = [np.eye(4) for _ in range(count)]
+    moved = np.zeros((count, 6))  # the parameters applied so far (small: their sum is the prior's residual)
     for _ in range(iterations):
         blocks, rhs = [], []
-        for link in links:
-            xa, xb = _apply(corrections[link.a], link.points_a), _apply(corrections[link.b], link.points_b)
-            rows = np.zeros((xa.size, 6 * len(free)))
-            for piece, x, sign in ((link.a, xa, 1.0), (link.b, xb, -1.0)):
-                if piece in column:
-                    c = column[piece]
-                    rows[:, c:c + 3] = sign * -_skew_rows(x - centre)
-                    rows[:, c + 3:c + 6] = sign * np.tile(np.eye(3), (len(x), 1))
+        for tie in ties:
+            rows, residual = _tie_rows(tie, corrections, centres, column, 6 * len(free))
             blocks.append(rows)
-            rhs.append(-(xa - xb).ravel())
+            rhs.append(residual)
+        for link in links:
+            rows, residual = _link_rows(link, corrections, centres, column, 6 * len(free))
+            blocks.append(rows / point_m)
+            rhs.append(residual / point_m)
+        if prior is not None:
+            weights = 1.0 / prior.sigmas()
+            for piece in free:
+                rows = np.zeros((6, 6 * len(free)))
+                rows[:, column[piece]:column[piece] + 6] = np.diag(weights)
+                blocks.append(rows)
+                rhs.append(-weights * moved[piece])
         delta, *_ = np.linalg.lstsq(np.vstack(blocks), np.concatenate(rhs), rcond=None)
         for piece in free:
-            corrections[piece] = _rigid_about(delta[column[piece]:column[piece] + 6], centre) @ corrections[piece]
+            step = delta[column[piece]:column[piece] + 6]
+            corrections[piece] = _rigid_about(step, centres[piece]) @ corrections[piece]
+            moved[piece] += step
         if np.max(np.abs(delta)) < 1e-9:
             break
     return corrections
+
+
+def _piece_centres(count: int, links: list[Link], ties: list[PairTie]) -> np.ndarray:
+    """``(count, 3)``: the mean of each piece's link points and tie centres (the overall mean for a piece in none)."""
+    sums, counts = np.zeros((count, 3)), np.zeros(count)
+    for link in links:
+        for piece, points in ((link.a, link.points_a), (link.b, link.points_b)):
+            sums[piece] += points.sum(axis=0)
+            counts[piece] += len(points)
+    for tie in ties:
+        for piece in (tie.a, tie.b):
+            sums[piece] += tie.centre
+            counts[piece] += 1
+    overall = sums.sum(axis=0) / counts.sum()
+    return np.where(counts[:, None] > 0, sums / np.maximum(counts, 1)[:, None], overall)
+
+
+def _motion_at(transform: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """A near-identity 4x4 as 6 numbers: its rotation vector and how far it moves ``centre``."""
+    return np.r_[Rotation.from_matrix(transform[:3, :3]).as_rotvec(), _apply(transform, centre[None])[0] - centre]
+
+
+def _step_at(centre_from: np.ndarray, centre_to: np.ndarray) -> np.ndarray:
+    """6x6: a small step (rotation vector, shift) about ``centre_from`` as the same motion about ``centre_to``."""
+    block = np.eye(6)
+    block[3:, :3] = -_skew_rows((centre_to - centre_from)[None])
+    return block
+
+
+def _tie_rows(tie: PairTie, corrections: list[np.ndarray], centres: np.ndarray, column: dict[int, int],
+              width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Whitened Jacobian rows and residual of one ICP tie: the motion ``T_ab^-1 X_a^-1 X_b`` at the tie's centre,
+    which is the identity when the corrections agree with the pair's ICP."""
+    error = np.linalg.inv(tie.transform_ab) @ np.linalg.inv(corrections[tie.a]) @ corrections[tie.b]
+    whiten = np.linalg.cholesky(tie.information + 1e-9 * np.trace(tie.information) * np.eye(6)).T
+    rows = np.zeros((6, width))
+    for piece, sign in ((tie.a, -1.0), (tie.b, 1.0)):
+        if piece in column:
+            rows[:, column[piece]:column[piece] + 6] = sign * whiten @ _step_at(centres[piece], tie.centre)
+    return rows, -whiten @ _motion_at(error, tie.centre)
+
+
+def _link_rows(link: Link, corrections: list[np.ndarray], centres: np.ndarray, column: dict[int, int],
+               width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Jacobian rows and residuals ``-(X_a(q) - X_b(p))`` of one control-point link, three axes per point."""
+    xa, xb = _apply(corrections[link.a], link.points_a), _apply(corrections[link.b], link.points_b)
+    rows = np.zeros((xa.size, width))
+    for piece, x, sign in ((link.a, xa, 1.0), (link.b, xb, -1.0)):
+        if piece in column:
+            c = column[piece]
+            rows[:, c:c + 3] = sign * -_skew_rows(x - centres[piece])
+            rows[:, c + 3:c + 6] = sign * np.tile(np.eye(3), (len(x), 1))
+    return rows, -(xa - xb).ravel()
+
+
+def icp_information(surface_a: SurfaceQuery, points_b: np.ndarray, transform: np.ndarray,
+                    point_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """The information matrix (6x6) of a converged ICP and the centre it refers to: the point-to-plane rows of B's
+    points (at most ICP_POINTS, trimmed as ICP trims) at ``transform``, each residual of sigma ``point_m``."""
+    source = np.asarray(points_b[:: max(1, len(points_b) // ICP_POINTS)], dtype=np.float64)
+    centre = _apply(transform, source).mean(axis=0)
+    moved = _apply(transform, source)
+    closest, normals = surface_a.closest(moved)
+    signed = np.einsum("ij,ij->i", moved - closest, normals)
+    keep = np.abs(signed) <= max(3.0 * np.median(np.abs(signed)), TRIM_FLOOR_M)
+    system = np.column_stack([np.cross(moved[keep] - centre, normals[keep]), normals[keep]])
+    return system.T @ system / point_m ** 2, centre
 
 
 def _spread(points: np.ndarray) -> np.ndarray:
@@ -323,7 +434,7 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
 
 
 def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, ...] = (),
-               optional=frozenset()) -> AreaAlignment:
+               optional=frozenset(), prior: Prior | None = None) -> AreaAlignment:
     """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put, or
     with None the corrections average to none, see :func:`adjust`; the
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
@@ -351,8 +462,9 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
     if unpinned and set(cut_off) - set(optional):
         raise FlatOverlapError(f"{unpinned[0][1]}; add control points between them")
     aligned = [(o, t, seconds) for o, t, seconds in aligned if o.a not in cut_off and o.b not in cut_off]
-    icp_links = [Link(o.a, o.b, _apply(t, _spread(o.points_b)), _spread(o.points_b)) for o, t, _ in aligned]
-    corrections = adjust(len(pieces), [*icp_links, *control], fixed=fixed)
+    point_m = prior.point_m if prior else TIE_POINT_M
+    ties = [PairTie(o.a, o.b, t, *icp_information(surfaces[o.a], o.points_b, t, point_m)) for o, t, _ in aligned]
+    corrections = adjust(len(pieces), list(control), fixed=fixed, prior=prior, ties=ties)
     reports = []
     for o, t, seconds in aligned:
         surface, p = surfaces[o.a], o.points_b

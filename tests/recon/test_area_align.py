@@ -193,7 +193,8 @@ def test_with_no_piece_held_the_pieces_own_errors_average_out(tmp_path):
     for r in residual:  # to the few millimetres two facetings of the hills leave (the shifts break the grids' match)
         np.testing.assert_allclose(r[:3, :3], residual[0][:3, :3], atol=1e-4)
         np.testing.assert_allclose(r[:3, 3], residual[0][:3, 3], atol=5e-3)
-    np.testing.assert_allclose(residual[0][:3, 3], shifts.mean(axis=0), atol=5e-3)
+    # where the offsets' mean puts it, to the 2 cm the GPS prior's small tilt allowance trades against the shifts
+    np.testing.assert_allclose(residual[0][:3, 3], shifts.mean(axis=0), atol=0.03)
     np.testing.assert_allclose(held.corrections[0], np.eye(4))
     assert [r.after_joint_m for r in free.pairs] == pytest.approx([r.after_joint_m for r in held.pairs], abs=1e-5)
 
