@@ -1,13 +1,15 @@
 """Rendering on a Dask cluster: overhead against the built-in pool, scheduler throughput, a scaling table.
 
-Three parts, one run:
+Four parts, one run:
 
 1. The same frames rendered by :func:`sim.render_dataset.render_dataset` with the built-in pool
    (``--workers J``) and with ``--scheduler local:J``, each for two frame counts: the cost per frame and the
    fixed cost, in CPU seconds of all processes (robust to other jobs on the machine) and in wall seconds, and
    the cluster's overhead per frame in % (median of ``--repeats``).
 2. The scheduler's throughput: thousands of tasks that do nothing on ``local:J``
-   (tasks/s, so per-task overhead = 1 / that).
+   (tasks/s, so per-task overhead = 1 / that); and what an idle ``local:J`` costs in the background (cores used by
+   the scheduler, nannies and workers while no task runs), with Dask's defaults and with
+   :data:`sim.cluster.WORKER_CONFIG`.
 3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
    stage runs per view): ``--views`` synthetic 640x480 nadir photos of a textured plane, each view's depth from its
    two neighbours, in this process (OpenCV's threads) and as one task per view on local:J (start-up included).
@@ -17,12 +19,13 @@ Three parts, one run:
    dominates (render, coordinator, disk).
 
 Usage: ``python tools/bench_dask.py [--frames N1 N2] [--width W --height H] [--workers J] [--repeats R] [--tasks T]
-[--views V] [--cores N] [--disk-mb-s B]`` (demo world).
+[--idle-seconds S] [--views V] [--cores N] [--disk-mb-s B]`` (demo world).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import resource
 import shutil
@@ -31,7 +34,10 @@ import tempfile
 import time
 from pathlib import Path
 
+import dask
+import distributed
 import numpy as np
+import psutil
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -39,7 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
 
 from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
-from sim.cluster import Scheduler, batch_size, connect  # noqa: E402
+from sim.cluster import THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size, connect, environment_kept  # noqa: E402,E501
 from sim.frame_renderer import RenderOptions  # noqa: E402
 from sim.raycast import default_workers  # noqa: E402
 from sim.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
@@ -106,6 +112,28 @@ def tasks_per_second(tasks: int, workers: int) -> float:
         return tasks / (time.perf_counter() - start)
 
 
+def process_tree_cpu_seconds() -> float:
+    """CPU seconds so far of this process and every live process below it (a LocalCluster's nannies, workers)."""
+    total = 0.0
+    for process in [psutil.Process(), *psutil.Process().children(recursive=True)]:
+        with contextlib.suppress(psutil.Error):
+            times = process.cpu_times()
+            total += times.user + times.system
+    return total
+
+
+def idle_cores(workers: int, config: dict, seconds: float) -> float:
+    """Cores an idle LocalCluster of ``workers`` processes (as ``local:J`` starts them, under ``config``) uses:
+    CPU seconds of all its processes (and this one's) over ``seconds`` of wall time, after 3 s to settle."""
+    with environment_kept(), dask.config.set(config), distributed.LocalCluster(
+            n_workers=workers, threads_per_worker=THREADS_PER_WORKER, processes=True, dashboard_address=":0") as cluster:
+        with distributed.Client(cluster):
+            time.sleep(3.0)
+            cpu, start = process_tree_cpu_seconds(), time.perf_counter()
+            time.sleep(seconds)
+            return (process_tree_cpu_seconds() - cpu) / (time.perf_counter() - start)
+
+
 def view_depth(images: list[np.ndarray], views: list, k: int) -> float:
     """Depth map of view ``k`` from its neighbours (as the depth stage does per view); its valid fraction."""
     neighbours = [j for j in (k - 1, k + 1) if 0 <= j < len(views)]
@@ -165,6 +193,8 @@ def main() -> int:
     parser.add_argument("--workers", type=int, default=2, help="processes of the pool and of local:J")
     parser.add_argument("--repeats", type=int, default=3, help="measurements of each configuration (median)")
     parser.add_argument("--tasks", type=int, default=5000, help="tiny tasks for the scheduler's throughput")
+    parser.add_argument("--idle-seconds", type=float, default=15.0,
+                        help="how long an idle local:J is watched for its background CPU")
     parser.add_argument("--views", type=int, default=16, help="depth maps in the reconstruction part")
     parser.add_argument("--cores", type=int, default=32, help="cores per machine in the table")
     parser.add_argument("--disk-mb-s", type=float, default=1000.0, help="shared disk write bandwidth in the table")
@@ -178,6 +208,8 @@ def main() -> int:
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     rate = tasks_per_second(args.tasks, args.workers)
+    idle = {"Dask's defaults": idle_cores(args.workers, {}, args.idle_seconds),
+            "sim.cluster.WORKER_CONFIG": idle_cores(args.workers, WORKER_CONFIG, args.idle_seconds)}
     depth_here_s, depth_cluster_s, cluster_startup_s = depth_maps_here_and_on_cluster(args.views, args.workers)
     cpus = default_workers()
     pool_cpu, pool_wall = runs[0][2], runs[0][4]
@@ -190,6 +222,8 @@ def main() -> int:
               f"{wall_per_frame:12.3f} {100 * (wall_per_frame / pool_wall - 1):8.1f}% {wall_fixed:12.2f}")
     print(f"\nscheduler: {args.tasks} no-op tasks on local:{args.workers}: {rate:.0f} tasks/s "
           f"({1e3 / rate:.2f} ms per task)")
+    print(f"idle local:{args.workers} (scheduler, nannies, workers; {args.idle_seconds:.0f} s): "
+          + ", ".join(f"{name} {cores:.3f} cores" for name, cores in idle.items()))
     print(f"\ndepth maps, {args.views} views of 640x480, 2 neighbours each: {depth_here_s:.2f} s in this process "
           f"({depth_here_s / args.views:.3f} s/view), {depth_cluster_s:.2f} s on local:{args.workers} one task per "
           f"view, after {cluster_startup_s:.2f} s of start-up (processes, imports, images sent)")
