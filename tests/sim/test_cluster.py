@@ -14,14 +14,17 @@ import socket
 import sys
 import threading
 import time
+from pathlib import Path
 
+import dask
 import pytest
+import yaml
 
 distributed = pytest.importorskip("distributed")
 
 import sim
-from sim.cluster import (MAX_BATCH_FRAMES, TASKS_PER_WORKER, THREADS_PER_WORKER, Scheduler, batch_size, batches,
-                         environment_kept, parse_scheduler)
+from sim.cluster import (MAX_BATCH_FRAMES, TASKS_PER_WORKER, THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size,
+                         batches, connect, environment_kept, parse_scheduler)
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.render_dataset import render_dataset
 
@@ -150,3 +153,41 @@ def test_a_task_failing_on_its_own_stops_the_run_with_its_reason(scene_dir, tmp_
     resumed = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
     assert resumed.finalized and 4 in {s.index for s in resumed.frames}
     assert dataset_bytes(out) == expected
+
+
+def _worker_settings(keys: list[str]) -> dict:
+    """On a worker: the Dask config values of ``keys`` and the allocator variable its nanny may have set."""
+    return {"config": {key: dask.config.get(key) for key in keys},
+            "MALLOC_TRIM_THRESHOLD_": os.environ.get("MALLOC_TRIM_THRESHOLD_")}
+
+
+def test_local_workers_run_with_the_quiet_config_and_no_malloc_trim_threshold():
+    """The settings that keep local:N's background CPU low reach the spawned workers (a nanny passes the client's
+    config on; it would also set MALLOC_TRIM_THRESHOLD_=65536 unless told not to), and this process is left as it
+    was (the nanny sets its variables here too)."""
+    keys = [key for key in WORKER_CONFIG if not key.startswith("distributed.nanny.pre-spawn-environ")]
+    before, tick_before = dict(os.environ), dask.config.get("distributed.admin.tick.interval")
+    with connect(Scheduler(local_workers=1)) as client:
+        (settings,) = client.run(_worker_settings, keys).values()
+        assert dask.config.get("distributed.admin.tick.interval") == "1s"  # the scheduler runs here
+    assert settings == {"config": {key: WORKER_CONFIG[key] for key in keys}, "MALLOC_TRIM_THRESHOLD_": None}
+    assert dask.config.get("distributed.admin.tick.interval") == tick_before
+    assert dict(os.environ) == before
+
+
+def _flattened(tree: dict, prefix: str = "") -> dict:
+    flat = {}
+    for key, value in tree.items():
+        if isinstance(value, dict):
+            flat.update(_flattened(value, f"{prefix}{key}."))
+        else:
+            flat[f"{prefix}{key}"] = value
+    return flat
+
+
+def test_the_remote_worker_config_in_the_docs_is_the_one_local_n_uses():
+    """docs/cluster.md's YAML for remote workers sets exactly sim.cluster.WORKER_CONFIG."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "cluster.md").read_text(encoding="utf-8")
+    section = text[text.index("**Memory allocator and background CPU.**"):]
+    block = section[section.index("```yaml\n") + len("```yaml\n"):section.index("```\n", section.index("```yaml"))]
+    assert _flattened(yaml.safe_load(block)) == WORKER_CONFIG
