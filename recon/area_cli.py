@@ -1,7 +1,8 @@
 """``aerostereo-recon area``: every flight of an area reconstructed on its own, then joined into one scene.
 
     aerostereo-recon area FLIGHT_DIR FLIGHT_DIR [...] --out AREA [--scheduler local:N|tcp://HOST:PORT]
-                          [--cell M] [--blend-width M] [the single reconstruction's options]
+                          [--control REFERENCE MOVING PAIRS ...] [--cell M] [--blend-width M]
+                          [the single reconstruction's options]
 
 Each FLIGHT_DIR holds ``photos/`` and ``geotags.csv`` (as ``aerostereo-render fly`` + ``aerostereo-ingest geotag``
 write them; without geotags.csv the photos' own GPS). The report (JSON) is the only thing on stdout; progress goes
@@ -17,8 +18,10 @@ from pathlib import Path
 
 import pycolmap
 
-from flightplan.cli_support import Parser, add_version, folder_inputs, refuse_clobbering, stdout_to_stderr
-from recon.area_pipeline import AreaOptions, flight_inputs, flights_of, merge_area, reconstruct_pieces
+from flightplan.cli_support import BadInput, Parser, add_version, folder_inputs, refuse_clobbering, stdout_to_stderr
+from recon.area_pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
+                                  reconstruct_pieces)
+from recon.merge import read_pairs
 from recon.cli import PROGRAM, add_recon_options, recon_options
 
 
@@ -36,6 +39,12 @@ def build_area_parser() -> Parser:
                                             "here) or tcp://HOST:PORT (a running scheduler; the flight and area "
                                             "folders must be the same paths on every worker); default: one after "
                                             "another in this process")
+    parser.add_argument("--control", nargs=3, action="append", type=str,
+                        metavar=("REFERENCE", "MOVING", "PAIRS"),
+                        help="control points between two pieces (their flight names, or FLIGHT-2 for a flight's "
+                             "second SfM piece), an extra constraint of the joint adjustment; PAIRS is recon merge's "
+                             "pairs file: per line a point on MOVING then the same point on REFERENCE, each in its "
+                             "piece's scene ENU (AREA/pieces/NAME/), metres; repeatable")
     parser.add_argument("--cell", type=float, default=AreaOptions.cell_m,
                         help="ground cell of the ownership grid, m (default %(default)s)")
     parser.add_argument("--blend-width", type=float, default=AreaOptions.blend_width_m,
@@ -48,7 +57,9 @@ def run_area(argv) -> int:
     args = build_area_parser().parse_args(argv)
     options = AreaOptions(cell_m=args.cell, blend_width_m=args.blend_width)
     flights = flights_of(args.flights)
-    refuse_clobbering({"FLIGHT_DIR": [p for f in flights for p in folder_inputs(f.photos)] + flight_inputs(flights)},
+    control = control_ties(args.control or [], flights)
+    refuse_clobbering({"FLIGHT_DIR": [p for f in flights for p in folder_inputs(f.photos)] + flight_inputs(flights),
+                       "--control": [Path(tie.source) for tie in control]},
                       {"--out": args.out})
     scheduler = None
     if args.scheduler:
@@ -61,12 +72,31 @@ def run_area(argv) -> int:
     with stdout_to_stderr():
         pieces = reconstruct_pieces(flights, args.out, recon_options(args), scheduler, log=_log)
         report = merge_area([folder for folder, _ in pieces], args.out, options, log=_log,
-                            flights=[flight for _, flight in pieces])
+                            flights=[flight for _, flight in pieces], control=control)
     print(json.dumps({"scene": str(args.out / "scene.json"), "pieces": len(pieces),
                       "covered_area_m2": report["covered_area_m2"],
                       "pairs": [{k: pair[k] for k in ("a", "b", "before_m", "after_joint_m")}
                                 for pair in report["pairs"]]}, indent=2))
     return 0
+
+
+def control_ties(arguments: list[list[str]], flights: list[Flight]) -> list[ControlTie]:
+    """``--control REFERENCE MOVING PAIRS`` triples read and checked before any work: the pairs file parses (recon
+    merge's format) and both names are pieces the flights can make (a flight's name, or NAME-2.. for the photos
+    its SfM left out), two different ones; BadInput/PairsFileError naming the argument or file and line."""
+    possible = {f"{f.name}-{part}" if part > 1 else f.name for f in flights for part in range(1, MAX_PARTS + 1)}
+    ties = []
+    for reference, moving, pairs in arguments:
+        for name in (reference, moving):
+            if name not in possible:
+                raise BadInput(f"--control {reference} {moving} {pairs}: no piece {name!r}; pieces are named after "
+                               f"the flight folders ({', '.join(f.name for f in flights)}; NAME-2 for a flight's "
+                               "second SfM piece)")
+        if reference == moving:
+            raise BadInput(f"--control {reference} {moving} {pairs}: ties piece {reference!r} to itself; name two "
+                           "different pieces")
+        ties.append(ControlTie(reference, moving, read_pairs(Path(pairs)), pairs))
+    return ties
 
 
 def _log(line: str) -> None:

@@ -34,9 +34,10 @@ from capture.geotag_io import sidecar_path
 from flightplan.atomic import atomic_path, write_text_atomic
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
-from recon.area import AreaAlignment, Piece, SurfaceQuery, align_area, load_pieces
+from recon.area import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
 from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
+from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions
 from recon.scene_out import CAMERAS_FILE, scene_metadata
 from sim.scene import Scene, read_scene_cameras, read_scene_json
@@ -77,6 +78,18 @@ class AreaOptions:
             if not 0 < getattr(self, name) < 1e4:
                 raise ValueError(f"{name.replace('_m', '').replace('_', ' ')} must be a positive number of metres "
                                  f"below 10 km, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class ControlTie:
+    """Control points picked on two pieces (``aerostereo-recon area --control REFERENCE MOVING PAIRS``): the pieces'
+    names (their folders under ``AREA/pieces/``), the picks in recon merge's pairs format (each point in its own
+    piece's scene ENU, metres) and the file they came from (named in errors and the report)."""
+
+    reference: str
+    moving: str
+    pairs: ControlPairs
+    source: str
 
 
 def flights_of(folders: Sequence[Path]) -> list[Flight]:
@@ -235,10 +248,13 @@ def encode_merged(pieces: list[MergedPiece], gains: np.ndarray, frame: LocalFram
 
 
 def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions = AreaOptions(),
-               log: Callable[[str], None] = print, flights: Sequence[str] | None = None) -> dict:
+               log: Callable[[str], None] = print, flights: Sequence[str] | None = None,
+               control: Sequence[ControlTie] = ()) -> dict:
     """Align the pieces, decide ownership, blend seams and colours, and write the merged scene into ``area_dir``
     (module docstring); returns the report (also ``area_report.json``). ``flights``: the flight of each piece, which
-    names its photos in the merged cameras.json (default: the piece folders' names)."""
+    names its photos in the merged cameras.json (default: the piece folders' names). ``control``: control points
+    between pieces, extra constraints of the joint adjustment (they alone join pieces without an overlap ICP can
+    use)."""
     timings, start = {}, time.perf_counter()
 
     def lap(name: str) -> None:
@@ -252,7 +268,10 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     flights = list(flights or names)
     lap("load")
     log(f"[area] aligning {len(pieces)} pieces")
-    alignment = align_area(pieces, fixed=None, optional={k for k, (n, f) in enumerate(zip(names, flights)) if n != f})
+    links = control_links(control, names, pieces, frame)
+    alignment = align_area(pieces, fixed=None, control=links,
+                           optional={k for k, (n, f) in enumerate(zip(names, flights)) if n != f})
+    control_report = [control_residuals(tie, link, alignment.corrections) for tie, link in zip(control, links)]
     left_out = [names[k] for k in alignment.left_out]
     if left_out:
         log(f"[area] left out, joined to no other piece: {', '.join(left_out)}")
@@ -290,6 +309,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report = area_report(names, flights, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2,
                          merged)
     report["left_out"] = left_out
+    report["control"] = control_report
     report["timings_s"] = timings
     write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
                report)
@@ -297,6 +317,29 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report["timings_s"] = timings
     write_text_atomic(area_dir / REPORT, json.dumps(report, indent=2) + "\n")
     return report
+
+
+def control_links(ties: Sequence[ControlTie], names: Sequence[str], pieces: list[Piece],
+                  frame: LocalFrame) -> tuple[Link, ...]:
+    """Each tie as a :class:`recon.area.Link` in the area frame; :class:`AreaError` for a tie naming no piece."""
+    index = {name: k for k, name in enumerate(names)}
+    for tie in ties:
+        for name in (tie.reference, tie.moving):
+            if name not in index:
+                raise AreaError(f"{tie.source}: control points name piece {name!r}, but the pieces are "
+                                f"{', '.join(names)}")
+    return tuple(control_link(t.pairs, index[t.reference], index[t.moving], pieces, frame) for t in ties)
+
+
+def control_residuals(tie: ControlTie, link: Link, corrections: Sequence[np.ndarray]) -> dict:
+    """A tie's report row: its pieces, file and points, and how far apart its picks are before and after the
+    pieces' corrections (RMS and largest, metres): picks that disagree with the overlaps show here."""
+    before = np.linalg.norm(link.points_a - link.points_b, axis=1)
+    after = np.linalg.norm(_apply(corrections[link.a], link.points_a) - _apply(corrections[link.b], link.points_b),
+                           axis=1)
+    return {"reference": tie.reference, "moving": tie.moving, "file": tie.source, "points": int(len(before)),
+            "before_rms_m": float(np.sqrt(np.mean(before ** 2))), "after_rms_m": float(np.sqrt(np.mean(after ** 2))),
+            "after_max_m": float(after.max())}
 
 
 def without_pieces(alignment: AreaAlignment, pieces: list[Piece], names: list[str], flights: list[str]):

@@ -45,7 +45,8 @@ DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'
 MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
 FOLDER = Files({}, folders=("folder",))
 FLIGHTS = Files({**{f"{f}/photos/DJI_0001.JPG": JPEG for f in ("f1", "f2", "other/f1")}, "f1/geotags.csv": b"image_name\n",
-                 "f1/geotags.json": b"{}\n"}, folders=("folder",))
+                 "f1/geotags.json": b"{}\n", "picks.txt": b"0 0 0 1 1 1\n2 0 0 3 1 1\n0 2 0 1 3 1\n",
+                 "bad_picks.txt": b"0 0 0 1 1 1\n2 0 0 3 1\n0 2 0 1 3 1\n"}, folders=("folder",))
 
 CASES = [
     # aerostereo-mission
@@ -165,6 +166,22 @@ CASES = [
          r"cell must be a positive number of metres", FLIGHTS),
     Case("area-bad-scheduler", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--scheduler",
                                        "local:0"], r"--scheduler must be local:N", FLIGHTS),
+    Case("area-control-two-arguments", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--control",
+                                               "f1", "f2"], r"--control: expected 3 arguments", FLIGHTS),
+    Case("area-control-unknown-piece", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--control",
+                                               "f1", "f9", "{tmp}/picks.txt"], r"--control f1 f9 .*no piece 'f9'",
+         FLIGHTS),
+    Case("area-control-same-piece", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--control",
+                                            "f2-2", "f2-2", "{tmp}/picks.txt"], r"ties piece 'f2-2' to itself",
+         FLIGHTS),
+    Case("area-control-bad-pairs-line", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--control",
+                                                "f1", "f2", "{tmp}/bad_picks.txt"],
+         r"bad_picks\.txt:2: expected 6 numbers", FLIGHTS),
+    Case("area-control-missing-file", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/area", "--control",
+                                              "f1", "f2", "{tmp}/none.txt"], r"none\.txt", FLIGHTS),
+    Case("area-out-is-control", RECON, ["area", "{tmp}/f1", "{tmp}/f2", "--out", "{tmp}/picks.txt", "--control",
+                                        "f1", "f2", "{tmp}/picks.txt"], r"--out .*picks\.txt: is also --control",
+         FLIGHTS),
     Case("merge-no-pairs", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--out", "{tmp}/c.ply"],
          r"^aerostereo-recon merge: .*required: --pairs", MESHES),
     Case("merge-out-is-a", RECON, ["merge", "{tmp}/a.ply", "{tmp}/b.ply", "--pairs", "{tmp}/pairs.txt",

@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from recon.area_merge import NO_OWNER, Grid, distance_to_owner, look_at_points, ownership, seam_neighbours
-from recon.area_pipeline import AreaOptions, merge_area
+from recon.area import AreaError
+from recon.area_pipeline import AreaOptions, ControlTie, merge_area
+from recon.merge import ControlPairs
 from sim.camera import PinholeCamera, look_at
 from sim.scene import load_scene, read_scene_json
 from sim.scene_cameras import SceneCamera, write_cameras
@@ -162,6 +164,40 @@ def test_the_merged_scene_renders_each_piece_from_its_own_texture(merged):
     assert len(scene.surface.textures) == 3
     assert {c.name.split("/")[0] for c in scene.cameras} == {"flight_01", "flight_02", "flight_03"}
     assert sum(p["faces"] for p in report["pieces"]) == len(scene.faces)
+
+
+def test_control_points_join_pieces_that_share_only_a_corner(tmp_path):
+    """Two pieces sharing a 12 x 11 m corner, too little for ICP: refused as not joined; with 6 points picked on
+    both in that corner (each in its piece's own scene ENU, as a user picks them in AREA/pieces/NAME/), the moved
+    piece lands near the true terrain and the report gives the picks' spread before and after."""
+    corner = np.array([48.0, 49.0])
+    error = rigid([0.2, -0.1, 0.3], [0.4, -0.3, 0.25], [78.0, 79.0, 0.0])
+    folders = [tmp_path / "pieces" / "flight_a", tmp_path / "pieces" / "flight_b"]
+    write_piece(folders[0], 0.0, 0.0, np.eye(4), 1.0)
+    write_piece(folders[1], *corner, error, 1.0)
+    with pytest.raises(AreaError, match="shares no ground"):
+        merge_area(folders, tmp_path / "refused", AreaOptions(cell_m=0.5), log=lambda line: None)
+    rng = np.random.default_rng(3)
+    ground = np.column_stack([rng.uniform(corner, [60.0, 60.0], (6, 2)), np.zeros(6)])
+    ground[:, 2] = terrain_height(ground)
+    on_a = to_frame(ground, frame_at(PIECE_M / 2, PIECE_M / 2, 0.0))
+    on_b = to_frame(ground @ error[:3, :3].T + error[:3, 3], frame_at(*(corner + PIECE_M / 2), 0.0))
+    tie = ControlTie("flight_a", "flight_b", ControlPairs(moving=on_b, reference=on_a), "picks.txt")
+    report = merge_area(folders, tmp_path, AreaOptions(cell_m=0.5), log=lambda line: None, control=[tie])
+    assert report["pairs"] == []
+    (row,) = report["control"]
+    assert (row["reference"], row["moving"], row["points"]) == ("flight_a", "flight_b", 6)
+    # Picks weigh as points of an overlap (5 cm each) against each piece's GPS prior: they agree to about a centimetre.
+    assert row["before_rms_m"] > 0.3 and row["after_rms_m"] < 0.02
+    scene = load_scene(tmp_path)
+    common = np.asarray(report["pieces"][0]["correction"])  # piece a has no error: it moves only by the common shift
+    xy_true = rng.uniform(corner + 6.0, corner + PIECE_M - 4.0, size=(2000, 2))
+    truth = to_frame(np.column_stack([xy_true, terrain_height(xy_true)]), scene.origin)
+    truth = truth @ common[:3, :3].T + common[:3, 3]
+    height_error = np.abs(scene.ground_height(truth[:, 0], truth[:, 1]) - truth[:, 2])
+    # B's error moved its surface 0.3-0.7 m; picks in a 12 m corner pin its tilt to ~1 mrad against the GPS prior
+    # (50 m lever arm: ~5 cm), so it lands within decimetres where ICP could not place it at all.
+    assert np.median(height_error) < 0.1 and np.percentile(height_error, 90) < 0.2
 
 
 def test_helpers_on_a_hand_made_grid():
