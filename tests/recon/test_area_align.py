@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from recon.area import (AreaError, FlatOverlapError, SurfaceQuery, align_area, control_link, find_overlaps, icp_pair,
-                        load_pieces)
+from recon.area import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlapError, SurfaceQuery, align_area,
+                        control_link, find_overlaps, icp_information, icp_pair, load_pieces, tie_sigma_m)
 from recon.merge import ControlPairs
 from recon.similarity import umeyama
 from recon.scene_out import write_scene
@@ -222,3 +222,25 @@ def test_an_unpinned_overlap_is_left_out_while_the_others_join_every_piece(tmp_p
     for i, error in enumerate(errors):
         shift, angle = correction_error(result.corrections[i], error, centre_of(i, 20.0))
         assert shift < 0.01 and angle < 0.01, (i, shift, angle)
+
+
+@pytest.mark.parametrize("noise_m", [0.0, 0.2])
+def test_an_overlap_counts_as_sure_as_its_surfaces_agree(tmp_path, noise_m):
+    """The joint adjustment's weight of an ICP tie: each overlap point as sure as the two surfaces agree there (two
+    pieces with independent height noise of ``noise_m`` each: sqrt(2) x that, never under 5 cm), and the
+    3,600 overlap points as 200 (their errors are not independent: two orbit edges are off together)."""
+    folders = row_of_pieces(tmp_path, [np.eye(4), np.eye(4)], 20.0, noise_m=noise_m)
+    _, pieces = load_pieces(folders)
+    (overlap,) = find_overlaps(pieces)
+    surface = SurfaceQuery(pieces[0].mesh)
+    transform = icp_pair(surface, overlap.points_b)
+    information, _ = icp_information(surface, overlap.points_b, transform, TIE_POINT_M)
+    moved = np.asarray(overlap.points_b, dtype=np.float64) @ transform[:3, :3].T + transform[:3, 3]
+    closest, normals = surface.closest(moved)
+    # Shift along the normals alone (the lower-right block): each point adds n n^T / sigma^2, the normals are near
+    # vertical, so the vertical entry is about (points counted) / sigma^2.
+    sigma = max(TIE_POINT_M, np.sqrt(2.0) * noise_m)
+    counted = information[5, 5] * sigma ** 2
+    assert len(overlap.points_b) > 3 * ADJUST_POINTS
+    assert 0.6 * ADJUST_POINTS < counted < 1.3 * ADJUST_POINTS, counted
+    assert tie_sigma_m(np.einsum("ij,ij->i", moved - closest, normals), TIE_POINT_M) == pytest.approx(sigma, rel=0.25)
