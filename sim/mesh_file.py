@@ -138,43 +138,49 @@ def _obj_size(path: Path) -> MeshSize:
 
 
 def _glb_size(path: Path) -> MeshSize:
-    """Vertices and triangles of every mesh instance of a GLB's scene, and its largest embedded image side."""
-    data = path.read_bytes()
-    if len(data) < 20 or data[:4] != _GLB_MAGIC:
-        raise MeshFileError(f"{path}: not a readable mesh (a GLB file starts 'glTF')")
-    json_length, json_type = struct.unpack_from("<II", data, 12)
-    if json_type != _GLB_JSON_CHUNK or 20 + json_length > len(data):
-        raise MeshFileError(f"{path}: the GLB's first chunk must be its JSON, {json_length} bytes within the file")
-    try:
-        gltf = loads_json(data[20:20 + json_length])
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise MeshFileError(f"{path}: the GLB's JSON chunk is not valid JSON ({error})") from None
-    binary = _glb_binary_chunk(data, 20 + ((json_length + 3) & ~3))
-    try:
-        instances = _mesh_instances(gltf)
-        vertices = triangles = 0
-        for mesh_index, count in instances.items():
-            mesh_vertices, mesh_triangles = _mesh_counts(gltf, gltf["meshes"][mesh_index])
-            vertices += count * mesh_vertices
-            triangles += count * mesh_triangles
-    except (KeyError, IndexError, TypeError, ValueError, AttributeError) as error:
-        raise MeshFileError(f"{path}: malformed glTF JSON ({type(error).__name__}: {error})") from None
-    try:
-        side = max((_image_side(gltf, image, binary) for image in gltf.get("images", [])), default=0)
-    except (KeyError, IndexError, TypeError, ValueError) as error:
-        raise MeshFileError(f"{path}: malformed glTF image entry ({type(error).__name__}: {error})") from None
-    except Image.DecompressionBombError as error:  # a header declaring more pixels than PIL will ever decode
-        raise MeshFileError(f"{path}: an embedded image cannot be read ({error})") from None
-    except OSError as error:  # not an image PIL knows (its message names only an in-memory buffer)
-        raise MeshFileError(f"{path}: an embedded image cannot be read ({type(error).__name__})") from None
+    """Vertices and triangles of every mesh instance of a GLB's scene, and its largest embedded image side. Reads
+    the header, the JSON chunk and the embedded images' bytes only (a declared size is judged before the rest of
+    a file, which may be huge, is read)."""
+    file_bytes = path.stat().st_size
+    with path.open("rb") as file:
+        header = file.read(20)
+        if len(header) < 20 or header[:4] != _GLB_MAGIC:
+            raise MeshFileError(f"{path}: not a readable mesh (a GLB file starts 'glTF')")
+        json_length, json_type = struct.unpack_from("<II", header, 12)
+        if json_type != _GLB_JSON_CHUNK or 20 + json_length > file_bytes:
+            raise MeshFileError(f"{path}: the GLB's first chunk must be its JSON, {json_length} bytes within the file")
+        try:
+            gltf = loads_json(file.read(json_length))
+        except (UnicodeDecodeError, json.JSONDecodeError) as error:
+            raise MeshFileError(f"{path}: the GLB's JSON chunk is not valid JSON ({error})") from None
+        binary = _glb_binary_chunk(file, 20 + ((json_length + 3) & ~3), file_bytes)
+        try:
+            instances = _mesh_instances(gltf)
+            vertices = triangles = 0
+            for mesh_index, count in instances.items():
+                mesh_vertices, mesh_triangles = _mesh_counts(gltf, gltf["meshes"][mesh_index])
+                vertices += count * mesh_vertices
+                triangles += count * mesh_triangles
+        except (KeyError, IndexError, TypeError, ValueError, AttributeError) as error:
+            raise MeshFileError(f"{path}: malformed glTF JSON ({type(error).__name__}: {error})") from None
+        try:
+            side = max((_image_side(gltf, image, file, binary) for image in gltf.get("images", [])), default=0)
+        except (KeyError, IndexError, TypeError, ValueError) as error:
+            raise MeshFileError(f"{path}: malformed glTF image entry ({type(error).__name__}: {error})") from None
+        except Image.DecompressionBombError as error:  # a header declaring more pixels than PIL will ever decode
+            raise MeshFileError(f"{path}: an embedded image cannot be read ({error})") from None
+        except OSError as error:  # not an image PIL knows (its message names only an in-memory buffer)
+            raise MeshFileError(f"{path}: an embedded image cannot be read ({type(error).__name__})") from None
     return MeshSize(vertices, triangles, side)
 
 
-def _glb_binary_chunk(data: bytes, offset: int) -> bytes:
-    if offset + 8 > len(data):
-        return b""
-    length, kind = struct.unpack_from("<II", data, offset)
-    return data[offset + 8:offset + 8 + length] if kind == _GLB_BIN_CHUNK else b""
+def _glb_binary_chunk(file, offset: int, file_bytes: int) -> tuple[int, int]:
+    """(file offset, length) of the GLB's binary chunk starting at ``offset`` (cut to the file); (0, 0) if none."""
+    if offset + 8 > file_bytes:
+        return 0, 0
+    file.seek(offset)
+    length, kind = struct.unpack("<II", file.read(8))
+    return (offset + 8, min(length, file_bytes - offset - 8)) if kind == _GLB_BIN_CHUNK else (0, 0)
 
 
 def _mesh_instances(gltf: dict) -> dict[int, int]:
@@ -229,13 +235,20 @@ def _mesh_counts(gltf: dict, mesh: dict) -> tuple[int, int]:
     return vertices, triangles
 
 
-def _image_side(gltf: dict, image: dict, binary: bytes) -> int:
-    """Largest side (pixels) of an image in the GLB's binary chunk, from its header (not decoded); 0 for others."""
+def _image_side(gltf: dict, image: dict, file, binary: tuple[int, int]) -> int:
+    """Largest side (pixels) of an image in the GLB's binary chunk (``binary``: its offset and length in
+    ``file``), from its header (not decoded); 0 for an image not in the chunk (a URI)."""
     if "bufferView" not in image:
         return 0
     view = gltf["bufferViews"][image["bufferView"]]
-    start = int(view.get("byteOffset", 0))
+    start, length = int(view.get("byteOffset", 0)), int(view["byteLength"])
+    if start < 0 or length < 0:
+        raise ValueError(f"bufferView {image['bufferView']}: negative byteOffset or byteLength")
+    chunk_start, chunk_length = binary
+    file.seek(chunk_start + min(start, chunk_length))
     with warnings.catch_warnings():  # only the header is read: a large declared size is judged by the caller
         warnings.simplefilter("ignore", Image.DecompressionBombWarning)
-        with Image.open(BytesIO(binary[start:start + int(view["byteLength"])])) as picture:
+        with Image.open(BytesIO(file.read(max(0, min(length, chunk_length - start))))) as picture:
             return max(picture.size)
+
+

@@ -3,6 +3,7 @@ decode to more than can be held are refused."""
 
 import json
 import struct
+from pathlib import Path
 
 import pytest
 import trimesh
@@ -99,3 +100,31 @@ def test_other_mesh_types_are_refused(tmp_path):
     path.write_bytes(b"PK")
     with pytest.raises(MeshFileError, match=r"a mesh must be one of \.glb, \.ply, \.obj, got \.zip"):
         check_mesh_file(path)
+
+
+def test_a_huge_glb_is_sized_without_reading_it_whole(tmp_path):
+    """A textured GLB followed by 3 GiB (sparse: no disk used) is sized in a process that may map only 1.5 GiB:
+    the header, the JSON and the image's bytes are read, not the file (a bomb's size is judged before it loads)."""
+    import subprocess
+    import sys
+    import textwrap
+
+    from PIL import Image
+
+    mesh = trimesh.creation.box()
+    mesh.visual = trimesh.visual.TextureVisuals(uv=mesh.vertices[:, :2] + 0.5, image=Image.new("RGB", (300, 20)))
+    path = tmp_path / "huge.glb"
+    mesh.export(path)
+    with path.open("r+b") as file:
+        file.truncate(path.stat().st_size + 3 * 2**30)
+    script = textwrap.dedent(f"""
+        import resource
+        resource.setrlimit(resource.RLIMIT_AS, (3 * 2**29, 3 * 2**29))
+        from sim.mesh_file import check_mesh_file
+        size = check_mesh_file({str(path)!r})
+        print(size.triangles, size.largest_image_side)
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                          cwd=Path(__file__).resolve().parents[2])
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split() == [str(len(mesh.faces)), "300"]
