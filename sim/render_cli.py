@@ -17,7 +17,8 @@ from flightplan.cli_support import (EXIT_INTERRUPTED, BadInput, Parser, folder_i
                                     refuse_folders)
 from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
-from sim.dataset.export import export_dataset, refuse_overlap
+from sim.dataset.export import check_layouts, export_dataset, refuse_overlap
+from sim.dataset.writer import dataset_description
 from sim.effects import VIGNETTING_MODELS, CameraEffects
 from sim.export_cli import layout_list
 from sim.metrics import compare_folders, summary_table
@@ -213,7 +214,7 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
     try:
         summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite,
                                  command_line=sys.argv if command_line is None else command_line,
-                                 progress=not args.quiet)
+                                 progress=not args.quiet, check_spec=export_check(args))
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted: rerun the same command to resume", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -231,6 +232,14 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
         for line in export_dataset(args.out, args.export_out, args.export):
             print(line)
     return 0
+
+
+def export_check(args: argparse.Namespace):
+    """With ``--export``: a check of the dataset about to be rendered against what each layout needs (depth maps,
+    pinhole cameras, an IMU...), so a layout the render cannot feed is refused before the first frame."""
+    if not args.export:
+        return None
+    return lambda spec: check_layouts(args.export, args.out, dataset_description(spec))
 
 
 def check_export_args(args: argparse.Namespace) -> None:

@@ -39,7 +39,7 @@ import shutil
 import signal
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -260,11 +260,12 @@ def _open_writer(out_dir: Path, spec: DatasetSpec, overwrite: bool) -> KittiData
 
 def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, options: RenderOptions,
                    command_line: Sequence[str] | None = None, progress: bool = True,
-                   overwrite: bool = False) -> RenderSummary:
+                   overwrite: bool = False, check_spec: Callable[[DatasetSpec], None] | None = None) -> RenderSummary:
     """Render (or resume) the dataset of ``options`` from ``scene`` into ``out_dir``; see the module docstring.
 
     A dataset of other settings already in ``out_dir`` is refused, or with ``overwrite`` deleted first (only its
-    own files). Raises :class:`RenderInputError` for bad input before anything is rendered.
+    own files). Raises :class:`RenderInputError` for bad input before anything is rendered; ``check_spec`` may
+    refuse the dataset's constant part too (``render --export``: what the layouts need) before anything is written.
     """
     start, started_utc = time.perf_counter(), dt.datetime.now(dt.timezone.utc)
     _check_options(options)
@@ -278,6 +279,8 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     command_line = list(sys.argv if command_line is None else command_line)
     try:
         spec = dataset_spec(renderer, scene_dir, options, command_line)
+        if check_spec is not None:
+            check_spec(spec)
         shard = shard_frames(spec.frame_count, *options.shard)
         _check_resources(renderer, spec, out_dir, shard, workers)
         writer = _open_writer(out_dir, spec, overwrite)

@@ -49,25 +49,16 @@ class EurocWriter:
     """Writes a :class:`DatasetSource` rendered with ``--imu`` in the EuRoC layout under ``OUT/mav0``."""
 
     name = "euroc"
+    needs = ("imu", "radtan")
 
     def __init__(self, source: DatasetSource, out: Path):
+        source.require(self.needs, f"the {self.name} layout")
         self.source, self.root = source, Path(out) / "mav0"
-        self.imu = source.description["sampling"].get("imu")
-        if self.imu is None:
-            raise DatasetError(f"{source.layout.dataset_json}: the euroc layout needs an IMU; render the dataset "
-                               "with --mode trajectory --imu")
+        self.imu = source.require_imu(f"the {self.name} layout")
+        self.distortion = source.radtan(f"the {self.name} layout")
         self.record = read_imu_csv(source.layout.imu_csv)
         self.imu_stamps = set(self.record["timestamp_ns"].tolist())
-        self.distortion = [self._radtan(view) for view in VIEWS]
         self.stamps: list[int] = []
-
-    def _radtan(self, view: int) -> list[float]:
-        """EuRoC's four radial-tangential coefficients (k1, k2, p1, p2) of a camera; refuses a k3."""
-        coefficients = list(self.source.description["cameras"][view].get("dist") or [0.0] * 5) + [0.0] * 5
-        if coefficients[4] != 0.0:
-            raise DatasetError(f"{self.source.layout.dataset_json}: camera {view} has k3 = {coefficients[4]}; "
-                               "EuRoC's radial-tangential model has only k1, k2, p1, p2")
-        return coefficients[:4]
 
     def write_frame(self, frame: SourceFrame) -> None:
         stamp = int(timestamps_ns(frame.record["time_s"]))

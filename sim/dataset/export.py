@@ -37,6 +37,14 @@ def refuse_overlap(source: Path, out: Path, option: str = "--out") -> None:
                            "source, choose a folder outside it")
 
 
+def check_layouts(layouts: Sequence[str], out_dir: Path, description: dict) -> None:
+    """Refuse (:class:`DatasetError`, naming the layout) ``layouts`` that the dataset ``description`` (as it will be
+    written into ``out_dir``, before any frame) cannot be exported to: what each layout writer ``needs``."""
+    planned = DatasetSource(Path(out_dir), planned=description)
+    for name in dict.fromkeys(layouts):
+        planned.require(LAYOUT_WRITERS[name].needs, f"--export {name}")
+
+
 def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> list[str]:
     """Write ``layouts`` (names of :data:`LAYOUTS`) of the dataset in ``source_dir`` under ``out_dir``.
 

@@ -80,9 +80,10 @@ class KittiFlowWriter:
     """Writes KITTI 2015 flow (``flow_occ``, ``flow_noc``, image pairs) of the left camera of a dataset."""
 
     name = "kitti_flow"
+    needs = ("depth",)
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(f"the {self.name} layout")
+        source.require(self.needs, f"the {self.name} layout")
         self.root = Path(out) / "training"
         self.previous: SourceFrame | None = None
         self.pairs = self.valid = self.hidden = 0
@@ -113,10 +114,11 @@ class FloWriter:
     """Writes Middlebury ``.flo`` flow of every rig camera from each frame to the next one, with visibility masks."""
 
     name = "flo"
+    needs = ("depth",)
     direction = "forward"
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(f"the {self.name} layout")
+        source.require(self.needs, f"the {self.name} layout")
         self.root = Path(out) / f"flow_{self.direction}"
         self.views = range(source.view_count)
         self.previous: SourceFrame | None = None

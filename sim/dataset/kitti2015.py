@@ -67,10 +67,10 @@ class Kitti2015Writer:
     """Writes the KITTI 2015 stereo layout of a :class:`DatasetSource` (needs depth and a rectified pinhole pair)."""
 
     name = "kitti2015"
+    needs = ("depth", "pinhole", "rectified")
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(f"the {self.name} layout")
-        source.require_pinhole(f"the {self.name} layout")
+        source.require(self.needs, f"the {self.name} layout")
         self.baseline_m = source.baseline_m(f"the {self.name} layout")
         self.root = Path(out) / "training"
         self.frames = self.valid = self.occluded = 0

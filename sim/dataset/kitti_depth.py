@@ -37,10 +37,10 @@ class KittiDepthWriter:
     """Writes the KITTI depth layout of a :class:`DatasetSource` (needs depth and pinhole cameras)."""
 
     name = "kitti_depth"
+    needs = ("depth", "pinhole")
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(f"the {self.name} layout")
-        source.require_pinhole(f"the {self.name} layout")
+        source.require(self.needs, f"the {self.name} layout")
         self.date_dir = Path(out) / DATE
         self.drive_dir = self.date_dir / drive_name(source.sequence)
         self.frames = self.hits = self.too_far = 0

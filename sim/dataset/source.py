@@ -8,7 +8,7 @@ pinhole cameras, a rectified pair); :class:`SourceFrame` hands each frame's reco
 from __future__ import annotations
 
 import json
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -24,13 +24,16 @@ LEFT, RIGHT = 0, 1
 
 
 class DatasetSource:
-    """A finalized dataset folder: its description, per-frame records and file paths."""
+    """A finalized dataset folder: its description, per-frame records and file paths. With ``planned`` (a
+    description as :func:`sim.dataset.writer.dataset_description` makes it), the dataset a render is about to make
+    in ``root``, with no records yet: enough for :meth:`require`, so that ``render --export`` refuses a layout
+    before the first frame rather than after the last."""
 
-    def __init__(self, root: Path):
+    def __init__(self, root: Path, planned: dict | None = None):
         self.root = Path(root)
-        self.description = read_dataset_json(self.root)
+        self.description = read_dataset_json(self.root) if planned is None else planned
         self.layout = KittiLayout(self.root, self.description["sequence"])
-        self.records = self._read_records()
+        self.records = self._read_records() if planned is None else []
         self.T_rig_cams = [np.asarray(camera["T_rig_cam"], dtype=np.float64) for camera in self.description["cameras"]]
 
     def _read_records(self) -> list[dict]:
@@ -53,6 +56,34 @@ class DatasetSource:
     @property
     def view_count(self) -> int:
         return len(self.description["cameras"])
+
+    def require(self, needs: Sequence[str], needed_by: str) -> None:
+        """Refuse (:class:`DatasetError` naming ``needed_by``) a dataset without what a layout ``needs``: "depth"
+        (:meth:`require_depth`), "pinhole" (:meth:`require_pinhole`), "rectified" (:meth:`baseline_m`), "imu"
+        (:meth:`require_imu`), "radtan" (:meth:`radtan`)."""
+        checks = {"depth": self.require_depth, "pinhole": self.require_pinhole, "rectified": self.baseline_m,
+                  "imu": self.require_imu, "radtan": self.radtan}
+        for need in needs:
+            checks[need](needed_by)
+
+    def require_imu(self, needed_by: str) -> dict:
+        """The dataset's IMU settings (``sampling.imu``); refused when it was rendered without ``--imu``."""
+        imu = self.description["sampling"].get("imu")
+        if imu is None:
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs an IMU; render the dataset with "
+                               "--mode trajectory --imu")
+        return imu
+
+    def radtan(self, needed_by: str) -> list[list[float]]:
+        """Per rig camera, the radial-tangential coefficients (k1, k2, p1, p2); refused for a camera with a k3."""
+        coefficients = []
+        for view, camera in enumerate(self.description["cameras"]):
+            dist = list(camera.get("dist") or [0.0] * 5) + [0.0] * 5
+            if dist[4] != 0.0:
+                raise DatasetError(f"{self.layout.dataset_json}: camera {view} has k3 = {dist[4]}; {needed_by} "
+                                   "has only k1, k2, p1, p2 (the radial-tangential model)")
+            coefficients.append(dist[:4])
+        return coefficients
 
     def require_depth(self, needed_by: str) -> None:
         """Refuse what needs depth (``needed_by``: "the kitti2015 layout", "--depth") when the dataset was rendered

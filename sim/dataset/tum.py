@@ -30,6 +30,7 @@ class TumWriter:
     """Writes the left camera's trajectory of a :class:`DatasetSource` as a TUM file."""
 
     name = "tum"
+    needs = ()
 
     def __init__(self, source: DatasetSource, out: Path):
         self.path = Path(out) / "tum" / f"{source.sequence}.txt"

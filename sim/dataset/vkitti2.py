@@ -33,10 +33,10 @@ class Vkitti2Writer:
     """Writes the Virtual KITTI 2 layout of a :class:`DatasetSource` (needs depth and pinhole cameras)."""
 
     name = "vkitti2"
+    needs = ("depth", "pinhole")
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require_depth(f"the {self.name} layout")
-        source.require_pinhole(f"the {self.name} layout")
+        source.require(self.needs, f"the {self.name} layout")
         self.root = Path(out) / f"Scene{source.sequence}" / VARIATION
         self.views = range(source.view_count)
         self.intrinsic_lines = [INTRINSIC_HEADER]

@@ -72,3 +72,19 @@ def test_an_export_folder_in_the_scene_is_refused(tmp_path):
                 ["--scene", str(scene), "--out", "{tmp}/d", "--export", "tum", "--export-out", str(scene)],
                 r"--export-out .*scene: is also --scene")
     assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+@pytest.mark.parametrize("layout, options, message", [
+    ("euroc", [], r"--export euroc needs an IMU; render the dataset with --mode trajectory --imu"),
+    ("kitti2015", ["--formats", "disparity_png"], r"--export kitti2015 needs the depth maps"),
+    ("kitti_flow", ["--formats", "depth_cm_png"], r"--export kitti_flow needs the depth maps"),
+])
+def test_a_layout_the_render_cannot_feed_is_refused_before_the_first_frame(tmp_path, layout, options, message):
+    """render --export checks what each layout needs against the dataset it is about to make: refused before any
+    frame is rendered (not after the last), and nothing is left behind."""
+    scene = write_scene(tmp_path / "scene")
+    case = Case(f"render-export-{layout}-unfed", "aerostereo-render",
+                ["--scene", str(scene), "--out", "{tmp}/d", "--frames", "2", "--width", "32", "--height", "16",
+                 *options, "--export", layout, "--export-out", "{tmp}/e", "--quiet"], message)
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+    assert not (tmp_path / "d").exists() and not (tmp_path / "e").exists()
