@@ -8,7 +8,8 @@ name an input, and size checks before any work starts.
   into one line on stderr and an exit code, never a traceback.
 - :func:`refuse_clobbering` refuses an output path that names an input or another output (an existing file in
   an input folder counts as an input: :func:`folder_inputs`); :func:`refuse_folders` an output file that is a
-  folder, and :func:`path_problem` says why a path is not the file or folder asked for.
+  folder, :func:`folder_holds` says whether one folder is or contains another path, and :func:`path_problem` says
+  why a path is not the file or folder asked for.
 - :func:`stdout_to_stderr` sends everything written to stdout (Python and C libraries alike) to stderr while a
   command works, so its stdout carries only its result.
 - :func:`require_memory` and :func:`require_disk` compare what a run would need with what the machine has.
@@ -146,6 +147,13 @@ def refuse_folders(outputs: Mapping[str, Path | None]) -> None:
     for name, path in outputs.items():
         if path is not None and Path(path).is_dir():
             raise BadInput(f"{name} {path}: is a folder; expected the name of a file to write")
+
+
+def folder_holds(folder: Path, path: Path) -> bool:
+    """Whether ``path`` is ``folder`` or lies somewhere inside it, compared after resolving symlinks and ``..``
+    (neither needs to exist)."""
+    folder_key, path_key = _key(folder), _key(path)
+    return folder_key == path_key or folder_key in path_key.parents
 
 
 def path_problem(path: Path, folder: bool) -> str | None:

@@ -17,7 +17,8 @@ from pathlib import Path
 
 from capture.track import parse_utc
 from flightplan.argtypes import finite_number
-from flightplan.cli_support import BadInput, add_version, folder_inputs, path_problem, refuse_clobbering, run_cli
+from flightplan.cli_support import (BadInput, add_version, folder_holds, folder_inputs, path_problem, refuse_clobbering,
+                                    run_cli)
 from sim import render_cli
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
                                run_session)
@@ -118,9 +119,8 @@ def refuse_clobbering_fly(args) -> None:
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     inputs = {"--mission": args.mission, "--scene": folder_inputs(scene)}
     refuse_clobbering(inputs, {"--out": args.out})
-    out = args.out.resolve()
     for name, path in [*(("--mission", mission) for mission in args.mission), ("--scene", scene)]:
-        if path is not None and out in path.resolve().parents:
+        if path is not None and folder_holds(args.out, path):
             raise BadInput(f"--out {args.out}: holds {name} {path}, which the flight's outputs could overwrite; "
                            "choose an --out folder outside it")
 

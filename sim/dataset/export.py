@@ -10,11 +10,11 @@ written atomically and deterministically, so an interrupted export is simply run
 
 from __future__ import annotations
 
-import os
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
+from flightplan.cli_support import folder_holds
 from sim.dataset.euroc import EurocWriter
 from sim.dataset.flow import FloBackwardWriter, FloWriter, KittiFlowWriter
 from sim.dataset.kitti2015 import Kitti2015Writer
@@ -31,8 +31,7 @@ LAYOUTS = tuple(LAYOUT_WRITERS)
 
 def refuse_overlap(source: Path, out: Path, option: str = "--out") -> None:
     """Refuse an output folder (the argument ``option``) that is the source, lies inside it or contains it."""
-    source_key, out_key = Path(os.path.realpath(source)), Path(os.path.realpath(out))
-    if out_key == source_key or source_key in out_key.parents or out_key in source_key.parents:
+    if folder_holds(source, out) or folder_holds(out, source):
         raise DatasetError(f"{option} {out}: overlaps the source dataset {source}; an export never writes into its "
                            "source, choose a folder outside it")
 

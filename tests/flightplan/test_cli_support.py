@@ -7,9 +7,9 @@ import os
 
 import pytest
 
-from flightplan.cli_support import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, folder_inputs,
-                                    format_bytes, path_problem, refuse_clobbering, require_disk, require_memory,
-                                    run_cli, stdout_to_stderr)
+from flightplan.cli_support import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, folder_holds,
+                                    folder_inputs, format_bytes, path_problem, refuse_clobbering, require_disk,
+                                    require_memory, run_cli, stdout_to_stderr)
 
 
 def test_parser_errors_are_one_line_with_exit_2(capsys):
@@ -132,3 +132,13 @@ def test_path_problem_and_folder_inputs(tmp_path):
     assert path_problem(tmp_path / "none", folder=True) == "not found"
     assert folder_inputs(tmp_path) == [tmp_path, tmp_path / "a.jpg"]  # not the subfolder
     assert folder_inputs(tmp_path / "a.jpg") == [tmp_path / "a.jpg"] and folder_inputs(None) == []
+
+
+def test_folder_holds_itself_and_what_lies_below_through_links_and_dots(tmp_path):
+    (tmp_path / "data" / "sub").mkdir(parents=True)
+    (tmp_path / "link").symlink_to(tmp_path / "data")
+    assert folder_holds(tmp_path / "data", tmp_path / "data" / "sub" / "not_yet.csv")
+    assert folder_holds(tmp_path / "data", tmp_path / "link" / "sub")  # a symlink into the folder
+    assert folder_holds(tmp_path / "data" / "sub" / "..", tmp_path / "data")  # the same folder, spelled with ..
+    assert not folder_holds(tmp_path / "data" / "sub", tmp_path / "data")  # the parent is not inside
+    assert not folder_holds(tmp_path / "data", tmp_path / "database")  # a shared name prefix is not nesting
