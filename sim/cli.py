@@ -59,7 +59,8 @@ def add_fly_parser(subparsers) -> None:
                         help="pace live links this many times faster than real time (default 1)")
     parser.add_argument("--noise", choices=sorted(NOISE), help="imperfections (default: realistic for one --mission; "
                                                                   "area, realistic + a GPS fix offset per flight, "
-                                                                  "for several)")
+                                                                  "for several; rtk: area on an RTK fixed solution, "
+                                                                  "stated in the photos' XMP)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now); with several "
                                                            "--mission, of the first flight, the next ones taking off "

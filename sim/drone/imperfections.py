@@ -13,6 +13,13 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import lfilter
 
 
+#: The GPS vertical error is this many times the horizontal one (typical VDOP/HDOP of consumer receivers; an RTK
+#: photo's ``RtkStdHgt`` against its ``RtkStdLon/Lat`` too).
+GPS_VERTICAL_FACTOR = 2.0
+#: An RTK fixed solution's 1-sigma per horizontal axis (m), as a DJI RTK photo's ``RtkStdLon/Lat`` state it.
+RTK_STD_M = 0.012
+
+
 @dataclass(frozen=True)
 class Imperfections:
     """Sizes of the imperfections; units in the names. ``none()`` is a perfect flight, ``realistic()`` a calm day.
@@ -27,6 +34,9 @@ class Imperfections:
     principal-point offset) the photos are taken through (0 an ideal pinhole); auto-exposure compensates
     ``exposure_metering`` of each view's metered brightness, lags by ``exposure_lag_s`` and adds log-gain noise
     and a per-channel white-balance jitter (:mod:`sim.drone.exposure`).
+    RTK: ``rtk_std_m`` > 0 flies with an RTK fixed solution, and each photo's XMP says so (``RtkFlag`` 50,
+    ``RtkStdLon/Lat`` this sigma, ``RtkStdHgt`` the vertical one); the errors themselves are the GPS and barometer
+    fields above, which ``rtk()`` sets to match.
     """
 
     gps_noise_std_m: float = 0.0
@@ -55,6 +65,7 @@ class Imperfections:
     exposure_lag_s: float = 0.0
     exposure_noise_std: float = 0.0
     white_balance_std: float = 0.0
+    rtk_std_m: float = 0.0
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
@@ -107,6 +118,15 @@ class Imperfections:
         """``realistic()`` plus a constant GPS offset per flight (1 m per horizontal axis, 2 m vertical): the
         flights of an area plan, each flown on a fresh battery with a freshly acquired fix."""
         return replace(cls.realistic(), gps_fix_bias_std_m=1.0)
+
+    @classmethod
+    def rtk(cls) -> "Imperfections":
+        """``area()`` flown on an RTK fixed solution (Phantom 4 RTK / Mavic 3 Enterprise class): positions to
+        1.2 cm per horizontal axis (white: no drift, no offset per flight), the height from the fix (2.4 cm, no
+        barometric drift) and the photos' XMP stating so -- p4m_rtk's photos state 1.1-1.4 cm horizontal and 2.1 cm
+        vertical. Attitude, gimbal, wind, camera clock, camera and link stay as ``realistic()``."""
+        return replace(cls.area(), gps_noise_std_m=RTK_STD_M, gps_bias_std_m=0.0, gps_fix_bias_std_m=0.0,
+                       baro_bias_std_m=0.0, baro_noise_std_m=GPS_VERTICAL_FACTOR * RTK_STD_M, rtk_std_m=RTK_STD_M)
 
     def to_dict(self) -> dict:
         """JSON-ready parameters (written beside the ground truth)."""

@@ -12,7 +12,8 @@ includes the camera clock's offset; the GPS IFD with the measured latitude/longi
 level = measured home height + barometric height - the stated geoid undulation), and the XMP ``drone-dji:``
 packet of :func:`capture.geotag_io.dji_xmp_packet` (``AbsoluteAltitude`` the same height above sea level,
 ``RelativeAltitude`` the barometric height above take-off) with the camera's calibration as DJI writes it
-(:func:`capture.geotag_io.dji_calibration_attributes`, at the photo's size).
+(:func:`capture.geotag_io.dji_calibration_attributes`, at the photo's size) and, flown on RTK, the fix's
+``RtkFlag``/``RtkStdLon/Lat/Hgt`` (:func:`rtk_xmp`).
 """
 
 from __future__ import annotations
@@ -30,11 +31,13 @@ from tqdm import tqdm
 from flightplan.atomic import atomic_path
 from capture.geotag import Geotag
 from capture.geotag_io import dji_calibration_attributes, dji_xmp_packet
+from capture.logs.photos import RTK_FIXED
 from flightplan.aircraft import MINI_SE_CAMERA, CameraProfile
 from flightplan.geodesy import LocalFrame
 from sim.camera import PinholeCamera, Rig
 from sim.drone.exif import dji_exif
 from sim.drone.exposure import auto_exposure_gains, metered_luminance
+from sim.drone.imperfections import GPS_VERTICAL_FACTOR
 from sim.raycast import default_workers
 from sim.render import Lighting, Sun, render
 from sim.scene import Scene
@@ -108,14 +111,25 @@ def photo_geotag(photos, index: int, home_height_msl_m: float, name: str) -> Geo
                   enu_m=np.full(3, np.nan), R_world_cam=None)
 
 
+def rtk_xmp(rtk_std_m: float) -> dict[str, str]:
+    """An RTK fixed solution of ``rtk_std_m`` (1 sigma per horizontal axis, m) as DJI's XMP attributes (``RtkFlag``
+    50, ``RtkStdLon/Lat/Hgt`` in metres, the height's :data:`GPS_VERTICAL_FACTOR` times larger); ``{}`` for 0 (no
+    RTK: a consumer drone writes none of them)."""
+    if rtk_std_m == 0:
+        return {}
+    return {"RtkFlag": str(RTK_FIXED), "RtkStdLon": f"{rtk_std_m:.5f}", "RtkStdLat": f"{rtk_std_m:.5f}",
+            "RtkStdHgt": f"{GPS_VERTICAL_FACTOR * rtk_std_m:.5f}"}
+
+
 def write_dji_jpeg(path, rgb: np.ndarray, tag: Geotag, camera_time: dt.datetime, camera: PinholeCamera,
-                   profile: CameraProfile = MINI_SE_CAMERA) -> None:
+                   profile: CameraProfile = MINI_SE_CAMERA, rtk_std_m: float = 0.0) -> None:
     """Write ``rgb`` (H,W,3 uint8) taken by ``camera`` as a JPEG with DJI EXIF and XMP (atomically); heights
-    as in ``tag`` (``absolute_height_m`` above sea level)."""
+    as in ``tag`` (``absolute_height_m`` above sea level); ``rtk_std_m`` > 0 marks the position an RTK fix
+    (:func:`rtk_xmp`)."""
     exif = dji_exif(tag, camera_time, profile, (camera.width, camera.height))
     with atomic_path(path) as tmp:
         Image.fromarray(rgb).save(tmp, format="JPEG", quality=JPEG_QUALITY, exif=exif,
-                                  xmp=dji_xmp_packet(tag, camera_xmp(camera)))
+                                  xmp=dji_xmp_packet(tag, camera_xmp(camera) | rtk_xmp(rtk_std_m)))
 
 
 @dataclass
@@ -163,7 +177,8 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
             rendered = time.perf_counter()
             camera_time = start_utc.replace(tzinfo=None) + dt.timedelta(seconds=float(photos.camera_time_s[index]))
             tag = photo_geotag(photos, index, home_msl, names[index])
-            write_dji_jpeg(out_dir / names[index], rgb, tag, camera_time, camera)
+            write_dji_jpeg(out_dir / names[index], rgb, tag, camera_time, camera,
+                           rtk_std_m=flight.imperfections.rtk_std_m)
             result.render_s += rendered - started
             result.write_s += time.perf_counter() - rendered
             result.photos += 1

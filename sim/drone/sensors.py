@@ -12,10 +12,8 @@ import numpy as np
 
 from capture.attitude import wrap_deg
 from sim.drone.flight import Flight, FlightState
-from sim.drone.imperfections import Imperfections, gauss_markov
+from sim.drone.imperfections import GPS_VERTICAL_FACTOR, Imperfections, gauss_markov
 
-#: The GPS vertical error is this many times the horizontal one (typical VDOP/HDOP of consumer receivers).
-GPS_VERTICAL_FACTOR = 2.0
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,8 @@ from sim.render import render_memory_bytes
 from sim.scene import Scene
 
 LINKS = ("file", "loop", "tcp")
-NOISE = {"realistic": Imperfections.realistic, "area": Imperfections.area, "none": Imperfections.none}
+NOISE = {"realistic": Imperfections.realistic, "area": Imperfections.area, "rtk": Imperfections.rtk,
+         "none": Imperfections.none}
 CAPTURE_NAME = "flight.duml"
 #: JPEG stores a photo's width and height in 16 bits.
 MAX_PHOTO_SIDE_PX = 65535

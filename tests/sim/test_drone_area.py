@@ -101,3 +101,28 @@ def test_cli_takes_off_from_home_and_refuses_one_off_the_scene(mission_csv, tmp_
     error = capsys.readouterr().err.strip().splitlines()
     assert len(error) == 1 and "--home 40.0 44.0" in error[0] and "no ground" in error[0]
     assert not (tmp_path / "off").exists()
+
+
+def test_an_rtk_flight_measures_centimetres_with_no_offset_and_its_photos_say_so(mission_csv, tmp_path):
+    """``--noise rtk``: each photo's measured position is the truth + 1.2 cm white noise per horizontal axis and
+    2.4 cm in height (no drift, no fix offset), and its XMP marks an RTK fixed solution that the SfM priors take
+    at the receiver's word (floored at 2 cm); a consumer flight's photo keeps the consumer sigma."""
+    from recon.priors import DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, receiver_sigma
+    from sim.drone.photos import photo_camera, photo_geotag, write_dji_jpeg
+
+    mission = flown(mission_csv, Imperfections.rtk(), seed=(5, 1))
+    photos, frame = mission.photos, mission.flight.frame
+    assert not mission.sensors.gps_fix_bias_enu_m.any()
+    measured = frame.enu_points(photos.measured_latitude_deg, photos.measured_longitude_deg,
+                                np.full(len(photos.t_s), frame.h0_m))
+    horizontal = (measured[:, :2] - photos.position_enu_m[:, :2]).ravel()
+    height = photos.measured_height_above_takeoff_m - photos.position_enu_m[:, 2]
+    assert len(horizontal) > 50 and abs(horizontal.mean()) < 0.005 and 0.008 < horizontal.std() < 0.017
+    assert 0.016 < height.std() < 0.034 and np.abs(height).max() < 0.15
+
+    rgb = np.zeros((30, 40, 3), np.uint8)
+    for name, rtk_std_m in (("DJI_0001.JPG", mission.flight.imperfections.rtk_std_m), ("DJI_0002.JPG", 0.0)):
+        write_dji_jpeg(tmp_path / name, rgb, photo_geotag(photos, 0, HOME_H, name),
+                       dt.datetime(2024, 5, 1, 10), photo_camera(40, 30), rtk_std_m=rtk_std_m)
+    np.testing.assert_allclose(receiver_sigma(tmp_path / "DJI_0001.JPG"), [RTK_SIGMA_FLOOR_M, RTK_SIGMA_FLOOR_M, 0.024])
+    np.testing.assert_allclose(receiver_sigma(tmp_path / "DJI_0002.JPG"), DEFAULT_SIGMA_M)
