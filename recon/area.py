@@ -22,6 +22,7 @@ piece's loaded coordinates to its aligned ones.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -34,6 +35,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.cli_support import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.merge import ControlPairs
+from recon.sfm import RTK_GRADE_SIGMA_M
 from sim.scene import Surface, read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
@@ -104,6 +106,26 @@ class Prior:
     def sigmas(self) -> np.ndarray:
         """The six sigmas in the order of a correction's parameters (rotation vector, shift)."""
         return np.array([self.rotation_rad] * 3 + [self.horizontal_m] * 2 + [self.vertical_m])
+
+    @classmethod
+    def of_piece(cls, meta: dict | None) -> "Prior":
+        """How sure one piece's own geo-registration is, from its scene.json (``provenance.sfm``, recon's SfM report).
+
+        A piece whose photos were placed by RTK fixes (their median prior sigma at most
+        :data:`recon.sfm.RTK_GRADE_SIGMA_M`) is held as its receivers and its SfM fit say: each shift to the larger of
+        the receivers' sigma and the fit's residual RMS on that axis, its rotation to the tilt those positions fix
+        (``prior_tilt_sigma_deg``) widened by the fit's vertical residual over the receivers' vertical sigma. Anything
+        else -- a consumer GPS, whose per-battery fix offset no residual shows, or a scene without these fields --
+        gets the consumer defaults. (Over a 5-flight RTK area the defaults let the overlaps' ICP, biased by the
+        pieces' edges, move pieces placed to 1-6 cm by 0.2-1.1 m; tools/area_loop.py, docs/closed-loop.md.)"""
+        sfm = ((meta or {}).get("provenance") or {}).get("sfm") or {}
+        sigma, residual, tilt_deg = (sfm.get(key) for key in ("prior_sigma_enu_m", "residual_rms_enu_m",
+                                                                "prior_tilt_sigma_deg"))
+        if sigma is None or residual is None or tilt_deg is None or np.median(sigma) > RTK_GRADE_SIGMA_M:
+            return cls()
+        sure = np.maximum(sigma, residual)
+        return cls(horizontal_m=float(max(sure[:2])), vertical_m=float(sure[2]),
+                   rotation_rad=float(np.radians(tilt_deg) * sure[2] / sigma[2]))
 
 
 @dataclass(frozen=True)
@@ -304,23 +326,24 @@ def _apply(transform: np.ndarray, points: np.ndarray) -> np.ndarray:
 
 
 def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int = 5,
-           prior: Prior | None = None, ties: list[PairTie] = ()) -> list[np.ndarray]:
+           prior: Prior | Sequence[Prior] | None = None, ties: list[PairTie] = ()) -> list[np.ndarray]:
     """One rigid correction (4x4) per piece, piece ``fixed`` the identity, that best satisfies every tie and link at
     once: Gauss-Newton over small steps about each piece's own centre, each step applied exactly.
 
     ``ties`` (ICP results, :class:`PairTie`): ``X_a^-1 X_b`` should be ``transform_ab``, weighted by the tie's
     information matrix. ``links`` (control points): each point of B should land on its point of A, in all three
-    axes, counted in units of ``prior.point_m`` (1 m without a prior). ``prior`` (given): every free piece also stays
-    near its own geo-registration within the prior's sigmas, so directions no overlap pins keep the piece's own GPS
-    placement and the area lies where the flights' fixes average out. ``fixed`` None takes the default
-    :class:`Prior` when none is given: something must say where the area lies."""
+    axes, counted in units of ``prior.point_m`` (1 m without a prior). ``prior`` (given, one for all pieces or one
+    per piece): every free piece also stays near its own geo-registration within its prior's sigmas, so directions no
+    overlap pins keep the piece's own GPS placement and the area lies where the flights' fixes average out. ``fixed``
+    None takes the default :class:`Prior` when none is given: something must say where the area lies."""
     if fixed is not None and not 0 <= fixed < count:
         raise AreaError(f"the piece held fixed must be one of 0..{count - 1}, got {fixed}")
     if not links and not ties:
         return [np.eye(4) for _ in range(count)]
     if fixed is None and prior is None:
         prior = Prior()  # something must say where the area lies: the pieces' own geo-registrations
-    point_m = prior.point_m if prior else 1.0
+    priors = None if prior is None else [prior] * count if isinstance(prior, Prior) else list(prior)
+    point_m = priors[0].point_m if priors else 1.0
     centres = _piece_centres(count, links, ties)
     free = [i for i in range(count) if i != fixed]
     column = {piece: 6 * k for k, piece in enumerate(free)}
@@ -336,9 +359,9 @@ def adjust(count: int, links: list[Link], fixed: int | None = 0, iterations: int
             rows, residual = _link_rows(link, corrections, centres, column, 6 * len(free))
             blocks.append(rows / point_m)
             rhs.append(residual / point_m)
-        if prior is not None:
-            weights = 1.0 / prior.sigmas()
+        if priors is not None:
             for piece in free:
+                weights = 1.0 / priors[piece].sigmas()
                 rows = np.zeros((6, 6 * len(free)))
                 rows[:, column[piece]:column[piece] + 6] = np.diag(weights)
                 blocks.append(rows)
@@ -424,8 +447,23 @@ def icp_information(surface_a: SurfaceQuery, points_b: np.ndarray, transform: np
     signed = np.einsum("ij,ij->i", moved - closest, normals)
     keep = np.abs(signed) <= max(3.0 * np.median(np.abs(signed)), TRIM_FLOOR_M)
     system = np.column_stack([np.cross(moved[keep] - centre, normals[keep]), normals[keep]])
-    weight = min(1.0, ADJUST_POINTS / int(keep.sum())) / tie_sigma_m(signed[keep], point_m) ** 2
-    return system.T @ system * weight, centre
+    sigma_m = tie_sigma_m(signed[keep], point_m)
+    lever_m = float(np.sqrt(np.mean(np.sum((moved[keep] - centre)[:, :2] ** 2, axis=1))))
+    points = system.T @ system * min(1.0, ADJUST_POINTS / int(keep.sum())) / sigma_m ** 2
+    return with_systematic_floor(points, sigma_m, lever_m), centre
+
+
+def with_systematic_floor(information: np.ndarray, sigma_m: float, lever_m: float) -> np.ndarray:
+    """``information`` (6x6, rotation vector then shift) of a tie whose two surfaces disagree by ``sigma_m``: its
+    covariance widened by ``sigma_m``² per shift axis and (``sigma_m`` / ``lever_m``)² per rotation axis, ``lever_m``
+    the overlap's horizontal radius. A non-rigid disagreement that large (two orbit edges reconstructed differently)
+    moves the best rigid fit by about as much, however many points the overlap has. Computed in information form
+    (``I - I (S^-1 + I)^-1 I``), so a direction the overlap does not pin stays unpinned.
+
+    Without it a tie counted as 200 points of its residual spread: a 1.7 m disagreement still claimed 12 cm, and
+    RTK pieces placed to 1-6 cm were moved by up to 0.4 m (5-flight area, tools/area_loop.py --noise rtk)."""
+    floor = 1.0 / np.r_[[(sigma_m / max(lever_m, sigma_m)) ** 2] * 3, [sigma_m ** 2] * 3]
+    return information - information @ np.linalg.solve(np.diag(floor) + information, information)
 
 
 def tie_sigma_m(residuals_m: np.ndarray, point_m: float) -> float:
@@ -443,9 +481,10 @@ def _skew_rows(vectors: np.ndarray) -> np.ndarray:
 
 
 def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, ...] = (),
-               optional=frozenset(), prior: Prior | None = None) -> AreaAlignment:
+               optional=frozenset(), prior: Prior | Sequence[Prior] | None = None) -> AreaAlignment:
     """Find the overlaps, align each neighbouring pair by ICP, adjust all pieces together (``fixed`` stays put, or
-    with None the corrections average to none, see :func:`adjust`; the
+    with None each piece stays near its own geo-registration as sure as ``prior`` says, by default as its scene.json
+    says, :meth:`Prior.of_piece`; see :func:`adjust`; the
     ``control`` links, see :func:`control_link`, are extra constraints, each point weighing as one of the 200 points
     of a pair's overlap) and report the median point-to-surface offset of B's overlap points on A before, after the
     pair's own ICP and after the joint adjustment (metres). Raise :class:`AreaError` for pieces not connected
@@ -471,7 +510,9 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
     if unpinned and set(cut_off) - set(optional):
         raise FlatOverlapError(f"{unpinned[0][1]}; add control points between them")
     aligned = [(o, t, seconds) for o, t, seconds in aligned if o.a not in cut_off and o.b not in cut_off]
-    point_m = prior.point_m if prior else TIE_POINT_M
+    point_m = TIE_POINT_M if prior is None else prior.point_m if isinstance(prior, Prior) else prior[0].point_m
+    if prior is None and fixed is None:
+        prior = [Prior.of_piece(piece.meta) for piece in pieces]
     ties = [PairTie(o.a, o.b, t, *icp_information(surfaces[o.a], o.points_b, t, point_m)) for o, t, _ in aligned]
     corrections = adjust(len(pieces), list(control), fixed=fixed, prior=prior, ties=ties)
     reports = []

@@ -376,8 +376,9 @@ class Recon:
             "geotags": str(self.geotags_csv) if self.geotags_csv else "exif",
             "height_datum": HEIGHT_DATUM[self.priors.source],
             "options": asdict(self.options),
-            "sfm": {k: sfm_report[k] for k in ("registered", "unregistered", "mean_reprojection_error_px",
-                                                "residual_rms_enu_m", "tilt_correction_deg", "focal_final_px")},
+            "sfm": {k: sfm_report.get(k) for k in ("registered", "unregistered", "mean_reprojection_error_px",
+                                                    "residual_rms_enu_m", "prior_sigma_enu_m", "prior_tilt_sigma_deg",
+                                                    "tilt_correction_deg", "focal_final_px")},
         }
         textured = self.work / "terrain.glb"
         textured_now = self.options.texture != "none" and textured.exists()

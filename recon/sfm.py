@@ -82,6 +82,8 @@ class SfmReport:
     residual_rms_enu_m: list[float]
     residual_rms_enu_m_offset_removed: list[float]  # against the tags moved back by their along-track offset
     residual_max_m: float
+    prior_sigma_enu_m: list[float]  # the registered photos' median prior sigma (their receivers' word), m
+    prior_tilt_sigma_deg: float | None  # how well those priors alone fix the tilt (None: not at all), deg
     focal_seed_px: float
     focal_seed_source: str
     focal_final_px: float
@@ -742,6 +744,7 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, 
     poses = camera_poses(rec)
     centres = np.array([poses[n][:3, 3] for n in registered])
     residual = centres - priors.subset(registered).positions_enu
+    tilt_sigma = position_tilt_sigma_deg(priors.subset(registered))
     report = SfmReport(
         num_photos=len(photo_names),
         mapped_every_kth=every_kth,
@@ -752,6 +755,8 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, 
         residual_rms_enu_m=rms_enu(residual),
         residual_rms_enu_m_offset_removed=rms_enu(centres - registered_to.positions_enu),
         residual_max_m=float(np.linalg.norm(residual, axis=1).max()),
+        prior_sigma_enu_m=np.median(priors.subset(registered).sigma_m, axis=0).round(4).tolist(),
+        prior_tilt_sigma_deg=tilt_sigma if np.isfinite(tilt_sigma) else None,
         focal_seed_px=seed.focal_px,
         focal_seed_source=seed.source,
         focal_final_px=focal_final,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from recon.area import Prior
 from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
@@ -79,12 +80,14 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     assert len(report["registered"]) == 18 and report["unregistered"] == []
     assert report["mean_reprojection_error_px"] < 1.5
     assert max(report["residual_rms_enu_m"]) < 1.5  # consumer GPS
+    assert report["prior_sigma_enu_m"] == [3.0, 3.0, 5.0] and report["prior_tilt_sigma_deg"] > 1.0
     assert report["focal_refined"] is False and report["view_spread_deg"] < 10
     assert abs(report["focal_final_px"] / report["focal_seed_px"] - 1) < 0.02
     meta = json.loads((scene / "scene.json").read_text())
     assert meta["format"] == "aerostereo-scene/1" and meta["frame"] == "enu"
     assert meta["origin"]["lat0_deg"] == pytest.approx(46.8428, abs=1e-3)
     assert meta["provenance"]["height_datum"].startswith("the receiver's: the first photo's GPS altitude")
+    assert Prior.of_piece(meta) == Prior()  # an area join holds a consumer-GPS piece to the consumer defaults
     vertices, faces, _ = read_scene_mesh_enu(scene, meta)
     assert len(faces) > 1000
     assert -41.0 < np.median(vertices[:, 2]) < -36.0  # the ground, relative to the first photo
