@@ -108,7 +108,7 @@ class Prior:
         return np.array([self.rotation_rad] * 3 + [self.horizontal_m] * 2 + [self.vertical_m])
 
     @classmethod
-    def of_piece(cls, meta: dict | None) -> "Prior":
+    def of_piece(cls, meta: dict | None, name: str = "scene.json") -> "Prior":
         """How sure one piece's own geo-registration is, from its scene.json (``provenance.sfm``, recon's SfM report).
 
         A piece whose photos were placed by RTK fixes (their median prior sigma at most
@@ -117,11 +117,23 @@ class Prior:
         (``prior_tilt_sigma_deg``) widened by the fit's vertical residual over the receivers' vertical sigma. Anything
         else -- a consumer GPS, whose per-battery fix offset no residual shows, or a scene without these fields --
         gets the consumer defaults. (Over a 5-flight RTK area the defaults let the overlaps' ICP, biased by the
-        pieces' edges, move pieces placed to 1-6 cm by 0.2-1.1 m; tools/area_loop.py, docs/closed-loop.md.)"""
+        pieces' edges, move pieces placed to 1-7 cm by up to 1.25 m; tools/area_loop.py, docs/closed-loop.md.)
+        :class:`AreaError` naming ``name`` (the piece) where the fields are there but not 3 + 3 + 1 positive
+        numbers."""
         sfm = ((meta or {}).get("provenance") or {}).get("sfm") or {}
-        sigma, residual, tilt_deg = (sfm.get(key) for key in ("prior_sigma_enu_m", "residual_rms_enu_m",
-                                                                "prior_tilt_sigma_deg"))
-        if sigma is None or residual is None or tilt_deg is None or np.median(sigma) > RTK_GRADE_SIGMA_M:
+        keys = ("prior_sigma_enu_m", "residual_rms_enu_m", "prior_tilt_sigma_deg")
+        if any(sfm.get(key) is None for key in keys):
+            return cls()
+        try:
+            sigma, residual = (np.array(sfm[key], dtype=np.float64).reshape(3) for key in keys[:2])
+            tilt_deg = float(sfm[keys[2]])
+            valid = (np.all(np.isfinite(sigma) & (sigma > 0)) and np.all(np.isfinite(residual))
+                     and np.isfinite(tilt_deg) and tilt_deg > 0)
+        except (TypeError, ValueError):
+            valid = False
+        if not valid:
+            raise AreaError(f"{name}: provenance.sfm {', '.join(keys)}: expected 3, 3 and 1 positive numbers")
+        if np.median(sigma) > RTK_GRADE_SIGMA_M:
             return cls()
         sure = np.maximum(sigma, residual)
         return cls(horizontal_m=float(max(sure[:2])), vertical_m=float(sure[2]),
@@ -512,7 +524,7 @@ def align_area(pieces: list[Piece], fixed: int | None = 0, control: tuple[Link, 
     aligned = [(o, t, seconds) for o, t, seconds in aligned if o.a not in cut_off and o.b not in cut_off]
     point_m = TIE_POINT_M if prior is None else prior.point_m if isinstance(prior, Prior) else prior[0].point_m
     if prior is None and fixed is None:
-        prior = [Prior.of_piece(piece.meta) for piece in pieces]
+        prior = [Prior.of_piece(piece.meta, piece.name) for piece in pieces]
     ties = [PairTie(o.a, o.b, t, *icp_information(surfaces[o.a], o.points_b, t, point_m)) for o, t, _ in aligned]
     corrections = adjust(len(pieces), list(control), fixed=fixed, prior=prior, ties=ties)
     reports = []

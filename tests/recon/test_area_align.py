@@ -288,6 +288,10 @@ def test_each_piece_is_held_as_its_receivers_placed_it():
     assert rtk.rotation_rad == pytest.approx(np.radians(0.006) * 0.025 / 0.024)
     assert Prior.of_piece({"provenance": {"sfm": GPS_SFM}}) == Prior()
     assert Prior.of_piece({"provenance": {"test": "area"}}) == Prior() == Prior.of_piece(None)
+    for broken in ({"prior_sigma_enu_m": [0.02, 0.02]}, {"prior_sigma_enu_m": [0.0, 0.02, 0.02]},
+                   {"prior_tilt_sigma_deg": "steep"}, {"residual_rms_enu_m": [float("nan")] * 3}):
+        with pytest.raises(AreaError, match=r"^pieces/f1: provenance.sfm prior_sigma_enu_m.*positive numbers"):
+            Prior.of_piece({"provenance": {"sfm": RTK_SFM | broken}}, "pieces/f1")
 
 
 @pytest.mark.parametrize("sfm, moved_mm, turned_mdeg", [(RTK_SFM, (0, 60), (0, 5)), (GPS_SFM, (100, 500), (300, 1000))])
