@@ -4,7 +4,7 @@ The parser is assembled from small ``add_<command>_parser(subparsers)`` function
 :data:`SUBCOMMANDS` (the one place where subcommands are named); ``geotag`` and ``track`` come from
 :mod:`capture.cli_logs`. Each sets ``handler(args) -> int``. Results go to stdout, progress and notes to stderr;
 bad input (and an output that would overwrite an input) is one line ``aerostereo-ingest COMMAND: error: ...`` on
-stderr with exit code 2, Ctrl-C exit code 130 (:func:`flightplan.cli_support.run_cli`).
+stderr with exit code 2, Ctrl-C exit code 130 (:func:`cliutil.program.run_cli`).
 """
 
 from __future__ import annotations
@@ -24,9 +24,9 @@ from capture.raw import RawCaptureWriter, index_path
 from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
-from flightplan.argtypes import positive_number
-from flightplan.cli_support import (BadInput, Parser, add_version, path_problem, refuse_clobbering, refuse_folders,
-                                    run_cli)
+from cliutil.argtypes import positive_number
+from cliutil.program import BadInput, Parser, add_version, run_cli
+from cliutil.paths import path_problem, refuse_clobbering, refuse_folders
 
 PROGRAM = "aerostereo-ingest"
 

@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-from flightplan.cli_support import BadInput
+from cliutil.program import BadInput
 
 from .track import format_utc
 

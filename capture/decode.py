@@ -21,7 +21,7 @@ import numpy as np
 from capture.duml import Deframer, Packet
 from capture.messages import MalformedMessage, MessageRegistry, UndecodedMessage
 from capture.transports import Chunk
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 
 _LINES_PER_WRITE = 4096  # CSV lines joined into one write
 _HISTORY_BYTES = 4096  # > the 1023 bytes a deframer can hold back, so older chunks can be forgotten

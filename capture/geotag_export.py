@@ -20,7 +20,7 @@ import math
 from pathlib import Path
 from xml.etree import ElementTree
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 
 from .geotag import HEIGHT_UNKNOWN
 from .geotag_io import PosePrior, load_geotags, read_sidecar

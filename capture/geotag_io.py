@@ -19,9 +19,9 @@ from PIL import ExifTags, Image, JpegImagePlugin
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from flightplan.jsonfile import loads_json
+from cliutil.jsonfile import loads_json
 
-from flightplan.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import atomic_path, write_text_atomic
 from .geotag import HEIGHT_UNKNOWN, PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import csv_errors, csv_rows, format_number, format_utc, parse_utc

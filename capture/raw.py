@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 
 IDX_HEADER = "# aerostereo-duml-idx/1 offset,utc_unix_s,monotonic_s,length\n"
 

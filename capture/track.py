@@ -23,7 +23,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from flightplan.geodesy import validate_latlon
 
 #: The kinds of log :mod:`capture.logs` reads into a Track (its readers' names, ``--kind`` of the command line).

@@ -18,7 +18,8 @@ from flightplan import checks
 from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import AreaRequest, orbit_at, plan_area
 from flightplan.area_outputs import OVERVIEW_NAMES, summary_text, write_area_plan
-from flightplan.cli_support import BadInput, refuse_clobbering
+from cliutil.program import BadInput
+from cliutil.paths import refuse_clobbering
 from flightplan.field import read_field
 from flightplan.geodesy import validate_latlon
 from flightplan.orbit import DEFAULT_HEIGHT_M, DEFAULT_RADIUS_M

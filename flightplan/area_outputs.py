@@ -17,7 +17,7 @@ from matplotlib.figure import Figure
 
 from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import AreaPlan
-from flightplan.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import atomic_path, write_text_atomic
 from flightplan.litchi import write_mission_csv
 from flightplan.preview import KML_NAMESPACE, coordinates_text
 

@@ -16,9 +16,10 @@ from pathlib import Path
 from flightplan import checks, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
 from flightplan.area import DEFAULT_OVERLAP, DEFAULT_TRANSIT_SPEED_M_S
-from flightplan.argtypes import finite_number
-from flightplan.atomic import write_text_atomic
-from flightplan.cli_support import BadInput, Parser, add_version, refuse_clobbering, refuse_folders, run_cli
+from cliutil.argtypes import finite_number
+from cliutil.atomic import write_text_atomic
+from cliutil.program import BadInput, Parser, add_version, run_cli
+from cliutil.paths import refuse_clobbering, refuse_folders
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.litchi import write_mission_csv
 from flightplan.orbit import (

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 from defusedxml import ElementTree as SafeET
 
-from flightplan.cli_support import BadInput
+from cliutil.program import BadInput
 from flightplan.geodesy import WGS84, LocalFrame, validate_latlon
-from flightplan.jsonfile import loads_json
+from cliutil.jsonfile import loads_json
 
 #: Most vertices a field may have (the self-intersection test is quadratic in them).
 MAX_VERTICES = 5000

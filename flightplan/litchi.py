@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 
 FEET_M = 0.3048
 MAX_ACTIONS = 15

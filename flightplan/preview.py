@@ -18,7 +18,7 @@ import numpy as np
 from matplotlib.figure import Figure
 
 from flightplan import flown_path, litchi
-from flightplan.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import atomic_path, write_text_atomic
 from flightplan.geodesy import LocalFrame
 
 KML_NAMESPACE = "http://www.opengis.net/kml/2.2"

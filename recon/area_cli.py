@@ -18,7 +18,8 @@ from pathlib import Path
 
 import pycolmap
 
-from flightplan.cli_support import BadInput, Parser, add_version, folder_inputs, refuse_clobbering, stdout_to_stderr
+from cliutil.program import BadInput, Parser, add_version, stdout_to_stderr
+from cliutil.paths import folder_inputs, refuse_clobbering
 from recon.area_pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
                                   reconstruct_pieces)
 from recon.merge import read_pairs

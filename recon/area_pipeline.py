@@ -31,8 +31,8 @@ import numpy as np
 import trimesh
 
 from capture.geotag_io import sidecar_path
-from flightplan.atomic import atomic_path, write_text_atomic
-from flightplan.cli_support import BadInput
+from cliutil.atomic import atomic_path, write_text_atomic
+from cliutil.program import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.area import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
 from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,

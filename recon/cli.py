@@ -27,9 +27,9 @@ import trimesh
 
 from capture.geotag_io import sidecar_path
 from recon.dense import DenseError, DenseOptions
-from flightplan.atomic import atomic_path
-from flightplan.cli_support import (Parser, add_version, folder_inputs, refuse_clobbering, refuse_folders, run_cli,
-                                    stdout_to_stderr)
+from cliutil.atomic import atomic_path
+from cliutil.program import Parser, add_version, run_cli, stdout_to_stderr
+from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from recon.merge import estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import MESHES, TEXTURES, ReconOptions, Recon
 from recon.sfm import SfmError, SfmOptions

@@ -10,7 +10,7 @@ reference image is flat. Depth + normal maps are written in COLMAP's format into
 
 COLMAP's writers report no error when the disk is full: they leave files cut short (0-byte maps). So every
 file they write here is read back or measured before it counts (under its final name, atomically), and a
-short one is an ``OSError`` naming it (``ENOSPC`` on a full disk, see :func:`flightplan.atomic.write_failed`).
+short one is an ``OSError`` naming it (``ENOSPC`` on a full disk, see :func:`cliutil.atomic.write_failed`).
 
 Units: metres (model units after geo-registration); depth = z along the optical axis (OpenCV camera).
 """
@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import pycolmap
 
-from flightplan.atomic import atomic_path, remove_stale_temps, write_failed, write_text_atomic
+from cliutil.atomic import atomic_path, remove_stale_temps, write_failed, write_text_atomic
 from recon.mesh import read_binary_ply_vertices
 from recon.priors import decode_problem
 
@@ -429,7 +429,7 @@ def fuse(workspace: Path, output_ply: Path, options: DenseOptions) -> int:
 
     :class:`DenseError` (and no PLY written) when no point is consistent in enough views; ``OSError`` naming the
     PLY when it does not hold every fused point (a full disk). The ``.vis`` file pycolmap writes beside the
-    temporary PLY is deleted, and so is one a killed run left (:func:`flightplan.atomic.remove_stale_temps`)."""
+    temporary PLY is deleted, and so is one a killed run left (:func:`cliutil.atomic.remove_stale_temps`)."""
     fusion = pycolmap.StereoFusionOptions()
     fusion.min_num_pixels = options.fusion_min_pixels
     fusion.max_normal_error = options.fusion_max_normal_error_deg

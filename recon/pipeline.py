@@ -42,9 +42,9 @@ from recon import dense, mesh as meshing, texture as texturing
 from recon.atlas import AtlasOptions, texture_atlas
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
-from flightplan.atomic import atomic_path, write_text_atomic
-from flightplan.cli_support import require_disk
-from flightplan.jsonfile import read_json
+from cliutil.atomic import atomic_path, write_text_atomic
+from cliutil.resources import require_disk
+from cliutil.jsonfile import read_json
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
@@ -237,7 +237,7 @@ class Recon:
         return nullcontext(partial(self.progress, stage))
 
     def check_room_for_sfm(self):
-        """:class:`~flightplan.cli_support.BadInput` when the disk of the scene folder has less free space than
+        """:class:`~cliutil.program.BadInput` when the disk of the scene folder has less free space than
         SfM may need (:func:`recon.sfm.sfm_disk_bytes`): COLMAP would abort the process when its database cannot
         grow."""
         features = self.options.sfm.max_num_features

@@ -24,9 +24,9 @@ from capture.geotag_io import load_geotags, sidecar_path
 from capture.logs.photos import FactoryCalibration, PhotoInfo, parse_dji_xmp, read_camera_xmp, read_exif_gps
 from capture.track import LogFormatError
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
-from flightplan.cli_support import path_problem
+from cliutil.paths import path_problem
 from flightplan.geodesy import LocalFrame
-from flightplan.jsonfile import read_json
+from cliutil.jsonfile import read_json
 
 DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
 #: Least prior sigma (m) of an RTK fixed position, whatever the receiver claims: the photo's exposure is not

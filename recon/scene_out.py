@@ -18,7 +18,7 @@ import pycolmap
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from flightplan.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import atomic_path, write_text_atomic
 from recon.observed import viewed_area
 from recon.sfm import camera_from_colmap, camera_poses
 from sim.scene_cameras import SceneCamera, write_cameras

@@ -25,7 +25,7 @@ import numpy as np
 import pycolmap
 from scipy.spatial import cKDTree
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from recon.priors import CameraSeed, PosePriors, PriorsError
 from recon.similarity import Similarity, umeyama
 from recon.tag_offset import fit_tag_offset, travel_directions

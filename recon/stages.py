@@ -18,8 +18,8 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
-from flightplan.atomic import write_text_atomic
-from flightplan.jsonfile import read_json
+from cliutil.atomic import write_text_atomic
+from cliutil.jsonfile import read_json
 
 STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
 

@@ -16,9 +16,9 @@ import sys
 from pathlib import Path
 
 from capture.track import parse_utc
-from flightplan.argtypes import finite_number
-from flightplan.cli_support import (BadInput, add_version, folder_holds, folder_inputs, path_problem, refuse_clobbering,
-                                    run_cli)
+from cliutil.argtypes import finite_number
+from cliutil.program import BadInput, add_version, run_cli
+from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from sim import render_cli
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
                                run_session)

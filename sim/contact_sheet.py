@@ -13,7 +13,7 @@ from matplotlib import colormaps
 from matplotlib.figure import Figure
 
 from sim.dataset import DatasetError, KittiLayout, read_dataset_json
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 from sim.dataset.images import read_exr, read_png
 from sim.dataset.kitti import frame_file_name
 

@@ -8,9 +8,10 @@ import json
 import math
 from pathlib import Path
 
-from flightplan.argtypes import positive_number
-from flightplan.atomic import write_text_atomic
-from flightplan.cli_support import BadInput, folder_inputs, refuse_clobbering, refuse_folders
+from cliutil.argtypes import positive_number
+from cliutil.atomic import write_text_atomic
+from cliutil.program import BadInput
+from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from sim.evaluation.depth import MIN_DEPTH_M
 from sim.evaluation.score import EvaluateOptions, evaluate, report_table
 from sim.evaluation.trajectory import ALIGNMENTS, KITTI_LENGTHS_M

@@ -27,8 +27,9 @@ from pathlib import Path
 
 from PIL import Image
 
-from flightplan.cli_support import BadInput, require_memory
-from flightplan.jsonfile import loads_json
+from cliutil.program import BadInput
+from cliutil.resources import require_memory
+from cliutil.jsonfile import loads_json
 
 #: Mesh file types a scene may use.
 MESH_SUFFIXES = (".glb", ".ply", ".obj")

@@ -32,7 +32,7 @@ import cv2
 import numpy as np
 from skimage.metrics import structural_similarity
 
-from flightplan.cli_support import path_problem
+from cliutil.paths import path_problem
 from sim.dataset.images import read_exr
 from sim.dataset.replay import replay_frames
 from sim.evaluation.depth import eigen_errors

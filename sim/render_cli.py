@@ -13,8 +13,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from capture.geotag_io import sidecar_path
-from flightplan.cli_support import (EXIT_INTERRUPTED, BadInput, Parser, folder_inputs, refuse_clobbering,
-                                    refuse_folders)
+from cliutil.program import EXIT_INTERRUPTED, BadInput, Parser
+from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from sim.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
 from sim.dataset.export import check_layouts, export_dataset, refuse_overlap

@@ -45,8 +45,10 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from flightplan.atomic import write_text_atomic
-from flightplan.cli_support import BadInput, path_problem, require_disk, require_memory
+from cliutil.atomic import write_text_atomic
+from cliutil.program import BadInput
+from cliutil.paths import path_problem
+from cliutil.resources import require_disk, require_memory
 from sim.dataset import (
     AsyncFrameWriter,
     DatasetError,

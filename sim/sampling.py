@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 from capture.geotag_io import PosePrior, load_geotags, sidecar_path
 from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
-from flightplan.jsonfile import read_json
+from cliutil.jsonfile import read_json
 from sim.camera import pose_from_position
 from sim.frustum import ViewFrustum, bounding_area, deep_inside, inner_rectangle, placement_area, sees_inside
 from sim.scene_cameras import SceneCamera

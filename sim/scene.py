@@ -20,9 +20,9 @@ import trimesh
 from embreex import mesh_construction, rtcore, rtcore_scene
 from PIL import Image
 
-from flightplan.cli_support import BadInput
+from cliutil.program import BadInput
 from flightplan.geodesy import LocalFrame
-from flightplan.jsonfile import loads_json
+from cliutil.jsonfile import loads_json
 from sim.mesh_file import check_mesh_file
 from sim.scene_cameras import CamerasError, SceneCamera, read_cameras
 from sim.shade import MAX_TEXTURE_SIDE, linear_texture

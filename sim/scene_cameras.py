@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
-from flightplan.jsonfile import loads_json
+from cliutil.atomic import write_text_atomic
+from cliutil.jsonfile import loads_json
 from sim.camera import PinholeCamera, check_pose
 
 CAMERAS_FORMAT = "aerostereo-cameras/1"

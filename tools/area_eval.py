@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 import trimesh
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame
 from recon.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
 from recon.area_merge import distance_to_owner

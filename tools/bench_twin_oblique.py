@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 from scipy.spatial import ConvexHull  # noqa: E402
 
-from flightplan.atomic import write_text_atomic  # noqa: E402
+from cliutil.atomic import write_text_atomic
 from recon.cli import positive_int  # noqa: E402
 from recon.oblique import (render_view, sample_views, score_view, summarise, true_camera_area,  # noqa: E402
                            twin_frame)

@@ -50,7 +50,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from flightplan import litchi  # noqa: E402
-from flightplan.atomic import write_text_atomic  # noqa: E402
+from cliutil.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from sim.scene import SceneError, read_scene_json  # noqa: E402
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from capture.geotag_io import load_geotags
-from flightplan.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import atomic_path, write_text_atomic
 from flightplan.geodesy import LocalFrame
 from recon.accuracy import depth_coverage, pose_errors, scene_mesh_enu, surface_errors, transform_poses
 from recon.scene_cameras import registered_poses, shape_alignment, truth_poses

@@ -11,7 +11,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from ..geotag import HEIGHT_UNKNOWN, take_off_frame
 from ..messages import CameraState, GimbalParams, HomePoint, OsdGeneral, encode_message
 from ..raw import atomic_capture

@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import write_bytes_atomic, write_text_atomic
+from cliutil.atomic import write_bytes_atomic, write_text_atomic
 from sim.dataset.imu_file import AXES, csv_rows, read_imu_csv, timestamps_ns
 from sim.dataset.kitti import frame_file_name
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame

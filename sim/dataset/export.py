@@ -14,7 +14,7 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-from flightplan.cli_support import folder_holds
+from cliutil.paths import folder_holds
 from sim.dataset.euroc import EurocWriter
 from sim.dataset.flow import FloBackwardWriter, FloWriter, KittiFlowWriter
 from sim.dataset.kitti2015 import Kitti2015Writer

@@ -30,7 +30,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 from sim.camera import PinholeCamera
 from sim.dataset import images
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, PAIR_SUFFIX

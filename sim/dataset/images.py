@@ -25,7 +25,7 @@ import cv2
 import numpy as np
 import OpenEXR
 
-from flightplan.atomic import atomic_path, write_bytes_atomic, write_failed
+from cliutil.atomic import atomic_path, write_bytes_atomic, write_failed
 
 EXR_CHANNEL = "Y"
 KITTI_DISPARITY_SCALE = 256.0

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from sim.dataset.writer import DatasetError
 from sim.motion.imu import ImuSamples, R_world_body
 

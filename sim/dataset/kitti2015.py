@@ -19,7 +19,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from sim.dataset import images
 from sim.dataset.kitti import format_numbers, projection_matrices
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame

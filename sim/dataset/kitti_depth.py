@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from sim.dataset import images
 from sim.dataset.kitti2015 import cam_to_cam_text
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame

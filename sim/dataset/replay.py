@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 from sim.dataset.kitti import KittiLayout, frame_file_name
 
 LEFT_VIEW = 0

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import write_bytes_atomic
-from flightplan.jsonfile import loads_json
+from cliutil.atomic import write_bytes_atomic
+from cliutil.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.kitti import KittiLayout, frame_file_name, stereo_baseline_m
 from sim.dataset.writer import DatasetError, read_dataset_json

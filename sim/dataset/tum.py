@@ -12,7 +12,7 @@ from pathlib import Path
 
 from scipy.spatial.transform import Rotation
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from sim.dataset.source import LEFT, DatasetSource, SourceFrame
 
 HEADER = "# timestamp tx ty tz qx qy qz qw"

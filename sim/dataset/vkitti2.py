@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from sim.dataset import images
 from sim.dataset.kitti import format_numbers
 from sim.dataset.source import DatasetSource, SourceFrame

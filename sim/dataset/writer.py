@@ -37,10 +37,10 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from flightplan.jsonfile import loads_json
+from cliutil.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.replay import write_photo_names
-from flightplan.atomic import remove_stale_temps, write_text_atomic
+from cliutil.atomic import remove_stale_temps, write_text_atomic
 from sim.dataset.kitti import (
     KittiLayout,
     calib_text,

@@ -20,7 +20,7 @@ from PIL import ExifTags, Image, TiffImagePlugin
 from capture.geotag import Geotag
 from capture.geotag_io import set_exif_gps
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM, CameraProfile
-from flightplan.cli_support import package_version
+from cliutil.program import package_version
 
 MAKE, MODEL = "DJI", "FC7103"
 SOFTWARE = f"aerostereo {package_version()} virtual camera"

@@ -28,7 +28,7 @@ import numpy as np
 from PIL import Image
 from tqdm import tqdm
 
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 from capture.geotag import Geotag
 from capture.geotag_io import dji_calibration_attributes, dji_xmp_packet
 from capture.logs.photos import RTK_FIXED

@@ -27,7 +27,7 @@ from capture.messages import default_registry
 from capture.raw import atomic_capture
 from capture.recorder import record
 from capture.transports import SerialSource
-from flightplan.cli_support import require_memory
+from cliutil.resources import require_memory
 from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
 from sim.drone.logs import write_flight_logs

@@ -16,7 +16,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from capture.attitude import camera_matrix_world
-from flightplan.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic
 from sim.drone.flight import Flight
 from sim.drone.sensors import Sensors
 

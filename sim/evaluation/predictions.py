@@ -22,7 +22,8 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from flightplan.cli_support import BadInput, path_problem
+from cliutil.program import BadInput
+from cliutil.paths import path_problem
 from sim.dataset.images import KITTI_DISPARITY_SCALE, read_exr
 from sim.dataset.kitti import frame_file_name
 

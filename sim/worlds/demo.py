@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from flightplan.atomic import write_bytes_atomic, write_text_atomic
+from cliutil.atomic import write_bytes_atomic, write_text_atomic
 from flightplan.demo_location import DEMO_ORIGIN
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades

@@ -185,7 +185,7 @@ def test_rerun_after_interrupted_frame_completes_to_identical_bytes(dataset, tmp
 KILLED_WRITER = """
 import os, signal, sys
 sys.path[:0] = sys.argv[1:3]
-import flightplan.atomic as atomic
+import cliutil.atomic as atomic
 from dataset_helpers import frame_record, spec
 from sim.dataset import FORMATS, KittiDatasetWriter
 

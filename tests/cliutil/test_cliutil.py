@@ -7,9 +7,9 @@ import os
 
 import pytest
 
-from flightplan.cli_support import (EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, folder_holds,
-                                    folder_inputs, format_bytes, path_problem, refuse_clobbering, require_disk,
-                                    require_memory, run_cli, stdout_to_stderr)
+from cliutil.program import EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, run_cli, stdout_to_stderr
+from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
+from cliutil.resources import format_bytes, require_disk, require_memory
 
 
 def test_parser_errors_are_one_line_with_exit_2(capsys):

@@ -1,8 +1,8 @@
-"""flightplan.atomic: outputs appear whole under their final name, and nothing else is left beside them."""
+"""cliutil.atomic: outputs appear whole under their final name, and nothing else is left beside them."""
 
 import os
 
-from flightplan.atomic import atomic_path
+from cliutil.atomic import atomic_path
 
 
 def test_linking_a_file_onto_a_name_it_already_has_leaves_no_temporary(tmp_path):

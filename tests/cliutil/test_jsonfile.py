@@ -4,8 +4,8 @@ import json
 
 import pytest
 
-from flightplan.cli_support import BadInput
-from flightplan.jsonfile import loads_json, read_json
+from cliutil.program import BadInput
+from cliutil.jsonfile import loads_json, read_json
 
 
 def test_nesting_python_can_read_reads_and_deeper_is_a_decode_error():
