@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.similarity import umeyama
-from sim.scene import read_scene_json, read_scene_mesh_enu
+from sim.render.scene import read_scene_json, read_scene_mesh_enu
 
 
 def _stats(values: np.ndarray) -> dict:

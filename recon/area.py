@@ -36,7 +36,7 @@ from cliutil.program import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.merge import ControlPairs
 from recon.sfm import RTK_GRADE_SIGMA_M
-from sim.scene import Surface, read_scene_json, read_scene_mesh_enu
+from sim.render.scene import Surface, read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
 ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly spread)

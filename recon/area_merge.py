@@ -29,9 +29,9 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 
 from recon.area import SurfaceQuery
-from sim.scene import Scene, Surface
-from sim.shade import surface_albedo
-from sim.raycast import intersect
+from sim.render.scene import Scene, Surface
+from sim.render.shade import surface_albedo
+from sim.render.raycast import intersect
 
 NO_OWNER = -1
 #: Look-at points of cameras whose optical axis rises or meets the ground beyond this many metres are left out.

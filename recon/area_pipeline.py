@@ -4,7 +4,7 @@ Layout of the output folder ``AREA``::
 
     AREA/pieces/<flight>/     one scene folder per flight (the single reconstruction, resumable)
     AREA/area.glb             the merged mesh: one textured part per piece (area.ply with vertex colours when the
-                              pieces have no texture), +Y up, georeferenced (sim/worlds/glb.py)
+                              pieces have no texture), +Y up, georeferenced (sim/render/glb.py)
     AREA/cameras.json         every piece's registered photos in the area frame, named <flight>/<photo>
     AREA/ownership.png        16-bit: per ground cell the index of the piece that owns it (65535: none)
     AREA/area_report.json     pieces, corrections, pair offsets before/after, seams, colour gains, timings
@@ -40,10 +40,10 @@ from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered
 from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions
 from recon.scene_out import CAMERAS_FILE, scene_metadata
-from sim.scene import Scene, read_scene_cameras, read_scene_json
-from sim.scene_cameras import SceneCamera, write_cameras
-from sim.shade import SRGB8_TO_LINEAR, to_srgb8
-from sim.worlds.glb import TexturedPart, encode_textured_glb_parts
+from sim.render.scene import Scene, read_scene_cameras, read_scene_json
+from sim.render.scene_cameras import SceneCamera, write_cameras
+from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
+from sim.render.glb import TexturedPart, encode_textured_glb_parts
 
 PIECES = "pieces"
 REST = "rest"

@@ -35,11 +35,12 @@ from scipy import ndimage, sparse
 
 from flightplan.geodesy import LocalFrame
 from recon.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
-from sim.camera import project_world_points, row_dots
-from sim.raycast import occluded
-from sim.scene import Scene
-from sim.shade import linear_texture, sample_linear, to_srgb8
-from sim.worlds.glb import encode_textured_glb
+from sim.render.camera import project_world_points, row_dots
+from sim.render.raycast import occluded
+from sim.render.scene import Scene
+from sim.render.texture import linear_texture, sample_linear
+from sim.render.color import to_srgb8
+from sim.render.glb import encode_textured_glb
 
 #: Sub-pixel bits of the face rasteriser (OpenCV ``shift``).
 RASTER_SHIFT = 4
@@ -100,7 +101,7 @@ class Atlas:
 
     def glb(self, origin: LocalFrame, generator: str = "recon.atlas") -> bytes:
         """Binary glTF of the textured mesh (ENU metres at ``origin``, stored +Y up and georeferenced by
-        sim/worlds/glb.py), the atlas embedded as JPEG."""
+        sim/render/glb.py), the atlas embedded as JPEG."""
         buffer = io.BytesIO()
         Image.fromarray(self.image).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
         return encode_textured_glb(self.vertices, self.faces, self.uv, buffer.getvalue(), generator, origin)
@@ -325,7 +326,7 @@ def held_out_gains(scene: Scene, mesh: trimesh.Trimesh, labels: np.ndarray, phot
 
 
 def sample_photo(photo: Photo, linear: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Linear RGB (N, 3) of the photo (its :func:`sim.shade.linear_texture`) at world points (bilinear, clamped)."""
+    """Linear RGB (N, 3) of the photo (its :func:`sim.render.texture.linear_texture`) at world points (bilinear, clamped)."""
     pixels, _ = project_world_points(photo.camera, photo.T_world_cam, points)
     cam = photo.camera
     uv = np.column_stack([(pixels[:, 0] + 0.5) / cam.width, 1.0 - (pixels[:, 1] + 0.5) / cam.height])

@@ -35,7 +35,7 @@ from recon.pipeline import MESHES, TEXTURES, ReconOptions, Recon
 from recon.sfm import SfmError, SfmOptions
 from recon.atlas import AtlasOptions
 from recon.texture import TextureOptions
-from sim.mesh_file import check_mesh_file
+from sim.render.mesh_file import check_mesh_file
 
 
 PROGRAM = "aerostereo-recon"

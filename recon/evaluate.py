@@ -15,11 +15,11 @@ import numpy as np
 import pycolmap
 
 from recon.texture import Photo, load_photos
-from sim.camera import Rig
+from sim.render.camera import Rig
 from sim.metrics import photorealism_error_percent
-from sim.render import render
-from sim.scene import Scene, load_scene
-from sim.shade import UNLIT
+from sim.render.renderer import render
+from sim.render.scene import Scene, load_scene
+from sim.render.shade import UNLIT
 
 
 @dataclass(frozen=True)

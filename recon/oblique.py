@@ -24,13 +24,13 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from recon.observed import inside, observed_area
 from recon.scene_cameras import shape_alignment, truth_poses
-from sim.camera import PinholeCamera, Rig, camera_rays
+from sim.render.camera import PinholeCamera, Rig, camera_rays
 from sim.frame_renderer import SceneGround
 from sim.metrics import depth_errors, photorealism_error_masked, photorealism_error_percent
-from sim.render import View, miss_fraction, render
+from sim.render.renderer import View, miss_fraction, render
 from sim.sampling import PoseSample, RandomPoseSettings, random_pose
-from sim.scene import Scene
-from sim.shade import Sun
+from sim.render.scene import Scene
+from sim.render.shade import Sun
 
 #: A pixel shows a wall where its true surface normal is steeper than 45 deg from vertical (its up component).
 WALL_MAX_UP = math.cos(math.radians(45.0))

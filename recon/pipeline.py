@@ -51,7 +51,7 @@ from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
-from sim.worlds.glb import GEOREF_FORMAT
+from sim.render.glb import GEOREF_FORMAT
 
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")

@@ -16,8 +16,8 @@ import numpy as np
 
 from flightplan.geodesy import LocalFrame
 from recon.accuracy import pose_alignment, pose_matrix, transform_poses
-from sim.scene import read_scene_json
-from sim.scene_cameras import CamerasError, read_cameras
+from sim.render.scene import read_scene_json
+from sim.render.scene_cameras import CamerasError, read_cameras
 
 
 

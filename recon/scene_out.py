@@ -1,7 +1,7 @@
 """Write the scene folder of INTERFACES.md: a mesh in local ENU metres, ``cameras.json`` and ``scene.json``.
 
 The normal case is a textured GLB from ``recon/texture.py`` (``encoded`` bytes); the fallback is the mesh with
-vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/scene_cameras.py) holds the registered photos of
+vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/render/scene_cameras.py) holds the registered photos of
 the final SfM model with their exposure gains; ``scene.json``'s ``observed_area_m`` is the ground polygon (ENU
 x, y metres) they stand over and look at (:func:`recon.observed.viewed_area`), where the twin is expected to hold.
 """
@@ -21,7 +21,7 @@ from flightplan.geodesy import LocalFrame
 from cliutil.atomic import atomic_path, write_text_atomic
 from recon.observed import viewed_area
 from recon.sfm import camera_from_colmap, camera_poses
-from sim.scene_cameras import SceneCamera, write_cameras
+from sim.render.scene_cameras import SceneCamera, write_cameras
 
 SCENE_FORMAT = "aerostereo-scene/1"
 CAMERAS_FILE = "cameras.json"
@@ -39,7 +39,7 @@ def scene_cameras(model: pycolmap.Reconstruction, gains: Mapping[str, float],
 
 def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, provenance: dict) -> dict:
     """``scene.json`` content for an ENU mesh (no vertex offset): height range and valid area from the mesh; a GLB
-    (ours: sim/worlds/glb.py) is stored +Y up, a PLY as ENU."""
+    (ours: sim/render/glb.py) is stored +Y up, a PLY as ENU."""
     v = np.asarray(mesh.vertices, dtype=np.float64)
     return {
         "format": SCENE_FORMAT,

@@ -29,7 +29,7 @@ from cliutil.atomic import write_text_atomic
 from recon.priors import CameraSeed, PosePriors, PriorsError
 from recon.similarity import Similarity, umeyama
 from recon.tag_offset import fit_tag_offset, travel_directions
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 
 MIN_PHOTOS = 3
 #: Disk space SfM needs per feature of a photo (features, matches, SQLite's journal): 6 photos at 2048 features

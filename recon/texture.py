@@ -5,9 +5,9 @@ one ground pixel of the photos, i.e. median viewing distance / focal length). Ea
 come from a vertical ray onto the mesh (sim's embree scene built from the mesh in memory). For every photo
 (undistorted pinhole camera, ``T_world_cam`` in the same ENU frame):
 
-1. project the texel points (``sim.camera.project_world_points``); keep those in front, inside the image and
+1. project the texel points (``sim.render.camera.project_world_points``); keep those in front, inside the image and
    facing the camera;
-2. **visibility**: an occlusion ray (``sim.raycast.occluded``) from the camera centre towards each point; the
+2. **visibility**: an occlusion ray (``sim.render.raycast.occluded``) from the camera centre towards each point; the
    texel is seen when nothing is hit before it (up to ``max(0.05 m, 0.2 %)`` of the camera distance short of it);
 3. sample the photo bilinearly in linear light;
 4. weight = border feather (0 at the image edge, 1 beyond ``feather_px``) x quality**``view_power`` with
@@ -33,11 +33,12 @@ from scipy import ndimage
 
 from flightplan.geodesy import LocalFrame
 from recon.sfm import camera_from_colmap, camera_poses
-from sim.camera import PinholeCamera, project_world_points
-from sim.raycast import default_workers, intersect, occluded
-from sim.scene import Scene, Surface
-from sim.shade import sample_bilinear, to_srgb8
-from sim.worlds.glb import encode_textured_glb
+from sim.render.camera import PinholeCamera, project_world_points
+from sim.render.raycast import default_workers, intersect, occluded
+from sim.render.scene import Scene, Surface
+from sim.render.texture import sample_bilinear
+from sim.render.color import to_srgb8
+from sim.render.glb import encode_textured_glb
 
 JPEG_QUALITY = 95
 #: Texels per side of the culling tiles.
@@ -305,7 +306,7 @@ def fill_uncovered(image: np.ndarray, covered: np.ndarray) -> np.ndarray:
 
 
 def textured_glb(mesh: trimesh.Trimesh, ortho: Orthophoto, origin: LocalFrame, generator: str = "recon.texture") -> bytes:
-    """Binary glTF of ``mesh`` (ENU metres at ``origin``; stored +Y up and georeferenced by sim/worlds/glb.py) with
+    """Binary glTF of ``mesh`` (ENU metres at ``origin``; stored +Y up and georeferenced by sim/render/glb.py) with
     UVs into the orthophoto, embedded as JPEG."""
     buffer = io.BytesIO()
     Image.fromarray(ortho.image).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)

@@ -26,7 +26,7 @@ from sim.evaluate_cli import add_evaluate_parser
 from sim.export_cli import add_export_parser
 from sim.render_cli import PROG, add_compare_parser
 from sim.render_dataset import is_demo_scene, resolve_scene_dir
-from sim.scene import load_scene
+from sim.render.scene import load_scene
 
 
 def utc_time(text: str) -> dt.datetime:

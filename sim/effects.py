@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.camera import PinholeCamera, Rig
+from sim.render.camera import PinholeCamera, Rig
 from sim.drone.exposure import auto_exposure_gains
 from sim.drone.imperfections import Imperfections
-from sim.render import render
-from sim.shade import SRGB8_TO_LINEAR, to_srgb8
+from sim.render.renderer import render
+from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
 
 #: Random streams of the effects (sim/sampling.py numbers the renderer's 0-3): sensor noise, exposure noise.
 NOISE_STREAM, EXPOSURE_STREAM = 10, 11
@@ -151,7 +151,7 @@ def render_in_time(scene, rig: Rig, pose_at: PoseAt, time_s: float, sun, effects
                    **render_options) -> list[np.ndarray]:
     """Linear colour ``(H, W, 3)`` float64 of every rig camera exposed around ``time_s`` with the rolling shutter and
     motion blur of ``effects``; ``rng()`` gives the anti-aliasing generator of each render (the frame's, so that a
-    camera at rest gives the frame's own image). ``render_options``: :func:`sim.render.render`'s keywords."""
+    camera at rest gives the frame's own image). ``render_options``: :func:`sim.render.renderer.render`'s keywords."""
     height, width = rig.cameras[0].shape
     offsets = exposure_offsets(effects.exposure_s, effects.blur_samples)
     sums = [np.zeros((height, width, 3)) for _ in rig.cameras]

@@ -3,7 +3,7 @@
 A pixel centre ``(u, v)`` of view A with planar depth ``z`` (metres) is the camera-frame point ``z * (x, y, 1)``
 (``x, y`` its undistorted normalised coordinates); moved to the world by ``T_world_camA`` and projected into view B
 (lens distortion included) it lands at ``(u', v')``; the flow is ``(u' - u, v' - v)`` in pixels (OpenCV pixel
-convention, sim/camera.py). A pixel has flow (``valid``) when it hit something and its point lies in front of B;
+convention, sim/render/camera.py). A pixel has flow (``valid``) when it hit something and its point lies in front of B;
 it is ``visible`` in B when it also lands inside B's image and nothing in B's depth map lies in front of it
 (:func:`visible_at`).
 """
@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.camera import PinholeCamera, project_world_points
+from sim.render.camera import PinholeCamera, project_world_points
 
 
 @dataclass(frozen=True)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.camera import PinholeCamera, Rig
+from sim.render.camera import PinholeCamera, Rig
 from sim.frustum import ViewFrustum
 from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
@@ -27,8 +27,8 @@ from sim.dataset.writer import camera_description
 from sim.drone.exposure import metered_luminance
 from sim.effects import (AUTO_EXPOSURE_WINDOW_S, EXPOSURE_STREAM, NOISE_STREAM, CameraEffects, apply_photometric,
                          auto_exposure_gain, effects_memory_bytes, render_in_time)
-from sim.raycast import default_workers
-from sim.render import miss_fraction, render, render_memory_bytes
+from sim.render.raycast import default_workers
+from sim.render.renderer import miss_fraction, render, render_memory_bytes
 from sim.drone.flight import GRAVITY_MPS2
 from sim.motion.imu import EUROC_ADIS16448, NOISE_MODEL_NAME, T_body_cam0
 from sim.motion.rig_path import RigPath
@@ -53,8 +53,9 @@ from sim.sampling import (
     replay_poses,
     scene_camera_poses,
 )
-from sim.scene import Scene, SceneError, load_scene
-from sim.shade import SRGB8_TO_LINEAR, UNLIT, Sun
+from sim.render.scene import Scene, SceneError, load_scene
+from sim.render.color import SRGB8_TO_LINEAR
+from sim.render.shade import UNLIT, Sun
 
 MODES = ("random", "trajectory", "replay")
 TRAJECTORIES = ("orbit", "lawnmower", "loop", "flight")

@@ -26,7 +26,7 @@ import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import ConvexHull, QhullError
 
-from sim.camera import Rig
+from sim.render.camera import Rig
 
 #: Points sampled along each image border (corners included): lens distortion bends the borders.
 BORDER_SAMPLES = 9

@@ -36,7 +36,7 @@ from cliutil.paths import path_problem
 from sim.dataset.images import read_exr
 from sim.dataset.replay import replay_frames
 from sim.evaluation.depth import eigen_errors
-from sim.shade import SRGB8_TO_LINEAR, to_srgb8
+from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
 
 FULL_SCALE = 255.0
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp")

@@ -66,12 +66,12 @@ from sim.frame_renderer import (
     RenderInputError,
     RenderOptions,
 )
-from sim.camera import MAX_SAMPLES_PER_PIXEL
+from sim.render.camera import MAX_SAMPLES_PER_PIXEL
 from sim.dataset.imu_file import write_imu_csv
 from sim.dataset.kitti import KittiLayout
 from sim.dataset.writer import frame_disk_bytes, recorded_frames
-from sim.raycast import default_workers
-from sim.scene import read_scene_json
+from sim.render.raycast import default_workers
+from sim.render.scene import read_scene_json
 
 DEMO_SCENE = "demo"
 #: Seconds between checks on the worker processes while waiting for their reports.

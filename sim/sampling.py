@@ -36,9 +36,9 @@ from capture.geotag_io import PosePrior, load_geotags, sidecar_path
 from capture.track import format_utc
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from cliutil.jsonfile import read_json
-from sim.camera import pose_from_position
+from sim.render.camera import pose_from_position
 from sim.frustum import ViewFrustum, bounding_area, deep_inside, inner_rectangle, placement_area, sees_inside
-from sim.scene_cameras import SceneCamera
+from sim.render.scene_cameras import SceneCamera
 
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4  # RENDER: anti-aliasing jitter
 #: The nadir camera at heading 0: x east, y south (image top = north), z down.

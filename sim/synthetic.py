@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from sim.scene import Scene, Surface
+from sim.render.scene import Scene, Surface
 
 
 def grid_mesh(cells_x: int, cells_y: int, extent_m: tuple[float, float, float, float]):

@@ -28,12 +28,12 @@ from recon.area_pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "n
 from recon.observed import inside
 from recon.oblique import TwinFrame, render_view, sample_views, score_view, summarise
 from recon.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.frame_renderer import frame_sun
-from sim.raycast import default_workers
+from sim.render.raycast import default_workers
 from sim.sampling import random_sun
-from sim.scene import load_scene, read_scene_json
+from sim.render.scene import load_scene, read_scene_json
 from tools.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines, surface_metrics
 
 #: Surface points within this many metres of a seam count as "seam", the others as "inside" a piece.

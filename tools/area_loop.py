@@ -43,7 +43,7 @@ if str(ROOT) not in sys.path:
 
 from flightplan import litchi  # noqa: E402
 from cliutil.atomic import write_text_atomic
-from sim.scene import SceneError, read_scene_json  # noqa: E402
+from sim.render.scene import SceneError, read_scene_json
 from tools.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
 from tools.closed_loop import StageResult, cli, finished_report, run, skipped, world_folder  # noqa: E402
 

@@ -19,12 +19,12 @@ from unittest import mock
 import numpy as np
 
 from sim import sampling
-from sim.camera import Rig, camera_rays
+from sim.render.camera import Rig, camera_rays
 from sim.frame_renderer import RenderOptions, SceneGround, build_rig
 from sim.frustum import ViewFrustum, inside_polygon, sees_inside
-from sim.raycast import intersect
+from sim.render.raycast import intersect
 from sim.sampling import RandomPoseSettings, random_pose
-from sim.scene import Scene, Surface
+from sim.render.scene import Scene, Surface
 from sim.synthetic import grid_mesh
 
 AREA = (-170.0, 170.0, -130.0, 130.0)

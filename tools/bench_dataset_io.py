@@ -20,13 +20,13 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.demo_location import DEMO_ORIGIN
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset import AsyncFrameWriter, DatasetSpec, FrameRecord, KittiDatasetWriter
 
 
 @dataclass
 class View:
-    """What the dataset writer reads of a rendered view (sim.render.View has more)."""
+    """What the dataset writer reads of a rendered view (sim.render.renderer.View has more)."""
 
     rgb: np.ndarray
     depth: np.ndarray

@@ -21,7 +21,7 @@ from sim.frame_renderer import DEFAULT_SIZE, RenderOptions, SceneGround, build_r
 from sim.frustum import ViewFrustum, placement_area, sees_inside
 from sim.render_dataset import resolve_scene_dir
 from sim.sampling import RandomPoseSettings, random_pose
-from sim.scene import load_scene
+from sim.render.scene import load_scene
 
 
 def _tilt_from_nadir_deg(T: np.ndarray) -> float:

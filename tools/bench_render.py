@@ -32,10 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import OpenEXR  # noqa: E402
 
-from sim.camera import PinholeCamera, Rig, camera_rays, look_at  # noqa: E402
-from sim.raycast import default_workers, intersect, map_blocks  # noqa: E402
-from sim.render import StageTimes, Sun, render  # noqa: E402
-from sim.scene import Scene, load_scene, read_scene_json  # noqa: E402
+from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at
+from sim.render.raycast import default_workers, intersect, map_blocks
+from sim.render.renderer import StageTimes, Sun, render
+from sim.render.scene import Scene, load_scene, read_scene_json
 from sim.synthetic import height_field_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 
@@ -117,7 +117,7 @@ def throughput_table(scene) -> None:
         processes = len(rays.directions) / (time.perf_counter() - start) / 1e6
     print(f"\nprimary rays (closest hit + barycentrics + normals), {len(scene.faces) / 1e6:.2f} M triangles")
     print(f"{'caster':<46} {'Mray/s':>7} {'vs 1 thread':>12}")
-    rows = [("sim.raycast.intersect, 1 thread", single), (f"sim.raycast.intersect, {workers} threads", threaded),
+    rows = [("sim.render.raycast.intersect, 1 thread", single), (f"sim.render.raycast.intersect, {workers} threads", threaded),
             (f"embree DISTANCE, {workers} fork processes", processes)]
     for name, rate in rows:
         print(f"{name:<46} {rate:>7.2f} {rate / single:>11.2f}x")
@@ -145,7 +145,7 @@ def median_seconds(function, runs: int = 5) -> float:
 
 
 def ours_run(scene, rays, workers: int) -> PeerRun:
-    """Our caster (:func:`sim.raycast.intersect`: embree via embreex; closest hit, barycentrics, normals, misses
+    """Our caster (:func:`sim.render.raycast.intersect`: embree via embreex; closest hit, barycentrics, normals, misses
     cast again) on ``rays``, ``workers`` threads; setup: building the :class:`Scene` (embree BVH) again."""
     start = time.perf_counter()
     Scene(scene.vertices, scene.faces, scene.surface)
@@ -256,7 +256,7 @@ def peers_table(scene_dir: Path, height_m: float = 80.0) -> None:
           f"load average {os.getloadavg()[0]:.1f}")
     print(f"{'caster':<34}{'setup s':>8}{'ms/view':>9}{'vs ours':>8}{'hit/miss differ %':>18}"
           f"{'|dz| median mm':>15}{'p99 mm':>8}")
-    print(f"{'ours (sim.raycast.intersect)':<34}{ours.setup_s:>8.2f}{1000 * ours.view_s:>9.0f}{1.0:>7.2f}x")
+    print(f"{'ours (sim.render.raycast.intersect)':<34}{ours.setup_s:>8.2f}{1000 * ours.view_s:>9.0f}{1.0:>7.2f}x")
     for name, run in (("embreex DISTANCE query only", embree_distance_run(scene, rays, workers)),
                       ("Open3D RaycastingScene.cast_rays", open3d_run(scene, rays, workers)),
                       ("Blender Cycles 1 spp (bpy)", blender_run(scene_dir, pose, workers))):

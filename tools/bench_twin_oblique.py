@@ -37,13 +37,13 @@ from recon.cli import positive_int  # noqa: E402
 from recon.oblique import (render_view, sample_views, score_view, summarise, true_camera_area,  # noqa: E402
                            twin_frame)
 from recon.scene_cameras import scene_camera_poses  # noqa: E402
-from sim.camera import PinholeCamera  # noqa: E402
+from sim.render.camera import PinholeCamera
 from sim.dataset.images import write_png  # noqa: E402
 from sim.frame_renderer import frame_sun  # noqa: E402
-from sim.raycast import default_workers  # noqa: E402
+from sim.render.raycast import default_workers
 from sim.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.sampling import random_sun  # noqa: E402
-from sim.scene import load_scene  # noqa: E402
+from sim.render.scene import load_scene
 
 
 def labelled_scene(text: str) -> tuple[str, Path]:

@@ -19,7 +19,7 @@ import numpy as np
 import trimesh
 from PIL import Image
 
-from sim.scene import load_scene
+from sim.render.scene import load_scene
 from sim.worlds.demo import build_demo_world, encode_glb, generate_world
 from sim.worlds.geometry import Part
 from sim.worlds.layout import VARIANTS
@@ -87,7 +87,7 @@ def bench_variant(variant: str, seed: int) -> None:
         folder = build_demo_world(tmp, variant, seed)
         start = time.perf_counter()
         load_scene(folder)
-        print(f"scene folder -> ray-castable Scene (sim.scene.load_scene, embree): {time.perf_counter() - start:.2f} s")
+        print(f"scene folder -> ray-castable Scene (sim.render.scene.load_scene, embree): {time.perf_counter() - start:.2f} s")
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -52,7 +52,7 @@ if str(ROOT) not in sys.path:
 from flightplan import litchi  # noqa: E402
 from cliutil.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame  # noqa: E402
-from sim.scene import SceneError, read_scene_json  # noqa: E402
+from sim.render.scene import SceneError, read_scene_json
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
 
 

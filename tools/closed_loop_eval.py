@@ -23,7 +23,7 @@ from recon.accuracy import depth_coverage, pose_errors, scene_mesh_enu, surface_
 from recon.scene_cameras import registered_poses, shape_alignment, truth_poses
 from sim.dataset.images import read_exr, read_png
 from sim.metrics import compare_images, depth_errors, photorealism_error_masked, read_rgb
-from sim.scene import read_scene_json
+from sim.render.scene import read_scene_json
 
 COMPLETENESS_THRESHOLD_M = 0.25
 

@@ -14,10 +14,10 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
 from recon.accuracy import PoseErrors, pose_errors
-from sim.camera import PinholeCamera, Rig, look_at
-from sim.render import render
-from sim.scene import Scene
-from sim.shade import Sun
+from sim.render.camera import PinholeCamera, Rig, look_at
+from sim.render.renderer import render
+from sim.render.scene import Scene
+from sim.render.shade import Sun
 from tools.geotag_csv import geotag_row, write_geotags
 
 #: 35 mm-equivalent focal length written to EXIF (an integer there), and the lens it means for 800x600 photos

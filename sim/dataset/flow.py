@@ -31,7 +31,7 @@ import cv2
 import numpy as np
 
 from cliutil.atomic import atomic_path
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset import images
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, PAIR_SUFFIX
 from sim.dataset.source import LEFT, DatasetSource, SourceFrame

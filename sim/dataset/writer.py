@@ -101,7 +101,7 @@ class DatasetSpec:
 
     @classmethod
     def from_rig(cls, rig, origin: LocalFrame, frame_count: int, **kwargs) -> "DatasetSpec":
-        """Build from a rig object with ``cameras`` and ``T_rig_cam`` lists (sim/camera.py ``Rig``)."""
+        """Build from a rig object with ``cameras`` and ``T_rig_cam`` lists (sim/render/camera.py ``Rig``)."""
         return cls(cameras=list(rig.cameras), T_rig_cams=list(rig.T_rig_cam), origin=origin,
                    frame_count=frame_count, **kwargs)
 

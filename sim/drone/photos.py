@@ -34,14 +34,14 @@ from capture.geotag_io import dji_calibration_attributes, dji_xmp_packet
 from capture.logs.photos import RTK_FIXED
 from flightplan.aircraft import MINI_SE_CAMERA, CameraProfile
 from flightplan.geodesy import LocalFrame
-from sim.camera import PinholeCamera, Rig
+from sim.render.camera import PinholeCamera, Rig
 from sim.drone.exif import dji_exif
 from sim.drone.exposure import auto_exposure_gains, metered_luminance
 from sim.drone.imperfections import GPS_VERTICAL_FACTOR
-from sim.raycast import default_workers
-from sim.render import Lighting, Sun, render
-from sim.scene import Scene
-from sim.shade import SRGB8_TO_LINEAR
+from sim.render.raycast import default_workers
+from sim.render.renderer import Lighting, Sun, render
+from sim.render.scene import Scene
+from sim.render.color import SRGB8_TO_LINEAR
 
 JPEG_QUALITY = 92
 DEFAULT_SUN = Sun(azimuth_deg=150.0, elevation_deg=50.0)

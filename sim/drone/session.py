@@ -35,9 +35,9 @@ from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_c
 from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
-from sim.raycast import default_workers
-from sim.render import render_memory_bytes
-from sim.scene import Scene
+from sim.render.raycast import default_workers
+from sim.render.renderer import render_memory_bytes
+from sim.render.scene import Scene
 
 LINKS = ("file", "loop", "tcp")
 NOISE = {"realistic": Imperfections.realistic, "area": Imperfections.area, "rtk": Imperfections.rtk,

@@ -2,7 +2,7 @@
 
 The world is generated around ``flightplan.demo_location.DEMO_ORIGIN``: ENU metres, z up, the ground at z = 0
 under the origin. The folder holds ``world.glb`` (binary glTF, +Y up as the spec says: ENU metres stored as
-``x = E, y = U, z = -N`` with the georeference in ``scenes[0].extras``, sim/worlds/glb.py; one JPEG texture atlas
+``x = E, y = U, z = -N`` with the georeference in ``scenes[0].extras``, sim/render/glb.py; one JPEG texture atlas
 with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see docs/interfaces.md) and nothing else.
 """
 
@@ -23,7 +23,7 @@ from flightplan.demo_location import DEMO_ORIGIN
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
 from sim.worlds.geometry import Part, world_part
-from sim.worlds.glb import encode_textured_glb
+from sim.render.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 

@@ -15,7 +15,7 @@ from recon.area import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlapError,
 from recon.merge import ControlPairs
 from recon.similarity import umeyama
 from recon.scene_out import write_scene
-from sim.scene import SceneError
+from sim.render.scene import SceneError
 from sim.synthetic import grid_mesh
 from tests.recon.area_pieces import (AREA, PIECE_M, centre_of, correction_error, frame_at, rigid, terrain_height,
                                      terrain_piece)

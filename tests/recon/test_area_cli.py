@@ -18,7 +18,7 @@ from recon.area_merge import NO_OWNER, Grid, distance_to_owner
 from recon.cli import main as recon
 from recon.scene_cameras import area_shape_alignment
 from sim.cli import main as render
-from sim.scene import Scene, load_scene
+from sim.render.scene import Scene, load_scene
 from sim.render_dataset import resolve_scene_dir
 
 #: 25.6 m apart east-west over the small world: the seam lies 12.8 m from each centre, two thirds of the 20 m radius,

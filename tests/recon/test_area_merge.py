@@ -14,11 +14,11 @@ from recon.area_merge import NO_OWNER, Grid, distance_to_owner, look_at_points, 
 from recon.area import AreaError
 from recon.area_pipeline import AreaOptions, ControlTie, merge_area
 from recon.merge import ControlPairs
-from sim.camera import PinholeCamera, look_at
-from sim.scene import load_scene, read_scene_json
-from sim.scene_cameras import SceneCamera, write_cameras
-from sim.shade import to_srgb8
-from sim.worlds.glb import encode_textured_glb
+from sim.render.camera import PinholeCamera, look_at
+from sim.render.scene import load_scene, read_scene_json
+from sim.render.scene_cameras import SceneCamera, write_cameras
+from sim.render.color import to_srgb8
+from sim.render.glb import encode_textured_glb
 from tests.recon.area_pieces import AREA, PIECE_M, frame_at, rigid, terrain_height, terrain_piece
 
 TEXEL_M = 0.25

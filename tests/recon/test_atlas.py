@@ -10,10 +10,10 @@ from recon.atlas import AtlasOptions, FaceViews, face_neighbours, label_faces, t
 from recon.evaluate import render_unlit
 from recon.scene_out import write_scene
 from recon.texture import Photo, orthophoto, textured_glb
-from sim.camera import Rig, look_at
+from sim.render.camera import Rig, look_at
 from sim.metrics import photorealism_error_percent
-from sim.render import render
-from sim.scene import Scene, Surface, load_scene
+from sim.render.renderer import render
+from sim.render.scene import Scene, Surface, load_scene
 from sim.synthetic import grid_mesh, noise_texture
 from tests.recon.test_texture import SUN, hills, take_photos
 

@@ -14,7 +14,7 @@ from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm import SfmOptions
 from recon.stages import STAGES
-from sim.scene import read_scene_mesh_enu
+from sim.render.scene import read_scene_mesh_enu
 from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import HEIGHT, WIDTH, make_texture, write_nadir_photos
 

@@ -17,10 +17,10 @@ from scipy.spatial.transform import Rotation
 
 from recon.oblique import (TwinFrame, render_view, sample_views, score_view, summarise, surface_points,
                            true_camera_area, twin_frame, wall_mask)
-from sim.camera import PinholeCamera, look_at
-from sim.scene import Scene, Surface, load_scene, read_scene_json, read_scene_mesh_enu
-from sim.scene_cameras import SceneCamera, write_cameras
-from sim.shade import Sun
+from sim.render.camera import PinholeCamera, look_at
+from sim.render.scene import Scene, Surface, load_scene, read_scene_json, read_scene_mesh_enu
+from sim.render.scene_cameras import SceneCamera, write_cameras
+from sim.render.shade import Sun
 from sim.synthetic import grid_mesh
 from tests.sim.render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, write_scene
 

@@ -44,7 +44,7 @@ def test_cameras_on_a_line_observe_no_area(centres):
 def test_a_short_arc_looking_at_the_centre_views_the_centre():
     """Three cameras on a 50 m circle, 30 m up, looking at its centre on the ground: the cameras alone span a
     sliver at the rim; with their optical axes' ground points the area reaches the centre (and no further)."""
-    from sim.camera import look_at
+    from sim.render.camera import look_at
 
     angles = np.radians([0.0, 10.0, 20.0])
     poses = np.array([look_at((50.0 * math.cos(a), 50.0 * math.sin(a), 30.0), (0.0, 0.0, 0.0)) for a in angles])

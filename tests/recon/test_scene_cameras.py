@@ -16,7 +16,7 @@ from recon.sfm import camera_from_colmap, camera_poses
 from sim.cli import main as render_main
 from sim.dataset.images import read_exr
 from sim.metrics import compare_folders
-from sim.scene import SceneError, load_scene
+from sim.render.scene import SceneError, load_scene
 
 RNG = np.random.default_rng(11)
 #: COLMAP model -> parameters (focal(s), principal point, extra), all used by sim's OpenCV lens.

@@ -14,9 +14,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset import DatasetSpec, FrameRecord
-from sim.shade import Sun
+from sim.render.shade import Sun
 
 ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
 BASELINE_M = 0.5
@@ -25,7 +25,7 @@ WIDTH, HEIGHT = 64, 48
 
 @dataclass
 class View:
-    """What the dataset writer reads of a rendered view (sim.render.View has more)."""
+    """What the dataset writer reads of a rendered view (sim.render.renderer.View has more)."""
 
     rgb: np.ndarray
     depth: np.ndarray

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.camera import (
+from sim.render.camera import (
     PinholeCamera,
     Rig,
     camera_rays,

@@ -21,7 +21,7 @@ from sim.drone.session import fly_litchi_mission
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.motion.imu import EUROC_ADIS16448, dead_reckon
 from sim.render_dataset import render_dataset, resolve_scene_dir
-from sim.scene import load_scene
+from sim.render.scene import load_scene
 
 FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0
 

@@ -14,14 +14,14 @@ from PIL import Image
 
 from dataset_helpers import BASELINE_M, CAMERA, ORIGIN, frame_record, looking_down_pose, spec
 from render_scene_helpers import BOX_TOP_M, BOX_X_M, write_scene
-from sim.camera import PinholeCamera, Rig
+from sim.render.camera import PinholeCamera, Rig
 from sim.cli import main as cli_main
 from sim.dataset import DatasetSpec, FrameRecord, KittiDatasetWriter, finalize_dataset
 from sim.dataset.export import LAYOUTS, export_dataset
 from sim.dataset.kitti2015 import visible_in_right
-from sim.render import render
-from sim.scene import load_scene
-from sim.shade import Sun
+from sim.render.renderer import render
+from sim.render.scene import load_scene
+from sim.render.shade import Sun
 
 FRAMES = 3
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

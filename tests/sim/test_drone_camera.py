@@ -14,14 +14,14 @@ from scipy import ndimage
 
 from capture.logs.photos import DRONE_DJI_NS
 from flightplan.aircraft import MINI_SE_CAMERA
-from sim.camera import Rig, look_at, project_world_points
+from sim.render.camera import Rig, look_at, project_world_points
 from sim.drone import Imperfections
 from sim.drone.exposure import GAIN_RANGE, auto_exposure_gains, metered_luminance
 from sim.drone.photos import DEFAULT_SUN, photo_camera, poses_in_scene, render_photos
 from sim.drone.session import FlyOptions, fly_litchi_mission, run_session
-from sim.render import Lighting, render
-from sim.scene import Scene, Surface, load_scene
-from sim.shade import SRGB8_TO_LINEAR
+from sim.render.renderer import Lighting, render
+from sim.render.scene import Scene, Surface, load_scene
+from sim.render.color import SRGB8_TO_LINEAR
 from sim.worlds import demo_scene_dir
 from tests.sim.drone_helpers import short_orbit_csv
 

@@ -32,7 +32,7 @@ from sim.drone import Imperfections
 from sim.drone.link import PHOTO_EVENT_ERROR_S, MissionClock, duml_frames
 from sim.drone.photos import photo_camera, render_photos
 from sim.drone.session import fly_litchi_mission, stream_to_port
-from sim.scene import load_scene
+from sim.render.scene import load_scene
 from sim.worlds.demo import build_demo_world
 from tests.sim.drone_helpers import short_orbit_csv
 

@@ -15,7 +15,7 @@ from sim.drone import Imperfections
 from sim.drone.exif import NOT_WRITTEN
 from sim.drone.photos import photo_camera, render_photos, write_dji_jpeg
 from sim.drone.session import fly_litchi_mission
-from sim.scene import load_scene
+from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
 from tests.sim.drone_helpers import short_orbit_csv
 

@@ -13,15 +13,16 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from render_scene_helpers import write_scene
-from sim.camera import PinholeCamera, Rig, project_world_points
+from sim.render.camera import PinholeCamera, Rig, project_world_points
 from sim.dataset.images import read_png
 from sim.effects import (LINEAR_BYTES_PER_PIXEL, PHOTOMETRIC_BYTES_PER_PIXEL, CameraEffects, add_sensor_noise,
                          apply_photometric, effects_memory_bytes, render_in_time, vignetting_gain)
 from sim.frame_renderer import RenderInputError, RenderOptions
-from sim.render import render
+from sim.render.renderer import render
 from sim.render_dataset import render_dataset
 from sim.sampling import R_WORLD_NADIR
-from sim.shade import SRGB8_TO_LINEAR, UNLIT, Sun, to_srgb8
+from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
+from sim.render.shade import UNLIT, Sun
 from sim.synthetic import colored_scene, height_field_scene
 
 CAMERA = PinholeCamera.from_fov(160, 120, 60.0)

@@ -17,7 +17,7 @@ from sim.cli import main as cli_main
 from sim.dataset import DatasetSpec, FrameRecord, KittiDatasetWriter, finalize_dataset
 from sim.dataset import images
 from sim.dataset.export import export_dataset
-from sim.shade import Sun
+from sim.render.shade import Sun
 
 FRAMES = 4
 PROG = "aerostereo-render evaluate: error: "

@@ -11,14 +11,14 @@ import numpy as np
 import pytest
 
 from dataset_helpers import CAMERA, frame_record, looking_down_pose, spec
-from sim.camera import PinholeCamera, Rig, look_at
+from sim.render.camera import PinholeCamera, Rig, look_at
 from sim.dataset import KittiDatasetWriter, finalize_dataset
 from sim.dataset.export import export_dataset
 from sim.dataset.images import disparity_from_depth
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, visible_in_right
 from sim.flow import flow_between
-from sim.render import render
-from sim.shade import Sun
+from sim.render.renderer import render
+from sim.render.shade import Sun
 from sim.synthetic import height_field_scene
 
 WARP_CAMERA = PinholeCamera.from_fov(256, 160, 60.0)

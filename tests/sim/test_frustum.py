@@ -11,13 +11,13 @@ import trimesh
 from matplotlib.path import Path as PolygonPath
 
 from sim import sampling
-from sim.camera import PinholeCamera, Rig, camera_rays, pose_from_position
+from sim.render.camera import PinholeCamera, Rig, camera_rays, pose_from_position
 from sim.frame_renderer import SceneGround
 from sim.frustum import INNER_GRID_CELLS, ViewFrustum, inner_rectangle, sees_inside
-from sim.raycast import intersect
+from sim.render.raycast import intersect
 from sim.sampling import (RANDOM_LOOP_TILT_DEG, RandomPoseSettings, camera_rotation, frustum_margin, lawnmower,
                           random_loop, random_pose)
-from sim.scene import Scene, SceneError, Surface, read_scene_json
+from sim.render.scene import Scene, SceneError, Surface, read_scene_json
 from sim.synthetic import grid_mesh
 
 AREA = (-170.0, 170.0, -130.0, 130.0)

@@ -14,10 +14,10 @@ from trimesh.exchange.gltf import validate
 
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import LocalFrame
-from sim.scene import SceneError, load_scene
+from sim.render.scene import SceneError, load_scene
 from sim.synthetic import grid_mesh
 from sim.worlds.demo import demo_scene_dir, generate_world
-from sim.worlds.glb import GEOREF_FORMAT, GEOREF_KEY, encode_textured_glb
+from sim.render.glb import GEOREF_FORMAT, GEOREF_KEY, encode_textured_glb
 
 ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
 _COMPONENT_BYTES = {5126: 4, 5125: 4}

@@ -8,13 +8,13 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sim.camera import PinholeCamera, Rig, camera_rays, pose_from_position
-from sim.raycast import intersect
-from sim.render import render
+from sim.render.camera import PinholeCamera, Rig, camera_rays, pose_from_position
+from sim.render.raycast import intersect
+from sim.render.renderer import render
 from sim.sampling import camera_rotation
-from sim.scene import Scene, SceneError, Surface, load_scene
-from sim.shade import UNLIT
-from sim.worlds.glb import TexturedPart, encode_textured_glb_parts
+from sim.render.scene import Scene, SceneError, Surface, load_scene
+from sim.render.shade import UNLIT
+from sim.render.glb import TexturedPart, encode_textured_glb_parts
 from test_glb import ORIGIN, assert_valid_glb, jpeg, write_folder
 from test_scene import write_scene
 

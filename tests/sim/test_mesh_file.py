@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 import trimesh
 
-from sim.mesh_file import MAX_INDEX, MeshFileError, check_mesh_file
+from sim.render.mesh_file import MAX_INDEX, MeshFileError, check_mesh_file
 
 SPHERE = trimesh.creation.icosphere(subdivisions=3)  # 642 vertices, 1280 triangles
 
@@ -120,7 +120,7 @@ def test_a_huge_glb_is_sized_without_reading_it_whole(tmp_path):
     script = textwrap.dedent(f"""
         import resource
         resource.setrlimit(resource.RLIMIT_AS, (3 * 2**29, 3 * 2**29))
-        from sim.mesh_file import check_mesh_file
+        from sim.render.mesh_file import check_mesh_file
         size = check_mesh_file({str(path)!r})
         print(size.triangles, size.largest_image_side)
     """)

@@ -18,7 +18,7 @@ from sim.metrics import (
     ssim,
     summary_table,
 )
-from sim.shade import SRGB8_TO_LINEAR, to_srgb8
+from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
 
 RNG = np.random.default_rng(0)
 IMAGE = RNG.integers(0, 200, size=(40, 50, 3), dtype=np.uint8)

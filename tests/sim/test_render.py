@@ -7,11 +7,12 @@ import numpy as np
 import pytest
 import trimesh
 
-from sim.camera import PinholeCamera, Rig, camera_rays, look_at, project_world_points
-from sim.raycast import intersect, occluded
-from sim.render import Lighting, Sun, miss_fraction, render
-from sim.scene import Scene, Surface
-from sim.shade import SRGB8_TO_LINEAR, linear_to_srgb, sample_bilinear, to_srgb8
+from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at, project_world_points
+from sim.render.raycast import intersect, occluded
+from sim.render.renderer import Lighting, Sun, miss_fraction, render
+from sim.render.scene import Scene, Surface
+from sim.render.color import SRGB8_TO_LINEAR, linear_to_srgb, to_srgb8
+from sim.render.texture import sample_bilinear
 from sim.synthetic import colored_scene, grid_mesh, height_field_scene, noise_texture
 
 CAMERA = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=(-0.2, 0.05, 0.001, -0.001, 0.0))
@@ -255,12 +256,12 @@ def test_images_do_not_depend_on_the_blocks_or_the_number_of_threads(monkeypatch
     T = look_at([0.0, -120.0, 90.0], [0.0, 0.0, 0.0])
     whole = render(scene, rig, T, Sun(120.0, 35.0))
     jittered = render(scene, rig, T, Sun(120.0, 35.0), 3, pool=ThreadPoolExecutor(1), rng=np.random.default_rng(2))
-    monkeypatch.setattr("sim.render.BLOCK_PIXELS", 1000)  # 13 blocks per 128x96 view
+    monkeypatch.setattr("sim.render.renderer.BLOCK_PIXELS", 1000)  # 13 blocks per 128x96 view
     blocks = render(scene, rig, T, Sun(120.0, 35.0), pool=ThreadPoolExecutor(3))
     for a, b in zip(whole.views, blocks.views):
         for name in ("rgb", "depth", "distance", "normal", "valid"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-    monkeypatch.setattr("sim.render.BLOCK_PIXELS", 131072)
+    monkeypatch.setattr("sim.render.renderer.BLOCK_PIXELS", 131072)
     threads = render(scene, rig, T, Sun(120.0, 35.0), 3, pool=ThreadPoolExecutor(3), rng=np.random.default_rng(2))
     for a, b in zip(jittered.views, threads.views):
         np.testing.assert_array_equal(a.rgb, b.rgb)

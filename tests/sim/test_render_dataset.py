@@ -26,7 +26,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
 from sim.frame_renderer import FrameRenderer, RenderOptions
 from sim.cli import main as cli_main
@@ -470,9 +470,9 @@ def test_the_disk_estimate_per_frame_is_within_a_factor_two_of_the_frames_writte
 
 
 def test_the_memory_estimate_counts_every_array_a_view_keeps(scene_dir):
-    from sim.render import VIEW_BYTES_PER_PIXEL, render, render_memory_bytes
+    from sim.render.renderer import VIEW_BYTES_PER_PIXEL, render, render_memory_bytes
     from sim.frame_renderer import build_rig
-    from sim.shade import Sun
+    from sim.render.shade import Sun
 
     options = RenderOptions(width=40, height=30)
     rig = build_rig(options)

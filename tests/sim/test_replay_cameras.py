@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sim.camera import PinholeCamera, pose_from_position
+from sim.render.camera import PinholeCamera, pose_from_position
 from sim.cli import main as cli_main
 from sim.dataset.images import read_exr, read_png, write_png
 from sim.metrics import apply_exposure_gain
 from sim.sampling import camera_rotation
-from sim.scene_cameras import SceneCamera, write_cameras
+from sim.render.scene_cameras import SceneCamera, write_cameras
 
 from render_scene_helpers import BOX_X_M, write_scene
 

@@ -11,7 +11,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from sim.camera import pose_from_position
+from sim.render.camera import pose_from_position
 from sim.sampling import (
     R_WORLD_NADIR,
     RandomPoseSettings,

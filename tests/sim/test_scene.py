@@ -8,9 +8,9 @@ import trimesh
 from embreex import mesh_construction, rtcore_scene
 from PIL import Image
 
-from sim.camera import PinholeCamera, Rig, look_at
-from sim.render import Sun, render
-from sim.scene import Scene, SceneError, Surface, load_scene
+from sim.render.camera import PinholeCamera, Rig, look_at
+from sim.render.renderer import Sun, render
+from sim.render.scene import Scene, SceneError, Surface, load_scene
 from sim.synthetic import grid_mesh
 
 UTM_OFFSET = np.array([451234.567, 4412345.678, 0.0])

@@ -10,7 +10,7 @@ import trimesh
 import sim.worlds.demo as demo
 from flightplan.demo_location import DEMO_ORIGIN
 from sim.worlds import build_demo_world, demo_scene_dir
-from sim.worlds.glb import enu_from_gltf
+from sim.render.glb import enu_from_gltf
 from sim.worlds.layout import VARIANTS
 
 

@@ -16,12 +16,12 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.scene_out import write_scene
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.frame_renderer import RenderOptions
 from sim.render_dataset import render_dataset
 from sim.synthetic import grid_mesh
-from sim.scene_cameras import SceneCamera
+from sim.render.scene_cameras import SceneCamera
 from tools.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, dataset_outside_metrics,
                              merged_camera_errors, pair_truth_offsets, piece_camera_errors, seam_split, view_points)
 
@@ -251,7 +251,7 @@ def test_dataset_pixels_past_a_polygon_are_those_whose_ground_point_is_past_it(f
 
 def test_default_field_is_the_worlds_rectangle_less_the_inset_as_the_planner_reads_it(tmp_path):
     from flightplan.field import read_field
-    from sim.scene import read_scene_json
+    from sim.render.scene import read_scene_json
     from tools.area_loop import AreaConfig, field_stage, world_folder
 
     world = world_folder("demo:small")

@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from sim.camera import camera_rays
-from sim.scene import load_scene
+from sim.render.camera import camera_rays
+from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
 from tools.bench_render import (CAMERA, blender_run, depth_agreement, embree_distance_run, oblique_pose, open3d_run,
                                 ours_run, peers_table)
@@ -57,4 +57,4 @@ def test_a_missing_peer_is_reported_not_installed(small_world, view, monkeypatch
     lines = capsys.readouterr().out.splitlines()
     assert [line.split("not installed")[0].strip() for line in lines if "not installed" in line] == \
         ["Open3D RaycastingScene.cast_rays", "Blender Cycles 1 spp (bpy)"]
-    assert any(line.startswith("ours (sim.raycast.intersect)") for line in lines)
+    assert any(line.startswith("ours (sim.render.raycast.intersect)") for line in lines)

@@ -9,9 +9,9 @@ from types import SimpleNamespace
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from sim.camera import PinholeCamera
+from sim.render.camera import PinholeCamera
 from sim.dataset import DatasetSpec, FrameRecord, KittiDatasetWriter, finalize_dataset
-from sim.shade import Sun
+from sim.render.shade import Sun
 from tools.sgbm_baseline import main
 
 CAMERA = PinholeCamera(fx=100.0, fy=100.0, cx=79.5, cy=59.5, width=160, height=120)

@@ -1,9 +1,9 @@
 """Scenes: a triangle mesh with its texture in local ENU metres, recentred and built into embree once.
 
 A scene folder holds ``scene.json``, the mesh it names and, for a reconstruction, the ``cameras.json`` it names
-(its registered photos, sim/scene_cameras.py; see docs/interfaces.md). Vertices are converted
+(its registered photos, sim/render/scene_cameras.py; see docs/interfaces.md). Vertices are converted
 in float64 (``ENU = stored - vertex_offset_m``, glTF +Y-up rotated to ENU: our GLBs say so in their
-``scenes[0].extras`` georeference, sim/worlds/glb.py; other meshes by scene.json's ``up_axis``), then *recentred* on the
+``scenes[0].extras`` georeference, sim/render/glb.py; other meshes by scene.json's ``up_axis``), then *recentred* on the
 mesh's bounding-box centre and only then cast to float32 for embree: float32 has ~0.5 m spacing at
 UTM northings, a few micrometres near the origin.
 """
@@ -23,10 +23,10 @@ from PIL import Image
 from cliutil.program import BadInput
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
-from sim.mesh_file import check_mesh_file
-from sim.scene_cameras import CamerasError, SceneCamera, read_cameras
-from sim.shade import MAX_TEXTURE_SIDE, linear_texture
-from sim.worlds.glb import GEOREF_FORMAT, GEOREF_KEY, enu_from_gltf
+from sim.render.mesh_file import check_mesh_file
+from sim.render.scene_cameras import CamerasError, SceneCamera, read_cameras
+from sim.render.texture import MAX_TEXTURE_SIDE, linear_texture
+from sim.render.glb import GEOREF_FORMAT, GEOREF_KEY, enu_from_gltf
 
 SCENE_FORMAT = "aerostereo-scene/1"
 
@@ -300,9 +300,9 @@ def mesh_up_axis(meta: dict, georef: dict | None, path: Path) -> str:
 
 def read_mesh(path: Path) -> tuple[np.ndarray, np.ndarray, Surface, dict | None]:
     """Read a mesh file with trimesh -> float64 vertices (as stored), faces, its :class:`Surface` and its
-    aerostereo georeference (``scenes[0].extras`` of a GLB written by sim/worlds/glb.py; None for other files).
+    aerostereo georeference (``scenes[0].extras`` of a GLB written by sim/render/glb.py; None for other files).
 
-    A file of several textured geometries (a multi-part GLB, sim/worlds/glb.py, or any scene trimesh loads so) is
+    A file of several textured geometries (a multi-part GLB, sim/render/glb.py, or any scene trimesh loads so) is
     read part by part, each placed by its node transform and keeping its own texture (:func:`_parts_surface`);
     any other file is joined into one mesh by trimesh."""
     path = Path(path)

@@ -20,7 +20,7 @@ import numpy as np
 
 from cliutil.atomic import write_text_atomic
 from cliutil.jsonfile import loads_json
-from sim.camera import PinholeCamera, check_pose
+from sim.render.camera import PinholeCamera, check_pose
 
 CAMERAS_FORMAT = "aerostereo-cameras/1"
 CAMERAS_FRAME = "scene ENU (scene.json origin), OpenCV camera axes"

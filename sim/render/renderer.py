@@ -17,10 +17,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.camera import PinholeCamera, Rays, Rig, camera_rays, row_dots, stratified_offsets
-from sim.raycast import Hits, default_workers, intersect, intersect_local, occluded_local
-from sim.scene import Scene
-from sim.shade import Lighting, Sun, lambert, sky_radiance, surface_albedo, to_srgb8
+from sim.render.camera import PinholeCamera, Rays, Rig, camera_rays, row_dots, stratified_offsets
+from sim.render.raycast import Hits, default_workers, intersect, intersect_local, occluded_local
+from sim.render.scene import Scene
+from sim.render.shade import Lighting, Sun, lambert, sky_radiance, surface_albedo
+from sim.render.color import to_srgb8
 
 __all__ = ["Frame", "Lighting", "Sun", "View", "miss_fraction", "render"]
 

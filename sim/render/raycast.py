@@ -1,4 +1,4 @@
-"""Closest-hit and occlusion queries on a :class:`sim.scene.Scene`, in contiguous row blocks on threads.
+"""Closest-hit and occlusion queries on a :class:`sim.render.scene.Scene`, in contiguous row blocks on threads.
 
 embreex (>= 4.4) releases the GIL inside ``run()``, so a thread pool casting contiguous blocks of
 image-ordered rays uses every core without copying rays to other processes (``tools/bench_render.py``
@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.camera import row_dots
-from sim.scene import Scene
+from sim.render.camera import row_dots
+from sim.render.scene import Scene
 
 #: embree's "no hit" distance.
 _EMBREE_MISS = 1e30
