@@ -25,8 +25,10 @@ from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
 from sim.drone.exposure import metered_luminance
-from sim.effects import (AUTO_EXPOSURE_WINDOW_S, EXPOSURE_STREAM, NOISE_STREAM, CameraEffects, apply_photometric,
-                         auto_exposure_gain, effects_memory_bytes, render_in_time)
+from sim.drone.exposure import AUTO_EXPOSURE_WINDOW_S, auto_exposure_gain
+from sim.effects import EXPOSURE_STREAM, NOISE_STREAM, CameraEffects
+from sim.render.film import apply_photometric, effects_memory_bytes
+from sim.motion.shutter import render_in_time
 from sim.render.raycast import default_workers
 from sim.render.renderer import miss_fraction, render, render_memory_bytes
 from sim.drone.flight import GRAVITY_MPS2
@@ -435,7 +437,7 @@ class FrameRenderer:
 
     def _auto_exposure_gain(self, index: int) -> np.ndarray:
         """Frame ``index``'s auto-exposure gain per channel: the virtual drone camera's model
-        (:func:`sim.effects.auto_exposure_gain`) over the frames of the last :data:`AUTO_EXPOSURE_WINDOW_S` up to
+        (:func:`sim.drone.exposure.auto_exposure_gain`) over the frames of the last :data:`AUTO_EXPOSURE_WINDOW_S` up to
         this one, each metered on a small render of its left view."""
         window = [index]
         now = self._metering(index)[0]

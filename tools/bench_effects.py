@@ -27,7 +27,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sim.effects import CameraEffects, add_sensor_noise  # noqa: E402
+from sim.effects import CameraEffects
+from sim.render.film import add_sensor_noise
 from sim.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
 from sim.render.renderer import miss_fraction
 from sim.render_dataset import resolve_scene_dir  # noqa: E402

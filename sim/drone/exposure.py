@@ -12,10 +12,17 @@ unit-exposure render, per channel.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 
 from sim.drone.imperfections import Imperfections
 
+#: The auto-exposure figures (metering, lag, log-gain noise, white balance) of the virtual drone's camera, which
+#: datasets' auto-exposure effect uses too (:func:`auto_exposure_gain`).
+AUTO_EXPOSURE = Imperfections.realistic()
+#: The lag window (s): frames taken longer than five lag time constants before are forgotten (e**-5 < 1 % weight).
+AUTO_EXPOSURE_WINDOW_S = 5.0 * AUTO_EXPOSURE.exposure_lag_s
 #: Bounds of the common (all-channel) gain: +-0.5 EV around the flight's typical exposure (2**-0.5 .. 2**0.5).
 GAIN_RANGE = (2.0**-0.5, 2.0**0.5)
 #: Rec. 709 / sRGB luminance weights of linear R, G, B.
@@ -59,3 +66,11 @@ def lagged(times_s: np.ndarray, command: np.ndarray, time_constant_s: float) -> 
     for k in range(1, len(out)):  # a time-varying AR(1): sequential, cheap at photo rates
         out[k] = decay[k - 1] * out[k - 1] + (1.0 - decay[k - 1]) * command[k]
     return out
+
+
+def auto_exposure_gain(times_s: Sequence[float], metered: Sequence[float], noise: np.ndarray) -> np.ndarray:
+    """Per-channel gain ``(3,)`` of the last of the frames at ``times_s`` (s, increasing, the lag window ending at
+    this frame) whose views meter ``metered`` (centre-weighted linear luminance) with standard normal draws
+    ``noise`` ``(N, 4)``: :func:`auto_exposure_gains` with :data:`AUTO_EXPOSURE`, aiming at the
+    median of the window."""
+    return auto_exposure_gains(np.asarray(times_s, float), np.asarray(metered, float), noise, AUTO_EXPOSURE)[-1]

@@ -1,4 +1,4 @@
-"""Camera effects (sim/effects.py): rolling shutter skews a vertical edge under a pure yaw by what the line delay
+"""Camera effects (sim/effects.py settings, sim/render/film.py, sim/motion/shutter.py): rolling shutter skews a vertical edge under a pure yaw by what the line delay
 predicts, motion blur of a camera at rest changes nothing, noise has the configured statistics, vignetting follows
 its formula, and a dataset's ground truth (depth, poses) is byte for byte the same with every effect on."""
 
@@ -15,8 +15,16 @@ from scipy.spatial.transform import Rotation
 from render_scene_helpers import write_scene
 from sim.render.camera import PinholeCamera, Rig, project_world_points
 from sim.dataset.images import read_png
-from sim.effects import (LINEAR_BYTES_PER_PIXEL, PHOTOMETRIC_BYTES_PER_PIXEL, CameraEffects, add_sensor_noise,
-                         apply_photometric, effects_memory_bytes, render_in_time, vignetting_gain)
+from sim.render.film import (
+    LINEAR_BYTES_PER_PIXEL,
+    PHOTOMETRIC_BYTES_PER_PIXEL,
+    add_sensor_noise,
+    apply_photometric,
+    effects_memory_bytes,
+    vignetting_gain,
+)
+from sim.effects import CameraEffects
+from sim.motion.shutter import render_in_time
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.render.renderer import render
 from sim.render_dataset import render_dataset
