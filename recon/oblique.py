@@ -28,7 +28,8 @@ from sim.render.camera import PinholeCamera, Rig, camera_rays
 from sim.frame_renderer import SceneGround
 from sim.metrics import depth_errors, photorealism_error_masked, photorealism_error_percent
 from sim.render.renderer import View, miss_fraction, render
-from sim.sampling import PoseSample, RandomPoseSettings, random_pose
+from sim.sampling.pose import PoseSample
+from sim.sampling.random_poses import RandomPoseSettings, random_pose
 from sim.render.scene import Scene
 from sim.render.shade import Sun
 
@@ -102,7 +103,7 @@ class _AreaGround(SceneGround):
 
 def sample_views(scene: Scene, camera: PinholeCamera, polygon: np.ndarray, count: int, seed: int,
                  settings: RandomPoseSettings = OBLIQUE_SETTINGS) -> list[PoseSample]:
-    """``count`` poses drawn the paper's way (:func:`sim.sampling.random_pose`: 20-100 m above the true ground,
+    """``count`` poses drawn the paper's way (:func:`sim.sampling.random_poses.random_pose`: 20-100 m above the true ground,
     heading 0-360, tilts +-45 deg, redrawn while more than the allowed fraction is sky) whose camera stands over
     the observed ``polygon`` (world ENU); pose ``i`` depends only on ``(seed, i)``."""
     def probe(T_world_cam: np.ndarray) -> float:

@@ -3,7 +3,7 @@
 A flight observes well what lies under the ring or block of its camera positions; outside it the ground is seen
 only at grazing angles. :func:`observed_area` is the convex hull of the cameras' horizontal positions (for a
 50 m orbit: the 50 m disc), :func:`viewed_area` adds the ground points the cameras' optical axes meet (a short
-arc of an orbit looks at its centre), :func:`inside` (:func:`sim.frustum.inside_polygon`, the one point-in-polygon
+arc of an orbit looks at its centre), :func:`inside` (:func:`sim.sampling.frustum.inside_polygon`, the one point-in-polygon
 test of the project) tests ground points against such a polygon. Both work in one ENU frame (x east, y north,
 metres); heights are ignored.
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import ConvexHull, QhullError
 
-from sim.frustum import inside_polygon as inside  # noqa: F401  (re-exported: recon's name for it)
+from sim.sampling.frustum import inside_polygon as inside  # noqa: F401  (re-exported: recon's name for it)
 
 
 def observed_area(centres_enu: np.ndarray) -> np.ndarray:

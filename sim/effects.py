@@ -12,8 +12,6 @@ from dataclasses import dataclass
 
 from sim.drone.exposure import AUTO_EXPOSURE
 
-#: Random streams of the effects (sim/sampling.py numbers the renderer's 0-3): sensor noise, exposure noise.
-NOISE_STREAM, EXPOSURE_STREAM = 10, 11
 VIGNETTING_MODELS = ("cos4",)
 
 

@@ -2,7 +2,7 @@
 
 :class:`FrameRenderer` loads the scene and builds embree once, then turns frame ``i`` into a
 :class:`~sim.dataset.FrameRecord`. The pose, the sun and the anti-aliasing jitter of frame ``i`` come from
-generators seeded by ``(seed, i)`` only (sim/sampling.py), so the bytes of a frame do not depend on which
+generators seeded by ``(seed, i)`` only (sim/sampling/seeds.py), so the bytes of a frame do not depend on which
 process renders it, in which order, or in which shard.
 """
 
@@ -20,13 +20,14 @@ from pathlib import Path
 import numpy as np
 
 from sim.render.camera import PinholeCamera, Rig
-from sim.frustum import ViewFrustum
+from sim.sampling.frustum import ViewFrustum
 from sim.dataset import DEFAULT_FORMATS, FrameRecord, needs_disparity
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.writer import camera_description
 from sim.drone.exposure import metered_luminance
 from sim.drone.exposure import AUTO_EXPOSURE_WINDOW_S, auto_exposure_gain
-from sim.effects import EXPOSURE_STREAM, NOISE_STREAM, CameraEffects
+from sim.sampling.seeds import EXPOSURE_STREAM, NOISE_STREAM
+from sim.effects import CameraEffects
 from sim.render.film import apply_photometric, effects_memory_bytes
 from sim.motion.shutter import render_in_time
 from sim.render.raycast import default_workers
@@ -37,24 +38,12 @@ from sim.motion.rig_path import RigPath
 from sim.drone import Imperfections
 from sim.drone.session import fly_litchi_mission
 from sim.motion.trajectory import flight_path, smooth_path
-from sim.sampling import (
-    IMU_STREAM,
-    RANDOM_LOOP_TILT_DEG,
-    RENDER_STREAM,
-    PoseSample,
-    RandomPoseSettings,
-    SunSample,
-    Trajectory,
-    frame_rng,
-    frustum_margin,
-    lawnmower,
-    orbit,
-    random_loop,
-    random_pose,
-    random_sun,
-    replay_poses,
-    scene_camera_poses,
-)
+from sim.sampling.seeds import IMU_STREAM, RENDER_STREAM, frame_rng
+from sim.sampling.trajectories import RANDOM_LOOP_TILT_DEG, Trajectory, lawnmower, orbit, random_loop
+from sim.sampling.pose import PoseSample
+from sim.sampling.random_poses import RandomPoseSettings, frustum_margin, random_pose
+from sim.sampling.sun import SunSample, random_sun
+from sim.sampling.replay import replay_poses, scene_camera_poses
 from sim.render.scene import Scene, SceneError, load_scene
 from sim.render.color import SRGB8_TO_LINEAR
 from sim.render.shade import UNLIT, Sun
@@ -69,7 +58,7 @@ SCENE_REPLAY_FORMATS = ("depth_exr",)
 #: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
 #: The trajectories kept inside the valid area (and the scene's observed_area_m polygon) less the margin: flown in the
-#: largest rectangle inside both (sim/frustum.py inner_rectangle). Orbit and flight are placed by the user.
+#: largest rectangle inside both (sim/sampling/frustum.py inner_rectangle). Orbit and flight are placed by the user.
 MARGIN_PATHS = ("lawnmower", "loop")
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
@@ -91,8 +80,8 @@ class RenderOptions:
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes, or with
     ``scheduler`` (``local:N`` or ``tcp://HOST:PORT``) tasks on a Dask cluster (sim/cluster.py).
-    ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.RandomPoseSettings`);
-    ``margin_m`` None (the default) derives the margin from the rig's view frustum (:mod:`sim.frustum`): random
+    ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.random_poses.RandomPoseSettings`);
+    ``margin_m`` None (the default) derives the margin from the rig's view frustum (:mod:`sim.sampling.frustum`): random
     poses and the lawnmower and random-loop paths then keep every ray of every frame inside the valid area.
     ``distortion``: OpenCV ``(k1, k2, p1, p2, k3)`` of every camera (images then are not rectified, so no
     disparity can be written). ``width``/``height`` None: :data:`DEFAULT_SIZE`, except a replay of the scene's
@@ -168,7 +157,7 @@ class RenderOptions:
         inside_margin = self.mode == "random" or (self.mode == "trajectory" and self.trajectory in MARGIN_PATHS)
         if inside_margin and self.margin_m is None:
             description["margin"] = ("frustum: every ray of every frame stays inside the valid area and the scene's "
-                                     "observed_area_m polygon if any (sim/frustum.py)")
+                                     "observed_area_m polygon if any (sim/sampling/frustum.py)")
         elif inside_margin and self.mode == "trajectory":
             description["trajectory"]["margin_m"] = self.margin_m
         if self.effects.enabled:
@@ -234,7 +223,7 @@ def replay_lenses(scene: Scene, options: RenderOptions) -> list[PinholeCamera]:
 
 
 class PoseSource:
-    """Frame index -> :class:`~sim.sampling.PoseSample` for the chosen mode, and the frame count."""
+    """Frame index -> :class:`~sim.sampling.pose.PoseSample` for the chosen mode, and the frame count."""
 
     def __init__(self, scene: Scene, options: RenderOptions, left_camera: PinholeCamera):
         self.options = options
@@ -287,7 +276,7 @@ class PoseSource:
 
     def _path_margin(self, tilt_deg: float) -> float:
         """The margin of a path flown at the options' altitude with the camera ``tilt_deg`` from nadir: the
-        fixed one, or the frustum's (:func:`~sim.sampling.frustum_margin`)."""
+        fixed one, or the frustum's (:func:`~sim.sampling.random_poses.frustum_margin`)."""
         if self.frustum is None:
             return self.options.margin_m
         margin = frustum_margin(self.ground, self.frustum, tilt_deg, self.options.altitude_m)

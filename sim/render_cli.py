@@ -33,7 +33,7 @@ FRUSTUM_MARGIN = "frustum"
 
 
 def margin_value(text: str) -> float | str:
-    """``--margin``: metres (a number), or ``frustum`` (derived from each view, :mod:`sim.frustum`)."""
+    """``--margin``: metres (a number), or ``frustum`` (derived from each view, :mod:`sim.sampling.frustum`)."""
     if text == FRUSTUM_MARGIN:
         return text
     try:

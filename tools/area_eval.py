@@ -32,7 +32,7 @@ from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.frame_renderer import frame_sun
 from sim.render.raycast import default_workers
-from sim.sampling import random_sun
+from sim.sampling.sun import random_sun
 from sim.render.scene import load_scene, read_scene_json
 from tools.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines, surface_metrics
 

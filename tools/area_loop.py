@@ -42,8 +42,8 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from flightplan import litchi  # noqa: E402
-from cliutil.atomic import write_text_atomic
-from sim.render.scene import SceneError, read_scene_json
+from cliutil.atomic import write_text_atomic  # noqa: E402
+from sim.render.scene import SceneError, read_scene_json  # noqa: E402
 from tools.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
 from tools.closed_loop import StageResult, cli, finished_report, run, skipped, world_folder  # noqa: E402
 

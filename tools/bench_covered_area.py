@@ -18,12 +18,12 @@ from unittest import mock
 
 import numpy as np
 
-from sim import sampling
+from sim.sampling import random_poses
 from sim.render.camera import Rig, camera_rays
 from sim.frame_renderer import RenderOptions, SceneGround, build_rig
-from sim.frustum import ViewFrustum, inside_polygon, sees_inside
+from sim.sampling.frustum import ViewFrustum, inside_polygon, sees_inside
 from sim.render.raycast import intersect
-from sim.sampling import RandomPoseSettings, random_pose
+from sim.sampling.random_poses import RandomPoseSettings, random_pose
 from sim.render.scene import Scene, Surface
 from sim.synthetic import grid_mesh
 
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
                                    valid_area_m=dict(zip(("xmin", "xmax", "ymin", "ymax"), AREA)),
                                    observed_area_m=polygon.tolist()))
         for label, test in (("footprint hull", sees_inside), ("reach points only", reach_points_inside)):
-            with mock.patch.object(sampling, "sees_inside", test):
+            with mock.patch.object(random_poses, "sees_inside", test):
                 start = time.perf_counter()
                 samples = [random_pose(ground, 0, index, settings, frustum=frustum) for index in range(args.frames)]
                 ms = (time.perf_counter() - start) / args.frames * 1e3

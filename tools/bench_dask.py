@@ -47,7 +47,7 @@ from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
 from sim.cluster import THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size, connect, environment_kept  # noqa: E402,E501
 from sim.frame_renderer import RenderOptions  # noqa: E402
-from sim.render.raycast import default_workers
+from sim.render.raycast import default_workers  # noqa: E402
 from sim.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
 
 FRAME_COUNTS = (10**4, 10**5, 10**6)

@@ -31,9 +31,9 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from recon.dense import View, pair_depth, sgbm_matcher  # noqa: E402
-from sim.render.camera import PinholeCamera, Rig, look_at
-from sim.render.renderer import Sun, render
-from sim.render.scene import load_scene
+from sim.render.camera import PinholeCamera, Rig, look_at  # noqa: E402
+from sim.render.renderer import Sun, render  # noqa: E402
+from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth  # noqa: E402
 

@@ -27,12 +27,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sim.effects import CameraEffects
-from sim.render.film import add_sensor_noise
+from sim.effects import CameraEffects  # noqa: E402
+from sim.render.film import add_sensor_noise  # noqa: E402
 from sim.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
-from sim.render.renderer import miss_fraction
+from sim.render.renderer import miss_fraction  # noqa: E402
 from sim.render_dataset import resolve_scene_dir  # noqa: E402
-from sim.render.color import SRGB8_TO_LINEAR
+from sim.render.color import SRGB8_TO_LINEAR  # noqa: E402
 
 LINE_DELAY_S = 30e-6  # 720 rows read out in 21.6 ms, a phone-class CMOS sensor
 EXPOSURE_S = 0.01

@@ -4,7 +4,7 @@ For each world and margin, N random stereo poses (the default 1280x720 rig at 80
 needs, the time per pose, the heights and tilts kept (the paper draws 20-100 m and +-45 deg), the area the
 cameras are placed in (fixed margin: the inner rectangle; frustum: the mean over frames of the rectangle a pose's
 height, tilts and heading allow; the paper's 38,480 of 153,000 m^2) and the share of frames whose view reaches
-past the valid area (checked with the view's border rays down to the scene's lowest surface, :mod:`sim.frustum`).
+past the valid area (checked with the view's border rays down to the scene's lowest surface, :mod:`sim.sampling.frustum`).
 No sky probe here (the render adds one).
 
     .venv/bin/python tools/bench_frustum.py [--variants small default large] [--frames 300] [--margins 0 20 50]
@@ -18,9 +18,9 @@ import time
 import numpy as np
 
 from sim.frame_renderer import DEFAULT_SIZE, RenderOptions, SceneGround, build_rig
-from sim.frustum import ViewFrustum, placement_area, sees_inside
+from sim.sampling.frustum import ViewFrustum, placement_area, sees_inside
 from sim.render_dataset import resolve_scene_dir
-from sim.sampling import RandomPoseSettings, random_pose
+from sim.sampling.random_poses import RandomPoseSettings, random_pose
 from sim.render.scene import load_scene
 
 

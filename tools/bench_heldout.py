@@ -42,7 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 
 from sim.metrics import compare_folders, mean_comparison  # noqa: E402
-from sim.render.scene import load_scene
+from sim.render.scene import load_scene  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 METRICS = ("error_percent", "gain_error_percent", "covered_error_percent", "covered_gain_error_percent",

@@ -32,7 +32,7 @@ from sim.drone import Imperfections, fly  # noqa: E402
 from sim.drone.mission import HomePoint, waypoints_from_litchi  # noqa: E402
 from sim.motion.imu import EUROC_ADIS16448, R_world_body, dead_reckon, synthesize_imu  # noqa: E402
 from sim.motion.trajectory import CircleOrbit, flight_path, smooth_path  # noqa: E402
-from sim.sampling import lawnmower, random_loop  # noqa: E402
+from sim.sampling.trajectories import lawnmower, random_loop  # noqa: E402
 
 RATES_HZ = (100.0, 200.0, 400.0, 1000.0)
 

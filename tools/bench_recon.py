@@ -54,7 +54,7 @@ from recon.priors import (CameraSeed, camera_seed, focal_seed, list_photos, prio
                           read_geotags)
 from recon.sfm import SfmError, SfmOptions, camera_poses, run_sfm  # noqa: E402
 from recon.similarity import umeyama  # noqa: E402
-from sim.render.scene import load_scene
+from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reuse_stages  # noqa: E402
 

@@ -39,7 +39,7 @@ from recon.cli import positive_int  # noqa: E402
 from recon.dense import DenseOptions  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.sfm import SfmOptions, camera_poses  # noqa: E402
-from sim.render.scene import load_scene
+from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.virtual_flight import (  # noqa: E402
     INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, reuse_stages, save_jpeg,

@@ -32,10 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import OpenEXR  # noqa: E402
 
-from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at
-from sim.render.raycast import default_workers, intersect, map_blocks
-from sim.render.renderer import StageTimes, Sun, render
-from sim.render.scene import Scene, load_scene, read_scene_json
+from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at  # noqa: E402
+from sim.render.raycast import default_workers, intersect, map_blocks  # noqa: E402
+from sim.render.renderer import StageTimes, Sun, render  # noqa: E402
+from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
 from sim.synthetic import height_field_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 

@@ -32,18 +32,18 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 from scipy.spatial import ConvexHull  # noqa: E402
 
-from cliutil.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic  # noqa: E402
 from recon.cli import positive_int  # noqa: E402
 from recon.oblique import (render_view, sample_views, score_view, summarise, true_camera_area,  # noqa: E402
                            twin_frame)
 from recon.scene_cameras import scene_camera_poses  # noqa: E402
-from sim.render.camera import PinholeCamera
+from sim.render.camera import PinholeCamera  # noqa: E402
 from sim.dataset.images import write_png  # noqa: E402
 from sim.frame_renderer import frame_sun  # noqa: E402
-from sim.render.raycast import default_workers
+from sim.render.raycast import default_workers  # noqa: E402
 from sim.render_dataset import resolve_scene_dir  # noqa: E402
-from sim.sampling import random_sun  # noqa: E402
-from sim.render.scene import load_scene
+from sim.sampling.sun import random_sun  # noqa: E402
+from sim.render.scene import load_scene  # noqa: E402
 
 
 def labelled_scene(text: str) -> tuple[str, Path]:

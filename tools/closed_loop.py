@@ -50,9 +50,9 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from flightplan import litchi  # noqa: E402
-from cliutil.atomic import write_text_atomic
+from cliutil.atomic import write_text_atomic  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
-from sim.render.scene import SceneError, read_scene_json
+from sim.render.scene import SceneError, read_scene_json  # noqa: E402
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
 
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from sim.drone.flight import GRAVITY_MPS2
 from sim.motion.trajectory import Kinematics
-from sim.sampling import IMU_STREAM
+from sim.sampling.seeds import IMU_STREAM
 
 DEFAULT_RATE_HZ = 200.0
 #: The IMU sits this far behind the stereo pair (along -z of the left camera), metres.

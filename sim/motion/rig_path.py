@@ -14,7 +14,7 @@ import numpy as np
 
 from sim.motion.imu import EUROC_ADIS16448, ImuNoise, ImuSamples, synthesize_imu, T_world_cam0
 from sim.motion.trajectory import CircleOrbit, SplinePath
-from sim.sampling import GroundModel, PoseSample
+from sim.sampling.pose import GroundModel, PoseSample
 
 
 @dataclass(frozen=True, eq=False)

@@ -2,7 +2,7 @@
 
 A trajectory gives, at times ``t`` (seconds, vectorised), the :class:`Kinematics` of the body frame B:
 position, velocity and acceleration in the world (ENU metres, m/s, m/s^2), and the attitude of the left
-camera through the heading/tilt convention of :func:`sim.sampling.camera_rotation` (heading clockwise from
+camera through the heading/tilt convention of :func:`sim.sampling.pose.camera_rotation` (heading clockwise from
 north, tilt forward from nadir, radians here) with their rates. The camera is rigidly mounted on the body:
 ``R_world_body = R_world_cam @ R_cam_body`` (:data:`sim.motion.imu.T_BODY_CAM`), so the angular velocity
 is closed-form: ``w_world = -heading' * z_up + tilt' * x_cam``.
@@ -25,7 +25,8 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from sim.sampling import R_WORLD_NADIR, Trajectory
+from sim.sampling.pose import R_WORLD_NADIR
+from sim.sampling.trajectories import Trajectory
 
 #: Distance between the spline knots fitted to a polyline path, metres.
 KNOT_SPACING_M = 2.0
@@ -50,7 +51,7 @@ class Kinematics:
     frame_rotation: np.ndarray | None = None
 
     def R_world_cam(self) -> np.ndarray:
-        """(N, 3, 3) left camera-to-world rotations (OpenCV camera axes), as :func:`sim.sampling.camera_rotation`."""
+        """(N, 3, 3) left camera-to-world rotations (OpenCV camera axes), as :func:`sim.sampling.pose.camera_rotation`."""
         turn = Rotation.from_euler("z", -self.heading[:, None]).as_matrix()
         tilt = Rotation.from_euler("x", self.tilt[:, None]).as_matrix()
         return self._to_world(turn @ R_WORLD_NADIR @ tilt)
@@ -132,7 +133,7 @@ class SplinePath:
 
 
 def _orbit_circle(path: Trajectory) -> CircleOrbit:
-    """The closed-form circle of a :func:`sim.sampling.orbit` polyline (its centre, radius, start, direction)."""
+    """The closed-form circle of a :func:`sim.sampling.trajectories.orbit` polyline (its centre, radius, start, direction)."""
     centre = np.asarray(path.look_at_xy, dtype=np.float64)
     offsets = path.points[:2, :2] - centre
     turn = offsets[0, 0] * offsets[1, 1] - offsets[0, 1] * offsets[1, 0]

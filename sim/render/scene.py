@@ -116,7 +116,7 @@ class Scene:
     def valid_area(self) -> tuple[float, float, float, float]:
         """ENU rectangle ``(xmin, xmax, ymin, ymax)`` (metres) with real content: ``valid_area_m`` from
         scene.json, else the mesh footprint. This and :meth:`ground_height` make a Scene a pose-sampler
-        ``GroundModel`` (sim/sampling.py)."""
+        ``GroundModel`` (sim/sampling/pose.py)."""
         if self.valid_area_m is not None:
             return tuple(float(self.valid_area_m[key]) for key in ("xmin", "xmax", "ymin", "ymax"))
         (xmin, ymin, _), (xmax, ymax, _) = self.bounds

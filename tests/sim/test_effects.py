@@ -28,7 +28,7 @@ from sim.motion.shutter import render_in_time
 from sim.frame_renderer import RenderInputError, RenderOptions
 from sim.render.renderer import render
 from sim.render_dataset import render_dataset
-from sim.sampling import R_WORLD_NADIR
+from sim.sampling.pose import R_WORLD_NADIR
 from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
 from sim.render.shade import UNLIT, Sun
 from sim.synthetic import colored_scene, height_field_scene

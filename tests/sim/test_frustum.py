@@ -10,13 +10,14 @@ import pytest
 import trimesh
 from matplotlib.path import Path as PolygonPath
 
-from sim import sampling
+from sim.sampling import random_poses
 from sim.render.camera import PinholeCamera, Rig, camera_rays, pose_from_position
 from sim.frame_renderer import SceneGround
-from sim.frustum import INNER_GRID_CELLS, ViewFrustum, inner_rectangle, sees_inside
+from sim.sampling.frustum import INNER_GRID_CELLS, ViewFrustum, inner_rectangle, sees_inside
 from sim.render.raycast import intersect
-from sim.sampling import (RANDOM_LOOP_TILT_DEG, RandomPoseSettings, camera_rotation, frustum_margin, lawnmower,
-                          random_loop, random_pose)
+from sim.sampling.trajectories import RANDOM_LOOP_TILT_DEG, lawnmower, random_loop
+from sim.sampling.random_poses import RandomPoseSettings, frustum_margin, random_pose
+from sim.sampling.pose import camera_rotation
 from sim.render.scene import Scene, SceneError, Surface, read_scene_json
 from sim.synthetic import grid_mesh
 
@@ -170,7 +171,7 @@ def test_random_frames_never_see_into_the_notch_of_a_non_convex_area(flat_l_worl
     polygon = np.array(L_SHAPE)
     samples = [random_pose(flat_l_world, 5, index, settings, frustum=frustum) for index in range(200)]
     assert [hits_outside(flat_l_world, s.T_world_cam, polygon) for s in samples] == [0] * len(samples)
-    monkeypatch.setattr(sampling, "sees_inside", reach_points_inside)
+    monkeypatch.setattr(random_poses, "sees_inside", reach_points_inside)
     points_only = [random_pose(flat_l_world, 5, index, settings, frustum=frustum) for index in range(200)]
     assert sum(hits_outside(flat_l_world, s.T_world_cam, polygon) > 0 for s in points_only) >= 2
 

@@ -11,7 +11,7 @@ from PIL import Image
 from sim.render.camera import PinholeCamera, Rig, camera_rays, pose_from_position
 from sim.render.raycast import intersect
 from sim.render.renderer import render
-from sim.sampling import camera_rotation
+from sim.sampling.pose import camera_rotation
 from sim.render.scene import Scene, SceneError, Surface, load_scene
 from sim.render.shade import UNLIT
 from sim.render.glb import TexturedPart, encode_textured_glb_parts

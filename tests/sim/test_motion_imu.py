@@ -24,7 +24,8 @@ from sim.motion.imu import (
 )
 from sim.motion.rig_path import RigPath
 from sim.motion.trajectory import CircleOrbit, flight_path, smooth_path
-from sim.sampling import camera_rotation, lawnmower, orbit, random_loop
+from sim.sampling.pose import camera_rotation
+from sim.sampling.trajectories import lawnmower, orbit, random_loop
 from test_drone_flight import LAT0, LON0, home_point, orbit_waypoints
 from test_sampling import GROUND
 

@@ -32,7 +32,7 @@ from sim.frame_renderer import FrameRenderer, RenderOptions
 from sim.cli import main as cli_main
 from sim.render_cli import build_parser, options_from_args
 from sim.render_dataset import render_dataset
-from sim.sampling import R_WORLD_NADIR, camera_rotation
+from sim.sampling.pose import R_WORLD_NADIR, camera_rotation
 
 from dataset_helpers import dataset_bytes
 from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene

@@ -12,17 +12,11 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from sim.render.camera import pose_from_position
-from sim.sampling import (
-    R_WORLD_NADIR,
-    RandomPoseSettings,
-    camera_rotation,
-    lawnmower,
-    orbit,
-    random_loop,
-    random_pose,
-    random_sun,
-    replay_poses,
-)
+from sim.sampling.pose import R_WORLD_NADIR, camera_rotation
+from sim.sampling.random_poses import RandomPoseSettings, random_pose
+from sim.sampling.trajectories import lawnmower, orbit, random_loop
+from sim.sampling.sun import random_sun
+from sim.sampling.replay import replay_poses
 
 SCENE_ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
 
