@@ -60,6 +60,11 @@ SUN_STRENGTH_TO_INTENSITY = 0.1
 #: The trajectories kept inside the valid area (and the scene's observed_area_m polygon) less the margin: flown in the
 #: largest rectangle inside both (sim/sampling/frustum.py inner_rectangle). Orbit and flight are placed by the user.
 MARGIN_PATHS = ("lawnmower", "loop")
+#: What ``dataset.json`` says of the frustum margin. The text is part of the settings a rerun compares before it
+#: resumes, so it keeps the module path it was written with (now sim/sampling/frustum.py): datasets rendered before
+#: the move still resume.
+FRUSTUM_MARGIN = ("frustum: every ray of every frame stays inside the valid area and the scene's observed_area_m "
+                  "polygon if any (sim/frustum.py)")
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
 
@@ -156,8 +161,7 @@ class RenderOptions:
             description["geotags"] = Path(self.geotags).name
         inside_margin = self.mode == "random" or (self.mode == "trajectory" and self.trajectory in MARGIN_PATHS)
         if inside_margin and self.margin_m is None:
-            description["margin"] = ("frustum: every ray of every frame stays inside the valid area and the scene's "
-                                     "observed_area_m polygon if any (sim/sampling/frustum.py)")
+            description["margin"] = FRUSTUM_MARGIN
         elif inside_margin and self.mode == "trajectory":
             description["trajectory"]["margin_m"] = self.margin_m
         if self.effects.enabled:
