@@ -64,7 +64,7 @@ def run_area(argv) -> int:
                       {"--out": args.out})
     scheduler = None
     if args.scheduler:
-        from sim.cluster import check_reachable, parse_scheduler
+        from sim.run.cluster import check_reachable, parse_scheduler
 
         scheduler = parse_scheduler(args.scheduler)
         check_reachable(scheduler)

@@ -11,7 +11,7 @@ Layout of the output folder ``AREA``::
     AREA/scene.json           written last: the scene renders as one (aerostereo-render --scene AREA)
 
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
-EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/cluster.py):
+EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/run/cluster.py):
 a flight is a few minutes of work, so one task per flight. The area frame's origin is the mean of the pieces' own
 origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area`, holding no piece fixed (the
 corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area_merge`.
@@ -160,7 +160,7 @@ def reconstruct_pieces(flights: Sequence[Flight], area_dir: Path, options: Recon
                        log: Callable[[str], None] = print) -> list[tuple[Path, str]]:
     """Every flight's scene folders under ``area_dir/pieces`` (:func:`reconstruct_flight`, in flight order) with the
     flight each belongs to, run here one after another or as one Dask task per flight on ``scheduler``
-    (sim.cluster.Scheduler); the first failure stops the run with it."""
+    (sim.run.cluster.Scheduler); the first failure stops the run with it."""
     if scheduler is None:
         pieces = []
         for number, flight in enumerate(flights, start=1):
@@ -169,7 +169,7 @@ def reconstruct_pieces(flights: Sequence[Flight], area_dir: Path, options: Recon
         return pieces
     import distributed
 
-    from sim.cluster import connect, dashboard_line
+    from sim.run.cluster import connect, dashboard_line
 
     with connect(scheduler) as client:
         log(dashboard_line(client))

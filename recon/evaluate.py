@@ -2,7 +2,7 @@
 
 The textured scene already holds the photos' lighting, so it is rendered *unlit* (radiance = texture: no sun,
 ambient 1, no shadows) with the undistorted pinhole camera of each registered photo, and compared with the
-undistorted photo by the paper's formula 3 (``sim.metrics.photorealism_error_percent``) over the pixels where
+undistorted photo by the paper's formula 3 (``sim.evaluation.realism.photorealism_error_percent``) over the pixels where
 the render hits the surface (``covered`` = their fraction; the rest would compare photo content with sky).
 """
 
@@ -16,7 +16,7 @@ import pycolmap
 
 from recon.texture import Photo, load_photos
 from sim.render.camera import Rig
-from sim.metrics import photorealism_error_percent
+from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render
 from sim.render.scene import Scene, load_scene
 from sim.render.shade import UNLIT

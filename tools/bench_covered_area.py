@@ -20,12 +20,12 @@ import numpy as np
 
 from sim.sampling import random_poses
 from sim.render.camera import Rig, camera_rays
-from sim.frame_renderer import RenderOptions, SceneGround, build_rig
+from sim.run.frame_renderer import RenderOptions, SceneGround, build_rig
 from sim.sampling.frustum import ViewFrustum, inside_polygon, sees_inside
 from sim.render.raycast import intersect
 from sim.sampling.random_poses import RandomPoseSettings, random_pose
 from sim.render.scene import Scene, Surface
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 
 AREA = (-170.0, 170.0, -130.0, 130.0)
 THETA = np.linspace(0.0, 2 * np.pi, 360, endpoint=False)

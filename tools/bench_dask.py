@@ -2,19 +2,19 @@
 
 Four parts, one run:
 
-1. The same frames rendered by :func:`sim.render_dataset.render_dataset` with the built-in pool
+1. The same frames rendered by :func:`sim.run.render_dataset.render_dataset` with the built-in pool
    (``--workers J``) and with ``--scheduler local:J``, each for two frame counts: the cost per frame and the
    fixed cost, in CPU seconds of all processes (robust to other jobs on the machine) and in wall seconds, and
    the cluster's overhead per frame in % (median of ``--repeats``).
 2. The scheduler's throughput: thousands of tasks that do nothing on ``local:J``
    (tasks/s, so per-task overhead = 1 / that); and what an idle ``local:J`` costs in the background (cores used by
    the scheduler, nannies and workers while no task runs), with Dask's defaults and with
-   :data:`sim.cluster.WORKER_CONFIG`.
+   :data:`sim.run.cluster.WORKER_CONFIG`.
 3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
    stage runs per view): ``--views`` synthetic 640x480 nadir photos of a textured plane, each view's depth from its
    two neighbours, in this process (OpenCV's threads) and as one task per view on local:J (start-up included).
 4. On paper: wall time for 10^4..10^6 frames on 1..100 machines of ``--cores`` cores each, from the measured
-   per-frame cost (core-seconds), the per-task overhead at :func:`sim.cluster.batch_size` frames per task and
+   per-frame cost (core-seconds), the per-task overhead at :func:`sim.run.cluster.batch_size` frames per task and
    the bytes per frame over a shared disk of ``--disk-mb-s``; the column ``limit`` names the term that
    dominates (render, coordinator, disk).
 
@@ -45,10 +45,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
 
 from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
-from sim.cluster import THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size, connect, environment_kept  # noqa: E402,E501
-from sim.frame_renderer import RenderOptions  # noqa: E402
+from sim.run.cluster import THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size, connect, environment_kept  # noqa: E402,E501
+from sim.run.frame_renderer import RenderOptions  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
-from sim.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
+from sim.run.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
 
 FRAME_COUNTS = (10**4, 10**5, 10**6)
 #: Synthetic orbit for the depth-map part: height and spacing of the nadir views (m), their depth search range.
@@ -209,7 +209,7 @@ def main() -> int:
         shutil.rmtree(scratch, ignore_errors=True)
     rate = tasks_per_second(args.tasks, args.workers)
     idle = {"Dask's defaults": idle_cores(args.workers, {}, args.idle_seconds),
-            "sim.cluster.WORKER_CONFIG": idle_cores(args.workers, WORKER_CONFIG, args.idle_seconds)}
+            "sim.run.cluster.WORKER_CONFIG": idle_cores(args.workers, WORKER_CONFIG, args.idle_seconds)}
     depth_here_s, depth_cluster_s, cluster_startup_s = depth_maps_here_and_on_cluster(args.views, args.workers)
     cpus = default_workers()
     pool_cpu, pool_wall = runs[0][2], runs[0][4]

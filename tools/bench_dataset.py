@@ -2,10 +2,10 @@
 
 Rows (one run each, same scene, same seed):
 
-* ``render only``: :class:`sim.render_dataset.FrameRenderer` in this process (pose + probe + both views);
+* ``render only``: :class:`sim.run.render_dataset.FrameRenderer` in this process (pose + probe + both views);
 * ``write only``: :class:`sim.dataset.KittiDatasetWriter` writing those frames synchronously (PNG, EXR);
 * ``render then write``: the sum of both, what a loop without overlap would cost (the baseline);
-* ``pipeline, J workers``: :func:`sim.render_dataset.render_dataset` end to end (writer threads overlap
+* ``pipeline, J workers``: :func:`sim.run.render_dataset.render_dataset` end to end (writer threads overlap
   encoding with rendering; J processes each load the scene): the steady per-frame cost from the times the
   frames were reported done, and the start-up (scene loads, process spawns) before the first ones.
 
@@ -31,9 +31,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
 from sim.dataset import KittiDatasetWriter  # noqa: E402
-from sim.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
-from sim.render_dataset import dataset_spec, render_dataset, resolve_scene_dir  # noqa: E402
-from sim.synthetic import height_field_scene  # noqa: E402
+from sim.run.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
+from sim.run.render_dataset import dataset_spec, render_dataset, resolve_scene_dir  # noqa: E402
+from sim.worlds.synthetic import height_field_scene  # noqa: E402
 
 PAPER_FRAMES = 1000
 TERRAIN_CELLS = 500

@@ -36,7 +36,7 @@ from flightplan.orbit import DEFAULT_HEIGHT_M, DEFAULT_RADIUS_M, OrbitRequest, p
 from sim.drone import Imperfections  # noqa: E402
 from sim.drone.link import duml_frames, write_raw_capture  # noqa: E402
 from sim.drone.photos import photo_camera, render_photos  # noqa: E402
-from sim.metrics import photorealism_error_percent, read_rgb  # noqa: E402
+from sim.evaluation.realism import photorealism_error_percent, read_rgb  # noqa: E402
 from sim.drone.session import fly_litchi_mission  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds.demo import demo_scene_dir  # noqa: E402

@@ -1,7 +1,7 @@
 """Camera effects: the cost of each per stereo frame, beside what it changes and, for sampled effects, its error.
 
 Frames of an orbit (``--mode trajectory``) of the demo world (or ``--scene DIR``) are rendered through
-:class:`sim.frame_renderer.FrameRenderer` (pose, both views, the effect; no writing), once with every effect off
+:class:`sim.run.frame_renderer.FrameRenderer` (pose, both views, the effect; no writing), once with every effect off
 (the baseline) and once per row with one effect on. Columns:
 
 * ``s/frame`` and ``x off``: median wall time per stereo frame, and its ratio to the baseline's;
@@ -29,9 +29,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from sim.effects import CameraEffects  # noqa: E402
 from sim.render.film import add_sensor_noise  # noqa: E402
-from sim.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
+from sim.run.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
 from sim.render.renderer import miss_fraction  # noqa: E402
-from sim.render_dataset import resolve_scene_dir  # noqa: E402
+from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.render.color import SRGB8_TO_LINEAR  # noqa: E402
 
 LINE_DELAY_S = 30e-6  # 720 rows read out in 21.6 ms, a phone-class CMOS sensor

@@ -27,8 +27,8 @@ from sim.dataset.export import LAYOUTS, export_dataset
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, visible_in_right
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
 from sim.dataset.writer import DatasetError
-from sim.frame_renderer import RenderOptions
-from sim.render_dataset import render_dataset
+from sim.run.frame_renderer import RenderOptions
+from sim.run.render_dataset import render_dataset
 
 TOLERANCES = (0.0, 0.0005, 0.002, NOC_RELATIVE_TOLERANCE, 0.02, 0.05)
 

@@ -17,9 +17,9 @@ import time
 
 import numpy as np
 
-from sim.frame_renderer import DEFAULT_SIZE, RenderOptions, SceneGround, build_rig
+from sim.run.frame_renderer import DEFAULT_SIZE, RenderOptions, SceneGround, build_rig
 from sim.sampling.frustum import ViewFrustum, placement_area, sees_inside
-from sim.render_dataset import resolve_scene_dir
+from sim.run.render_dataset import resolve_scene_dir
 from sim.sampling.random_poses import RandomPoseSettings, random_pose
 from sim.render.scene import load_scene
 

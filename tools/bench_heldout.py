@@ -10,7 +10,7 @@ For each photo folder, through the command-line tools as a user runs them:
    every K-th (name order) is left out of depth maps, fusion and texture; ``cameras.json`` marks it held out.
 2. ``aerostereo-render --mode replay --scene SCENE`` renders every camera of ``cameras.json`` (the SfM pose and
    the photo's own lens, distortion included; ``--width`` scales it), unlit: the texture's own shading.
-3. ``sim.metrics.compare_folders(PHOTO_DIR, replay_2)`` (what ``aerostereo-render compare`` prints): the paper's
+3. ``sim.evaluation.realism.compare_folders(PHOTO_DIR, replay_2)`` (what ``aerostereo-render compare`` prints): the paper's
    formula 3 per photo, raw and with the photo's texture exposure gain (render / g in linear light), over the
    whole image and over the covered pixels (where the render hit the mesh), and there with one gain per channel
    fitted to the photo ("err/fit": the photo's own exposure and white balance taken out, which a held-out photo's
@@ -41,7 +41,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from sim.metrics import compare_folders, mean_comparison  # noqa: E402
+from sim.evaluation.realism import compare_folders, mean_comparison  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]

@@ -36,7 +36,7 @@ from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at  # noqa: 
 from sim.render.raycast import default_workers, intersect, map_blocks  # noqa: E402
 from sim.render.renderer import StageTimes, Sun, render  # noqa: E402
 from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
-from sim.synthetic import height_field_scene  # noqa: E402
+from sim.worlds.synthetic import height_field_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 
 CAMERA = PinholeCamera(1100.0, 1100.0, 639.5, 359.5, 1280, 720)

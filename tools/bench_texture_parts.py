@@ -1,6 +1,6 @@
 """Benchmark rendering a scene of several textured parts (an area's merged pieces) against the same scene with one.
 
-A textured height field (sim/synthetic.py) is cut into K strips west to east, each a part with its own copy of the
+A textured height field (sim/worlds/synthetic.py) is cut into K strips west to east, each a part with its own copy of the
 texture: the shader then groups each view's hits by texture and samples each group from its own (sim/render/shade.py).
 The parts' textures are identical, so every render must equal the one-part render byte for byte ("max diff"
 column, 8-bit codes); the time column is the median of the stereo renders (one per repeat) at an oblique pose.
@@ -18,7 +18,7 @@ import numpy as np
 from sim.render.camera import PinholeCamera, Rig, look_at
 from sim.render.scene import Scene, Surface
 from sim.render.renderer import Sun, render
-from sim.synthetic import height_field_scene
+from sim.worlds.synthetic import height_field_scene
 
 
 def split_scene(scene: Scene, parts: int) -> Scene:

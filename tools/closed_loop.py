@@ -264,7 +264,7 @@ def plan_mission(config: LoopConfig, centre: LocalFrame, out: Path, log_dir: Pat
 
 def world_folder(scene: str) -> Path:
     """The scene folder of ``--scene`` (the demo world is built once into the cache)."""
-    from sim.render_dataset import resolve_scene_dir
+    from sim.run.render_dataset import resolve_scene_dir
     return resolve_scene_dir(scene)
 
 

@@ -1,5 +1,5 @@
 """Evaluation and report of one closed-loop run (``tools/closed_loop.py``): reads the stages' files, measures
-every error against the truth with :mod:`recon.accuracy` and :mod:`sim.metrics`, writes ``report.json``,
+every error against the truth with :mod:`recon.accuracy` and :mod:`sim.evaluation.realism`, writes ``report.json``,
 ``report.md`` and ``closed_loop.png``.
 
 All estimates are moved into the truth's ENU frame by their geodetic origins (``geotags.json``, the
@@ -22,7 +22,7 @@ from flightplan.geodesy import LocalFrame
 from recon.accuracy import depth_coverage, pose_errors, scene_mesh_enu, surface_errors, transform_poses
 from recon.scene_cameras import registered_poses, shape_alignment, truth_poses
 from sim.dataset.images import read_exr, read_png
-from sim.metrics import compare_images, depth_errors, photorealism_error_masked, read_rgb
+from sim.evaluation.realism import compare_images, depth_errors, photorealism_error_masked, read_rgb
 from sim.render.scene import read_scene_json
 
 COMPLETENESS_THRESHOLD_M = 0.25

@@ -23,8 +23,8 @@ from sim.cli import main as render_cli_main
 from sim.dataset import images
 from sim.dataset.kitti import frame_file_name
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
-from sim.frame_renderer import RenderOptions
-from sim.render_dataset import render_dataset
+from sim.run.frame_renderer import RenderOptions
+from sim.run.render_dataset import render_dataset
 
 #: OpenCV returns disparities in 1/16 px.
 SGBM_SCALE = 16.0

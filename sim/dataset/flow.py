@@ -1,7 +1,7 @@
 """Optical-flow layouts of a finished dataset: KITTI 2015 flow PNGs and Middlebury ``.flo`` (forward or backward).
 
 The flow of frame ``i`` to frame ``j`` (``j = i + 1`` forward, ``i - 1`` backward) of one rig camera comes from
-frame ``i``'s depth EXR and both frames' poses (:func:`sim.flow.flow_between`; the scenes are static); a pixel is
+frame ``i``'s depth EXR and both frames' poses (:func:`sim.motion.flow.flow_between`; the scenes are static); a pixel is
 *visible* when its point lands inside frame ``j`` and frame ``j``'s depth does not hide it (the occlusion test of
 kitti2015, :data:`~sim.dataset.kitti2015.NOC_RELATIVE_TOLERANCE`). Computed at export, from the written depth
 and poses, so it never depends on which worker rendered which frame. Layouts:
@@ -35,7 +35,7 @@ from sim.render.camera import PinholeCamera
 from sim.dataset import images
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, PAIR_SUFFIX
 from sim.dataset.source import LEFT, DatasetSource, SourceFrame
-from sim.flow import Flow, flow_between
+from sim.motion.flow import Flow, flow_between
 
 KITTI_FLOW_SCALE = 64.0
 KITTI_FLOW_OFFSET = 2.0**15

@@ -23,7 +23,7 @@ from cliutil.atomic import write_text_atomic
 from sim.dataset import images
 from sim.dataset.kitti import format_numbers, projection_matrices
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame
-from sim.flow import visible_at
+from sim.motion.flow import visible_at
 
 #: A left point counts as visible in the right view when its depth exceeds the right view's depth there by at most
 #: this fraction. The right depth is compared at the pixel centres on either side of the point's right-view

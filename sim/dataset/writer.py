@@ -6,7 +6,7 @@ and all its files exist. A rerun skips complete frames and rewrites the others f
 (removing leftover temporary files first). All encodings are deterministic, so a run killed
 at any moment and rerun ends with the same bytes as an uninterrupted run. No file of the dataset
 holds a wall-clock time, so two runs of the same command give identical files (the timings of a run
-go to its run log, ``logs/``, see :func:`sim.render_dataset.write_run_log`).
+go to its run log, ``logs/``, see :func:`sim.run.render_dataset.write_run_log`).
 
 Shards. Frames are independent files, so shards (``shard_frames(total, i, n)``) write
 disjoint frames into one folder (or into copies that are merged by copying the folders

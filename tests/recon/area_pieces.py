@@ -8,7 +8,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 
 AREA = LocalFrame(50.85, -0.15, 40.0)
 PIECE_M, CELL_M = 60.0, 1.0

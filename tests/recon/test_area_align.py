@@ -16,7 +16,7 @@ from recon.merge import ControlPairs
 from recon.similarity import umeyama
 from recon.scene_out import write_scene
 from sim.render.scene import SceneError
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 from tests.recon.area_pieces import (AREA, PIECE_M, centre_of, correction_error, frame_at, rigid, terrain_height,
                                      terrain_piece)
 

@@ -19,7 +19,7 @@ from recon.cli import main as recon
 from recon.scene_cameras import area_shape_alignment
 from sim.cli import main as render
 from sim.render.scene import Scene, load_scene
-from sim.render_dataset import resolve_scene_dir
+from sim.run.render_dataset import resolve_scene_dir
 
 #: 25.6 m apart east-west over the small world: the seam lies 12.8 m from each centre, two thirds of the 20 m radius,
 #: as in the default plan (50 m orbits 66 m apart). Farther apart (34 m) it lies under the orbits' rings, which each

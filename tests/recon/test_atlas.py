@@ -11,10 +11,10 @@ from recon.evaluate import render_unlit
 from recon.scene_out import write_scene
 from recon.texture import Photo, orthophoto, textured_glb
 from sim.render.camera import Rig, look_at
-from sim.metrics import photorealism_error_percent
+from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render
 from sim.render.scene import Scene, Surface, load_scene
-from sim.synthetic import grid_mesh, noise_texture
+from sim.worlds.synthetic import grid_mesh, noise_texture
 from tests.recon.test_texture import SUN, hills, take_photos
 
 TOWER = (4.0, 8.0, 6.0, 14.0)  # x, y, half width, height (m)

@@ -1,6 +1,6 @@
 """recon.oblique against analytic scenes: the in-area mask, the wall/flat split, the similarity removal, coverage.
 
-Scenes: flat ground (sim.synthetic.grid_mesh), ground with a hole, and tests/sim/render_scene_helpers' ground
+Scenes: flat ground (sim.worlds.synthetic.grid_mesh), ground with a hole, and tests/sim/render_scene_helpers' ground
 with a box of known corners; cameras nadir or level, so which pixel sees which ground point is known exactly.
 """
 
@@ -21,7 +21,7 @@ from sim.render.camera import PinholeCamera, look_at
 from sim.render.scene import Scene, Surface, load_scene, read_scene_json, read_scene_mesh_enu
 from sim.render.scene_cameras import SceneCamera, write_cameras
 from sim.render.shade import Sun
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 from tests.sim.render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, write_scene
 
 SUN = Sun(135.0, 50.0, 0.8)

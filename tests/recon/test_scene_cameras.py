@@ -15,7 +15,7 @@ from recon.scene_out import scene_cameras, write_scene
 from recon.sfm import camera_from_colmap, camera_poses
 from sim.cli import main as render_main
 from sim.dataset.images import read_exr
-from sim.metrics import compare_folders
+from sim.evaluation.realism import compare_folders
 from sim.render.scene import SceneError, load_scene
 
 RNG = np.random.default_rng(11)

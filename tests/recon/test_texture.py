@@ -11,11 +11,11 @@ from recon.scene_out import write_scene
 from recon.texture import Photo, TextureOptions, Tiles, orthophoto, photo_samples, scene_from_mesh, solve_log_gains, \
     textured_glb, texel_grid
 from sim.render.camera import PinholeCamera, Rig, look_at
-from sim.metrics import photorealism_error_percent
+from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render
 from sim.render.scene import Scene, Surface, load_scene
 from sim.render.shade import Lighting, Sun
-from sim.synthetic import grid_mesh, noise_texture
+from sim.worlds.synthetic import grid_mesh, noise_texture
 
 SIZE_M, CELLS = 60.0, 60
 CAMERA = PinholeCamera.from_fov(320, 240, hfov_deg=60.0)

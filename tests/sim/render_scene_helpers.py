@@ -15,7 +15,7 @@ import trimesh
 from PIL import Image
 
 from flightplan.geodesy import LocalFrame
-from sim.synthetic import noise_texture
+from sim.worlds.synthetic import noise_texture
 
 ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
 GROUND_EDGES_M = np.array([-3000.0, -1000.0, -300.0, -100.0, -50.0, 0.0, 50.0, 100.0, 300.0, 1000.0, 3000.0])

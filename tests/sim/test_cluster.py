@@ -1,4 +1,4 @@
-"""Rendering on a Dask cluster (sim/cluster.py) against the single-machine run of the same frames.
+"""Rendering on a Dask cluster (sim/run/cluster.py) against the single-machine run of the same frames.
 
 A LocalCluster of 2 worker processes writes the same bytes as one process; so does a run whose worker is
 killed with SIGKILL in the middle (Dask reruns its tasks); a task that fails for a reason of its own stops the
@@ -22,11 +22,21 @@ import yaml
 
 distributed = pytest.importorskip("distributed")
 
-import sim
-from sim.cluster import (MAX_BATCH_FRAMES, TASKS_PER_WORKER, THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size,
-                         batches, connect, environment_kept, parse_scheduler)
-from sim.frame_renderer import RenderInputError, RenderOptions
-from sim.render_dataset import render_dataset
+import sim.run
+from sim.run.cluster import (
+    MAX_BATCH_FRAMES,
+    TASKS_PER_WORKER,
+    THREADS_PER_WORKER,
+    WORKER_CONFIG,
+    Scheduler,
+    batch_size,
+    batches,
+    connect,
+    environment_kept,
+    parse_scheduler,
+)
+from sim.run.frame_renderer import RenderInputError, RenderOptions
+from sim.run.render_dataset import render_dataset
 
 from render_scene_helpers import write_scene
 from dataset_helpers import dataset_bytes
@@ -71,8 +81,8 @@ def test_without_dask_installed_a_scheduler_is_refused_and_nothing_is_written(sc
                 raise ModuleNotFoundError(f"No module named {name!r}", name=name)
 
     monkeypatch.delitem(sys.modules, "distributed")
-    monkeypatch.delitem(sys.modules, "sim.cluster")
-    monkeypatch.delattr(sim, "cluster")
+    monkeypatch.delitem(sys.modules, "sim.run.cluster")
+    monkeypatch.delattr(sim.run, "cluster")
     monkeypatch.setattr(sys, "meta_path", [NotInstalled(), *sys.meta_path])
     with pytest.raises(RenderInputError, match=r"--scheduler needs Dask distributed: pip install 'aerostereo\[dask\]'"):
         render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler="local:2"), progress=False)
@@ -186,7 +196,7 @@ def _flattened(tree: dict, prefix: str = "") -> dict:
 
 
 def test_the_remote_worker_config_in_the_docs_is_the_one_local_n_uses():
-    """docs/cluster.md's YAML for remote workers sets exactly sim.cluster.WORKER_CONFIG."""
+    """docs/cluster.md's YAML for remote workers sets exactly sim.run.cluster.WORKER_CONFIG."""
     text = (Path(__file__).resolve().parents[2] / "docs" / "cluster.md").read_text(encoding="utf-8")
     section = text[text.index("**Memory allocator and background CPU.**"):]
     block = section[section.index("```yaml\n") + len("```yaml\n"):section.index("```\n", section.index("```yaml"))]

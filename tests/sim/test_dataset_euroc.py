@@ -18,9 +18,9 @@ from sim.dataset.writer import DatasetError
 from drone_helpers import short_orbit_csv
 from sim.drone import Imperfections
 from sim.drone.session import fly_litchi_mission
-from sim.frame_renderer import RenderInputError, RenderOptions
+from sim.run.frame_renderer import RenderInputError, RenderOptions
 from sim.motion.imu import EUROC_ADIS16448, dead_reckon
-from sim.render_dataset import render_dataset, resolve_scene_dir
+from sim.run.render_dataset import render_dataset, resolve_scene_dir
 from sim.render.scene import load_scene
 
 FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0

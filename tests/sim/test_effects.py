@@ -25,13 +25,13 @@ from sim.render.film import (
 )
 from sim.effects import CameraEffects
 from sim.motion.shutter import render_in_time
-from sim.frame_renderer import RenderInputError, RenderOptions
+from sim.run.frame_renderer import RenderInputError, RenderOptions
 from sim.render.renderer import render
-from sim.render_dataset import render_dataset
+from sim.run.render_dataset import render_dataset
 from sim.sampling.pose import R_WORLD_NADIR
 from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
 from sim.render.shade import UNLIT, Sun
-from sim.synthetic import colored_scene, height_field_scene
+from sim.worlds.synthetic import colored_scene, height_field_scene
 
 CAMERA = PinholeCamera.from_fov(160, 120, 60.0)
 #: A level camera looking north (+y): the nadir camera tilted up by 90 degrees about its x axis.

@@ -1,4 +1,4 @@
-"""Optical flow from depth and poses (sim/flow.py) and its layouts (sim/dataset/flow.py): the next frame warped by the
+"""Optical flow from depth and poses (sim/motion/flow.py) and its layouts (sim/dataset/flow.py): the next frame warped by the
 flow reproduces the current one, flow is disparity for a sideways stereo shift, and the KITTI PNGs and ``.flo``
 files read back, the way their consumers read them, to the flow computed (KITTI: to its 1/64 px)."""
 
@@ -16,10 +16,10 @@ from sim.dataset import KittiDatasetWriter, finalize_dataset
 from sim.dataset.export import export_dataset
 from sim.dataset.images import disparity_from_depth
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, visible_in_right
-from sim.flow import flow_between
+from sim.motion.flow import flow_between
 from sim.render.renderer import render
 from sim.render.shade import Sun
-from sim.synthetic import height_field_scene
+from sim.worlds.synthetic import height_field_scene
 
 WARP_CAMERA = PinholeCamera.from_fov(256, 160, 60.0)
 #: Frames of the analytic dataset (dataset_helpers) the layout tests export: pairs 0-1, 1-2, 2-3.

@@ -12,14 +12,14 @@ from matplotlib.path import Path as PolygonPath
 
 from sim.sampling import random_poses
 from sim.render.camera import PinholeCamera, Rig, camera_rays, pose_from_position
-from sim.frame_renderer import SceneGround
+from sim.run.frame_renderer import SceneGround
 from sim.sampling.frustum import INNER_GRID_CELLS, ViewFrustum, inner_rectangle, sees_inside
 from sim.render.raycast import intersect
 from sim.sampling.trajectories import RANDOM_LOOP_TILT_DEG, lawnmower, random_loop
 from sim.sampling.random_poses import RandomPoseSettings, frustum_margin, random_pose
 from sim.sampling.pose import camera_rotation
 from sim.render.scene import Scene, SceneError, Surface, read_scene_json
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 
 AREA = (-170.0, 170.0, -130.0, 130.0)
 CAMERA = PinholeCamera.from_fov(48, 27, 80.0)

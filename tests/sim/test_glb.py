@@ -15,7 +15,7 @@ from trimesh.exchange.gltf import validate
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import LocalFrame
 from sim.render.scene import SceneError, load_scene
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 from sim.worlds.demo import demo_scene_dir, generate_world
 from sim.render.glb import GEOREF_FORMAT, GEOREF_KEY, encode_textured_glb
 

@@ -8,7 +8,7 @@ import cv2
 import numpy as np
 import pytest
 
-from sim.metrics import (
+from sim.evaluation.realism import (
     compare_folders,
     compare_images,
     depth_errors,

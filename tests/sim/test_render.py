@@ -13,7 +13,7 @@ from sim.render.renderer import Lighting, Sun, miss_fraction, render
 from sim.render.scene import Scene, Surface
 from sim.render.color import SRGB8_TO_LINEAR, linear_to_srgb, to_srgb8
 from sim.render.texture import sample_bilinear
-from sim.synthetic import colored_scene, grid_mesh, height_field_scene, noise_texture
+from sim.worlds.synthetic import colored_scene, grid_mesh, height_field_scene, noise_texture
 
 CAMERA = PinholeCamera(90.0, 92.0, 63.7, 47.2, 128, 96, dist=(-0.2, 0.05, 0.001, -0.001, 0.0))
 

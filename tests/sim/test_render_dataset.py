@@ -28,10 +28,10 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
-from sim.frame_renderer import FrameRenderer, RenderOptions
+from sim.run.frame_renderer import FrameRenderer, RenderOptions
 from sim.cli import main as cli_main
-from sim.render_cli import build_parser, options_from_args
-from sim.render_dataset import render_dataset
+from sim.cli.render import build_parser, options_from_args
+from sim.run.render_dataset import render_dataset
 from sim.sampling.pose import R_WORLD_NADIR, camera_rotation
 
 from dataset_helpers import dataset_bytes
@@ -458,7 +458,7 @@ def test_lens_distortion_renders_through_the_distorted_lens(scene_dir, tmp_path,
 
 def test_the_disk_estimate_per_frame_is_within_a_factor_two_of_the_frames_written(reference, scene_dir):
     from sim.dataset.writer import KittiDatasetWriter, frame_disk_bytes
-    from sim.render_dataset import dataset_spec
+    from sim.run.render_dataset import dataset_spec
 
     dataset, summary = reference
     renderer = FrameRenderer(scene_dir, RenderOptions(**SMALL))
@@ -471,7 +471,7 @@ def test_the_disk_estimate_per_frame_is_within_a_factor_two_of_the_frames_writte
 
 def test_the_memory_estimate_counts_every_array_a_view_keeps(scene_dir):
     from sim.render.renderer import VIEW_BYTES_PER_PIXEL, render, render_memory_bytes
-    from sim.frame_renderer import build_rig
+    from sim.run.frame_renderer import build_rig
     from sim.render.shade import Sun
 
     options = RenderOptions(width=40, height=30)

@@ -17,7 +17,7 @@ import pytest
 from sim.render.camera import PinholeCamera, pose_from_position
 from sim.cli import main as cli_main
 from sim.dataset.images import read_exr, read_png, write_png
-from sim.metrics import apply_exposure_gain
+from sim.evaluation.realism import apply_exposure_gain
 from sim.sampling.pose import camera_rotation
 from sim.render.scene_cameras import SceneCamera, write_cameras
 

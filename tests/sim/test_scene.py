@@ -11,7 +11,7 @@ from PIL import Image
 from sim.render.camera import PinholeCamera, Rig, look_at
 from sim.render.renderer import Sun, render
 from sim.render.scene import Scene, SceneError, Surface, load_scene
-from sim.synthetic import grid_mesh
+from sim.worlds.synthetic import grid_mesh
 
 UTM_OFFSET = np.array([451234.567, 4412345.678, 0.0])
 

@@ -18,9 +18,9 @@ from flightplan.geodesy import LocalFrame
 from recon.scene_out import write_scene
 from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
-from sim.frame_renderer import RenderOptions
-from sim.render_dataset import render_dataset
-from sim.synthetic import grid_mesh
+from sim.run.frame_renderer import RenderOptions
+from sim.run.render_dataset import render_dataset
+from sim.worlds.synthetic import grid_mesh
 from sim.render.scene_cameras import SceneCamera
 from tools.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, dataset_outside_metrics,
                              merged_camera_errors, pair_truth_offsets, piece_camera_errors, seam_split, view_points)

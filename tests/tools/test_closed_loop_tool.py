@@ -10,7 +10,7 @@ import pytest
 
 from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.drone.photos import camera_truth, photo_camera
-from sim.render_cli import build_parser
+from sim.cli.render import build_parser
 from sim.render.scene import read_scene_json
 from tools.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_sweep, photo_lens_options, plan_mission,
                                run_loop, world_folder)

@@ -84,7 +84,7 @@ class RenderOptions:
 
     ``frames`` None: 100 for random/trajectory, every photo for replay. Angles in degrees, lengths in
     metres, speeds in m/s. ``shard`` ``(I, N)`` renders frames ``I, I+N, ...``; ``workers`` processes, or with
-    ``scheduler`` (``local:N`` or ``tcp://HOST:PORT``) tasks on a Dask cluster (sim/cluster.py).
+    ``scheduler`` (``local:N`` or ``tcp://HOST:PORT``) tasks on a Dask cluster (sim/run/cluster.py).
     ``margin_m``/``max_sky_fraction``: of the random protocol (:class:`~sim.sampling.random_poses.RandomPoseSettings`);
     ``margin_m`` None (the default) derives the margin from the rig's view frustum (:mod:`sim.sampling.frustum`): random
     poses and the lawnmower and random-loop paths then keep every ray of every frame inside the valid area.

@@ -1,8 +1,7 @@
-"""``aerostereo-render``: scene (or the built-in demo world) -> KITTI-layout stereo dataset; ``compare``.
+"""``aerostereo-render``: scene (or the built-in demo world) -> KITTI-layout stereo dataset (the default command).
 
-Entry points for ``sim/cli.py``: :func:`build_parser` + :func:`run` (the dataset render, the default
-command) and :func:`add_compare_parser` + :func:`run_compare` (``compare REAL_DIR RENDERED_DIR``). Bad input
-raises a ``ValueError`` naming the file or option, which ``sim/cli.py`` reports as one line with exit code 2.
+Entry points for :mod:`sim.cli`: :func:`build_parser` + :func:`run` (the dataset render, the default command). Bad
+input raises a ``ValueError`` naming the file or option, which :mod:`sim.cli` reports as one line with exit code 2.
 """
 
 from __future__ import annotations
@@ -15,16 +14,15 @@ from pathlib import Path
 from capture.geotag_io import sidecar_path
 from cliutil.program import EXIT_INTERRUPTED, BadInput, Parser
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
-from sim.contact_sheet import check_depth_written, write_contact_sheet
+from sim.dataset.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
 from sim.dataset.export import check_layouts, export_dataset, refuse_overlap
 from sim.dataset.writer import dataset_description
 from sim.effects import VIGNETTING_MODELS, CameraEffects
-from sim.export_cli import layout_list
-from sim.metrics import compare_folders, summary_table
+from sim.cli.export import layout_list
 from sim.motion.imu import DEFAULT_RATE_HZ
-from sim.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
-from sim.render_dataset import is_demo_scene, render_dataset
+from sim.run.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
+from sim.run.render_dataset import is_demo_scene, render_dataset
 
 PROG = "aerostereo-render"
 
@@ -249,20 +247,3 @@ def check_export_args(args: argparse.Namespace) -> None:
         raise BadInput("--export LAYOUTS and --export-out DIR go together")
     if args.export:
         refuse_overlap(args.out, args.export_out, "--export-out")
-
-
-def add_compare_parser(subparsers) -> argparse.ArgumentParser:
-    """Add ``compare REAL_DIR RENDERED_DIR`` to an ``add_subparsers()`` object."""
-    parser = subparsers.add_parser("compare", help="photorealism error, PSNR and SSIM of renders against photos",
-                                   description="Compare images paired by file name (without extension): the "
-                                               "paper's photorealism error (%%), PSNR and SSIM per image and mean.")
-    parser.add_argument("real_dir", type=Path, help="folder of real photos")
-    parser.add_argument("rendered_dir", type=Path, help="folder of renders from the same poses")
-    parser.set_defaults(handler=run_compare)
-    return parser
-
-
-def run_compare(args: argparse.Namespace) -> int:
-    """Print the comparison table of ``args.real_dir`` against ``args.rendered_dir`` (writes no file)."""
-    print(summary_table(compare_folders(args.real_dir, args.rendered_dir)))
-    return 0

@@ -6,7 +6,7 @@ The pipeline (what ``aerostereo-render`` runs):
    wrong with the input (scene folder, texture, geotags from another area, output folder) before any
    frame is rendered; it opens the dataset folder (``dataset.json`` with the command line) and lists
    the frames of this shard that are still missing (resume).
-2. :class:`~sim.frame_renderer.FrameRenderer` turns a frame index into a :class:`~sim.dataset.FrameRecord`;
+2. :class:`~sim.run.frame_renderer.FrameRenderer` turns a frame index into a :class:`~sim.dataset.FrameRecord`;
    a frame's bytes depend only on ``(seed, index)``, not on the number of workers, the shard or the order.
 3. It then renders the missing frames with ``workers`` processes (``1``: in this
    process). Each worker process loads the scene and builds embree once, pulls frame indices from a
@@ -15,7 +15,7 @@ The pipeline (what ``aerostereo-render`` runs):
 4. When every frame of the dataset exists it is finalized (``poses``, ``times.txt``, ``frames.jsonl``);
    otherwise the summary says how many frames other shards still have to render.
 
-With ``options.scheduler`` step 3 runs as tasks on a Dask cluster instead (sim/cluster.py): the same frames,
+With ``options.scheduler`` step 3 runs as tasks on a Dask cluster instead (sim/run/cluster.py): the same frames,
 written by the workers into the same folder, finalized here.
 
 Every file is written atomically and a frame counts as done only when its record exists, so a run
@@ -58,14 +58,7 @@ from sim.dataset import (
     needs_disparity,
     shard_frames,
 )
-from sim.frame_renderer import (
-    MODES,
-    TRAJECTORIES,
-    FrameRenderer,
-    FrameStats,
-    RenderInputError,
-    RenderOptions,
-)
+from sim.run.frame_renderer import MODES, TRAJECTORIES, FrameRenderer, FrameStats, RenderInputError, RenderOptions
 from sim.render.camera import MAX_SAMPLES_PER_PIXEL
 from sim.dataset.imu_file import write_imu_csv
 from sim.dataset.kitti import KittiLayout
@@ -220,11 +213,11 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
 
 
 def _cluster_scheduler(options: RenderOptions):
-    """The parsed ``options.scheduler`` (:class:`sim.cluster.Scheduler`), or None to render on this machine."""
+    """The parsed ``options.scheduler`` (:class:`sim.run.cluster.Scheduler`), or None to render on this machine."""
     if options.scheduler is None:
         return None
     try:
-        from sim import cluster
+        from sim.run import cluster
     except ImportError as error:
         if not (error.name or "").startswith(("distributed", "dask")):
             raise
@@ -293,7 +286,7 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
         with bar:
             if scheduler is not None and pending:
                 renderer.close()
-                from sim.cluster import render_on_cluster
+                from sim.run.cluster import render_on_cluster
 
                 job = Job(scene_dir, out_dir, options, spec, threads if scheduler.local_workers else None)
                 progress = _Progress(bar, start)

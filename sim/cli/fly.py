@@ -1,32 +1,20 @@
-"""``aerostereo-render``: render stereo datasets from a scene, compare renders with photos, fly the virtual drone.
-
-``aerostereo-render [options]`` renders a dataset (the default command, :mod:`sim.render_cli`);
-``aerostereo-render compare ...``, ``aerostereo-render fly ...``, ``aerostereo-render export ...`` and
-``aerostereo-render evaluate ...`` are subcommands, listed in the dataset render's ``--help``. Their parsers are assembled from small
-``add_<command>_parser(subparsers)`` functions listed in :data:`SUBCOMMANDS` (the one place where subcommands are
-named); each sets ``handler(args) -> int``. Bad input (and an output that names an input) ends with a one-line
-message on stderr and exit code 2, Ctrl-C with 130.
-"""
+"""``aerostereo-render fly``: fly Litchi missions with the virtual drone over a scene (:mod:`sim.drone.session`):
+DJI photos, DUML telemetry and the ground truth."""
 
 from __future__ import annotations
 
 import argparse
 import datetime as dt
-import sys
 from pathlib import Path
 
 from capture.track import parse_utc
 from cliutil.argtypes import finite_number
-from cliutil.program import BadInput, add_version, run_cli
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
-from sim import render_cli
+from cliutil.program import BadInput
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
                                run_session)
-from sim.evaluate_cli import add_evaluate_parser
-from sim.export_cli import add_export_parser
-from sim.render_cli import PROG, add_compare_parser
-from sim.render_dataset import is_demo_scene, resolve_scene_dir
 from sim.render.scene import load_scene
+from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
 
 
 def utc_time(text: str) -> dt.datetime:
@@ -74,44 +62,6 @@ def add_fly_parser(subparsers) -> None:
                         help="geoid height above the WGS84 ellipsoid at the scene (m): photos and logs carry "
                              "ellipsoidal height - N as height above sea level (default 0: the ellipsoid)")
     parser.set_defaults(handler=run_fly)
-
-
-#: Subcommands; anything else on the command line goes to the dataset renderer (the default command).
-SUBCOMMANDS = (add_fly_parser, add_compare_parser, add_export_parser, add_evaluate_parser)
-
-
-def build_parser() -> tuple[argparse.ArgumentParser, dict[str, argparse.ArgumentParser]]:
-    """The dataset render's parser, with ``--version`` and the subcommands of :data:`SUBCOMMANDS` listed in its
-    help; and the subcommands' parsers by name."""
-    parser = render_cli.build_parser()
-    parser.usage = "%(prog)s [options] --out DATASET_DIR  (render a dataset)\n       %(prog)s COMMAND ..."
-    add_version(parser)
-    subparsers = parser.add_subparsers(title="commands (instead of the dataset render)", dest="command", prog=PROG,
-                                       metavar="COMMAND", help="'aerostereo-render COMMAND --help' for its options")
-    for add_parser in SUBCOMMANDS:
-        add_parser(subparsers)
-    return parser, dict(subparsers.choices)
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``aerostereo-render ...`` -> exit code: a subcommand, or the dataset render for any other arguments."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    parser, subcommands = build_parser()
-    if argv[:1] and argv[0] in subcommands:  # the dataset render's required --out does not apply
-        return run_cli(PROG, lambda: run_subcommand(argv[0], subcommands[argv[0]].parse_args(argv[1:])))
-    return run_cli(PROG, lambda: render_or_subcommand(parser.parse_args(argv), argv))
-
-
-def render_or_subcommand(args: argparse.Namespace, argv: list[str]) -> int:
-    """The dataset render, or the subcommand named after the render's options."""
-    if args.command is not None:
-        return run_subcommand(args.command, args)
-    return render_cli.run(args, command_line=[PROG, *argv])
-
-
-def run_subcommand(name: str, args: argparse.Namespace) -> int:
-    """Run a parsed subcommand; its errors are reported as ``aerostereo-render NAME: error: ...``."""
-    return run_cli(f"{PROG} {name}", lambda: args.handler(args))
 
 
 def refuse_clobbering_fly(args) -> None:

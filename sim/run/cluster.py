@@ -19,7 +19,7 @@ then the run stops with ``KilledWorker``. A task that raises (a bad pose, a full
 (``retries=0``): the run stops with that error and the other tasks are cancelled.
 
 ``distributed`` is an optional dependency (``pip install aerostereo[dask]``): this module needs it, and
-sim/render_dataset.py imports this module only when a scheduler is given.
+sim/run/render_dataset.py imports this module only when a scheduler is given.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from tqdm import tqdm
 
 from sim.dataset import AsyncFrameWriter, KittiDatasetWriter
-from sim.frame_renderer import FrameRenderer, FrameStats, RenderInputError
+from sim.run.frame_renderer import FrameRenderer, FrameStats, RenderInputError
 
 #: Tasks per worker the frames are cut into at least (balance: a slow worker holds back a small share).
 TASKS_PER_WORKER = 8
@@ -118,7 +118,7 @@ def batches(pending: Sequence[int], size: int) -> list[list[int]]:
 class RendererPlugin(WorkerPlugin):
     """Worker plugin: one :class:`FrameRenderer` and dataset writer per worker process for one render job.
 
-    ``job`` is a :class:`sim.render_dataset.Job`. One task renders at a time (a frame already casts with
+    ``job`` is a :class:`sim.run.render_dataset.Job`. One task renders at a time (a frame already casts with
     ``job.threads`` threads, all CPUs when None); a task that has rendered its frames waits for their files
     outside the lock, so on a worker of :data:`THREADS_PER_WORKER` threads the next task renders meanwhile
     (encoding overlaps rendering across tasks as it does in the built-in pool).
