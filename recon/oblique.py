@@ -25,7 +25,7 @@ from flightplan.geodesy import LocalFrame
 from recon.observed import inside, observed_area
 from recon.scene_cameras import shape_alignment, truth_poses
 from sim.render.camera import PinholeCamera, Rig, camera_rays
-from sim.run.frame_renderer import SceneGround
+from sim.run.poses import SceneGround
 from sim.evaluation.realism import depth_errors, photorealism_error_masked, photorealism_error_percent
 from sim.render.renderer import View, miss_fraction, render
 from sim.sampling.pose import PoseSample

@@ -20,7 +20,9 @@ import numpy as np
 
 from sim.sampling import random_poses
 from sim.render.camera import Rig, camera_rays
-from sim.run.frame_renderer import RenderOptions, SceneGround, build_rig
+from sim.run.options import RigOptions
+from sim.run.poses import SceneGround
+from sim.run.rig import build_rig
 from sim.sampling.frustum import ViewFrustum, inside_polygon, sees_inside
 from sim.render.raycast import intersect
 from sim.sampling.random_poses import RandomPoseSettings, random_pose
@@ -58,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=300)
     args = parser.parse_args(argv)
-    rig = build_rig(RenderOptions())
+    rig = build_rig(RigOptions())
     coarse = Rig(tuple(camera.scaled(64) for camera in rig.cameras), rig.T_rig_cam)
     frustum, settings = ViewFrustum.of_rig(rig), RandomPoseSettings(margin_m=0.0, max_attempts=2000)
     vertices, faces, _ = grid_mesh(4, 4, (-2000.0, 2000.0, -2000.0, 2000.0))

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import importlib
 import resource
 import shutil
@@ -46,7 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
 from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
 from sim.run.cluster import THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size, connect, environment_kept  # noqa: E402,E501
-from sim.run.frame_renderer import RenderOptions  # noqa: E402
+from sim.run.options import PoseOptions, RenderOptions, RigOptions, RunOptions  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.run.render_dataset import render_dataset, resolve_scene_dir  # noqa: E402
 
@@ -63,7 +64,7 @@ def cpu_seconds() -> float:
     return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
 
 
-def compare_runs(scene_dir: Path, options: dict, workers: int, frame_counts: tuple[int, int], repeats: int,
+def compare_runs(scene_dir: Path, options: RenderOptions, workers: int, frame_counts: tuple[int, int], repeats: int,
                  scratch: Path) -> list[tuple]:
     """(name, fixed CPU s, CPU s per frame, fixed wall s, wall s per frame) of the built-in pool and local:J,
     each the median of ``repeats`` measurements (the two configurations alternate).
@@ -73,8 +74,8 @@ def compare_runs(scene_dir: Path, options: dict, workers: int, frame_counts: tup
     fixed cost (processes, imports, scene loads, the cluster). CPU time does not count other jobs' load, so it
     shows the overhead on a busy machine where wall time cannot.
     """
-    configurations = ((f"built-in pool, --workers {workers}", dict(workers=workers)),
-                      (f"Dask, --scheduler local:{workers}", dict(scheduler=f"local:{workers}")))
+    configurations = ((f"built-in pool, --workers {workers}", RunOptions(workers=workers)),
+                      (f"Dask, --scheduler local:{workers}", RunOptions(scheduler=f"local:{workers}")))
     small, large = frame_counts
     measured: dict[str, list] = {name: [] for name, _ in configurations}
     for repeat in range(repeats):
@@ -83,7 +84,7 @@ def compare_runs(scene_dir: Path, options: dict, workers: int, frame_counts: tup
             for frames in frame_counts:
                 out = scratch / f"{name.split(',')[0].replace(' ', '_')}{frames}-{repeat}"
                 cpu, start = cpu_seconds(), time.perf_counter()
-                render_dataset(scene_dir, out, RenderOptions(**options, frames=frames, **how),
+                render_dataset(scene_dir, out, dataclasses.replace(options, poses=PoseOptions(frames=frames), run=how),
                                command_line=["bench"], progress=False)
                 costs.append((cpu_seconds() - cpu, time.perf_counter() - start))
             (cpu_small, wall_small), (cpu_large, wall_large) = costs
@@ -200,7 +201,7 @@ def main() -> int:
     parser.add_argument("--disk-mb-s", type=float, default=1000.0, help="shared disk write bandwidth in the table")
     args = parser.parse_args()
     scene_dir = resolve_scene_dir(None)
-    options = dict(width=args.width, height=args.height, seed=1)
+    options = RenderOptions(seed=1, rig=RigOptions(width=args.width, height=args.height))
     scratch = Path(tempfile.mkdtemp(prefix="bench_dask_"))
     try:
         runs = compare_runs(scene_dir, options, args.workers, tuple(args.frames), args.repeats, scratch)

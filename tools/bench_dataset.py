@@ -17,6 +17,7 @@ Usage: ``python tools/bench_dataset.py [--scene DIR] [--frames N] [--width W --h
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import shutil
 import sys
@@ -31,7 +32,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
 from sim.dataset import KittiDatasetWriter  # noqa: E402
-from sim.run.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
+from sim.run.frame_renderer import FrameRenderer  # noqa: E402
+from sim.run.options import PoseOptions, RenderOptions, RigOptions, RunOptions  # noqa: E402
 from sim.run.render_dataset import dataset_spec, render_dataset, resolve_scene_dir  # noqa: E402
 from sim.worlds.synthetic import height_field_scene  # noqa: E402
 
@@ -69,7 +71,7 @@ def measure_stages(scene_dir: Path, options: RenderOptions, out: Path) -> dict:
     load_s = time.perf_counter() - start
     writer = KittiDatasetWriter(out, dataset_spec(renderer, scene_dir, options, ["bench"]))
     render_s = write_s = 0.0
-    for index in range(options.frames):
+    for index in range(options.poses.frames):
         start = time.perf_counter()
         record, _ = renderer.record(index)
         render_s += time.perf_counter() - start
@@ -77,7 +79,7 @@ def measure_stages(scene_dir: Path, options: RenderOptions, out: Path) -> dict:
         writer.write_frame(record)
         write_s += time.perf_counter() - start
     renderer.close()
-    return {"load_s": load_s, "render_s": render_s / options.frames, "write_s": write_s / options.frames}
+    return {"load_s": load_s, "render_s": render_s / options.poses.frames, "write_s": write_s / options.poses.frames}
 
 
 def steady_rate(summary, workers: int) -> tuple[float, float]:
@@ -104,15 +106,16 @@ def main() -> int:
     scratch = Path(tempfile.mkdtemp(prefix="bench_dataset_"))
     try:
         scene_dir, scene_name = bench_scene(args.scene, args.terrain, scratch / "scene")
-        options = RenderOptions(frames=args.frames, width=args.width, height=args.height, seed=1)
+        options = RenderOptions(seed=1, rig=RigOptions(width=args.width, height=args.height),
+                                poses=PoseOptions(frames=args.frames))
         stages = measure_stages(scene_dir, options, scratch / "stages")
         sequential = stages["render_s"] + stages["write_s"]
         rows = [("render only", stages["render_s"], stages["load_s"]),
                 ("write only (PNG x6, EXR x4)", stages["write_s"], 0.0),
                 ("render then write (baseline)", sequential, stages["load_s"])]
         for workers in (1, 2):
-            summary = render_dataset(scene_dir, scratch / f"pipeline{workers}", RenderOptions(
-                frames=args.frames, width=args.width, height=args.height, seed=1, workers=workers),
+            summary = render_dataset(scene_dir, scratch / f"pipeline{workers}", dataclasses.replace(
+                options, run=RunOptions(workers=workers)),
                 command_line=["bench"], progress=False)
             per_frame, startup = steady_rate(summary, workers)
             rows.append((f"pipeline, {workers} worker{'s' if workers > 1 else ''}", per_frame, startup))

@@ -27,9 +27,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from sim.effects import CameraEffects  # noqa: E402
+from sim.run.options import CameraEffects  # noqa: E402
 from sim.render.film import add_sensor_noise  # noqa: E402
-from sim.run.frame_renderer import FrameRenderer, RenderOptions  # noqa: E402
+from sim.run.frame_renderer import FrameRenderer  # noqa: E402
+from sim.run.options import PoseOptions, RenderOptions, RigOptions  # noqa: E402
 from sim.render.renderer import miss_fraction  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.render.color import SRGB8_TO_LINEAR  # noqa: E402
@@ -90,7 +91,8 @@ def main(argv=None) -> int:
     parser.add_argument("--height", type=int, default=360)
     args = parser.parse_args(argv)
     scene_dir = resolve_scene_dir(args.scene)
-    options = RenderOptions(mode="trajectory", width=args.width, height=args.height, seed=1)
+    options = RenderOptions(seed=1, rig=RigOptions(width=args.width, height=args.height),
+                            poses=PoseOptions(mode="trajectory"))
     frames = range(FIRST_FRAME, FIRST_FRAME + args.frames)
     base_s, base = render_frames(scene_dir, options, frames)
     _, reference = render_frames(scene_dir, dataclasses.replace(options, effects=CameraEffects(

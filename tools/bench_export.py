@@ -27,7 +27,7 @@ from sim.dataset.export import LAYOUTS, export_dataset
 from sim.dataset.kitti2015 import NOC_RELATIVE_TOLERANCE, visible_in_right
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
 from sim.dataset.writer import DatasetError
-from sim.run.frame_renderer import RenderOptions
+from sim.run.options import PoseOptions, RenderOptions, RigOptions
 from sim.run.render_dataset import render_dataset
 
 TOLERANCES = (0.0, 0.0005, 0.002, NOC_RELATIVE_TOLERANCE, 0.02, 0.05)
@@ -86,7 +86,8 @@ def main(argv=None) -> int:
         source = args.dataset
         if source is None:
             source = scratch / "dataset"
-            options = RenderOptions(frames=args.frames, width=args.width, height=args.height, seed=0, workers=1)
+            options = RenderOptions(seed=0, rig=RigOptions(width=args.width, height=args.height),
+                                    poses=PoseOptions(frames=args.frames))
             start = time.perf_counter()
             render_dataset(args.scene, source, options, command_line=["bench"], progress=False)
             print(f"rendered {args.frames} frames {args.width}x{args.height} of {args.scene} in "

@@ -17,7 +17,9 @@ import time
 
 import numpy as np
 
-from sim.run.frame_renderer import DEFAULT_SIZE, RenderOptions, SceneGround, build_rig
+from sim.run.options import DEFAULT_SIZE, RigOptions
+from sim.run.poses import SceneGround
+from sim.run.rig import build_rig
 from sim.sampling.frustum import ViewFrustum, placement_area, sees_inside
 from sim.run.render_dataset import resolve_scene_dir
 from sim.sampling.random_poses import RandomPoseSettings, random_pose
@@ -56,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--frames", type=int, default=300)
     parser.add_argument("--margins", nargs="+", type=float, default=[20.0])
     args = parser.parse_args(argv)
-    frustum = ViewFrustum.of_rig(build_rig(RenderOptions()))
+    frustum = ViewFrustum.of_rig(build_rig(RigOptions()))
     for variant in args.variants:
         ground = SceneGround(load_scene(resolve_scene_dir(f"demo:{variant}")))
         xmin, xmax, ymin, ymax = ground.valid_area

@@ -23,7 +23,7 @@ from sim.cli import main as render_cli_main
 from sim.dataset import images
 from sim.dataset.kitti import frame_file_name
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
-from sim.run.frame_renderer import RenderOptions
+from sim.run.options import PoseOptions, RenderOptions, RigOptions
 from sim.run.render_dataset import render_dataset
 
 #: OpenCV returns disparities in 1/16 px.
@@ -75,7 +75,7 @@ def main(argv=None) -> int:
     parser.add_argument("--frames", type=int, default=20)
     parser.add_argument("--width", type=int, default=1280)
     parser.add_argument("--height", type=int, default=720)
-    parser.add_argument("--baseline", type=float, default=RenderOptions().baseline_m,
+    parser.add_argument("--baseline", type=float, default=RigOptions().baseline_m,
                         help="stereo baseline rendered with --render, metres")
     parser.add_argument("--num-disparities", type=int, default=64, help="SGBM search range, a multiple of 16")
     parser.add_argument("--block-size", type=int, default=5, help="SGBM block size, odd")
@@ -84,8 +84,8 @@ def main(argv=None) -> int:
     dataset = args.dataset
     if dataset is None:
         dataset = args.render
-        options = RenderOptions(mode="trajectory", trajectory=args.trajectory, frames=args.frames, width=args.width,
-                                height=args.height, baseline_m=args.baseline, seed=0, workers=1)
+        options = RenderOptions(seed=0, rig=RigOptions(width=args.width, height=args.height, baseline_m=args.baseline),
+                                poses=PoseOptions(mode="trajectory", trajectory=args.trajectory, frames=args.frames))
         start = time.perf_counter()
         render_dataset(args.scene, dataset, options, command_line=["tools/sgbm_baseline.py"], progress=False)
         print(f"rendered {args.frames} frames {args.width}x{args.height} of {args.scene} ({args.trajectory}, "

@@ -18,10 +18,10 @@ from sim.dataset.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
 from sim.dataset.export import check_layouts, export_dataset, refuse_overlap
 from sim.dataset.writer import dataset_description
-from sim.effects import VIGNETTING_MODELS, CameraEffects
 from sim.cli.export import layout_list
 from sim.motion.imu import DEFAULT_RATE_HZ
-from sim.run.frame_renderer import DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, RenderOptions
+from sim.run.options import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, VIGNETTING_MODELS, CameraEffects,
+                             OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions)
 from sim.run.render_dataset import is_demo_scene, render_dataset
 
 PROG = "aerostereo-render"
@@ -85,6 +85,7 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
                                "scene folder or the built-in demo world.")
     add = parser.add_argument
     defaults = RenderOptions()
+    pose_defaults, rig_defaults, run_defaults = defaults.poses, defaults.rig, defaults.run
     add("--scene", default=None, help="scene folder (scene.json + mesh), or 'demo' / 'demo:small' / 'demo:large' "
                                       "for the built-in demo world (default: demo)")
     add("--out", required=True, type=Path, help="dataset folder (created; an existing one with the same settings "
@@ -92,52 +93,53 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--overwrite", action="store_true",
         help="if --out holds a dataset with other settings, delete that dataset and render anew (its image, depth, "
              "frame_meta and replay folders, whole, and its own files; anything else in --out is kept)")
-    add("--frames", type=int, default=defaults.frames, help="number of frames (default 100; replay: every photo)")
-    add("--mode", choices=MODES, default=defaults.mode,
+    add("--frames", type=int, default=pose_defaults.frames, help="number of frames (default 100; replay: every photo)")
+    add("--mode", choices=MODES, default=pose_defaults.mode,
         help="random poses (the paper), a trajectory, or replay: the reconstructed scene's own cameras "
              "(cameras.json, unlit, each photo's lens), or with --geotags the geotagged poses")
-    add("--geotags", type=Path, default=defaults.geotags,
+    add("--geotags", type=Path, default=pose_defaults.geotags,
         help="replay: geotags.csv (with geotags.json beside it) instead of the scene's cameras")
     add("--margin", type=margin_value, default=FRUSTUM_MARGIN,
         help="random mode, lawnmower and random-loop paths: keep cameras this far inside the valid area, metres; "
              f"'{FRUSTUM_MARGIN}': as far as each view reaches across the ground, so no frame sees past the area")
-    add("--max-sky", type=float, default=defaults.max_sky_fraction,
+    add("--max-sky", type=float, default=pose_defaults.max_sky_fraction,
         help="random mode: redraw a pose whose view has more sky/miss than this")
-    add("--trajectory", choices=TRAJECTORIES, default=defaults.trajectory,
+    add("--trajectory", choices=TRAJECTORIES, default=pose_defaults.trajectory,
         help="path flown in trajectory mode (flight: the virtual drone flies --mission with gusts)")
     add("--mission", type=Path, default=None,
         help="--trajectory flight: the Litchi mission CSV flown (frames from its first waypoint to its last; "
              "--altitude and --speed are the mission's)")
-    add("--altitude", type=float, default=defaults.altitude_m, help="trajectory height above the ground, metres")
-    add("--speed", type=float, default=defaults.speed_m_s, help="trajectory speed, m/s")
-    add("--rate", type=float, default=defaults.frame_rate_hz, help="trajectory frame rate, Hz")
+    add("--altitude", type=float, default=pose_defaults.altitude_m, help="trajectory height above the ground, metres")
+    add("--speed", type=float, default=pose_defaults.speed_m_s, help="trajectory speed, m/s")
+    add("--rate", type=float, default=pose_defaults.frame_rate_hz, help="trajectory frame rate, Hz")
     add("--imu", action="store_true",
         help="trajectory mode: fly the smooth (twice differentiable) version of the path and write its IMU record "
              "(imu/NN.csv: gyroscope + accelerometer with EuRoC's ADIS16448 noise, the noise-free values, biases "
              "and the true body state); export it with 'export --layout euroc'")
     add("--imu-rate", type=float, default=DEFAULT_RATE_HZ,
         help="IMU samples per second with --imu (a whole multiple of --rate)")
-    add("--width", type=int, default=defaults.width,
+    add("--width", type=int, default=rig_defaults.width,
         help=f"image width, pixels (default {DEFAULT_SIZE[0]}; replay of the scene's cameras: each photo's own, "
              "or its lens scaled to this width)")
-    add("--height", type=int, default=defaults.height,
+    add("--height", type=int, default=rig_defaults.height,
         help=f"image height, pixels (default {DEFAULT_SIZE[1]}; ignored by a replay of the scene's cameras)")
-    add("--fov", type=float, default=defaults.fov_deg, help="horizontal field of view, degrees")
-    add("--baseline", type=float, default=defaults.baseline_m, help="distance between neighbouring cameras, metres")
-    add("--cameras", type=int, default=defaults.cameras, help="cameras in the rig (a row along camera x)")
-    add("--distortion", type=_distortion, default=defaults.distortion,
+    add("--fov", type=float, default=rig_defaults.fov_deg, help="horizontal field of view, degrees")
+    add("--baseline", type=float, default=rig_defaults.baseline_m, help="distance between neighbouring cameras, metres")
+    add("--cameras", type=int, default=rig_defaults.cameras, help="cameras in the rig (a row along camera x)")
+    add("--distortion", type=_distortion, default=rig_defaults.distortion,
         help="OpenCV lens distortion k1,k2,p1,p2,k3 of every camera (then choose --formats without disparity)")
-    add("--spp", type=int, default=defaults.spp, help="samples per pixel (anti-aliasing)")
+    add("--spp", type=int, default=rig_defaults.spp, help="samples per pixel (anti-aliasing)")
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
-    add("--workers", type=int, default=defaults.workers, help="render processes (each builds the scene once)")
-    add("--scheduler", default=defaults.scheduler,
+    add("--workers", type=int, default=run_defaults.workers, help="render processes (each builds the scene once)")
+    add("--scheduler", default=run_defaults.scheduler,
         help="render the frames as tasks on a Dask cluster: local:N (N worker processes started here) or "
              "tcp://HOST:PORT of a running scheduler; every worker must see --scene and --out at the same path "
              "(needs pip install 'aerostereo[dask]'; see docs/cluster.md)")
-    add("--shard", type=_shard, default=defaults.shard,
+    add("--shard", type=_shard, default=run_defaults.shard,
         help="render only frames I, I+N, I+2N... (I/N; default 0/1: every frame)")
     add("--formats", type=_formats, default=None,
-        help=f"comma-separated extra outputs (default {','.join(defaults.formats)}; replay of the scene's cameras: "
+        help=f"comma-separated extra outputs (default {','.join(defaults.outputs.formats)}; replay of the scene's "
+             "cameras: "
              f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")
     effects = parser.add_argument_group("camera effects (colour images only; depth and poses stay exact)")
     effects.add_argument("--line-delay", type=float, default=0.0,
@@ -169,16 +171,16 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
     formats = args.formats
     if formats is None:
         scene_replay = args.mode == "replay" and args.geotags is None
-        formats = SCENE_REPLAY_FORMATS if scene_replay else RenderOptions().formats
-    return RenderOptions(frames=args.frames, mode=args.mode, geotags=args.geotags, width=args.width,
-                         height=args.height, fov_deg=args.fov, baseline_m=args.baseline, cameras=args.cameras,
-                         spp=args.spp, seed=args.seed, workers=args.workers, shard=args.shard,
-                         scheduler=args.scheduler,
-                         formats=formats, trajectory=args.trajectory, altitude_m=args.altitude,
-                         speed_m_s=args.speed, frame_rate_hz=args.rate, distortion=args.distortion,
-                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin,
-                         max_sky_fraction=args.max_sky, effects=effects_from_args(args),
-                         imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
+        formats = SCENE_REPLAY_FORMATS if scene_replay else OutputOptions().formats
+    rig = RigOptions(width=args.width, height=args.height, fov_deg=args.fov, baseline_m=args.baseline,
+                     cameras=args.cameras, distortion=args.distortion, spp=args.spp)
+    poses = PoseOptions(frames=args.frames, mode=args.mode, geotags=args.geotags, trajectory=args.trajectory,
+                        altitude_m=args.altitude, speed_m_s=args.speed, frame_rate_hz=args.rate,
+                        margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin, max_sky_fraction=args.max_sky,
+                        imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
+    run = RunOptions(workers=args.workers, shard=args.shard, scheduler=args.scheduler)
+    return RenderOptions(seed=args.seed, rig=rig, poses=poses, outputs=OutputOptions(formats),
+                         effects=effects_from_args(args), run=run)
 
 
 def effects_from_args(args: argparse.Namespace) -> CameraEffects:
@@ -208,7 +210,7 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
     check_export_args(args)
     options = options_from_args(args)
     if args.contact_sheet is not None:
-        check_depth_written(options.formats, f"{args.out} (--formats)")
+        check_depth_written(options.outputs.formats, f"{args.out} (--formats)")
     try:
         summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite,
                                  command_line=sys.argv if command_line is None else command_line,

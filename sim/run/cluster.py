@@ -41,7 +41,8 @@ from distributed.diagnostics.plugin import WorkerPlugin
 from tqdm import tqdm
 
 from sim.dataset import AsyncFrameWriter, KittiDatasetWriter
-from sim.run.frame_renderer import FrameRenderer, FrameStats, RenderInputError
+from sim.run.frame_renderer import FrameRenderer, FrameStats
+from sim.run.options import RenderInputError
 
 #: Tasks per worker the frames are cut into at least (balance: a slow worker holds back a small share).
 TASKS_PER_WORKER = 8

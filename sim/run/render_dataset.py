@@ -15,7 +15,7 @@ The pipeline (what ``aerostereo-render`` runs):
 4. When every frame of the dataset exists it is finalized (``poses``, ``times.txt``, ``frames.jsonl``);
    otherwise the summary says how many frames other shards still have to render.
 
-With ``options.scheduler`` step 3 runs as tasks on a Dask cluster instead (sim/run/cluster.py): the same frames,
+With ``options.run.scheduler`` step 3 runs as tasks on a Dask cluster instead (sim/run/cluster.py): the same frames,
 written by the workers into the same folder, finalized here.
 
 Every file is written atomically and a frame counts as done only when its record exists, so a run
@@ -28,15 +28,11 @@ log, ``OUT/logs/render-<UTC start>-<pid>.jsonl`` (:func:`write_run_log`).
 
 from __future__ import annotations
 
-import ctypes
 import datetime as dt
 import json
 import math
-import multiprocessing
 import os
-import queue
 import shutil
-import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -55,11 +51,12 @@ from sim.dataset import (
     DatasetSpec,
     KittiDatasetWriter,
     finalize_dataset,
-    needs_disparity,
     shard_frames,
 )
-from sim.run.frame_renderer import MODES, TRAJECTORIES, FrameRenderer, FrameStats, RenderInputError, RenderOptions
-from sim.render.camera import MAX_SAMPLES_PER_PIXEL
+from sim.run.description import sampling_description
+from sim.run.frame_renderer import FrameRenderer, FrameStats
+from sim.run.options import RenderInputError, RenderOptions, RunOptions, check_options
+from sim.run.processes import Job, render_in_processes
 from sim.dataset.imu_file import write_imu_csv
 from sim.dataset.kitti import KittiLayout
 from sim.dataset.writer import frame_disk_bytes, recorded_frames
@@ -67,12 +64,8 @@ from sim.render.raycast import default_workers
 from sim.render.scene import read_scene_json
 
 DEMO_SCENE = "demo"
-#: Seconds between checks on the worker processes while waiting for their reports.
-POLL_S = 0.5
 #: Folder of the run logs, inside the dataset folder (not part of the dataset: its files differ run by run).
 RUN_LOGS = "logs"
-#: prctl(2) option: the signal the kernel sends this process when its parent dies.
-PR_SET_PDEATHSIG = 1
 
 
 @dataclass
@@ -108,18 +101,6 @@ class RenderSummary:
         return "\n".join(lines)
 
 
-@dataclass(frozen=True)
-class Job:
-    """What a worker process needs to render frames (picklable)."""
-
-    scene_dir: Path
-    out_dir: Path
-    options: RenderOptions
-    spec: DatasetSpec
-    threads: int | None  # casting threads per process (None: the cluster worker's own)
-    parent_pid: int | None = None  # the built-in pool's workers die with this process
-
-
 def is_demo_scene(scene: str | os.PathLike | None) -> bool:
     """Whether ``scene`` names the built-in demo world: ``None``, ``"demo"`` or ``"demo:VARIANT"``."""
     return scene is None or str(scene) == DEMO_SCENE or str(scene).startswith(DEMO_SCENE + ":")
@@ -141,64 +122,10 @@ def resolve_scene_dir(scene: str | os.PathLike | None) -> Path:
     return path
 
 
-def _check_options(options: RenderOptions) -> None:
-    problems = []
-    if options.mode not in MODES:
-        problems.append(f"mode must be one of {MODES}, got {options.mode!r}")
-    if options.trajectory not in TRAJECTORIES:
-        problems.append(f"trajectory must be one of {TRAJECTORIES}, got {options.trajectory!r}")
-    if options.cameras < 2:
-        problems.append(f"a stereo dataset needs at least 2 cameras, got {options.cameras}")
-    if options.frames is not None and options.frames < 1:
-        problems.append(f"frames must be >= 1, got {options.frames}")
-    for name in ("width", "height", "spp", "workers"):
-        if getattr(options, name) is not None and getattr(options, name) < 1:
-            problems.append(f"{name} must be >= 1, got {getattr(options, name)}")
-    if options.spp > MAX_SAMPLES_PER_PIXEL:
-        problems.append(f"spp must be at most {MAX_SAMPLES_PER_PIXEL} (the sampler numbers a pixel's strata in "
-                        f"16 bits), got {options.spp}")
-    for name, value in (("baseline", options.baseline_m), ("altitude", options.altitude_m),
-                        ("speed", options.speed_m_s), ("rate", options.frame_rate_hz)):
-        if not 0 < value < math.inf:
-            problems.append(f"{name} must be a positive finite number, got {value}")
-    if options.margin_m is not None and not 0 <= options.margin_m < math.inf:
-        problems.append(f"margin must be a finite number >= 0, got {options.margin_m}")
-    if not 0 <= options.max_sky_fraction <= 1:
-        problems.append(f"the sky fraction must be in [0, 1], got {options.max_sky_fraction}")
-    if not 0 < options.fov_deg < 180:
-        problems.append(f"field of view must be in (0, 180) degrees, got {options.fov_deg}")
-    problems += _imu_problems(options)
-    if options.mode == "trajectory" and (options.trajectory == "flight") != (options.mission is not None):
-        problems.append("--trajectory flight needs --mission (a Litchi CSV), and --mission needs --trajectory flight")
-    if options.scheduler is not None and options.workers != 1:
-        problems.append("--workers and --scheduler exclude each other: --scheduler local:N starts N worker processes")
-    if options.distortion is not None and needs_disparity(options.formats):
-        problems.append("disparity needs rectified (undistorted) images: drop disparity_* from --formats "
-                        "when rendering with --distortion")
-    if problems:
-        raise RenderInputError("; ".join(problems))
-
-
-def _imu_problems(options: RenderOptions) -> list[str]:
-    """Why the options' IMU cannot be synthesized (empty when there is none or it can)."""
-    rate = options.imu_rate_hz
-    if rate is None or not 0 < options.frame_rate_hz < math.inf:  # a bad --rate is reported on its own
-        return []
-    if options.mode != "trajectory":
-        return [f"--imu needs --mode trajectory (a continuous path to differentiate), got --mode {options.mode}"]
-    if not 0 < rate < math.inf:
-        return [f"the IMU rate must be a positive finite number, got {rate}"]
-    per_frame = rate / options.frame_rate_hz
-    if abs(per_frame - round(per_frame)) > 1e-9 or round(per_frame) < 1:
-        return [f"the IMU rate ({rate} Hz) must be a whole multiple of the frame rate ({options.frame_rate_hz} Hz), "
-                "so that every frame's timestamp is an IMU sample's"]
-    return []
-
-
 def write_imu_record(renderer: FrameRenderer, out_dir: Path, spec: DatasetSpec) -> None:
     """Synthesize the IMU along the rendered smooth trajectory and write ``imu/NN.csv`` (sim/dataset/imu_file.py)."""
     options = renderer.options
-    samples = renderer.poses.path.imu(spec.frame_count, options.imu_rate_hz, options.seed)
+    samples = renderer.poses.path.imu(spec.frame_count, options.poses.imu_rate_hz, options.seed)
     write_imu_csv(KittiLayout(out_dir, spec.sequence).imu_csv, samples)
 
 
@@ -208,13 +135,13 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
     meta = read_scene_json(scene_dir)
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
-                                formats=tuple(options.formats), scene=scene,
-                                sampling=options.sampling_description(), command_line=list(command_line))
+                                formats=tuple(options.outputs.formats), scene=scene,
+                                sampling=sampling_description(options), command_line=list(command_line))
 
 
-def _cluster_scheduler(options: RenderOptions):
-    """The parsed ``options.scheduler`` (:class:`sim.run.cluster.Scheduler`), or None to render on this machine."""
-    if options.scheduler is None:
+def _cluster_scheduler(run: RunOptions):
+    """The parsed ``run.scheduler`` (:class:`sim.run.cluster.Scheduler`), or None to render on this machine."""
+    if run.scheduler is None:
         return None
     try:
         from sim.run import cluster
@@ -222,23 +149,23 @@ def _cluster_scheduler(options: RenderOptions):
         if not (error.name or "").startswith(("distributed", "dask")):
             raise
         raise RenderInputError("--scheduler needs Dask distributed: pip install 'aerostereo[dask]'") from None
-    scheduler = cluster.parse_scheduler(options.scheduler)
+    scheduler = cluster.parse_scheduler(run.scheduler)
     cluster.check_reachable(scheduler)
     return scheduler
 
 
-def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range,
+def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range, run: RunOptions,
                      processes: int) -> None:
     """Refuse (:class:`RenderInputError`) a run whose ``processes`` renderers would not fit in this machine's
     memory or whose missing frames of ``shard`` would not fit on the disk of ``out_dir``, before any file is
     written."""
-    options, camera = renderer.options, renderer.rig.cameras[0]
+    camera = renderer.rig.cameras[0]
     options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
     missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
     try:
-        how = f"--scheduler {options.scheduler}" if options.scheduler else f"--workers {options.workers}"
+        how = f"--scheduler {run.scheduler}" if run.scheduler else f"--workers {run.workers}"
         require_memory(processes * renderer.memory_bytes(),
-                       f"rendering {options_size} at --spp {options.spp} with {how}")
+                       f"rendering {options_size} at --spp {renderer.options.rig.spp} with {how}")
         require_disk(out_dir, missing * frame_disk_bytes(spec), f"{missing} frames of {options_size}")
     except BadInput as error:
         raise RenderInputError(str(error)) from None
@@ -263,12 +190,12 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     refuse the dataset's constant part too (``render --export``: what the layouts need) before anything is written.
     """
     start, started_utc = time.perf_counter(), dt.datetime.now(dt.timezone.utc)
-    _check_options(options)
+    check_options(options)
     out_dir = Path(out_dir)
     created = not out_dir.exists()
     scene_dir = resolve_scene_dir(scene)
-    scheduler = _cluster_scheduler(options)
-    workers = options.workers if scheduler is None else scheduler.local_workers or 0  # processes here
+    scheduler = _cluster_scheduler(options.run)
+    workers = options.run.workers if scheduler is None else scheduler.local_workers or 0  # processes here
     threads = max(1, default_workers() // max(1, workers))  # casting threads per process
     renderer = FrameRenderer(scene_dir, options, threads)
     command_line = list(sys.argv if command_line is None else command_line)
@@ -276,8 +203,8 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
         spec = dataset_spec(renderer, scene_dir, options, command_line)
         if check_spec is not None:
             check_spec(spec)
-        shard = shard_frames(spec.frame_count, *options.shard)
-        _check_resources(renderer, spec, out_dir, shard, workers)
+        shard = shard_frames(spec.frame_count, *options.run.shard)
+        _check_resources(renderer, spec, out_dir, shard, options.run, workers)
         writer = _open_writer(out_dir, spec, overwrite)
         pending = writer.pending(shard)
         shard_size = len(shard)
@@ -297,7 +224,9 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
             else:
                 renderer.close()  # the workers build their own; this one only checked the input
                 job = Job(scene_dir, out_dir, options, spec, threads, os.getpid())
-                stats = _render_in_processes(job, pending, min(workers, len(pending)), _Progress(bar, start))
+                progress = _Progress(bar, start)
+                render_in_processes(job, pending, min(workers, len(pending)), progress.frame_done)
+                stats = progress.stats
     except BaseException:
         if created:
             _remove_without_frames(out_dir)
@@ -307,7 +236,7 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     remaining = len(writer.pending(range(spec.frame_count)))
     if remaining == 0:
         finalize_dataset(out_dir)
-        if options.imu_rate_hz is not None:
+        if options.poses.imu_rate_hz is not None:
             write_imu_record(renderer, out_dir, spec)
     summary = RenderSummary(out_dir, spec.frame_count, len(stats), shard_size - len(pending),
                             sum(s.rejected for s in stats), time.perf_counter() - start, remaining == 0, remaining,
@@ -361,71 +290,3 @@ def _render_here(renderer: FrameRenderer, writer: KittiDatasetWriter, pending: S
             frames.submit(record)
             progress.frame_done(frame_stats)
     return progress.stats
-
-
-def _die_with_parent(parent_pid: int) -> None:
-    """Have the kernel SIGKILL this worker when the render process dies (Linux ``PR_SET_PDEATHSIG``; kill -9
-    included), so no worker goes on writing frames that nobody will finalize; exit now if it already died."""
-    if sys.platform.startswith("linux"):
-        ctypes.CDLL(None, use_errno=True).prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
-    if os.getppid() != parent_pid:
-        os._exit(1)
-
-
-def _worker(job: Job, tasks, results) -> None:
-    """Worker process: build the scene once, render the frames it pulls, write them, report each one."""
-    _die_with_parent(job.parent_pid)
-    try:
-        renderer = FrameRenderer(job.scene_dir, job.options, job.threads)
-        writer = KittiDatasetWriter(job.out_dir, job.spec)
-        with AsyncFrameWriter(writer) as frames:
-            for index in iter(tasks.get, None):
-                record, frame_stats = renderer.record(index)
-                frames.submit(record)
-                results.put(("frame", frame_stats))
-        renderer.close()
-        results.put(("done", None))
-    except OSError as error:  # a full disk: the parent raises it again, naming the file
-        results.put(("oserror", (error.errno, error.strerror, error.filename)))
-    except BaseException as error:  # noqa: BLE001 -- reported to the parent, which raises it
-        results.put(("error", (isinstance(error, RenderInputError), f"{type(error).__name__}: {error}")))
-
-
-def _render_in_processes(job: Job, pending: Sequence[int], workers: int, progress: _Progress) -> list[FrameStats]:
-    """Render ``pending`` with ``workers`` spawned processes pulling from one queue (dynamic balance)."""
-    context = multiprocessing.get_context("spawn")  # never fork a process that already runs embree threads
-    tasks, results = context.Queue(), context.Queue()
-    for index in pending:
-        tasks.put(index)
-    for _ in range(workers):
-        tasks.put(None)
-    processes = [context.Process(target=_worker, args=(job, tasks, results), daemon=True) for _ in range(workers)]
-    for process in processes:
-        process.start()
-    finished = 0
-    try:
-        while finished < workers:
-            try:
-                kind, payload = results.get(timeout=POLL_S)
-            except queue.Empty:
-                dead = [p for p in processes if p.exitcode not in (None, 0)]
-                if dead:
-                    raise RuntimeError(f"a render worker died (exit code {dead[0].exitcode})") from None
-                continue
-            if kind == "oserror":
-                raise OSError(*payload)
-            if kind == "error":
-                bad_input, message = payload
-                raise (RenderInputError if bad_input else RuntimeError)(f"a render worker failed: {message}")
-            if kind == "done":
-                finished += 1
-            else:
-                progress.frame_done(payload)
-    finally:
-        for process in processes:
-            process.join(timeout=None if finished == workers else 0)
-            if process.is_alive():
-                process.terminate()
-                process.join()
-    return progress.stats
-

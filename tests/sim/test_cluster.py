@@ -35,7 +35,7 @@ from sim.run.cluster import (
     environment_kept,
     parse_scheduler,
 )
-from sim.run.frame_renderer import RenderInputError, RenderOptions
+from sim.run.options import PoseOptions, RenderInputError, RenderOptions, RigOptions, RunOptions
 from sim.run.render_dataset import render_dataset
 
 from render_scene_helpers import write_scene
@@ -51,8 +51,14 @@ def scene_dir(tmp_path_factory):
     return write_scene(tmp_path_factory.mktemp("scene"))
 
 
+def _options(settings: dict, scheduler: str | None = None) -> RenderOptions:
+    """Render options of ``settings`` (width, height, frames, seed), on ``scheduler`` (None: this machine)."""
+    return RenderOptions(seed=settings["seed"], rig=RigOptions(width=settings["width"], height=settings["height"]),
+                         poses=PoseOptions(frames=settings["frames"]), run=RunOptions(scheduler=scheduler))
+
+
 def _single_machine(scene_dir, out, settings) -> dict[str, bytes]:
-    render_dataset(scene_dir, out, RenderOptions(**settings), progress=False)
+    render_dataset(scene_dir, out, _options(settings), progress=False)
     return dataset_bytes(out)
 
 
@@ -70,7 +76,7 @@ def test_an_address_where_no_scheduler_listens_is_refused_before_any_file(scene_
         port = probe.getsockname()[1]
     for address, reason in ((f"tcp://127.0.0.1:{port}", "no Dask scheduler answers"), ("tcp://127.0.0.1", "port")):
         with pytest.raises(RenderInputError, match=reason):
-            render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler=address), progress=False)
+            render_dataset(scene_dir, tmp_path / "out", _options(SMALL, address), progress=False)
     assert not (tmp_path / "out").exists()
 
 
@@ -85,7 +91,7 @@ def test_without_dask_installed_a_scheduler_is_refused_and_nothing_is_written(sc
     monkeypatch.delattr(sim.run, "cluster")
     monkeypatch.setattr(sys, "meta_path", [NotInstalled(), *sys.meta_path])
     with pytest.raises(RenderInputError, match=r"--scheduler needs Dask distributed: pip install 'aerostereo\[dask\]'"):
-        render_dataset(scene_dir, tmp_path / "out", RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+        render_dataset(scene_dir, tmp_path / "out", _options(SMALL, "local:2"), progress=False)
     assert not (tmp_path / "out").exists()
 
 
@@ -104,12 +110,12 @@ def test_batches_cover_every_frame_once_in_order_and_stay_small():
 def test_local_cluster_writes_the_same_bytes_and_resumes(scene_dir, tmp_path):
     expected = _single_machine(scene_dir, tmp_path / "here", SMALL)
     out = tmp_path / "cluster"
-    summary = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    summary = render_dataset(scene_dir, out, _options(SMALL, "local:2"), progress=False)
     assert (summary.rendered, summary.finalized) == (SMALL["frames"], True)
     assert sorted(s.index for s in summary.frames) == list(range(SMALL["frames"]))
     assert dataset_bytes(out) == expected
     (out / "sequences/00/frame_meta/000005.json").unlink()  # as if the run had stopped before frame 5's record
-    resumed = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    resumed = render_dataset(scene_dir, out, _options(SMALL, "local:2"), progress=False)
     assert (resumed.rendered, resumed.skipped) == (1, SMALL["frames"] - 1)
     assert dataset_bytes(out) == expected
 
@@ -138,7 +144,7 @@ def test_a_worker_killed_mid_run_costs_only_its_tasks(scene_dir, tmp_path):
         killed: list[int] = []
         killer = threading.Thread(target=_kill_a_busy_worker, args=(client, out, pids, killed))
         killer.start()
-        summary = render_dataset(scene_dir, out, RenderOptions(**KILL, scheduler=cluster.scheduler_address),
+        summary = render_dataset(scene_dir, out, _options(KILL, cluster.scheduler_address),
                                  progress=False)
         killer.join()
         assert killed, "no worker was running a task when the first frame was written"
@@ -157,10 +163,10 @@ def test_a_task_failing_on_its_own_stops_the_run_with_its_reason(scene_dir, tmp_
     blocker = out / "sequences/00/image_3/000004.png"
     blocker.mkdir(parents=True)  # frame 4's right image cannot be written (as on a full or broken disk)
     with pytest.raises(IsADirectoryError, match="000004"):  # the reason, from the worker that met it
-        render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+        render_dataset(scene_dir, out, _options(SMALL, "local:2"), progress=False)
     assert not (out / "sequences/00/frame_meta/000004.json").exists()
     blocker.rmdir()
-    resumed = render_dataset(scene_dir, out, RenderOptions(**SMALL, scheduler="local:2"), progress=False)
+    resumed = render_dataset(scene_dir, out, _options(SMALL, "local:2"), progress=False)
     assert resumed.finalized and 4 in {s.index for s in resumed.frames}
     assert dataset_bytes(out) == expected
 

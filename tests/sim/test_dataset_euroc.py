@@ -18,7 +18,7 @@ from sim.dataset.writer import DatasetError
 from drone_helpers import short_orbit_csv
 from sim.drone import Imperfections
 from sim.drone.session import fly_litchi_mission
-from sim.run.frame_renderer import RenderInputError, RenderOptions
+from sim.run.options import OutputOptions, PoseOptions, RenderInputError, RenderOptions, RigOptions
 from sim.motion.imu import EUROC_ADIS16448, dead_reckon
 from sim.run.render_dataset import render_dataset, resolve_scene_dir
 from sim.render.scene import load_scene
@@ -26,10 +26,11 @@ from sim.render.scene import load_scene
 FRAMES, FRAME_RATE_HZ, IMU_RATE_HZ = 21, 10.0, 200.0
 
 
-def render(out: Path, overwrite: bool = False, **changes) -> Path:
-    options = RenderOptions(**{"frames": FRAMES, "mode": "trajectory", "trajectory": "orbit", "width": 96,
-                               "height": 64, "frame_rate_hz": FRAME_RATE_HZ, "imu_rate_hz": IMU_RATE_HZ,
-                               "formats": ("depth_exr",), **changes})
+def render(out: Path, overwrite: bool = False, seed: int = 0, **changes) -> Path:
+    poses = PoseOptions(**{"frames": FRAMES, "mode": "trajectory", "trajectory": "orbit",
+                           "frame_rate_hz": FRAME_RATE_HZ, "imu_rate_hz": IMU_RATE_HZ, **changes})
+    options = RenderOptions(seed=seed, rig=RigOptions(width=96, height=64), poses=poses,
+                            outputs=OutputOptions(("depth_exr",)))
     render_dataset("demo:small", out, options, command_line=["test"], progress=False, overwrite=overwrite)
     return out
 

@@ -23,9 +23,8 @@ from sim.render.film import (
     effects_memory_bytes,
     vignetting_gain,
 )
-from sim.effects import CameraEffects
 from sim.motion.shutter import render_in_time
-from sim.run.frame_renderer import RenderInputError, RenderOptions
+from sim.run.options import CameraEffects, PoseOptions, RenderInputError, RenderOptions, RigOptions
 from sim.render.renderer import render
 from sim.run.render_dataset import render_dataset
 from sim.sampling.pose import R_WORLD_NADIR
@@ -132,7 +131,8 @@ def scene_dir(tmp_path_factory):
 
 
 def test_ground_truth_is_identical_with_every_effect_on(scene_dir, tmp_path):
-    base = dict(mode="trajectory", width=64, height=40, frames=3, seed=2, altitude_m=40.0, speed_m_s=15.0)
+    base = dict(seed=2, rig=RigOptions(width=64, height=40),
+                poses=PoseOptions(mode="trajectory", frames=3, altitude_m=40.0, speed_m_s=15.0))
     effects = CameraEffects(line_delay_s=2e-4, exposure_s=0.01, blur_samples=2, full_well_e=500.0, read_noise_e=2.0,
                             vignetting="cos4", auto_exposure=True)
     plain, affected = tmp_path / "plain", tmp_path / "effects"
@@ -151,7 +151,7 @@ def test_ground_truth_is_identical_with_every_effect_on(scene_dir, tmp_path):
 def test_rolling_shutter_and_blur_need_a_trajectory():
     for effects in (CameraEffects(line_delay_s=1e-4), CameraEffects(exposure_s=0.01)):
         with pytest.raises(RenderInputError, match="--mode trajectory"):
-            RenderOptions(mode="random", effects=effects)
+            RenderOptions(poses=PoseOptions(mode="random"), effects=effects)
 
 
 def test_the_memory_estimate_covers_the_photometric_effects():
@@ -170,7 +170,8 @@ def test_the_memory_estimate_covers_the_photometric_effects():
 
 
 def test_auto_exposure_scales_each_frame_by_its_recorded_gain(scene_dir, tmp_path):
-    base = dict(mode="trajectory", width=48, height=30, frames=4, seed=5, altitude_m=40.0, speed_m_s=40.0)
+    base = dict(seed=5, rig=RigOptions(width=48, height=30),
+                poses=PoseOptions(mode="trajectory", frames=4, altitude_m=40.0, speed_m_s=40.0))
     plain, drifting = tmp_path / "plain", tmp_path / "drift"
     render_dataset(scene_dir, plain, RenderOptions(**base), command_line=["test"], progress=False)
     render_dataset(scene_dir, drifting, RenderOptions(**base, effects=CameraEffects(auto_exposure=True)),

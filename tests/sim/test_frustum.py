@@ -12,7 +12,7 @@ from matplotlib.path import Path as PolygonPath
 
 from sim.sampling import random_poses
 from sim.render.camera import PinholeCamera, Rig, camera_rays, pose_from_position
-from sim.run.frame_renderer import SceneGround
+from sim.run.poses import SceneGround
 from sim.sampling.frustum import INNER_GRID_CELLS, ViewFrustum, inner_rectangle, sees_inside
 from sim.render.raycast import intersect
 from sim.sampling.trajectories import RANDOM_LOOP_TILT_DEG, lawnmower, random_loop

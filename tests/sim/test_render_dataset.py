@@ -28,7 +28,8 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
-from sim.run.frame_renderer import FrameRenderer, RenderOptions
+from sim.run.frame_renderer import FrameRenderer
+from sim.run.options import PoseOptions, RenderOptions, RigOptions, RunOptions
 from sim.cli import main as cli_main
 from sim.cli.render import build_parser, options_from_args
 from sim.run.render_dataset import render_dataset
@@ -39,6 +40,12 @@ from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_co
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SMALL = dict(width=160, height=100, frames=8, seed=3)
+
+
+def small_options(**run) -> RenderOptions:
+    """:data:`SMALL` as render options (what the command line renders from ``_argv(**SMALL)``), run as ``run`` says."""
+    return RenderOptions(seed=SMALL["seed"], rig=RigOptions(width=SMALL["width"], height=SMALL["height"]),
+                         poses=PoseOptions(frames=SMALL["frames"]), run=RunOptions(**run))
 
 
 def _argv(scene: Path, out: Path, **options) -> list[str]:
@@ -55,7 +62,7 @@ def scene_dir(tmp_path_factory) -> Path:
 def reference(scene_dir, tmp_path_factory):
     """A small random-mode dataset rendered in this process (1 worker); (folder, summary)."""
     out = tmp_path_factory.mktemp("reference") / "dataset"
-    summary = render_dataset(scene_dir, out, RenderOptions(**SMALL), command_line=["test"], progress=False)
+    summary = render_dataset(scene_dir, out, small_options(), command_line=["test"], progress=False)
     return out, summary
 
 
@@ -151,7 +158,7 @@ def test_a_rerun_skips_complete_frames_and_redoes_a_damaged_one(reference, scene
     shutil.copytree(reference[0], out)
     (out / "sequences/00/frame_meta/000002.json").unlink()  # as if killed before frame 2's record was written
     (out / "sequences/00/image_3/000002.png").write_bytes(b"half a png")
-    summary = render_dataset(scene_dir, out, RenderOptions(**SMALL), command_line=["test"], progress=False)
+    summary = render_dataset(scene_dir, out, small_options(), command_line=["test"], progress=False)
     assert (summary.rendered, summary.skipped) == (1, SMALL["frames"] - 1)
     assert dataset_bytes(out) == dataset_bytes(reference[0])
 
@@ -159,15 +166,15 @@ def test_a_rerun_skips_complete_frames_and_redoes_a_damaged_one(reference, scene
 @pytest.mark.slow
 def test_same_bytes_with_two_workers_and_from_merged_shards(reference, scene_dir, tmp_path):
     expected = dataset_bytes(reference[0])
-    two_workers = render_dataset(scene_dir, tmp_path / "two", RenderOptions(**SMALL, workers=2), progress=False)
+    two_workers = render_dataset(scene_dir, tmp_path / "two", small_options(workers=2), progress=False)
     assert two_workers.rendered == SMALL["frames"]
     assert dataset_bytes(tmp_path / "two") == expected
     for shard in (0, 1):
-        summary = render_dataset(scene_dir, tmp_path / f"shard{shard}", RenderOptions(**SMALL, shard=(shard, 2)),
+        summary = render_dataset(scene_dir, tmp_path / f"shard{shard}", small_options(shard=(shard, 2)),
                                  progress=False)
         assert not summary.finalized and summary.remaining == SMALL["frames"] // 2
         shutil.copytree(tmp_path / f"shard{shard}", tmp_path / "merged", dirs_exist_ok=True)
-    merged = render_dataset(scene_dir, tmp_path / "merged", RenderOptions(**SMALL), progress=False)
+    merged = render_dataset(scene_dir, tmp_path / "merged", small_options(), progress=False)
     assert merged.rendered == 0 and merged.finalized
     assert dataset_bytes(tmp_path / "merged") == expected
 
@@ -461,7 +468,7 @@ def test_the_disk_estimate_per_frame_is_within_a_factor_two_of_the_frames_writte
     from sim.run.render_dataset import dataset_spec
 
     dataset, summary = reference
-    renderer = FrameRenderer(scene_dir, RenderOptions(**SMALL))
+    renderer = FrameRenderer(scene_dir, small_options())
     spec = dataset_spec(renderer, scene_dir, renderer.options, ["test"])
     renderer.close()
     files = KittiDatasetWriter(dataset, spec).frame_files(0)
@@ -471,11 +478,11 @@ def test_the_disk_estimate_per_frame_is_within_a_factor_two_of_the_frames_writte
 
 def test_the_memory_estimate_counts_every_array_a_view_keeps(scene_dir):
     from sim.render.renderer import VIEW_BYTES_PER_PIXEL, render, render_memory_bytes
-    from sim.run.frame_renderer import build_rig
+    from sim.run.rig import build_rig
     from sim.render.shade import Sun
 
-    options = RenderOptions(width=40, height=30)
-    rig = build_rig(options)
+    options = RenderOptions(rig=RigOptions(width=40, height=30))
+    rig = build_rig(options.rig)
     renderer = FrameRenderer(scene_dir, options, threads=1)
     T = renderer.poses.pose(0).T_world_cam
     views = render(renderer.scene, rig, T, Sun(0.0, 45.0, 1.0), pool=renderer.pool).views

@@ -18,7 +18,7 @@ from flightplan.geodesy import LocalFrame
 from recon.scene_out import write_scene
 from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
-from sim.run.frame_renderer import RenderOptions
+from sim.run.options import PoseOptions, RenderOptions, RigOptions
 from sim.run.render_dataset import render_dataset
 from sim.worlds.synthetic import grid_mesh
 from sim.render.scene_cameras import SceneCamera
@@ -207,8 +207,8 @@ def flat_dataset(tmp_path_factory):
     mesh = trimesh.Trimesh(vertices, faces, process=False)
     mesh.visual = trimesh.visual.ColorVisuals(mesh, vertex_colors=np.tile([120, 140, 100, 255], (len(vertices), 1)))
     write_scene(root / "scene", mesh, LocalFrame(40.1792, 44.4991, 1000.0), {"generator": "test"})
-    render_dataset(root / "scene", root / "dataset", RenderOptions(frames=2, width=48, height=32, seed=3),
-                   progress=False)
+    options = RenderOptions(seed=3, rig=RigOptions(width=48, height=32), poses=PoseOptions(frames=2))
+    render_dataset(root / "scene", root / "dataset", options, progress=False)
     return DatasetSource(root / "dataset")
 
 
