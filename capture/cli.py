@@ -25,7 +25,8 @@ from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
 from cliutil.argtypes import positive_number
-from cliutil.program import BadInput, Parser, add_version, run_cli
+from cliutil.errors import BadInput
+from cliutil.program import Parser, add_version, run_cli
 from cliutil.paths import path_problem, refuse_clobbering, refuse_folders
 
 PROGRAM = "aerostereo-ingest"

@@ -2,7 +2,7 @@
 
 ``register(subparsers)`` adds them (``export``: geotags.csv -> GPX, ODM geo.txt, COLMAP reference); each sets
 ``handler`` to a function taking the parsed args and returning an exit code. Bad input raises
-:class:`~cliutil.program.BadInput` (or a ``ValueError``/``OSError``), which ``aerostereo-ingest`` reports as
+:class:`~cliutil.errors.BadInput` (or a ``ValueError``/``OSError``), which ``aerostereo-ingest`` reports as
 one line on stderr with exit code 2, nothing written. Outputs that name an input (a photo, a log) or each other
 are refused before anything is read. The readers' reports go to stderr, the result lines to stdout.
 """
@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 from cliutil.argtypes import finite_number, positive_number
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.paths import folder_inputs, path_problem, refuse_clobbering, refuse_folders
 
 from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M

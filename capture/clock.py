@@ -25,7 +25,7 @@ from typing import Callable
 
 import numpy as np
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 
 from .track import format_utc
 

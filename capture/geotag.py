@@ -10,7 +10,7 @@ reason -- never extrapolated. Attitude is interpolated the same way from its own
 
 Such a photo falls back to its own EXIF GPS, XMP heights and XMP attitude (``source`` :data:`PHOTO_SOURCE`,
 listed in ``GeotagResult.from_photos``) where it has them. Photos and logs from different flights are refused
-(:class:`~cliutil.program.BadInput`), never matched: an automatic clock offset beyond
+(:class:`~cliutil.errors.BadInput`), never matched: an automatic clock offset beyond
 :data:`MAX_AUTO_CLOCK_OFFSET_S`, or photos whose own GPS is a median of more than ``max_misfit_m`` from their
 geotags.
 """
@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation

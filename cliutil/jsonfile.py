@@ -3,7 +3,7 @@
 Python's ``json`` parser recurses once per nesting level, so ``[[[[...]]]]`` a few thousand levels deep raises
 ``RecursionError`` (which no reader expects) instead of ``json.JSONDecodeError``. :func:`loads_json` turns it into
 a ``json.JSONDecodeError``, so every reader's existing handling of malformed JSON applies; :func:`read_json` reads a
-file and reports any malformed JSON as :class:`~cliutil.program.BadInput` naming the file and line.
+file and reports any malformed JSON as :class:`~cliutil.errors.BadInput` naming the file and line.
 """
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ import json
 import sys
 from pathlib import Path
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 
 
 def loads_json(text: str | bytes):

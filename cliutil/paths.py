@@ -12,7 +12,7 @@ import os
 from collections.abc import Iterable, Mapping
 from pathlib import Path
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 
 def refuse_clobbering(inputs: Mapping[str, Path | Iterable[Path] | None],
                       outputs: Mapping[str, Path | None]) -> None:

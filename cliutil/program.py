@@ -20,16 +20,11 @@ import sys
 from collections.abc import Callable
 from importlib import metadata
 
+from cliutil.errors import BadInput
+
 EXIT_OK = 0
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, as shells report Ctrl-C
-
-
-class BadInput(ValueError):
-    """Bad user input or an impossible request: printed as one line, exit code 2.
-
-    The message names the file (with line or byte offset where known) or the argument, and what was expected.
-    """
 
 
 class DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):

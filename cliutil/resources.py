@@ -1,5 +1,5 @@
 """Size checks before any work starts: :func:`require_memory` and :func:`require_disk` compare what a run would
-need with what the machine has, and refuse (:class:`~cliutil.program.BadInput`) what cannot fit."""
+need with what the machine has, and refuse (:class:`~cliutil.errors.BadInput`) what cannot fit."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import os
 import shutil
 from pathlib import Path
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 
 GIB = 1024 ** 3
 

@@ -42,7 +42,7 @@ from matplotlib.path import Path as PolygonPath
 
 from flightplan import litchi
 from flightplan.aircraft import DJI_MINI_SE, AircraftProfile, CameraProfile
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.field import Field
 from flightplan.orbit import DEFAULT_HEIGHT_M, DEFAULT_RADIUS_M, OrbitPlan, OrbitRequest, Ring, plan_orbit
 

@@ -18,7 +18,7 @@ from flightplan import checks
 from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import AreaRequest, orbit_at, plan_area
 from flightplan.area_outputs import OVERVIEW_NAMES, summary_text, write_area_plan
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.paths import refuse_clobbering
 from flightplan.field import read_field
 from flightplan.geodesy import validate_latlon

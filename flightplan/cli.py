@@ -18,7 +18,8 @@ from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
 from flightplan.area import DEFAULT_OVERLAP, DEFAULT_TRANSIT_SPEED_M_S
 from cliutil.argtypes import finite_number
 from cliutil.atomic import write_text_atomic
-from cliutil.program import BadInput, Parser, add_version, run_cli
+from cliutil.errors import BadInput
+from cliutil.program import Parser, add_version, run_cli
 from cliutil.paths import refuse_clobbering, refuse_folders
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.litchi import write_mission_csv

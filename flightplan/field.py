@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from defusedxml import ElementTree as SafeET
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.geodesy import WGS84, LocalFrame, validate_latlon
 from cliutil.jsonfile import loads_json
 

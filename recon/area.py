@@ -32,7 +32,7 @@ from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.merge import ControlPairs
 from recon.sfm import RTK_GRADE_SIGMA_M

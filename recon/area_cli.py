@@ -18,7 +18,8 @@ from pathlib import Path
 
 import pycolmap
 
-from cliutil.program import BadInput, Parser, add_version, stdout_to_stderr
+from cliutil.errors import BadInput
+from cliutil.program import Parser, add_version, stdout_to_stderr
 from cliutil.paths import folder_inputs, refuse_clobbering
 from recon.area_pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
                                   reconstruct_pieces)

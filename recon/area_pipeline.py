@@ -32,7 +32,7 @@ import trimesh
 
 from capture.geotag_io import sidecar_path
 from cliutil.atomic import atomic_path, write_text_atomic
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.area import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
 from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,

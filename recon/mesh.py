@@ -38,7 +38,7 @@ HEIGHT_FIELD_BYTES_PER_POINT = 48
 
 
 def require_height_field_memory(width_m: float, height_m: float, cell_m: float, what: str, points: int = 0) -> None:
-    """Raise :class:`~cliutil.program.BadInput` if a height field of ``width_m`` x ``height_m`` (metres) at
+    """Raise :class:`~cliutil.errors.BadInput` if a height field of ``width_m`` x ``height_m`` (metres) at
     ``cell_m`` cells from ``points`` points needs more memory than is free; ``what`` says where the size comes from."""
     cells = (math.floor(width_m / cell_m) + 1.0) * (math.floor(height_m / cell_m) + 1.0)
     require_memory(cells * HEIGHT_FIELD_BYTES_PER_CELL + points * HEIGHT_FIELD_BYTES_PER_POINT,

@@ -237,7 +237,7 @@ class Recon:
         return nullcontext(partial(self.progress, stage))
 
     def check_room_for_sfm(self):
-        """:class:`~cliutil.program.BadInput` when the disk of the scene folder has less free space than
+        """:class:`~cliutil.errors.BadInput` when the disk of the scene folder has less free space than
         SfM may need (:func:`recon.sfm.sfm_disk_bytes`): COLMAP would abort the process when its database cannot
         grow."""
         features = self.options.sfm.max_num_features

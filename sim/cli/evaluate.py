@@ -10,7 +10,7 @@ from pathlib import Path
 
 from cliutil.argtypes import positive_number
 from cliutil.atomic import write_text_atomic
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from sim.evaluation.depth import MIN_DEPTH_M
 from sim.evaluation.score import EvaluateOptions, evaluate, report_table

@@ -10,7 +10,7 @@ from pathlib import Path
 from capture.track import parse_utc
 from cliutil.argtypes import finite_number
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
                                run_session)
 from sim.render.scene import load_scene

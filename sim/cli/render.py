@@ -12,7 +12,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from capture.geotag_io import sidecar_path
-from cliutil.program import EXIT_INTERRUPTED, BadInput, Parser
+from cliutil.program import EXIT_INTERRUPTED, Parser
+from cliutil.errors import BadInput
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from sim.dataset.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard

@@ -3,6 +3,7 @@
 :class:`DatasetSource` opens ``dataset.json`` and ``frames.jsonl`` and checks what a layout needs (depth maps,
 pinhole cameras, a rectified pair); :class:`SourceFrame` hands each frame's record, colour PNGs, depth maps
 (planar z in metres, float32, +inf on miss, read once) and camera poses to the layout writers.
+:func:`replay_frames` reads a replay's photo-named folder back (each photo's exposure gain and depth map).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ from cliutil.atomic import write_bytes_atomic
 from cliutil.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.kitti import KittiLayout, frame_file_name, stereo_baseline_m
+from sim.dataset.replay import image_name
 from sim.dataset.writer import DatasetError, read_dataset_json
 
 LEFT, RIGHT = 0, 1
@@ -161,3 +163,32 @@ class SourceFrame:
         T_world_left = np.asarray(self.record["T_world_cam"], dtype=np.float64)
         T_rig_cams = self.source.T_rig_cams
         return T_world_left @ np.linalg.inv(T_rig_cams[LEFT]) @ T_rig_cams[view]
+
+
+@dataclass(frozen=True)
+class ReplayFrame:
+    """What a replayed frame says about its photo: the ``exposure_gain`` (linear light, render / photo; 1.0
+    where unknown) and the left ``depth`` EXR (planar metres, +inf where the render hit nothing), if written."""
+
+    image_name: str
+    exposure_gain: float
+    depth: Path | None
+
+
+def replay_frames(folder: Path) -> dict[str, ReplayFrame]:
+    """Photo stem -> :class:`ReplayFrame` for a ``replay_C`` folder of a finalized dataset; empty for any other
+    folder (plain renders: no gain, no depth)."""
+    folder = Path(folder)
+    frames_jsonl = folder.parent / "frames.jsonl"
+    if not folder.name.startswith("replay_") or not frames_jsonl.is_file():
+        return {}
+    depth_dir = folder.parent / f"depth_{folder.name.removeprefix('replay_')}"
+    frames = {}
+    for number, line in enumerate(frames_jsonl.read_text(encoding="utf-8").splitlines(), 1):
+        record = read_record(frames_jsonl, number, line)
+        name = image_name(record)
+        if name is not None:
+            depth = depth_dir / frame_file_name(int(record["frame"]), ".exr")
+            frames[Path(name).stem] = ReplayFrame(name, float(record["sampler"].get("exposure_gain", 1.0)),
+                                                  depth if depth.is_file() else None)
+    return frames

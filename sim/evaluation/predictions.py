@@ -22,7 +22,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.paths import path_problem
 from sim.dataset.images import KITTI_DISPARITY_SCALE, read_exr
 from sim.dataset.kitti import frame_file_name

@@ -34,7 +34,7 @@ from skimage.metrics import structural_similarity
 
 from cliutil.paths import path_problem
 from sim.dataset.images import read_exr
-from sim.dataset.replay import replay_frames
+from sim.dataset.source import replay_frames
 from sim.evaluation.depth import eigen_errors
 from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from sim.dataset.images import disparity_from_depth
 from sim.dataset.kitti import relative_poses
 from sim.dataset.kitti2015 import visible_in_right

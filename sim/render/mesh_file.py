@@ -27,7 +27,7 @@ from pathlib import Path
 
 from PIL import Image
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.resources import require_memory
 from cliutil.jsonfile import loads_json
 

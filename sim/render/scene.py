@@ -20,7 +20,7 @@ import trimesh
 from embreex import mesh_construction, rtcore, rtcore_scene
 from PIL import Image
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
 from sim.render.mesh_file import check_mesh_file

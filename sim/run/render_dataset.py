@@ -42,7 +42,7 @@ from pathlib import Path
 from tqdm import tqdm
 
 from cliutil.atomic import write_text_atomic
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.paths import path_problem
 from cliutil.resources import require_disk, require_memory
 from sim.dataset import (

@@ -30,7 +30,7 @@ from capture.logs.writers import write_litchi_csv
 from capture.synthetic import Noise, Orbit, photos_for, shutter_times, telemetry
 from capture.track import Track
 from flightplan import litchi
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import geodesic_inverse
 from flightplan.orbit import OrbitRequest, plan_orbit

@@ -7,7 +7,8 @@ import os
 
 import pytest
 
-from cliutil.program import EXIT_BAD_INPUT, EXIT_INTERRUPTED, BadInput, Parser, add_version, run_cli, stdout_to_stderr
+from cliutil.program import EXIT_BAD_INPUT, EXIT_INTERRUPTED, Parser, add_version, run_cli, stdout_to_stderr
+from cliutil.errors import BadInput
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.resources import format_bytes, require_disk, require_memory
 

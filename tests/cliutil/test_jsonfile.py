@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from cliutil.program import BadInput
+from cliutil.errors import BadInput
 from cliutil.jsonfile import loads_json, read_json
 
 

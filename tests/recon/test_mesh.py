@@ -103,7 +103,7 @@ def test_the_memory_per_cell_covers_what_gridding_and_triangulating_hold(cloud):
 
 
 def test_a_cell_too_fine_for_the_memory_is_refused_before_gridding(cloud):
-    from cliutil.program import BadInput
+    from cliutil.errors import BadInput
 
     points, colors = cloud  # 60 m x 60 m
     with pytest.raises(BadInput, match=r"--grid 1e-06 over the point cloud of 60.0 x 60.0 m \(3.6e\+15 cells\) needs"):
