@@ -13,7 +13,7 @@ Layout of the output folder ``AREA``::
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
 EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/cluster.py):
 a flight is a few minutes of work, so one task per flight. The area frame's origin is the mean of the pieces' own
-origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area`, holding no piece fixed (the
+origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area.align`, holding no piece fixed (the
 corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area_merge`.
 """
 
@@ -34,7 +34,7 @@ from capture.geotag_io import sidecar_path
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.program import BadInput
 from flightplan.geodesy import LocalFrame
-from recon.area import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
+from recon.area.align import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
 from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.merge import ControlPairs
@@ -321,7 +321,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
 
 def control_links(ties: Sequence[ControlTie], names: Sequence[str], pieces: list[Piece],
                   frame: LocalFrame) -> tuple[Link, ...]:
-    """Each tie as a :class:`recon.area.Link` in the area frame; :class:`AreaError` for a tie naming no piece."""
+    """Each tie as a :class:`recon.area.align.Link` in the area frame; :class:`AreaError` for a tie naming no piece."""
     index = {name: k for k, name in enumerate(names)}
     for tie in ties:
         for name in (tie.reference, tie.moving):

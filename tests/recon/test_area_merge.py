@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from recon.area_merge import NO_OWNER, Grid, distance_to_owner, look_at_points, ownership, seam_neighbours
-from recon.area import AreaError
+from recon.area.align import AreaError
 from recon.area_pipeline import AreaOptions, ControlTie, merge_area
 from recon.merge import ControlPairs
 from sim.render.camera import PinholeCamera, look_at

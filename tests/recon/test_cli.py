@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from recon.area import Prior
+from recon.area.align import Prior
 from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
