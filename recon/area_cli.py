@@ -7,7 +7,7 @@
 Each FLIGHT_DIR holds ``photos/`` and ``geotags.csv`` (as ``aerostereo-render fly`` + ``aerostereo-ingest geotag``
 write them; without geotags.csv the photos' own GPS). The report (JSON) is the only thing on stdout; progress goes
 to stderr. A rerun resumes the pieces whose inputs and options are unchanged and joins them again. Layout and method:
-recon/area_pipeline.py, recon/area_merge.py, docs/recon.md ("An area").
+recon/area_pipeline.py, recon/area/merge.py, docs/recon.md ("An area").
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geota
 EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/cluster.py):
 a flight is a few minutes of work, so one task per flight. The area frame's origin is the mean of the pieces' own
 origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area.align`, holding no piece fixed (the
-corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area_merge`.
+corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area.merge`.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.program import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.area.align import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
-from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
+from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions
