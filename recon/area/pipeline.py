@@ -235,7 +235,7 @@ def encode_merged(pieces: list[MergedPiece], gains: np.ndarray, frame: LocalFram
             ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(gained(piece.texture, gain), cv2.COLOR_RGB2BGR),
                                     [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
             parts.append(TexturedPart(piece.vertices, piece.faces, piece.uv, jpeg.tobytes()))
-        return "area.glb", encode_textured_glb_parts(parts, "recon.area_pipeline", frame)
+        return "area.glb", encode_textured_glb_parts(parts, "recon.area.pipeline", frame)
     if any(textured):
         raise BadInput("the pieces mix textured and vertex-coloured meshes; reconstruct every flight with the same "
                        "--texture")
