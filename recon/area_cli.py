@@ -23,7 +23,7 @@ from cliutil.paths import folder_inputs, refuse_clobbering
 from recon.area.pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
                                   reconstruct_pieces)
 from recon.merge import read_pairs
-from recon.cli import PROGRAM, add_recon_options, recon_options
+from recon.cli_options import PROGRAM, add_recon_options, recon_options
 
 
 def build_area_parser() -> Parser:
