@@ -1,5 +1,5 @@
 """``aerostereo-recon``: photos + geotags -> georeferenced scene folder; ``area``: many flights -> one scene
-(recon/area_cli.py); ``merge``: control-point merge.
+(recon/area/cli.py); ``merge``: control-point merge.
 
     aerostereo-recon --photos DIR [--geotags geotags.csv] --out SCENE_DIR
                      [--image-size PX] [--max-features N] [--neighbors K] [--sequential N] [--every K]
@@ -30,6 +30,7 @@ from recon.dense import DenseError
 from cliutil.atomic import atomic_path
 from cliutil.program import Parser, add_version, run_cli, stdout_to_stderr
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
+from recon.area.cli import run_area
 from recon.cli_options import PROGRAM, add_recon_options, recon_options
 from recon.merge import estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import Recon
@@ -115,8 +116,6 @@ def main(argv=None) -> int:
     if argv[:1] == ["merge"]:
         return run_cli(f"{PROGRAM} merge", lambda: run_merge(argv[1:]))
     if argv[:1] == ["area"]:
-        from recon.area_cli import run_area
-
         return run_cli(f"{PROGRAM} area", lambda: run_area(argv[1:]), bad_input=(SfmError, DenseError))
     return run_cli(PROGRAM, lambda: run_recon(argv), bad_input=(SfmError, DenseError))
 

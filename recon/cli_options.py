@@ -1,5 +1,5 @@
 """The reconstruction's command-line options, shared by ``aerostereo-recon`` (one scene, recon/cli.py) and
-``aerostereo-recon area`` (each piece of an area, recon/area_cli.py): the program's name, the options and their
+``aerostereo-recon area`` (each piece of an area, recon/area/cli.py): the program's name, the options and their
 argument types, and the :class:`~recon.pipeline.ReconOptions` they make.
 """
 
