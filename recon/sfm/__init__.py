@@ -1,0 +1,4 @@
+"""Structure from motion with pycolmap on the CPU, registered into the geotags' local ENU frame.
+
+:mod:`~recon.sfm.pipeline` is the stage: :func:`~recon.sfm.pipeline.run_sfm` chains its steps and writes its report.
+"""
