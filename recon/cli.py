@@ -34,7 +34,7 @@ from recon.area.cli import run_area
 from recon.cli_options import PROGRAM, add_recon_options, recon_options
 from recon.merge import estimate_merge, merge_meshes, read_pairs
 from recon.pipeline import Recon
-from recon.sfm.pipeline import SfmError
+from recon.sfm.options import SfmError
 from sim.render.mesh_file import check_mesh_file
 
 

@@ -9,7 +9,7 @@ import argparse
 
 from recon.dense import DenseOptions
 from recon.pipeline import MESHES, TEXTURES, ReconOptions
-from recon.sfm.pipeline import SfmOptions
+from recon.sfm.options import SfmOptions
 from recon.atlas import AtlasOptions
 from recon.texture import TextureOptions
 

@@ -27,6 +27,7 @@ from scipy.spatial import cKDTree
 
 from cliutil.atomic import write_text_atomic
 from recon.priors import CameraSeed, PosePriors, PriorsError
+from recon.sfm.options import SfmError, SfmOptions
 from recon.similarity import Similarity, umeyama
 from recon.tag_offset import fit_tag_offset, travel_directions
 from sim.render.camera import PinholeCamera
@@ -39,34 +40,6 @@ SFM_BYTES_PER_FEATURE = 1536
 LOOP_MIN_INLIERS = 15
 STRONG_GEOMETRY_DEG = 20.0  # viewing-direction spread above which the focal length is observable
 FOCAL_CHANGE_WARN = 0.05
-
-
-class SfmError(RuntimeError):
-    """SfM could not produce a usable model (message says which photos and why)."""
-
-
-@dataclass(frozen=True)
-class SfmOptions:
-    """Knobs of the SfM stage.
-
-    ``focal``: "fixed" keeps the seeded focal length, "refine" lets bundle adjustment move it, "auto" maps
-    with it fixed and refines it afterwards only when the viewing directions spread by more than
-    ``STRONG_GEOMETRY_DEG`` (converging oblique orbit); a flat nadir block cannot determine it. A factory
-    calibration (``CameraSeed.factory``) is kept whole (focal, principal point, distortion) unless "refine";
-    other seeds always refine their radial distortion.
-    ``every_kth``: only every k-th photo enters mapping; the rest are registered into the finished model
-    (None: :func:`auto_every_kth` picks k from the photo spacing and the flight height).
-    """
-
-    max_image_size: int = 800
-    max_num_features: int = 8192
-    spatial_neighbors: int = 12
-    sequential_overlap: int = 0
-    mapper: str = "incremental"
-    focal: str = "auto"
-    every_kth: int | None = None
-    num_threads: int = -1
-    seed: int = 0
 
 
 @dataclass
