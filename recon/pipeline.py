@@ -49,8 +49,9 @@ from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, 
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
+from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
-from recon.sfm.pipeline import MIN_PHOTOS, camera_poses, run_sfm, sfm_disk_bytes
+from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.render.glb import GEOREF_FORMAT
 

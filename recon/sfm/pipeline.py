@@ -9,7 +9,7 @@ spatial matching from the priors (plus the loop-closing pair of an orbit) -> inc
 the positions cannot level the block better -> report.
 
 Frames: COLMAP stores ``cam_from_world``; everything leaving this module is ``T_world_cam`` (camera-to-world,
-ENU metres, OpenCV camera axes), converted here only.
+ENU metres, OpenCV camera axes), converted in :mod:`recon.sfm.cameras` only.
 """
 
 from __future__ import annotations
@@ -27,13 +27,13 @@ from cliutil.atomic import write_text_atomic
 from recon.priors import CameraSeed, PosePriors, PriorsError
 from recon.sfm.matching import (LOOP_MIN_INLIERS, create_database, ensure_loop_matched, loop_pair, match_pairs,
                                  match_photos, nearest_mapped_pairs, write_pose_priors)
+from recon.sfm.cameras import camera_poses
 from recon.sfm.mapping import (REGISTER_NEIGHBOURS, map_photos, refine_focal, register_remaining, robust_prior_loss,
                                viewing_spread_deg)
 from recon.sfm.options import SfmError, SfmOptions
 from recon.sfm.progress import no_progress, renamed
 from recon.similarity import Similarity, umeyama
 from recon.tag_offset import fit_tag_offset, travel_directions
-from sim.render.camera import PinholeCamera
 
 MIN_PHOTOS = 3
 #: Disk space SfM needs per feature of a photo (features, matches, SQLite's journal): 6 photos at 2048 features
@@ -76,41 +76,6 @@ class SfmReport:
 
 
 # ---------------------------------------------------------------- geo-registration and levelling
-
-
-def camera_poses(rec: pycolmap.Reconstruction) -> dict[str, np.ndarray]:
-    """``T_world_cam`` (4x4, camera-to-world) of every registered image, by name."""
-    poses = {}
-    for image in rec.images.values():
-        if image.has_pose:
-            pose = np.eye(4)
-            pose[:3, :4] = image.cam_from_world().inverse().matrix()
-            poses[image.name] = pose
-    return poses
-
-
-#: Where each COLMAP model's extra parameters go in OpenCV's (k1, k2, p1, p2, k3); all act on normalised
-#: coordinates exactly as OpenCV's radial-tangential model does (COLMAP's src/colmap/sensor/models.h).
-_OPENCV_SLOTS = {"SIMPLE_PINHOLE": (), "PINHOLE": (), "SIMPLE_RADIAL": (0,), "RADIAL": (0, 1),
-                 "OPENCV": (0, 1, 2, 3), "FULL_OPENCV": (0, 1, 2, 3, 4)}
-
-
-def camera_from_colmap(camera: pycolmap.Camera) -> PinholeCamera:
-    """sim camera (OpenCV lens, our pixel convention: COLMAP's principal point minus 0.5 px) of a COLMAP camera
-    of model SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV or FULL_OPENCV without its rational terms
-    (k4 = k5 = k6 = 0: the factory seed of :func:`recon.priors.factory_seed`); ``ValueError`` otherwise."""
-    slots = _OPENCV_SLOTS.get(camera.model.name)
-    if slots is None:
-        raise ValueError(f"camera {camera.camera_id}: COLMAP model {camera.model.name} has no OpenCV equivalent "
-                         f"here (supported: {', '.join(_OPENCV_SLOTS)})")
-    extra = np.asarray(camera.params)[camera.extra_params_idxs()]
-    if np.any(extra[len(slots):]):
-        raise ValueError(f"camera {camera.camera_id}: {camera.model.name} with rational terms "
-                         f"{extra[len(slots):].tolist()} has no 5-coefficient OpenCV equivalent")
-    distortion = np.zeros(5)
-    distortion[list(slots)] = extra[:len(slots)]
-    return PinholeCamera(camera.focal_length_x, camera.focal_length_y, camera.principal_point_x - 0.5,
-                         camera.principal_point_y - 0.5, int(camera.width), int(camera.height), tuple(distortion))
 
 
 def compose(outer: Similarity, inner: Similarity) -> Similarity:
