@@ -49,7 +49,9 @@ from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, 
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import scene_cameras, write_scene
-from recon.sfm import MIN_PHOTOS, SfmOptions, camera_poses, run_sfm, sfm_disk_bytes
+from recon.sfm.cameras import camera_poses
+from recon.sfm.options import SfmOptions
+from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.render.glb import GEOREF_FORMAT
 
@@ -238,8 +240,8 @@ class Recon:
 
     def check_room_for_sfm(self):
         """:class:`~cliutil.errors.BadInput` when the disk of the scene folder has less free space than
-        SfM may need (:func:`recon.sfm.sfm_disk_bytes`): COLMAP would abort the process when its database cannot
-        grow."""
+        SfM may need (:func:`recon.sfm.pipeline.sfm_disk_bytes`): COLMAP would abort the process when its database
+        cannot grow."""
         features = self.options.sfm.max_num_features
         require_disk(self.work, sfm_disk_bytes(len(self.names), features),
                      f"SfM of {len(self.names)} photos at up to {features} features each (--max-features)")

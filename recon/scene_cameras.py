@@ -36,7 +36,7 @@ def scene_camera_poses(scene_dir: Path) -> dict[str, np.ndarray]:
     from its ``cameras.json`` if present, else from its SfM model ``work/sparse``."""
     import pycolmap
 
-    from recon.sfm import camera_poses
+    from recon.sfm.cameras import camera_poses
 
     scene_dir = Path(scene_dir)
     cameras = scene_dir / read_scene_json(scene_dir).get("cameras", "cameras.json")

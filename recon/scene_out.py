@@ -20,7 +20,7 @@ import trimesh
 from flightplan.geodesy import LocalFrame
 from cliutil.atomic import atomic_path, write_text_atomic
 from recon.observed import viewed_area
-from recon.sfm import camera_from_colmap, camera_poses
+from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.render.scene_cameras import SceneCamera, write_cameras
 
 SCENE_FORMAT = "aerostereo-scene/1"

@@ -32,7 +32,7 @@ from PIL import Image
 from scipy import ndimage
 
 from flightplan.geodesy import LocalFrame
-from recon.sfm import camera_from_colmap, camera_poses
+from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.render.camera import PinholeCamera, project_world_points
 from sim.render.raycast import default_workers, intersect, occluded
 from sim.render.scene import Scene, Surface

@@ -23,8 +23,8 @@ import trimesh
 from cliutil.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame
 from recon.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
-from recon.area_merge import distance_to_owner
-from recon.area_pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "no piece has surface here"
+from recon.area.merge import distance_to_owner
+from recon.area.pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "no piece has surface here"
 from recon.observed import inside
 from recon.oblique import TwinFrame, render_view, sample_views, score_view, summarise
 from recon.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
@@ -208,7 +208,7 @@ class Ownership:
 
     def seam_distance_m(self) -> np.ndarray:
         """Per cell: about the distance (m) from its centre to the nearest seam, i.e. to the nearest cell of
-        another piece (:func:`recon.area_merge.distance_to_owner`, the merge's own measure); cells with no owner
+        another piece (:func:`recon.area.merge.distance_to_owner`, the merge's own measure); cells with no owner
         make no seam; +inf where there is no other piece."""
         distance = np.full(self.owner.shape, np.inf)
         for piece in np.unique(self.owner):

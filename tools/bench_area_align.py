@@ -1,4 +1,5 @@
-"""Joining pieces of an area (recon/area.py): ICP time and errors before/after against the known truth (Markdown table).
+"""Joining pieces of an area (recon/area/align.py): ICP time and errors before/after against the known truth
+(Markdown table).
 
 ``PIECES`` synthetic terrain squares (60 m, 1 m cells, independent height noise per piece, see
 tests/recon/area_pieces.py) in one row along east or in two rows, overlapping their neighbours by ``overlap`` metres;
@@ -18,7 +19,7 @@ import time
 
 import numpy as np
 
-from recon.area import Piece, align_area
+from recon.area.align import Piece, align_area
 from tests.recon.area_pieces import AREA, PIECE_M, correction_error, rigid, terrain_piece
 
 PIECES = (2, 4, 6)

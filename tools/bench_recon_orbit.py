@@ -35,10 +35,11 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
 
-from recon.cli import positive_int  # noqa: E402
+from recon.cli_options import positive_int  # noqa: E402
 from recon.dense import DenseOptions  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
-from recon.sfm import SfmOptions, camera_poses  # noqa: E402
+from recon.sfm.cameras import camera_poses  # noqa: E402
+from recon.sfm.options import SfmOptions  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.virtual_flight import (  # noqa: E402

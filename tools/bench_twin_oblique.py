@@ -33,7 +33,7 @@ import numpy as np  # noqa: E402
 from scipy.spatial import ConvexHull  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
-from recon.cli import positive_int  # noqa: E402
+from recon.cli_options import positive_int  # noqa: E402
 from recon.oblique import (render_view, sample_views, score_view, summarise, true_camera_area,  # noqa: E402
                            twin_frame)
 from recon.scene_cameras import scene_camera_poses  # noqa: E402

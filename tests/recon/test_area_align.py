@@ -1,5 +1,5 @@
-"""recon/area.py against known truth: one synthetic terrain cut into overlapping scene folders, each moved by a known
-rigid error (one only by a different ENU origin), aligned back."""
+"""recon/area/align.py against known truth: one synthetic terrain cut into overlapping scene folders, each moved by a
+known rigid error (one only by a different ENU origin), aligned back."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from recon.area import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlapError, Prior, SurfaceQuery, align_area,
-                        control_link, find_overlaps, icp_information, icp_pair, load_pieces, tie_sigma_m,
-                        with_systematic_floor)
+from recon.area.align import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlapError, Prior, SurfaceQuery,
+                              align_area, control_link, find_overlaps, icp_information, icp_pair, load_pieces,
+                              tie_sigma_m, with_systematic_floor)
 from recon.merge import ControlPairs
 from recon.similarity import umeyama
 from recon.scene_out import write_scene
@@ -204,12 +204,12 @@ def test_with_no_piece_held_the_pieces_own_errors_average_out(tmp_path):
 def test_an_unpinned_overlap_is_left_out_while_the_others_join_every_piece(tmp_path, monkeypatch):
     """Three pieces overlapping two ahead: when ICP cannot pin the 0-2 overlap (made to fail here), the 0-1 and 1-2
     overlaps still join all three: it is listed, not fatal, and the corrections still undo the errors."""
-    import recon.area as area
+    import recon.area.align as align
 
     errors = [np.eye(4), rigid([0.1, 0.0, 0.2], [0.3, -0.2, 0.1], centre_of(1, 20.0)),
               rigid([0.0, -0.1, -0.2], [-0.2, 0.3, 0.2], centre_of(2, 20.0))]
     _, pieces = load_pieces(row_of_pieces(tmp_path, errors, 20.0))
-    real, calls = area.icp_pair, []
+    real, calls = align.icp_pair, []
 
     def icp_failing_on_0_2(surface, points):
         calls.append(surface)
@@ -217,7 +217,7 @@ def test_an_unpinned_overlap_is_left_out_while_the_others_join_every_piece(tmp_p
             raise FlatOverlapError("too flat (test)")
         return real(surface, points)
 
-    monkeypatch.setattr(area, "icp_pair", icp_failing_on_0_2)
+    monkeypatch.setattr(align, "icp_pair", icp_failing_on_0_2)
     result = align_area(pieces)
     assert {(r.a, r.b) for r in result.pairs} == {(0, 1), (1, 2)}
     assert len(result.unpinned) == 1 and "piece2 on" in result.unpinned[0] and "piece0" in result.unpinned[0]

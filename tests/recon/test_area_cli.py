@@ -14,7 +14,7 @@ from matplotlib.path import Path as PolygonPath
 
 from capture.cli import main as ingest
 from flightplan.cli import main as mission
-from recon.area_merge import NO_OWNER, Grid, distance_to_owner
+from recon.area.merge import NO_OWNER, Grid, distance_to_owner
 from recon.cli import main as recon
 from recon.scene_cameras import area_shape_alignment
 from sim.cli import main as render

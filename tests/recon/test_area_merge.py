@@ -1,4 +1,4 @@
-"""Joining an area's pieces into one scene (recon/area_merge.py, recon/area_pipeline.py) against known truth: three
+"""Joining an area's pieces into one scene (recon/area/merge.py, recon/area/pipeline.py) against known truth: three
 textured terrain pieces of one hilly area, each in its own ENU frame, each moved by a known rigid error, one of them
 photographed in 30 % brighter light; cameras circling each piece's centre as an orbit does."""
 
@@ -10,9 +10,9 @@ import cv2
 import numpy as np
 import pytest
 
-from recon.area_merge import NO_OWNER, Grid, distance_to_owner, look_at_points, ownership, seam_neighbours
-from recon.area import AreaError
-from recon.area_pipeline import AreaOptions, ControlTie, merge_area
+from recon.area.merge import NO_OWNER, Grid, distance_to_owner, look_at_points, ownership, seam_neighbours
+from recon.area.align import AreaError
+from recon.area.pipeline import AreaOptions, ControlTie, merge_area
 from recon.merge import ControlPairs
 from sim.render.camera import PinholeCamera, look_at
 from sim.render.scene import load_scene, read_scene_json

@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from recon.area import Prior
+from recon.area.align import Prior
 from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
-from recon.sfm import SfmOptions
+from recon.sfm.options import SfmOptions
 from recon.stages import STAGES
 from sim.render.scene import read_scene_mesh_enu
 from tools.geotag_csv import geotag_row, write_geotags

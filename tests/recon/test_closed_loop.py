@@ -11,7 +11,7 @@ import pytest
 from recon.cli import main
 from recon.evaluate import scene_photorealism
 from recon.pipeline import read_rgb
-from recon.sfm import camera_poses
+from recon.sfm.cameras import camera_poses
 from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
 from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors

@@ -9,7 +9,10 @@ from capture.logs.photos import read_photo
 from flightplan.geodesy import LocalFrame
 from recon.priors import (DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, PosePriors, camera_seed, focal_seed, list_photos,
                           priors_from_exif, with_receiver_sigmas)
-from recon.sfm import camera_poses, georegister, robust_prior_loss, run_sfm
+from recon.sfm.cameras import camera_poses
+from recon.sfm.georegistration import georegister
+from recon.sfm.mapping import robust_prior_loss
+from recon.sfm.pipeline import run_sfm
 from recon.tag_offset import travel_directions
 from recon.similarity import Similarity, umeyama
 from tools.geotag_csv import ORIGIN
@@ -131,6 +134,6 @@ def test_sfm_on_p4m_rtk_keeps_the_cameras_on_their_rtk_positions(p4m, tmp_path):
     assert rms == pytest.approx(report.residual_rms_enu_m_offset_removed, abs=1e-4)
     assert report.focal_final_px == pytest.approx(seed.focal_px) and not report.focal_refined
     assert report.tilt_correction_deg is None
-    # what an area join holds this block to (recon.area.Prior.of_piece): its receivers' centimetres
+    # what an area join holds this block to (recon.area.align.Prior.of_piece): its receivers' centimetres
     np.testing.assert_allclose(report.prior_sigma_enu_m, np.median(priors.sigma_m, axis=0), atol=1e-4)
     assert max(report.prior_sigma_enu_m) < 0.05 and report.prior_tilt_sigma_deg < 0.05

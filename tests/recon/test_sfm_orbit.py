@@ -9,7 +9,9 @@ from scipy.spatial.transform import Rotation
 
 from recon.dense import View
 from recon.priors import CameraSeed, read_geotags
-from recon.sfm import SfmOptions, camera_poses, run_sfm
+from recon.sfm.options import SfmOptions
+from recon.sfm.cameras import camera_poses
+from recon.sfm.pipeline import run_sfm
 from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import FOCAL, HEIGHT, WIDTH, make_texture, render_plane
 

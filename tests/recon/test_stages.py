@@ -13,7 +13,7 @@ import pytest
 from recon.dense import DenseOptions
 from recon.pipeline import Recon, ReconOptions
 from recon.progress import StepProgress
-from recon.sfm import SfmOptions
+from recon.sfm.options import SfmOptions
 from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
 from tests.recon.synthetic import make_texture, write_nadir_photos
 from tools.geotag_csv import write_geotags

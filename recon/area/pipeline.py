@@ -13,8 +13,8 @@ Layout of the output folder ``AREA``::
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
 EXIF/XMP GPS). The pieces run one after another here, or as tasks on a Dask scheduler (``--scheduler``, sim/run/cluster.py):
 a flight is a few minutes of work, so one task per flight. The area frame's origin is the mean of the pieces' own
-origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area`, holding no piece fixed (the
-corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area_merge`.
+origins (latitude, longitude, ellipsoidal height). Alignment: :mod:`recon.area.align`, holding no piece fixed (the
+corrections average to none, so every flight's own GPS fix counts the same); joining: :mod:`recon.area.merge`.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from capture.geotag_io import sidecar_path
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
-from recon.area import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
-from recon.area_merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
+from recon.area.align import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
+from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions
@@ -235,7 +235,7 @@ def encode_merged(pieces: list[MergedPiece], gains: np.ndarray, frame: LocalFram
             ok, jpeg = cv2.imencode(".jpg", cv2.cvtColor(gained(piece.texture, gain), cv2.COLOR_RGB2BGR),
                                     [cv2.IMWRITE_JPEG_QUALITY, JPEG_QUALITY])
             parts.append(TexturedPart(piece.vertices, piece.faces, piece.uv, jpeg.tobytes()))
-        return "area.glb", encode_textured_glb_parts(parts, "recon.area_pipeline", frame)
+        return "area.glb", encode_textured_glb_parts(parts, "recon.area.pipeline", frame)
     if any(textured):
         raise BadInput("the pieces mix textured and vertex-coloured meshes; reconstruct every flight with the same "
                        "--texture")
@@ -321,7 +321,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
 
 def control_links(ties: Sequence[ControlTie], names: Sequence[str], pieces: list[Piece],
                   frame: LocalFrame) -> tuple[Link, ...]:
-    """Each tie as a :class:`recon.area.Link` in the area frame; :class:`AreaError` for a tie naming no piece."""
+    """Each tie as a :class:`recon.area.align.Link` in the area frame; :class:`AreaError` for a tie naming no piece."""
     index = {name: k for k, name in enumerate(names)}
     for tie in ties:
         for name in (tie.reference, tie.moving):

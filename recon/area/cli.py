@@ -7,7 +7,7 @@
 Each FLIGHT_DIR holds ``photos/`` and ``geotags.csv`` (as ``aerostereo-render fly`` + ``aerostereo-ingest geotag``
 write them; without geotags.csv the photos' own GPS). The report (JSON) is the only thing on stdout; progress goes
 to stderr. A rerun resumes the pieces whose inputs and options are unchanged and joins them again. Layout and method:
-recon/area_pipeline.py, recon/area_merge.py, docs/recon.md ("An area").
+recon/area/pipeline.py, recon/area/merge.py, docs/recon.md ("An area").
 """
 
 from __future__ import annotations
@@ -21,10 +21,10 @@ import pycolmap
 from cliutil.errors import BadInput
 from cliutil.program import Parser, add_version, stdout_to_stderr
 from cliutil.paths import folder_inputs, refuse_clobbering
-from recon.area_pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
+from recon.area.pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
                                   reconstruct_pieces)
 from recon.merge import read_pairs
-from recon.cli import PROGRAM, add_recon_options, recon_options
+from recon.cli_options import PROGRAM, add_recon_options, recon_options
 
 
 def build_area_parser() -> Parser:

@@ -35,7 +35,7 @@ from scipy.spatial.transform import Rotation
 from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.merge import ControlPairs
-from recon.sfm import RTK_GRADE_SIGMA_M
+from recon.sfm.mapping import RTK_GRADE_SIGMA_M
 from sim.render.scene import Surface, read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
@@ -112,14 +112,13 @@ class Prior:
         """How sure one piece's own geo-registration is, from its scene.json (``provenance.sfm``, recon's SfM report).
 
         A piece whose photos were placed by RTK fixes (their median prior sigma at most
-        :data:`recon.sfm.RTK_GRADE_SIGMA_M`) is held as its receivers and its SfM fit say: each shift to the larger of
-        the receivers' sigma and the fit's residual RMS on that axis, its rotation to the tilt those positions fix
-        (``prior_tilt_sigma_deg``) widened by the fit's vertical residual over the receivers' vertical sigma. Anything
-        else -- a consumer GPS, whose per-battery fix offset no residual shows, or a scene without these fields --
-        gets the consumer defaults. (Over a 5-flight RTK area the defaults let the overlaps' ICP, biased by the
-        pieces' edges, move pieces placed to 1-7 cm by up to 1.25 m; tools/area_loop.py, docs/closed-loop.md.)
-        :class:`AreaError` naming ``name`` (the piece) where the fields are there but not 3 + 3 + 1 positive
-        numbers."""
+        :data:`recon.sfm.mapping.RTK_GRADE_SIGMA_M`) is held as its receivers and its SfM fit say: each shift to the
+        larger of the receivers' sigma and the fit's residual RMS on that axis, its rotation to the tilt those positions
+        fix (``prior_tilt_sigma_deg``) widened by the fit's vertical residual over the receivers' vertical sigma.
+        Anything else -- a consumer GPS, whose per-battery fix offset no residual shows, or a scene without these
+        fields -- gets the consumer defaults. (Over a 5-flight RTK area the defaults let the overlaps' ICP, biased by
+        the pieces' edges, move pieces placed to 1-7 cm by up to 1.25 m; tools/area_loop.py, docs/closed-loop.md.)
+        :class:`AreaError` naming ``name`` (the piece) where the fields are there but not 3 + 3 + 1 positive numbers."""
         sfm = ((meta or {}).get("provenance") or {}).get("sfm") or {}
         keys = ("prior_sigma_enu_m", "residual_rms_enu_m", "prior_tilt_sigma_deg")
         if any(sfm.get(key) is None for key in keys):

@@ -1,7 +1,7 @@
 """One scene from an area's aligned pieces: who owns each patch of ground, seams blended, colours matched.
 
-All in the area's ENU frame (metres, z up), after :func:`recon.area.align_area`'s corrections. The ground is a grid
-of ``cell_m`` cells (:class:`Grid`, row 0 north). Steps:
+All in the area's ENU frame (metres, z up), after :func:`recon.area.align.align_area`'s corrections. The ground is a
+grid of ``cell_m`` cells (:class:`Grid`, row 0 north). Steps:
 
 1. **Surface**: where each piece has any surface, by casting a ray down through every cell centre (embree).
 2. **Ownership**: each cell goes to the piece that sees it best, among the pieces with surface there: the piece whose
@@ -28,7 +28,7 @@ import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 
-from recon.area import SurfaceQuery
+from recon.area.align import SurfaceQuery
 from sim.render.scene import Scene, Surface
 from sim.render.shade import surface_albedo
 from sim.render.raycast import intersect

@@ -1,0 +1,82 @@
+"""The reconstruction's command-line options, shared by ``aerostereo-recon`` (one scene, recon/cli.py) and
+``aerostereo-recon area`` (each piece of an area, recon/area/cli.py): the program's name, the options and their
+argument types, and the :class:`~recon.pipeline.ReconOptions` they make.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from recon.dense import DenseOptions
+from recon.pipeline import MESHES, TEXTURES, ReconOptions
+from recon.sfm.options import SfmOptions
+from recon.atlas import AtlasOptions
+from recon.texture import TextureOptions
+
+PROGRAM = "aerostereo-recon"
+
+
+def positive_int(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text}")
+    return value
+
+
+def hold_out_count(text: str) -> int:
+    """``--hold-out``: 0 (off) or K >= 2; K = 1 is refused by :class:`ReconOptions` with its reason."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 (off) or an every-K-th count >= 2, got {text}")
+    return value
+
+
+def add_recon_options(parser: argparse.ArgumentParser) -> None:
+    """The reconstruction's options, shared by a single scene and each piece of an area."""
+    parser.add_argument("--image-size", type=positive_int, default=SfmOptions.max_image_size,
+                        help="SfM max image side, px (default %(default)s)")
+    parser.add_argument("--max-features", type=positive_int, default=8192, help="SIFT features per photo")
+    parser.add_argument("--dense-size", type=positive_int, default=DenseOptions.max_image_size,
+                        help="depth-map max image side, px (default %(default)s)")
+    parser.add_argument("--depth-spacing", type=float, default=DenseOptions.view_spacing_deg,
+                        help="depth maps only for photos at least this many degrees apart seen from the scene "
+                             "(default %(default)s; 0: every photo)")
+    parser.add_argument("--mesh", choices=MESHES, default=ReconOptions.mesh,
+                        help="3d: Poisson surface of the observed area (walls, tree crowns); 2.5d: height field; "
+                             "poisson: Poisson of the whole cloud, uncropped (default %(default)s)")
+    parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
+    parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
+    parser.add_argument("--every", type=positive_int, default=None,
+                        help="only every k-th photo enters mapping, the rest are registered into its model "
+                             "(default: from the photo spacing, about 5 deg apart seen from the flight height)")
+    parser.add_argument("--neighbors", type=positive_int, default=12, help="spatial matching: nearest photos")
+    parser.add_argument("--sequential", type=int, default=0, help="also match each photo with the next N (0: off)")
+    parser.add_argument("--mapper", choices=("incremental", "global"), default="incremental",
+                        help="incremental or global SfM mapping")
+    parser.add_argument("--focal", choices=("auto", "fixed", "refine"), default="auto",
+                        help="focal length: keep the seeded one (fixed), let bundle adjustment move it (refine), or "
+                             "refine it only when the viewing directions spread widely, as in an oblique orbit (auto)")
+    parser.add_argument("--decimate-error", type=float, default=0.02, help="decimation error bound, m (0: off)")
+    parser.add_argument("--texture", choices=TEXTURES, default=ReconOptions.texture,
+                        help="atlas: each face from its best photo; ortho: a true orthophoto (for --mesh 2.5d); "
+                             "none: vertex colours only (default %(default)s)")
+    parser.add_argument("--texel", type=float, help="texel size, m (default: one pixel of the photos on the surface)")
+    parser.add_argument("--hold-out", type=hold_out_count, default=0, metavar="K",
+                        help="register every photo but leave every K-th (name order, K >= 2) out of depth maps, "
+                             "fusion and texture, to measure photorealism on photos the texture never saw "
+                             "(cameras.json marks them held_out; 0: off)")
+    parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
+
+
+def recon_options(args: argparse.Namespace) -> ReconOptions:
+    """:class:`ReconOptions` from the options of :func:`add_recon_options`."""
+    return ReconOptions(
+        sfm=SfmOptions(max_image_size=args.image_size, max_num_features=args.max_features,
+                       spatial_neighbors=args.neighbors, sequential_overlap=args.sequential, every_kth=args.every,
+                       mapper=args.mapper, focal=args.focal, num_threads=args.workers),
+        dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
+                           num_threads=args.workers),
+        mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
+        texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
+        atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
+    )
