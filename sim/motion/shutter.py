@@ -26,7 +26,7 @@ PoseAt = Callable[[float], np.ndarray]
 
 
 class ShutterSettings(Protocol):
-    """The shutter's settings (e.g. ``sim.effects.CameraEffects``): seconds between neighbouring rows' exposures
+    """The shutter's settings (e.g. ``sim.run.options.CameraEffects``): seconds between neighbouring rows' exposures
     (0: global shutter), exposure time in seconds (0: no blur) and renders averaged over it."""
 
     line_delay_s: float

@@ -27,7 +27,7 @@ from sim.render.color import to_srgb8
 
 
 class PhotometricSettings(Protocol):
-    """The film's settings (e.g. ``sim.effects.CameraEffects``): vignetting model (None: off), full well and read
+    """The film's settings (e.g. ``sim.run.options.CameraEffects``): vignetting model (None: off), full well and read
     noise in electrons (0: no noise)."""
 
     vignetting: str | tuple[float, ...] | None

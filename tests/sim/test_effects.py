@@ -1,4 +1,5 @@
-"""Camera effects (sim/effects.py settings, sim/render/film.py, sim/motion/shutter.py): rolling shutter skews a vertical edge under a pure yaw by what the line delay
+"""Camera effects (sim/run/options.py settings, sim/render/film.py, sim/motion/shutter.py): rolling shutter skews a
+vertical edge under a pure yaw by what the line delay
 predicts, motion blur of a camera at rest changes nothing, noise has the configured statistics, vignetting follows
 its formula, and a dataset's ground truth (depth, poses) is byte for byte the same with every effect on."""
 

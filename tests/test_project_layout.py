@@ -1,0 +1,183 @@
+"""The project's layout, read from the source with ``ast`` (nothing is imported or run): no import circle between
+its modules, the packages layered ``cliutil ◄ flightplan ◄ capture ◄ sim ◄ recon`` (each imports only those to its
+left), the render core ``sim/render/`` free of datasets, drones, command lines and run machinery, and no module
+longer than 600 lines. Each rule is checked on a small tree that breaks it too, so a rule that can no longer fail is
+caught."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The import packages, lowest first: each may import only those before it (and itself).
+LAYERS = ("cliutil", "flightplan", "capture", "sim", "recon")
+#: What the render core may import from the project: itself, geodesy and the domain-free helpers.
+RENDER_CORE_MAY_IMPORT = ("sim.render", "flightplan.geodesy", "cliutil")
+#: Standard-library modules the render core never needs (command lines, processes).
+RENDER_CORE_NEVER = ("argparse", "multiprocessing", "tqdm")
+MAX_MODULE_LINES = 600
+
+
+def module_files(root: Path, packages=LAYERS) -> dict[str, Path]:
+    """Dotted module name -> file of every module of ``packages`` under ``root`` (a package is its __init__)."""
+    modules = {}
+    for package in packages:
+        for path in sorted((root / package).rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    return modules
+
+
+def imported_names(path: Path, module: str, is_package: bool) -> set[str]:
+    """Every dotted name ``path`` imports, anywhere in the file (functions, ``TYPE_CHECKING`` blocks included), with
+    ``from X import y`` read as ``X.y`` (a submodule or a name of ``X``) and relative imports resolved."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = module.split(".")[: None if is_package else -1]
+                parts = parts[: len(parts) - node.level + 1]
+                base = ".".join([*parts, base] if base else parts)
+            names.update(f"{base}.{alias.name}" for alias in node.names)
+    return names
+
+
+def import_graph(root: Path, packages=LAYERS) -> dict[str, set[str]]:
+    """Module -> the project modules it imports (the longest dotted prefix that is a module)."""
+    modules = module_files(root, packages)
+    graph = {}
+    for module, path in modules.items():
+        edges = set()
+        for name in imported_names(path, module, path.name == "__init__.py"):
+            while name and name not in modules:
+                name = name.rpartition(".")[0]
+            if name and name != module:
+                edges.add(name)
+        graph[module] = edges
+    return graph
+
+
+def import_circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one module (Tarjan, iterative), each sorted."""
+    index, low, on_stack, stack, circles = {}, {}, set(), [], []
+    for start in sorted(graph):
+        if start in index:
+            continue
+        work = [(start, iter(sorted(graph[start])))]
+        index[start] = low[start] = len(index)
+        stack.append(start)
+        on_stack.add(start)
+        while work:
+            node, edges = work[-1]
+            for nxt in edges:
+                if nxt not in index:
+                    index[nxt] = low[nxt] = len(index)
+                    stack.append(nxt)
+                    on_stack.add(nxt)
+                    work.append((nxt, iter(sorted(graph[nxt]))))
+                    break
+                if nxt in on_stack:
+                    low[node] = min(low[node], index[nxt])
+            else:
+                work.pop()
+                if work:
+                    low[work[-1][0]] = min(low[work[-1][0]], low[node])
+                if low[node] == index[node]:
+                    component = []
+                    while True:
+                        member = stack.pop()
+                        on_stack.discard(member)
+                        component.append(member)
+                        if member == node:
+                            break
+                    if len(component) > 1:
+                        circles.append(sorted(component))
+    return circles
+
+
+def layering_breaks(graph: dict[str, set[str]]) -> list[str]:
+    """``A -> B`` for every import of a package to the right of its own in :data:`LAYERS`."""
+    rank = {package: k for k, package in enumerate(LAYERS)}
+    return sorted(f"{module} -> {other}" for module, edges in graph.items() for other in edges
+                  if rank[other.split(".")[0]] > rank[module.split(".")[0]])
+
+
+def render_core_breaks(root: Path) -> list[str]:
+    """``module: name`` for every import of a ``sim.render`` module outside what the core may import."""
+    breaks = []
+    for module, path in module_files(root, ("sim",)).items():
+        if module != "sim.render" and not module.startswith("sim.render."):
+            continue
+        for name in imported_names(path, module, path.name == "__init__.py"):
+            top = name.split(".")[0]
+            project = top in LAYERS and not any(name == allowed or name.startswith(allowed + ".")
+                                                for allowed in RENDER_CORE_MAY_IMPORT)
+            if project or top in RENDER_CORE_NEVER:
+                breaks.append(f"{module}: {name}")
+    return sorted(breaks)
+
+
+def long_modules(root: Path) -> list[str]:
+    """``path: lines`` of every Python file of the project (packages, tools, tests) over :data:`MAX_MODULE_LINES`."""
+    files = [path for folder in (*LAYERS, "tools", "tests") for path in (root / folder).rglob("*.py")]
+    return sorted(f"{path.relative_to(root)}: {count}" for path in files
+                  if (count := len(path.read_text(encoding="utf-8").splitlines())) > MAX_MODULE_LINES)
+
+
+def test_no_module_imports_itself_back():
+    assert import_circles(import_graph(ROOT)) == []
+
+
+def test_each_package_imports_only_those_to_its_left():
+    assert layering_breaks(import_graph(ROOT)) == []
+
+
+def test_the_render_core_imports_no_datasets_drones_command_lines_or_run_machinery():
+    assert render_core_breaks(ROOT) == []
+
+
+def test_no_module_is_longer_than_600_lines():
+    assert long_modules(ROOT) == []
+
+
+def write_tree(root: Path, files: dict[str, str]) -> Path:
+    for name, text in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    return root
+
+
+@pytest.fixture
+def broken_tree(tmp_path):
+    """A tree breaking every rule: a circle through a function-level import, an upward import, a render core
+    importing argparse and the run machinery, and a 601-line module."""
+    return write_tree(tmp_path, {
+        "cliutil/__init__.py": "",
+        "flightplan/__init__.py": "",
+        "flightplan/geodesy.py": "from sim.render import camera\n",
+        "capture/__init__.py": "",
+        "sim/__init__.py": "",
+        "sim/render/__init__.py": "",
+        "sim/render/camera.py": "import argparse\nfrom ..run import options\n",
+        "sim/run/__init__.py": "",
+        "sim/run/options.py": "def f():\n    from sim.run.frames import renderer\n",
+        "sim/run/frames.py": "from sim.run import options\nrenderer = 1\n",
+        "recon/__init__.py": "",
+        "recon/long.py": "x = 1\n" * 601,
+        "tools/ok.py": "",
+        "tests/ok.py": "",
+    })
+
+
+def test_the_rules_catch_a_tree_that_breaks_them(broken_tree):
+    graph = import_graph(broken_tree)
+    assert import_circles(graph) == [["sim.run.frames", "sim.run.options"]]
+    assert layering_breaks(graph) == ["flightplan.geodesy -> sim.render.camera"]
+    assert render_core_breaks(broken_tree) == ["sim.render.camera: argparse", "sim.render.camera: sim.run.options"]
+    assert long_modules(broken_tree) == ["recon/long.py: 601"]
