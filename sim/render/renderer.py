@@ -20,7 +20,9 @@ import numpy as np
 from sim.render.camera import PinholeCamera, Rays, Rig, camera_rays, row_dots, stratified_offsets
 from sim.render.raycast import Hits, default_workers, intersect, intersect_local, occluded_local
 from sim.render.scene import Scene
-from sim.render.shade import Lighting, Sun, lambert, sky_radiance, surface_albedo
+from sim.render.shade import (Lighting, Sun, as_captured, lambert, sky_radiance, surface_albedo,
+                              surface_capture_light)
+from sim.render.sky import scene_sky_visibility, sky_at
 from sim.render.color import to_srgb8
 
 __all__ = ["Frame", "Lighting", "Sun", "View", "miss_fraction", "render"]
@@ -113,6 +115,8 @@ def render(
     """
     if samples_per_pixel < 1:
         raise ValueError(f"samples_per_pixel must be at least 1, got {samples_per_pixel}")
+    if not lighting.as_captured:
+        scene_sky_visibility(scene)  # baked here, once, before the render threads read it
     rng = rng if rng is not None else np.random.default_rng(0)
     seed = int(rng.integers(2**63)) if samples_per_pixel > 1 else 0
     targets = [
@@ -197,17 +201,27 @@ def _render_pixels(scene, images: _ViewImages, pixels: slice, sun, spp, lighting
 def _radiance(scene, origin32, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting, times) -> np.ndarray:
     """Linear radiance ``(N, 3)`` of one sample per ray: shaded surface where hit, sky where missed."""
     with times.stage("shadows"):
-        lit = _sunlit(scene, origin32, rays, hits, sun, lighting)
+        lit = None if lighting.as_captured else _sunlit(scene, origin32, rays, hits, sun, lighting)
     with times.stage("shade"):
         hit = hits.hit
         if hit.all():  # views instead of copies, and the radiance written in place
-            albedo = surface_albedo(scene, hits.tri, hits.u, hits.v)
-            return lambert(albedo, hits.normal, sun, lit, lighting, out=albedo)
+            return _surface_radiance(scene, hits, rays.directions, sun, lit, lighting)
         radiance = np.empty((len(hits.t), 3), np.float32)
         radiance[~hit] = sky_radiance(rays.directions[~hit], lighting) * lighting.channel_exposure
-        albedo = surface_albedo(scene, hits.tri[hit], hits.u[hit], hits.v[hit])
-        radiance[hit] = lambert(albedo, hits.normal[hit], sun, lit[hit], lighting)
+        surface = Hits(hits.t[hit], hits.tri[hit], hits.u[hit], hits.v[hit], hits.normal[hit])
+        radiance[hit] = _surface_radiance(scene, surface, rays.directions[hit], sun,
+                                          None if lit is None else lit[hit], lighting)
     return radiance
+
+
+def _surface_radiance(scene: Scene, hits: Hits, directions: np.ndarray, sun: Sun, lit: np.ndarray | None,
+                      lighting: Lighting) -> np.ndarray:
+    """Linear radiance ``(N, 3)`` of surface hits (all hit), written over their albedo: as captured, or lit by the sun
+    (``lit``: its visibility) and the sky."""
+    albedo = surface_albedo(scene, hits.tri, hits.u, hits.v)
+    if lighting.as_captured:
+        return as_captured(albedo, surface_capture_light(scene, hits.tri, hits.u, hits.v), lighting, out=albedo)
+    return lambert(albedo, hits.normal, sun, lit, lighting, sky_at(scene, hits, directions), out=albedo)
 
 
 def _sunlit(scene: Scene, origin32: np.ndarray, rays: Rays, hits: Hits, sun: Sun, lighting: Lighting) -> np.ndarray:

@@ -46,13 +46,16 @@ class SceneError(ValueError):
 class Surface:
     """How a mesh is coloured (all sRGB uint8): one ``texture`` with per-vertex ``uv``; or several ``textures`` (a
     scene of several textured parts, each with its own image) with per-vertex ``uv`` and ``face_texture``, the index
-    into ``textures`` of each face; or per-vertex colours."""
+    into ``textures`` of each face; or per-vertex colours. The texture is the albedo. ``capture_light``: for a
+    reconstruction whose texture had its capture day's light taken out, that light (linear float32 ``(H, W, 3)`` on
+    the texture's UVs), so that albedo x capture light is the texture as photographed."""
 
     texture: np.ndarray | None = None
     uv: np.ndarray | None = None
     vertex_colors: np.ndarray | None = None
     textures: tuple[np.ndarray, ...] = ()
     face_texture: np.ndarray | None = None
+    capture_light: np.ndarray | None = None
 
     @functools.cached_property
     def linear_texture(self) -> np.ndarray:
@@ -88,6 +91,10 @@ class Scene:
     embree: rtcore_scene.EmbreeScene = field(init=False, repr=False)
     device: rtcore.EmbreeDevice | None = field(default=None, repr=False)
     observed_area_m: list | None = None  # scene.json's [[x, y], ...] ENU polygon (simple, maybe non-convex)
+    #: The sky visibility of every face corner (a sim.render.sky.SkyVisibility); None: baked on the first lit render.
+    sky_visibility: object | None = None
+    #: ``(F, 3)`` float32 unit normals of the faces' winding (which side of a face is its front).
+    face_normals: np.ndarray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self.vertices = np.asarray(self.vertices, dtype=np.float64)
@@ -106,6 +113,7 @@ class Scene:
         used = self.vertices[np.unique(self.faces)]
         self.bounds = np.stack([used.min(axis=0), used.max(axis=0)])
         self.surface = _checked_surface(self.surface, len(self.vertices), kept, self.source)
+        self.face_normals = _unit_face_normals(local32, self.faces)
         self.device = self.device or shared_device()
         self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
         mesh_construction.TriangleMesh(self.embree, local32, self.faces)
@@ -153,13 +161,29 @@ def _checked_surface(surface: Surface, n_vertices: int, kept: np.ndarray, source
                 raise SceneError(f"{source}: texture of {width}x{height} px; the renderer samples at most "
                                  f"{MAX_TEXTURE_SIDE} px a side (split or downscale it)")
         if surface.texture is not None:
-            return Surface(texture=surface.texture, uv=uv)
+            return Surface(texture=surface.texture, uv=uv, capture_light=_checked_capture_light(surface, source))
+        if surface.capture_light is not None:
+            raise SceneError(f"{source}: a capture light needs one texture, not several")
         return Surface(uv=uv, textures=tuple(textures),
                        face_texture=_checked_face_texture(surface.face_texture, len(textures), kept, source))
     colors = surface.vertex_colors
     if colors is None or colors.shape != (n_vertices, 3) or colors.dtype != np.uint8:
         raise SceneError(f"{source}: need a texture with UVs or (N, 3) uint8 vertex colours for all {n_vertices} vertices")
     return surface
+
+
+def _checked_capture_light(surface: Surface, source: str) -> np.ndarray | None:
+    """The surface's capture light as float32 ``(H, W, 3)``, after checking it is finite and non-negative."""
+    light = surface.capture_light
+    if light is None:
+        return None
+    light = np.asarray(light, dtype=np.float32)
+    if light.ndim != 3 or light.shape[2] != 3 or not np.all(np.isfinite(light)) or light.min() < 0:
+        raise SceneError(f"{source}: a capture light must be a finite, non-negative (H, W, 3) image")
+    if max(light.shape[:2]) > MAX_TEXTURE_SIDE:
+        raise SceneError(f"{source}: capture light of {light.shape[1]}x{light.shape[0]} px; the renderer samples at "
+                         f"most {MAX_TEXTURE_SIDE} px a side")
+    return light
 
 
 def _checked_face_texture(index: np.ndarray | None, n_textures: int, kept: np.ndarray, source: str) -> np.ndarray:
@@ -171,6 +195,13 @@ def _checked_face_texture(index: np.ndarray | None, n_textures: int, kept: np.nd
         raise SceneError(f"{source}: several textures need face_texture, one index in [0, {n_textures}) per face "
                          f"({len(kept)} faces)")
     return np.ascontiguousarray(index[kept], dtype=np.int32)
+
+
+def _unit_face_normals(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(F, 3)`` float32 unit normals of the triangles' winding (right-handed: v0, v1, v2 counter-clockwise)."""
+    corners = local32[faces].astype(np.float64)
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    return (normals / np.linalg.norm(normals, axis=1, keepdims=True)).astype(np.float32)
 
 
 def _non_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -1,9 +1,15 @@
-"""Shading: surface colour from the texture (one, or one per part) or vertex colours, Lambert sun + sky ambient,
-sky for misses.
+"""Shading: surface albedo from the texture (one, or one per part) or vertex colours, lit by the sun and the sky;
+sky colour for misses.
 
-All radiometry is linear RGB in [0, 1] per unit exposure; 8-bit sRGB happens only at the film
-(:func:`~sim.render.color.to_srgb8`). A photogrammetry texture already holds the real shading, so the model is
-deliberately small: ``albedo * (sun_intensity * max(0, n.s) * lit + ambient)``, no global illumination.
+One model, used to render and (in recon) to take a photo day's light out of a texture:
+
+    radiance = albedo * (sun_intensity * max(0, n.s) * sun_visible + sky_irradiance * sky_visibility) * exposure
+
+with ``sun_visible`` 0 or 1 (a shadow ray) and ``sky_visibility`` the scene's baked fraction of the sky a point
+sees (:mod:`sim.render.sky`). No interreflections, no specular light (docs/render-engine.md says what that leaves
+out). All radiometry is linear RGB in [0, 1] per unit exposure; 8-bit sRGB happens only at the film
+(:func:`~sim.render.color.to_srgb8`). ``Lighting(as_captured=True)`` (:data:`UNLIT`) renders instead the texture as
+it was captured: the albedo times the scene's capture light where a reconstruction stored one.
 """
 
 from __future__ import annotations
@@ -36,27 +42,36 @@ class Sun:
 
 @dataclass(frozen=True)
 class Lighting:
-    """Everything but the sun: sky ambient irradiance, sky colours seen by missed rays, exposure multiplier.
+    """Everything but the sun: the sky's irradiance, sky colours seen by missed rays, exposure multiplier.
 
-    ``exposure`` multiplies the linear radiance before the film: one number, or one per channel (R, G, B), as
-    a camera's exposure times its white balance.
+    ``ambient`` is the sky's irradiance on a surface that sees the whole sky (one number, or one per channel: skylight
+    is bluer than sunlight), scaled by each point's sky visibility. ``exposure`` multiplies the linear radiance before
+    the film: one number, or one per channel (R, G, B), as a camera's exposure times its white balance. ``shadows``:
+    cast shadows of the sun (off: every sun-facing point is lit). ``as_captured``: no sun and no sky, the texture as
+    captured (:data:`UNLIT`).
     """
 
-    ambient: float = 0.3
+    ambient: float | tuple[float, float, float] = 0.3
     sky_zenith: tuple[float, float, float] = (0.20, 0.38, 0.80)
     sky_horizon: tuple[float, float, float] = (0.70, 0.78, 0.90)
     exposure: float | tuple[float, float, float] = 1.0
     shadows: bool = True
+    as_captured: bool = False
 
     @property
     def channel_exposure(self) -> np.ndarray:
         """The exposure multiplier per channel, float32 ``(3,)``."""
         return np.broadcast_to(np.asarray(self.exposure, np.float32), (3,))
 
+    @property
+    def channel_ambient(self) -> np.ndarray:
+        """The sky's irradiance per channel, float32 ``(3,)``."""
+        return np.broadcast_to(np.asarray(self.ambient, np.float32), (3,))
 
-#: Render settings for comparing with photos: a photogrammetry texture already holds the photos' own lighting,
-#: so no sun, ambient 1 and no shadows make the radiance the texture itself (``render(..., **UNLIT)``).
-UNLIT = {"sun": Sun(0.0, -90.0, 0.0), "lighting": Lighting(ambient=1.0, shadows=False)}
+
+#: Render settings for comparing with photos: the texture as it was captured (the albedo times the capture light a
+#: reconstruction stored, or the texture itself where there is none), no sun, no sky (``render(..., **UNLIT)``).
+UNLIT = {"sun": Sun(0.0, -90.0, 0.0), "lighting": Lighting(shadows=False, as_captured=True)}
 
 
 def sky_radiance(directions: np.ndarray, lighting: Lighting) -> np.ndarray:
@@ -101,17 +116,42 @@ def _hit_uv(uv: np.ndarray, corners: np.ndarray, w0: np.ndarray, u: np.ndarray, 
 
 def lambert(
     albedo: np.ndarray, normals: np.ndarray, sun: Sun, lit: np.ndarray, lighting: Lighting,
-    out: np.ndarray | None = None,
+    sky_visibility: np.ndarray, out: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Linear radiance ``albedo * (I * max(0, n.s) * lit + ambient) * exposure`` for facing unit normals, float32
-    ``(N, 3)``, written into ``out`` when given; ``exposure`` per channel (:attr:`Lighting.channel_exposure`)."""
-    irradiance = row_dots(normals, sun.direction_enu.astype(np.float32))
-    np.maximum(irradiance, 0.0, out=irradiance)
-    irradiance *= lit
-    irradiance *= np.float32(sun.intensity)
-    irradiance += np.float32(lighting.ambient)
+    """Linear radiance ``albedo * (I * max(0, n.s) * lit + sky * sky_visibility) * exposure`` for facing unit
+    normals, float32 ``(N, 3)``, written into ``out`` when given; the sky's irradiance and the exposure per channel
+    (:class:`Lighting`)."""
+    sun_irradiance = row_dots(normals, sun.direction_enu.astype(np.float32))
+    np.maximum(sun_irradiance, 0.0, out=sun_irradiance)
+    sun_irradiance *= lit
+    sun_irradiance *= np.float32(sun.intensity)
     radiance = np.empty(albedo.shape, np.float32) if out is None else out
-    for channel, exposure in enumerate(lighting.channel_exposure):  # by columns: faster than broadcasting
+    for channel, (sky, exposure) in enumerate(zip(lighting.channel_ambient, lighting.channel_exposure)):
+        irradiance = sky * sky_visibility  # by columns: faster than broadcasting
+        irradiance += sun_irradiance
         np.multiply(albedo[:, channel], irradiance, out=radiance[:, channel])
         radiance[:, channel] *= exposure
     return radiance
+
+
+def as_captured(albedo: np.ndarray, capture_light: np.ndarray | None, lighting: Lighting,
+                out: np.ndarray | None = None) -> np.ndarray:
+    """Linear radiance of the texture as captured, float32 ``(N, 3)``: ``albedo`` times the ``capture_light`` at the
+    hits (None: the albedo itself), times the exposure; written into ``out`` when given (it may be ``albedo``)."""
+    radiance = np.empty(albedo.shape, np.float32) if out is None else out
+    if capture_light is None:
+        radiance[...] = albedo
+    else:
+        np.multiply(albedo, capture_light, out=radiance)
+    radiance *= lighting.channel_exposure
+    return radiance
+
+
+def surface_capture_light(scene: Scene, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray | None:
+    """The capture light ``(N, 3)`` at hits (the shading a reconstruction divided out of its texture, on the texture's
+    UVs), None for a surface without one."""
+    surface = scene.surface
+    if surface.capture_light is None:
+        return None
+    corners = scene.faces.take(tri, axis=0)
+    return sample_linear(surface.capture_light, _hit_uv(surface.uv, corners, 1.0 - u - v, u, v))

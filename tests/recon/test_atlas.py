@@ -21,7 +21,8 @@ TOWER = (4.0, 8.0, 6.0, 14.0)  # x, y, half width, height (m)
 
 
 def tower_walls(texture_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Four vertical walls (outward normals) of 3 x 3 quads each, UV-mapped into the left half of the texture."""
+    """Four vertical walls (outward normals) of 3 x 3 quads each, UV-mapped into the upper left quarter of the
+    texture, and a flat roof of 3 x 3 quads in the lower left quarter (a closed tower: no wall is seen from inside)."""
     x, y, half, height = TOWER
     corners = [(x - half, y - half), (x + half, y - half), (x + half, y + half), (x - half, y + half)]
     vertices, faces, uv = [], [], []
@@ -33,6 +34,11 @@ def tower_walls(texture_size: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         faces.append(wall_f + sum(len(v) for v in vertices))
         vertices.append(points)
         uv.append(np.column_stack([0.25 * side / 2 + 0.125 * wall_uv[:, 0], 0.5 + 0.5 * wall_uv[:, 1]]))
+    roof_v, roof_f, roof_uv = grid_mesh(3, 3, (x - half, x + half, y - half, y + half))
+    roof_v[:, 2] = height
+    faces.append(roof_f + sum(len(v) for v in vertices))
+    vertices.append(roof_v)
+    uv.append(0.5 * roof_uv)
     return np.concatenate(vertices), np.concatenate(faces), np.concatenate(uv)
 
 
