@@ -34,6 +34,7 @@ from PIL import Image
 from scipy import ndimage, sparse
 
 from flightplan.geodesy import LocalFrame
+from recon.delight import CaptureSetup, Delighting, TexelLight, delight_atlas
 from recon.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
 from sim.render.camera import project_world_points, row_dots
 from sim.render.raycast import occluded
@@ -88,7 +89,9 @@ class Atlas:
     """A textured mesh: ``vertices`` (M, 3) ENU metres (split where charts meet), ``faces`` (F, 3) in the input
     mesh's face order, ``uv`` (M, 2) with v up (OBJ/trimesh convention), ``image`` (H, W, 3) uint8 sRGB; per face its
     photo ``labels`` (index into the photos, -1: none saw it); per photo name its exposure ``gains`` (texture =
-    gain x photo, linear light; held-out photos included); ``coverage`` the fraction of the surface area some photo sees."""
+    gain x photo, linear light; held-out photos included); ``coverage`` the fraction of the surface area some photo
+    sees. With the capture suns: ``image`` is the albedo, ``capture_light`` (H, W, 3) float32 linear the light it was
+    divided by (None: nothing was divided out), ``delighting`` what was done."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -98,6 +101,8 @@ class Atlas:
     gains: dict[str, float]
     coverage: float
     texel_m: float
+    capture_light: np.ndarray | None = None
+    delighting: Delighting | None = None
 
     def glb(self, origin: LocalFrame, generator: str = "recon.atlas") -> bytes:
         """Binary glTF of the textured mesh (ENU metres at ``origin``, stored +Y up and georeferenced by
@@ -353,9 +358,9 @@ def dot2(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]
 
 
-def texel_points(uv_px: np.ndarray, corners_3d: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
-    """3-D points (N, 3) of texel centres ``texel_xy`` (N, 2) inside triangles given by their texel corners
-    ``uv_px`` (N, 3, 2) and 3-D corners (N, 3, 3): barycentric coordinates, clamped to the triangle."""
+def texel_weights(uv_px: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
+    """Barycentric weights (N, 3) of texel centres ``texel_xy`` (N, 2) in triangles given by their texel corners
+    ``uv_px`` (N, 3, 2), clamped to the triangle (a gutter texel takes the nearest point of its face)."""
     v0, v1 = uv_px[:, 1] - uv_px[:, 0], uv_px[:, 2] - uv_px[:, 0]
     v2 = texel_xy - uv_px[:, 0]
     d00, d01, d11 = dot2(v0, v0), dot2(v0, v1), dot2(v1, v1)
@@ -366,44 +371,66 @@ def texel_points(uv_px: np.ndarray, corners_3d: np.ndarray, texel_xy: np.ndarray
     b1 = np.where(degenerate, 1.0 / 3.0, (d11 * d20 - d01 * d21) / denominator)
     b2 = np.where(degenerate, 1.0 / 3.0, (d00 * d21 - d01 * d20) / denominator)
     weights = np.clip(np.column_stack([1.0 - b1 - b2, b1, b2]), 0.0, None)
-    weights /= np.maximum(weights.sum(axis=1), 1e-12)[:, None]
-    return np.einsum("nk,nkj->nj", weights, corners_3d)
+    return weights / np.maximum(weights.sum(axis=1), 1e-12)[:, None]
+
+
+def texel_points(uv_px: np.ndarray, corners_3d: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
+    """3-D points (N, 3) of texel centres ``texel_xy`` (N, 2) inside triangles given by their texel corners
+    ``uv_px`` (N, 3, 2) and 3-D corners (N, 3, 3) (:func:`texel_weights`)."""
+    return np.einsum("nk,nkj->nj", texel_weights(uv_px, texel_xy), corners_3d)
 
 
 def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
-          photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray) -> np.ndarray:
+          photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray,
+          capture: CaptureSetup | None = None) -> tuple[np.ndarray, np.ndarray | None, Delighting | None]:
     """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face sampled from the face's photo times its
-    gain; the rest take the nearest painted texel (grey if none)."""
+    gain; the rest take the nearest painted texel (grey if none). With ``capture`` (the capture suns): the albedo
+    instead, the capture light (H, W, 3) float32 it was divided by, and what was done (:mod:`recon.delight`)."""
     height, width = ids.shape
     colour = np.zeros((height * width, 3), np.float32)
-    painted = np.zeros(height * width, bool)
     flat = ids.ravel()
     texels = np.flatnonzero((flat >= 0) & (labels[np.maximum(flat, 0)] >= 0))
+    parts = []
     for start in range(0, len(texels), TEXEL_CHUNK):
         chunk = texels[start:start + TEXEL_CHUNK]
         face = flat[chunk]
         rows, cols = np.divmod(chunk, width)
-        points = texel_points(uv_px[faces[face]], vertices[faces[face]], np.column_stack([cols, rows]).astype(float))
+        weights = texel_weights(uv_px[faces[face]], np.column_stack([cols, rows]).astype(float))
+        points = np.einsum("nk,nkj->nj", weights, vertices[faces[face]])
         label = labels[face]
         for k in np.unique(label):
             own = label == k
             colour[chunk[own]] = gains[k] * sample_photo(photos[k], linear[k], points[own])
-        painted[chunk] = True
+        if capture is not None:
+            parts.append(capture.texel_light(face, weights, points, label, photos))
+    light, result = None, None
+    if capture is not None and len(texels):
+        light, result = delight_atlas(colour, texels, TexelLight.joined(parts), capture.chart[np.maximum(flat, 0)],
+                                      ids.shape)
     image = to_srgb8(colour).reshape(height, width, 3)
-    if not painted.any():
-        return np.full_like(image, 128)
-    nearest = ndimage.distance_transform_edt(~painted.reshape(height, width), return_distances=False,
-                                             return_indices=True)
-    return image[tuple(nearest)]
+    if len(texels) == 0:
+        return np.full_like(image, 128), None if light is None else np.ones((height, width, 3), np.float32), result
+    nearest = _nearest_painted(texels, ids)
+    return image[nearest], None if light is None else light.reshape(height, width, 3)[nearest], result
+
+
+def _nearest_painted(texels: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For every texel, the (row, column) of the nearest painted one (``texels``: flat indices of the painted)."""
+    unpainted = np.ones(ids.size, bool)
+    unpainted[texels] = False
+    return tuple(ndimage.distance_transform_edt(unpainted.reshape(ids.shape), return_distances=False,
+                                                return_indices=True))
 
 
 # ---------------------------------------------------------------- the whole stage
 
 
 def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions = AtlasOptions(),
-                  progress=lambda it: it, log=lambda message: None, held_out: list[Photo] = ()) -> Atlas:
+                  progress=lambda it: it, log=lambda message: None, held_out: list[Photo] = (),
+                  sun_enu: np.ndarray | None = None) -> Atlas:
     """The textured atlas of an ENU ``mesh`` from undistorted ``photos`` (see the module docstring); the gains also
-    name the ``held_out`` photos, which colour nothing (:func:`held_out_gains`)."""
+    name the ``held_out`` photos, which colour nothing (:func:`held_out_gains`). With ``sun_enu`` (K, 3), each photo's
+    capture sun (unit ENU, towards the sun), the atlas holds the albedo and the capture light (:mod:`recon.delight`)."""
     if not photos:
         raise ValueError("texturing needs at least one photo")
     scene = scene_from_mesh(mesh)
@@ -421,7 +448,11 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     packed_vertices = vertices[source[vmapping]]
     uv_px = packed_uv * np.array([width, height]) - 0.5
     ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
-    image = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains)
+    capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels))
+    image, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains, capture)
+    if delighting is not None:
+        log(f"capture light: sun/sky ratio {np.round(delighting.ratio, 2).tolist()} from {delighting.blocks} "
+            f"shadow-edge blocks; {delighting.relit} texels predicted in shadow were lit")
     area = np.asarray(mesh.area_faces)
     coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
@@ -429,4 +460,5 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     held_gains = held_out_gains(scene, mesh, labels, photos, linear, gains, list(held_out), options)
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
                  {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}, coverage,
-                 1.0 / texels_per_m)
+                 1.0 / texels_per_m, capture_light if delighting is not None and delighting.applied else None,
+                 delighting)

@@ -100,10 +100,19 @@ def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = 0,
                         pool: Executor | None = None) -> SkyVisibility:
     """The sky visibility of every face corner of ``scene`` (:class:`SkyVisibility`), baked once per surface point:
     a vertex with each of its corner normals (:func:`corner_normals`). Reproducible from ``seed``."""
-    normals = corner_normals(scene.vertices, scene.faces).reshape(-1, 3)
-    keys = np.column_stack([scene.faces.ravel(), np.round(normals * 1e4).astype(np.int64)])
+    return bake_corner_visibility(scene, scene.vertices, scene.faces, rays, seed, pool)
+
+
+def bake_corner_visibility(scene: Scene, vertices: np.ndarray, faces: np.ndarray, rays: int = SKY_RAYS,
+                           seed: int = 0, pool: Executor | None = None) -> SkyVisibility:
+    """The sky visibility of the face corners of a mesh (``vertices`` ENU, ``faces``) lying in ``scene``, occluded by
+    ``scene``: :func:`bake_sky_visibility` for faces that are not the scene's own (e.g. all of a mesh's faces where
+    the scene dropped its degenerate ones; those get an upward normal)."""
+    normals = corner_normals(vertices, faces).reshape(-1, 3)
+    normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)
+    keys = np.column_stack([faces.ravel(), np.round(normals * 1e4).astype(np.int64)])
     _, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
-    points, point_normals = _inset(scene, first), normals[first]
+    points, point_normals = _inset(vertices, faces, first), normals[first]
     turn = np.random.default_rng(seed).uniform(0.0, 2.0 * math.pi, len(first))
     local = hemisphere_directions(rays)
     reach = np.float32(2.0 * np.linalg.norm(scene.bounds[1] - scene.bounds[0]) + 1.0)
@@ -122,12 +131,12 @@ def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = 0,
     return SkyVisibility(inverse.reshape(-1, 3).astype(np.int32), values)
 
 
-def _inset(scene: Scene, corners: np.ndarray) -> np.ndarray:
+def _inset(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) -> np.ndarray:
     """ENU points ``(K, 3)`` of face corners (``3 * face + k``), each moved :data:`SKY_INSET_M` (at most a quarter
     of the way) towards its face's centroid."""
-    faces = scene.faces[corners // 3]
-    points = scene.vertices[faces.ravel()[np.arange(len(corners)) * 3 + corners % 3]]
-    inward = scene.vertices[faces].mean(axis=1) - points
+    corner_faces = faces[corners // 3]
+    points = vertices[corner_faces[np.arange(len(corners)), corners % 3]]
+    inward = vertices[corner_faces].mean(axis=1) - points
     length = np.linalg.norm(inward, axis=1, keepdims=True)
     step = np.minimum(SKY_INSET_M, 0.25 * length) / np.maximum(length, 1e-12)
     return points + step * inward

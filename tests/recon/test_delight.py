@@ -1,0 +1,123 @@
+"""Taking the capture day's light out of an atlas (recon/delight.py), against known truth: a textured terrain with a
+tower photographed by sim under a known sun; the true mesh and poses are the model (no SfM)."""
+
+import numpy as np
+import pytest
+
+from recon.atlas import texture_atlas
+from sim.evaluation.realism import photorealism_error_percent
+from sim.render.camera import Rig
+from sim.render.color import SRGB8_TO_LINEAR
+from sim.render.renderer import render
+from sim.render.scene import Scene, Surface
+from sim.render.shade import UNLIT, Lighting, Sun
+import trimesh
+
+from tests.recon.test_atlas import oblique_poses, town
+from tests.recon.test_texture import CAMERA, SUN, take_photos
+
+#: The photos' exposure (tests.recon.test_texture.take_photos) and the renderer's default sky.
+EXPOSURE, SKY = 0.6, 0.3
+#: A sun from the other side, lower: every shadow of the capture lies elsewhere.
+OTHER_SUN = Sun(300.0, 35.0, 0.8)
+
+
+#: Boxes (x, y, half size, height; metres) standing around the town's tower, each casting a shadow edge to fit on.
+HOUSES = ((-14.0, -10.0, 3.0, 7.0), (16.0, -12.0, 4.0, 5.0), (-16.0, 14.0, 3.5, 9.0), (18.0, 16.0, 2.5, 6.0))
+
+
+def village() -> tuple[trimesh.Trimesh, Scene]:
+    """The town of tests/recon/test_atlas.py with four closed houses more (the town's texture on their walls)."""
+    mesh, town_scene = town()
+    vertices, faces, uv = [np.asarray(mesh.vertices)], [np.asarray(mesh.faces)], [town_scene.surface.uv]
+    count = len(vertices[0])
+    for x, y, half, height in HOUSES:
+        house = trimesh.creation.box(extents=(2 * half, 2 * half, height))
+        house.apply_translation((x, y, height / 2 - 2.0))
+        house = house.subdivide().subdivide()
+        vertices.append(np.asarray(house.vertices))
+        faces.append(np.asarray(house.faces) + count)
+        uv.append(0.25 + 0.2 * (house.vertices[:, :2] - (x, y)) / half + 0.05 * house.vertices[:, 2:] / height)
+        count += len(house.vertices)
+    vertices, faces = np.concatenate(vertices), np.concatenate(faces)
+    return (trimesh.Trimesh(vertices, faces, process=False),
+            Scene(vertices, faces, Surface(texture=town_scene.surface.texture, uv=np.concatenate(uv))))
+
+
+def twin(atlas, with_capture_light: bool = True) -> Scene:
+    surface = Surface(texture=atlas.image, uv=atlas.uv,
+                      capture_light=atlas.capture_light if with_capture_light else None)
+    return Scene(atlas.vertices, atlas.faces, surface)
+
+
+def view(scene: Scene, pose, sun=OTHER_SUN, lighting=Lighting()):
+    return render(scene, Rig((CAMERA,), (np.eye(4),)), pose, sun, lighting=lighting).views[0]
+
+
+def luminance(rgb: np.ndarray) -> np.ndarray:
+    return SRGB8_TO_LINEAR[rgb].mean(axis=-1)
+
+
+@pytest.fixture(scope="module")
+def scenes():
+    """(truth scene, its atlas delit with the capture sun, the same atlas left lit, new view poses)."""
+    mesh, truth = village()
+    photos = take_photos(truth, oblique_poses(8, 30.0, 28.0))
+    sun_enu = np.tile(SUN.direction_enu, (len(photos), 1))
+    delit = texture_atlas(mesh, photos, sun_enu=sun_enu)
+    lit = texture_atlas(mesh, photos)
+    return truth, delit, lit, oblique_poses(3, 26.0, 22.0, phase_deg=20.0)
+
+
+def test_the_fitted_sun_to_sky_ratio_is_the_capture_days(scenes):
+    _, delit, lit, _ = scenes
+    """Sun 1.0 over sky 0.3: 3.33 in every channel. Each channel's fit carries the texture's own colour noise across
+    the edges (its coarse noise cells differ per channel), so the channels are looser than their mean."""
+    assert delit.delighting.applied and delit.delighting.blocks >= 30
+    assert np.mean(delit.delighting.ratio) == pytest.approx(SUN.intensity / SKY, rel=0.1)
+    np.testing.assert_allclose(delit.delighting.ratio, SUN.intensity / SKY, rtol=0.3)
+    assert lit.capture_light is None and lit.delighting is None
+
+
+def test_relit_under_another_sun_the_capture_shadows_are_gone(scenes):
+    """Pixels in a capture shadow that the new sun lights: the delit twin is as bright as the truth (ghost ratio
+    1), the lit texture far darker; over the whole view the delit twin is closer to the truth."""
+    truth, delit, lit, poses = scenes
+    for pose in poses:
+        true_view = view(truth, pose, lighting=Lighting(exposure=EXPOSURE))
+        captured = view(truth, pose, SUN, Lighting(exposure=EXPOSURE))
+        shadowed_then = true_view.valid & (luminance(captured.rgb) < 0.6 * luminance(true_view.rgb))
+        delit_view, lit_view = view(twin(delit, False), pose), view(twin(lit), pose)
+        assert shadowed_then.sum() > 50
+        ghost = luminance(delit_view.rgb)[shadowed_then].mean() / luminance(true_view.rgb)[shadowed_then].mean()
+        ghost_before = luminance(lit_view.rgb)[shadowed_then].mean() / luminance(true_view.rgb)[shadowed_then].mean()
+        assert 0.9 <= ghost <= 1.1 and ghost_before < 0.75, (ghost, ghost_before)
+        valid = true_view.valid & delit_view.valid
+        after = photorealism_error_percent(true_view.rgb[valid], delit_view.rgb[valid])
+        before = photorealism_error_percent(true_view.rgb[valid], lit_view.rgb[valid])
+        assert after < 0.8 * before, (after, before)
+
+
+def test_the_unlit_twin_still_reproduces_its_photos(scenes):
+    """Albedo x capture light, rendered as captured, is the lit texture (within 8-bit rounding and the light's floor)."""
+    _, delit, lit, poses = scenes
+    for pose in poses:
+        with_light = render(twin(delit), Rig((CAMERA,), (np.eye(4),)), pose, **UNLIT).views[0]
+        texture = render(twin(lit), Rig((CAMERA,), (np.eye(4),)), pose, **UNLIT).views[0]
+        valid = with_light.valid & texture.valid
+        assert photorealism_error_percent(texture.rgb[valid], with_light.rgb[valid]) < 1.0
+
+
+def test_an_overcast_capture_keeps_its_colours():
+    """Photos lit by the sky alone: no shadow edge to learn a sun from, so nothing is divided out."""
+    mesh, truth = village()
+    poses = oblique_poses(8, 30.0, 28.0)
+    photos = []
+    for k, pose in enumerate(poses):
+        rgb = render(truth, Rig((CAMERA,), (np.eye(4),)), pose, Sun(135.0, 50.0, 0.0),
+                     lighting=Lighting(exposure=EXPOSURE)).views[0].rgb
+        photos.append(type(take_photos(truth, [pose])[0])(f"p{k}", rgb, CAMERA, pose))
+    delit = texture_atlas(mesh, photos, sun_enu=np.tile(SUN.direction_enu, (len(photos), 1)))
+    plain = texture_atlas(mesh, photos)
+    assert not delit.delighting.applied and delit.capture_light is None
+    np.testing.assert_array_equal(delit.image, plain.image)
