@@ -20,9 +20,10 @@ from sim.dataset import FORMATS, parse_shard
 from sim.dataset.export import check_layouts, export_dataset, refuse_overlap
 from sim.dataset.writer import dataset_description
 from sim.cli.export import layout_list
+from sim.cli.light import SUN_HELP, sun_value
 from sim.motion.imu import DEFAULT_RATE_HZ
 from sim.run.options import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, VIGNETTING_MODELS, CameraEffects,
-                             OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions)
+                             LightOptions, OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions)
 from sim.run.render_dataset import is_demo_scene, render_dataset
 
 PROG = "aerostereo-render"
@@ -130,6 +131,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--distortion", type=_distortion, default=rig_defaults.distortion,
         help="OpenCV lens distortion k1,k2,p1,p2,k3 of every camera (then choose --formats without disparity)")
     add("--spp", type=int, default=rig_defaults.spp, help="samples per pixel (anti-aliasing)")
+    add("--sun", type=sun_value, default=None, metavar="SUN",
+        help=f"the light of every frame: {SUN_HELP} (default: random; a replay of the scene's cameras: unlit)")
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=run_defaults.workers, help="render processes (each builds the scene once)")
     add("--scheduler", default=run_defaults.scheduler,
@@ -180,8 +183,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin, max_sky_fraction=args.max_sky,
                         imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
     run = RunOptions(workers=args.workers, shard=args.shard, scheduler=args.scheduler)
-    return RenderOptions(seed=args.seed, rig=rig, poses=poses, outputs=OutputOptions(formats),
-                         effects=effects_from_args(args), run=run)
+    return RenderOptions(seed=args.seed, rig=rig, poses=poses, light=LightOptions(args.sun),
+                         outputs=OutputOptions(formats), effects=effects_from_args(args), run=run)
 
 
 def effects_from_args(args: argparse.Namespace) -> CameraEffects:
@@ -210,11 +213,11 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
     refuse_clobbering_render(args)
     check_export_args(args)
     options = options_from_args(args)
+    command_line = sys.argv if command_line is None else command_line
     if args.contact_sheet is not None:
         check_depth_written(options.outputs.formats, f"{args.out} (--formats)")
     try:
-        summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite,
-                                 command_line=sys.argv if command_line is None else command_line,
+        summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite, command_line=command_line,
                                  progress=not args.quiet, check_spec=export_check(args))
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted: rerun the same command to resume", file=sys.stderr)
