@@ -1,11 +1,13 @@
-"""The light on ``aerostereo-render``'s command lines: ``--sun`` (argparse types: bad text is refused naming the
-argument and what it expects)."""
+"""The light on ``aerostereo-render``'s command lines: ``--sun`` (the dataset render and ``fly``) and
+``--lighting-variants`` (argparse types: bad text is refused naming the argument and what it expects)."""
 
 from __future__ import annotations
 
 import argparse
+import re
 
-from sim.sampling.light import OVERCAST_AMBIENT, SunSetting, parse_sun
+from sim.run.variants import LightingVariant, check_variant_names
+from sim.sampling.light import OVERCAST_AMBIENT, SUN_SYNTAX, SunSetting, parse_sun
 
 #: ``--sun``'s help: the forms and what each means.
 SUN_HELP = ("random: the paper's sun (30-90 deg high, any azimuth, strength 5-10), drawn per frame, a trajectory "
@@ -14,6 +16,9 @@ SUN_HELP = ("random: the paper's sun (30-90 deg high, any azimuth, strength 5-10
             "real sun over the scene's origin at that UTC time (apparent, refraction-corrected) at its clear-sky "
             f"strength (10 at the zenith); overcast: sky light only (ambient {OVERCAST_AMBIENT}, no sun, no "
             "shadows); unlit: the texture as captured")
+#: A comma that starts the next ``NAME=SUN`` of ``--lighting-variants``: one followed by a name and ``=`` (no form
+#: of the sun holds an ``=``, so the commas inside ``AZ,EL,STRENGTH`` never match).
+NEXT_VARIANT = re.compile(r",(?=[^,=]*=)")
 
 
 def sun_value(text: str) -> SunSetting:
@@ -23,3 +28,20 @@ def sun_value(text: str) -> SunSetting:
     except ValueError as error:
         raise argparse.ArgumentTypeError(str(error)) from None
 
+
+def lighting_variants_value(text: str) -> list[LightingVariant]:
+    """``--lighting-variants NAME=SUN,NAME=SUN,...``: a comma followed by ``NAME=`` starts the next variant."""
+    variants = []
+    for part in NEXT_VARIANT.split(text):
+        name, equals, sun = part.partition("=")
+        if not equals:
+            raise argparse.ArgumentTypeError(f"expected NAME=SUN[,NAME=SUN...] (SUN: {SUN_SYNTAX}), got {part!r}")
+        try:
+            variants.append(LightingVariant(name, parse_sun(sun)))
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(f"{name}={sun}: {error}") from None
+    try:
+        check_variant_names([variant.name for variant in variants])
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return variants
