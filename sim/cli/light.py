@@ -29,6 +29,15 @@ def sun_value(text: str) -> SunSetting:
         raise argparse.ArgumentTypeError(str(error)) from None
 
 
+def flight_sun_value(text: str) -> SunSetting:
+    """``fly --sun``: a form other than ``random`` (a flight is flown under one sky, not a draw per photo)."""
+    setting = sun_value(text)
+    if setting.form == "random":
+        raise argparse.ArgumentTypeError("random is the datasets' draw per frame; a flight takes AZ,EL,STRENGTH, "
+                                         "time:ISO8601, overcast or unlit (default: the real sun at --start-utc)")
+    return setting
+
+
 def lighting_variants_value(text: str) -> list[LightingVariant]:
     """``--lighting-variants NAME=SUN,NAME=SUN,...``: a comma followed by ``NAME=`` starts the next variant."""
     variants = []
