@@ -17,6 +17,7 @@ from sim.run.rig import build_rig
 from sim.sampling.light import SunSetting, frame_light
 from sim.sampling.seeds import IMU_STREAM
 from sim.sampling.sun import REFRACTION_PRESSURE_HPA, REFRACTION_TEMPERATURE_C, SUN_STRENGTH_TO_INTENSITY
+
 #: The trajectories kept inside the valid area (and the scene's observed_area_m polygon) less the margin: flown in the
 #: largest rectangle inside both (sim/sampling/frustum.py inner_rectangle). Orbit and flight are placed by the user.
 MARGIN_PATHS = ("lawnmower", "loop")
