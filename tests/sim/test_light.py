@@ -113,19 +113,28 @@ NORTH = (BOX_X_M, (BOX_Y_M[1] + 2, BOX_Y_M[1] + 8))
 def test_a_fixed_sun_casts_the_box_shadow_away_from_its_azimuth(scene, azimuth, shadow, beyond, facing):
     """Azimuth is clockwise from north and the direction towards the sun: at 45 deg elevation the 10 m box throws a
     BOX_TOP_M / tan(45 deg) = 10 m shadow on the side away from it, where only the sky lights the ground; elsewhere
-    strength 8 (linear 0.8) times sin(45 deg) comes on top of the sky's 0.3."""
-    setting = SunSetting("fixed", azimuth, 45.0, 8.0)
+    strength 8 (linear 0.8) times sin(45 deg) comes on top of the sky. The sky's part is measured with a sun of
+    strength 0, whatever the sky model (a flat ambient, or one scaled by each point's sky visibility)."""
+    setting, sky_only = SunSetting("fixed", azimuth, 45.0, 8.0), SunSetting("fixed", azimuth, 45.0, 0.0)
     assert BOX_TOP_M / math.tan(math.radians(45.0)) == pytest.approx(10.0)
-    sunlit = 8.0 * SUN_STRENGTH_TO_INTENSITY * math.sin(math.radians(45.0)) + 0.3
+    sun = 8.0 * SUN_STRENGTH_TO_INTENSITY * math.sin(math.radians(45.0))
     for side in (facing, beyond):
-        assert np.median(lit_fraction(scene, setting, strip(*side))) == pytest.approx(sunlit, rel=0.05)
-    assert np.median(lit_fraction(scene, setting, strip(*shadow))) < 0.5 * sunlit
+        points = strip(*side)
+        assert np.median(lit_fraction(scene, setting, points) - lit_fraction(scene, sky_only, points)) == \
+            pytest.approx(sun, rel=0.03)
+    points = strip(*shadow)
+    assert np.median(lit_fraction(scene, setting, points) - lit_fraction(scene, sky_only, points)) == \
+        pytest.approx(0.0, abs=0.02)
 
 
 def test_an_overcast_sky_lights_every_side_alike_with_no_shadow(scene):
-    west, east = (lit_fraction(scene, OVERCAST_SUN, strip(*side)) for side in (WEST, EAST))
-    assert np.median(west) == pytest.approx(OVERCAST_AMBIENT, rel=0.05)
-    assert np.median(east) == pytest.approx(OVERCAST_AMBIENT, rel=0.05)
+    """No sun, so no shadow beside the box whichever side; the sky's light raised from a clear day's 0.3 to
+    OVERCAST_AMBIENT on every side."""
+    clear_sky = SunSetting("fixed", 90.0, 45.0, 0.0)
+    for side in (WEST, EAST, SOUTH, NORTH):
+        points = strip(*side)
+        ratio = lit_fraction(scene, OVERCAST_SUN, points) / lit_fraction(scene, clear_sky, points)
+        assert np.median(ratio) == pytest.approx(OVERCAST_AMBIENT / 0.3, rel=0.03)
 
 
 def test_the_time_form_lights_with_the_real_sun_over_the_scene(scene_dir, tmp_path):
