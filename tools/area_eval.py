@@ -30,7 +30,7 @@ from recon.oblique import TwinFrame, render_view, sample_views, score_view, summ
 from recon.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
 from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
-from sim.run.frame_renderer import frame_sun
+from sim.sampling.light import frame_sun
 from sim.render.raycast import default_workers
 from sim.sampling.sun import random_sun
 from sim.render.scene import load_scene, read_scene_json

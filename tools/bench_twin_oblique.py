@@ -39,7 +39,7 @@ from recon.oblique import (render_view, sample_views, score_view, summarise, tru
 from recon.scene_cameras import scene_camera_poses  # noqa: E402
 from sim.render.camera import PinholeCamera  # noqa: E402
 from sim.dataset.images import write_png  # noqa: E402
-from sim.run.frame_renderer import frame_sun  # noqa: E402
+from sim.sampling.light import frame_sun  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.sampling.sun import random_sun  # noqa: E402

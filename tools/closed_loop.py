@@ -80,6 +80,9 @@ class LoopConfig:
     arc_waypoints: int = 0               # 0: the whole orbit
     photo_size: tuple[int, int] = (800, 600)
     noise: str = "realistic"
+    # fly --sun: the live link runs on the host clock (fly gets no --start-utc), so the photos take a fixed sun rather
+    # than the real one of the hour the loop happens to run at (none at night); the sun they had before it existed.
+    sun: str = "150,50,10"
     link: str = "tcp"
     speedup: float = 1.0
     seed: int = 0
@@ -319,7 +322,8 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
     add(plan_mission(config, world_origin, mission_dir, log_dir))
     fly_args = cli("aerostereo-render fly") + [
         "--mission", str(mission_dir / "mission.csv"), "--scene", str(world), "--out", str(fly_dir),
-        "--photo-size", *map(str, config.photo_size), "--noise", config.noise, "--seed", str(config.seed)]
+        "--photo-size", *map(str, config.photo_size), "--noise", config.noise, "--seed", str(config.seed),
+        "--sun", config.sun]
     if "plan" not in ok:
         add(skipped("fly", "plan"), skipped("record", "plan"))
         capture = None

@@ -11,6 +11,7 @@ from capture.track import parse_utc
 from cliutil.argtypes import finite_number
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
+from sim.cli.light import flight_sun_value
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
                                run_session)
 from sim.render.scene import load_scene
@@ -53,6 +54,12 @@ def add_fly_parser(subparsers) -> None:
     parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now); with several "
                                                            "--mission, of the first flight, the next ones taking off "
                                                            f"{BATTERY_SWAP_S:.0f} s after the previous landed")
+    parser.add_argument("--sun", type=flight_sun_value, metavar="SUN",
+                        help="the photos' light: AZ,EL,STRENGTH (degrees clockwise from north, degrees above the "
+                             "horizon, the paper's strength: 10 lights a surface facing the sun at its full albedo), "
+                             "time:ISO8601 (the real sun as if flown from that UTC), overcast (sky light only) or "
+                             "unlit (the scene's texture as captured); default: the real sun over the scene at each "
+                             "photo's UTC time (--start-utc + flight time), refused when it is down")
     parser.add_argument("--home", nargs=2, type=finite_number, metavar=("LAT", "LON"),
                         help="take-off point, WGS84 degrees, on the scene's ground (default: under the first "
                              "waypoint); an area plan's take_off (area.json) for its flights")
@@ -88,7 +95,7 @@ def run_fly(args) -> int:
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
-                         home=tuple(args.home) if args.home else None)
+                         home=tuple(args.home) if args.home else None, sun=args.sun)
     scene = load_scene(resolve_scene_dir(args.scene))
     if not several:
         print_flight(run_session(args.mission[0], scene, args.out, options), args.mission[0], scene.source, args.out)
@@ -107,3 +114,15 @@ def print_flight(report: FlyReport, mission: Path, scene_source, out: Path) -> N
     print(f"telemetry: {report.frames} DUML frames, {report.bytes_sent} bytes -> {out / 'flight.duml'} (+ .idx)")
     print(f"photos: {report.rendered.photos} of {int(photos.taken.sum())} taken ({len(photos.t_s)} scheduled) "
           f"-> {out / 'photos'}; truth -> {out / 'truth.json'}, {out / 'truth.csv'}")
+    print(f"sun: {sun_summary(report.sun)}")
+
+
+def sun_summary(sun: dict) -> str:
+    """One line of truth.json's ``sun``: the real sun from the flight's start to its end, or the one form."""
+    if sun["form"] != "time":
+        values = ", ".join(f"{key} {value:g}" for key, value in sun.items() if isinstance(value, float))
+        return f"{sun['form']}" + (f" ({values})" if values else "")
+    start, end = sun["start"], sun["end"]
+    return (f"real, azimuth {start['azimuth_deg']:.1f} -> {end['azimuth_deg']:.1f} deg, elevation "
+            f"{start['elevation_deg']:.1f} -> {end['elevation_deg']:.1f} deg, strength {start['strength']:.1f} -> "
+            f"{end['strength']:.1f} over the flight")

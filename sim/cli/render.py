@@ -20,10 +20,12 @@ from sim.dataset import FORMATS, parse_shard
 from sim.dataset.export import check_layouts, export_dataset, refuse_overlap
 from sim.dataset.writer import dataset_description
 from sim.cli.export import layout_list
+from sim.cli.light import SUN_HELP, lighting_variants_value, sun_value
 from sim.motion.imu import DEFAULT_RATE_HZ
 from sim.run.options import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, VIGNETTING_MODELS, CameraEffects,
-                             OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions)
+                             LightOptions, OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions)
 from sim.run.render_dataset import is_demo_scene, render_dataset
+from sim.run.variants import VARIANTS_JSON, refuse_mixing, render_variants
 
 PROG = "aerostereo-render"
 
@@ -130,6 +132,13 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--distortion", type=_distortion, default=rig_defaults.distortion,
         help="OpenCV lens distortion k1,k2,p1,p2,k3 of every camera (then choose --formats without disparity)")
     add("--spp", type=int, default=rig_defaults.spp, help="samples per pixel (anti-aliasing)")
+    add("--sun", type=sun_value, default=None, metavar="SUN",
+        help=f"the light of every frame: {SUN_HELP} (default: random; a replay of the scene's cameras: unlit)")
+    add("--lighting-variants", type=lighting_variants_value, default=None, metavar="NAME=SUN,...",
+        help="render the same poses under each light into OUT/NAME/ (complete datasets whose poses, times and depth "
+             f"are identical) and list them in OUT/{VARIANTS_JSON}; SUN as --sun, a comma followed by NAME= starts "
+             "the next variant (e.g. morning=time:2026-06-01T06:30:00Z,noon=45,60,8,flat=overcast); NAME: letters, "
+             "digits, '-' and '_'")
     add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
     add("--workers", type=int, default=run_defaults.workers, help="render processes (each builds the scene once)")
     add("--scheduler", default=run_defaults.scheduler,
@@ -180,8 +189,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin, max_sky_fraction=args.max_sky,
                         imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
     run = RunOptions(workers=args.workers, shard=args.shard, scheduler=args.scheduler)
-    return RenderOptions(seed=args.seed, rig=rig, poses=poses, outputs=OutputOptions(formats),
-                         effects=effects_from_args(args), run=run)
+    return RenderOptions(seed=args.seed, rig=rig, poses=poses, light=LightOptions(args.sun),
+                         outputs=OutputOptions(formats), effects=effects_from_args(args), run=run)
 
 
 def effects_from_args(args: argparse.Namespace) -> CameraEffects:
@@ -210,11 +219,14 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
     refuse_clobbering_render(args)
     check_export_args(args)
     options = options_from_args(args)
+    command_line = sys.argv if command_line is None else command_line
+    if args.lighting_variants:
+        return run_variants(args, options, command_line)
+    refuse_mixing(args.out, variants=False)
     if args.contact_sheet is not None:
         check_depth_written(options.outputs.formats, f"{args.out} (--formats)")
     try:
-        summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite,
-                                 command_line=sys.argv if command_line is None else command_line,
+        summary = render_dataset(args.scene, args.out, options, overwrite=args.overwrite, command_line=command_line,
                                  progress=not args.quiet, check_spec=export_check(args))
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted: rerun the same command to resume", file=sys.stderr)
@@ -232,6 +244,24 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
                            f"still running? then run 'aerostereo-render export {args.out} ...' once they are done)")
         for line in export_dataset(args.out, args.export_out, args.export):
             print(line)
+    return 0
+
+
+def run_variants(args: argparse.Namespace, options: RenderOptions, command_line: Sequence[str]) -> int:
+    """``--lighting-variants``: render the pose set under each light (:mod:`sim.run.variants`); print each summary."""
+    for option, given in (("--sun", args.sun), ("--contact-sheet", args.contact_sheet), ("--export", args.export)):
+        if given is not None:
+            raise BadInput(f"--lighting-variants and {option} exclude each other: each variant has its own sun and "
+                           "is a dataset of its own (OUT/NAME/: run contact sheets and exports on it)")
+    try:
+        summaries = render_variants(args.scene, args.out, options, args.lighting_variants, command_line,
+                                    progress=not args.quiet, overwrite=args.overwrite)
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted: rerun the same command to resume", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    for summary in summaries:
+        print(summary.text())
+    print(f"lighting variants: {len(summaries)} datasets listed in {args.out / VARIANTS_JSON}")
     return 0
 
 

@@ -113,7 +113,7 @@ class FrameRecord:
     ``views[v]`` has ``rgb`` (H, W, 3) uint8 and ``depth`` (H, W) float32 planar z metres (+inf on
     miss) for rig camera ``v``. ``T_world_cam`` is the **left** camera's camera-to-world pose (4x4,
     ENU world, OpenCV camera axes). ``sun``: an object with ``azimuth_deg, elevation_deg,
-    intensity`` (or a dataclass with more fields), or None.
+    intensity`` (or a dataclass with more fields), a mapping written as it is, or None.
     """
 
     index: int
@@ -391,6 +391,8 @@ class KittiDatasetWriter:
 def _sun_description(sun) -> dict | None:
     if sun is None:
         return None
+    if isinstance(sun, Mapping):
+        return dict(sun)
     if dataclasses.is_dataclass(sun):
         return dataclasses.asdict(sun)
     return {key: float(getattr(sun, key)) for key in ("azimuth_deg", "elevation_deg", "intensity")}

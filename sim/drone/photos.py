@@ -4,7 +4,9 @@ Intrinsics: the DJI Mini SE camera profile (``flightplan.aircraft.MINI_SE_CAMERA
 field of view, its lens distortion and principal-point offset) scaled to the chosen render size (square pixels);
 ``Imperfections.lens_distortion`` says how much of the lens calibration the photos get (0: an ideal pinhole).
 Exposure: each photo is rendered with its auto-exposure gain per channel in linear light
-(:mod:`sim.drone.exposure`, one small metering render per photo first).
+(:mod:`sim.drone.exposure`, one small metering render per photo first). Light: each photo's own
+(:mod:`sim.drone.sunlight`: the real sun at its UTC time by default), or :data:`DEFAULT_SUN` for callers that give
+none.
 
 Metadata, as a DJI camera writes it, from what the aircraft MEASURED at the exposure (``Photos.measured_*``):
 the EXIF of :func:`sim.drone.exif.dji_exif` (times from the camera clock ``start_utc + camera_time_s``, which
@@ -20,8 +22,9 @@ from __future__ import annotations
 
 import datetime as dt
 import time
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -42,9 +45,12 @@ from sim.render.raycast import default_workers
 from sim.render.renderer import Lighting, Sun, render
 from sim.render.scene import Scene
 from sim.render.color import SRGB8_TO_LINEAR
+from sim.sampling.light import FrameLight
 
 JPEG_QUALITY = 92
+#: The light of photos rendered without one of their own (tests, benchmarks): a fixed afternoon sun.
 DEFAULT_SUN = Sun(azimuth_deg=150.0, elevation_deg=50.0)
+DEFAULT_LIGHT = FrameLight({"sun": DEFAULT_SUN}, None)
 #: Date written at the head of the virtual camera's XMP ``DewarpData`` (a factory calibration's date).
 CALIBRATION_DATE = "2021-01-01"
 #: Width (px) of the small render each photo's auto-exposure meters (the camera's low-resolution metering).
@@ -72,11 +78,11 @@ def camera_truth(camera: PinholeCamera) -> dict:
             "cy": camera.cy, "distortion": list(camera.dist or (0.0,) * 5), "model": "OpenCV k1, k2, p1, p2, k3"}
 
 
-def metered_view(scene: Scene, meter: Rig, T_world_cam: np.ndarray, sun: Sun, pool) -> float:
-    """What the camera's meter reads for a view: :func:`~sim.drone.exposure.metered_luminance` of a render at
-    unit exposure by ``meter``, the photo camera at :data:`METERING_WIDTH` pixels (one rig for all photos: its
-    rays are computed once)."""
-    rgb = render(scene, meter, T_world_cam, sun, pool=pool).views[0].rgb
+def metered_view(scene: Scene, meter: Rig, T_world_cam: np.ndarray, light: FrameLight, pool) -> float:
+    """What the camera's meter reads for a view under ``light``: :func:`~sim.drone.exposure.metered_luminance` of a
+    render at unit exposure by ``meter``, the photo camera at :data:`METERING_WIDTH` pixels (one rig for all photos:
+    its rays are computed once)."""
+    rgb = render(scene, meter, T_world_cam, pool=pool, **light.keywords).views[0].rgb
     return metered_luminance(SRGB8_TO_LINEAR[rgb])
 
 
@@ -146,10 +152,11 @@ class RenderedPhotos:
 
 
 def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_utc: dt.datetime,
-                  sun: Sun = DEFAULT_SUN, limit: int | None = None, progress: bool = True,
+                  lights: Sequence[FrameLight] | None = None, limit: int | None = None, progress: bool = True,
                   geoid_undulation_m: float = 0.0) -> RenderedPhotos:
     """Render every photo the camera took (the first ``limit`` if given) from its true pose into ``out_dir``,
-    each at its auto-exposure gains (metered first, for the whole set: the gains lag from photo to photo).
+    each at its auto-exposure gains (metered first, for the whole set: the gains lag from photo to photo) under its
+    light, ``lights[i]`` for scheduled photo ``i`` (None: :data:`DEFAULT_LIGHT` for all).
 
     Names are ``Photos.names`` (DJI_0001.JPG ...); EXIF/XMP carry the measured values (module docstring), heights
     above sea level = ellipsoidal height - ``geoid_undulation_m`` (N, metres, the geoid's height above the WGS84
@@ -162,18 +169,21 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
     poses = poses_in_scene(flight.frame, scene.origin, photos.position_enu_m[taken], photos.R_world_cam[taken])
     home_msl = mission.sensors.measured_home()[2] - geoid_undulation_m
     rig, names = Rig((camera,)), photos.names
+    lights = lights or [DEFAULT_LIGHT] * len(photos.t_s)
     result = RenderedPhotos(np.full((len(photos.t_s), 3), np.nan))
     with ThreadPoolExecutor(default_workers()) as pool:
         started = time.perf_counter()
         meter = Rig((camera.scaled(METERING_WIDTH),)) if flight.imperfections.exposure_metering > 0 else None
-        metered = [metered_view(scene, meter, T, sun, pool) if meter else 1.0 for T in poses]
+        metered = [metered_view(scene, meter, T, lights[index], pool) if meter else 1.0
+                   for index, T in zip(taken, poses)]
         result.gains[taken] = auto_exposure_gains(photos.t_s[taken], metered, photos.gain_noise[taken],
                                                   flight.imperfections)
         result.meter_s = time.perf_counter() - started
         for index, T_world_cam in zip(tqdm(taken, desc="photos", unit="photo", disable=not progress), poses):
             started = time.perf_counter()
-            lighting = Lighting(exposure=tuple(result.gains[index]))
-            rgb = render(scene, rig, T_world_cam, sun, lighting=lighting, pool=pool).views[0].rgb
+            light = lights[index].keywords
+            lighting = replace(light.get("lighting", Lighting()), exposure=tuple(result.gains[index]))
+            rgb = render(scene, rig, T_world_cam, light["sun"], lighting=lighting, pool=pool).views[0].rgb
             rendered = time.perf_counter()
             camera_time = start_utc.replace(tzinfo=None) + dt.timedelta(seconds=float(photos.camera_time_s[index]))
             tag = photo_geotag(photos, index, home_msl, names[index])

@@ -3,7 +3,9 @@ write the ground truth. What ``aerostereo-render fly`` runs.
 
 Output folder: ``photos/DJI_0001.JPG ...``, ``flight.duml`` + ``flight.duml.idx`` (the telemetry as received),
 ``truth.json`` + ``truth.csv``, and with ``logs`` a Litchi-style ``flight_log.csv`` and ``flight.srt``. Order: the telemetry is delivered first (on a live link its clock fixes the
-flight's start time), then the photos are rendered with EXIF times on that same time line.
+flight's start time), then the photos are rendered with EXIF times on that same time line, each lit by the real sun at
+its UTC time unless ``FlyOptions.sun`` says otherwise (:mod:`sim.drone.sunlight`); a photo whose real sun is at or below
+the horizon is refused before anything is written.
 
 Links: ``file`` writes the capture with simulated arrival times (send time, no latency); ``loop`` streams the
 frames through one pyserial ``loop://`` port, paced by the flight clock, and records what comes out of it with
@@ -20,6 +22,7 @@ import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+import numpy as np
 import serial
 from tqdm import tqdm
 
@@ -35,9 +38,11 @@ from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_c
 from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
+from sim.drone.sunlight import FlightLight, check_photos, flight_light, sun_truth
 from sim.render.raycast import default_workers
 from sim.render.renderer import render_memory_bytes
 from sim.render.scene import Scene
+from sim.sampling.light import SunSetting
 
 LINKS = ("file", "loop", "tcp")
 NOISE = {"realistic": Imperfections.realistic, "area": Imperfections.area, "rtk": Imperfections.rtk,
@@ -56,7 +61,9 @@ class FlyOptions:
     """How to fly: render size (px), link, port URL for ``tcp``, pacing speed-up, imperfections, seed, start, and
     ``geoid_undulation_m`` (N: the geoid's height above the WGS84 ellipsoid at the scene, metres) that turns the
     flight's ellipsoidal heights into the heights above sea level the photos and logs carry (h - N). ``seed`` is
-    an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`)."""
+    an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`). ``sun``: the
+    photos' light (:class:`~sim.sampling.light.SunSetting`, not the random form); None: the real sun over the scene
+    at each photo's UTC time (:mod:`sim.drone.sunlight`)."""
 
     photo_size: tuple[int, int] = (800, 600)
     link: str = "file"
@@ -70,8 +77,12 @@ class FlyOptions:
     progress: bool = True
     geoid_undulation_m: float = 0.0
     home: tuple[float, float] | None = None  # take-off (lat, lon) WGS84 degrees; None: under the first waypoint
+    sun: SunSetting | None = None
 
     def __post_init__(self) -> None:
+        if self.sun is not None and self.sun.form == "random":
+            raise ValueError("a flight's photos take a fixed, real (time:), overcast or unlit sun, not the random "
+                             "one drawn per dataset frame")
         if not math.isfinite(self.geoid_undulation_m):
             raise ValueError(f"geoid undulation must be a finite number of metres, got {self.geoid_undulation_m}")
         if self.link not in LINKS:
@@ -92,6 +103,7 @@ class FlyReport:
     frames: int
     bytes_sent: int
     rendered: RenderedPhotos
+    sun: dict  # truth.json's "sun" (sim.drone.sunlight.sun_truth)
 
 
 def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfections,
@@ -149,9 +161,10 @@ def stream_to_port(frames: list[Frame], url: str, clock: MissionClock, progress:
     return sent
 
 
-def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOptions) -> None:
-    """Refuse (``ValueError``) a session whose time stamps would pass year 9999 or whose photo render needs more
-    memory than is free, before anything is written."""
+def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOptions, scene: Scene) -> FlightLight:
+    """Refuse (``ValueError``) a session whose time stamps would pass year 9999, whose photo render needs more
+    memory than is free, or whose photos to render have the real sun at or below the horizon, before anything is
+    written. Returns the photos' light."""
     try:
         start_utc + dt.timedelta(seconds=mission.flight.duration_s + TIME_LINE_SLACK_S)
     except OverflowError:
@@ -161,14 +174,20 @@ def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOpt
     pixels = width * height
     require_memory(render_memory_bytes([pixels], 1, default_workers()) + 3 * pixels,  # + the JPEG encoder's copy
                    f"--photo-size {width} {height}")
+    photos = mission.photos
+    light = flight_light(options.sun, photos.t_s, start_utc, scene.origin)
+    check_photos(light, np.flatnonzero(photos.taken)[:options.photo_limit], photos.names, scene.origin)
+    return light
 
 
-def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyReport:
-    """Fly, deliver the telemetry, take the photos and write the truth into ``out_dir`` (module docstring)."""
+def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission: FlownMission | None = None
+                ) -> FlyReport:
+    """Fly (unless ``mission`` is the flown model already), deliver the telemetry, take the photos and write the truth
+    into ``out_dir`` (module docstring)."""
     out_dir = Path(out_dir)
-    mission = fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
+    mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
     clock = MissionClock(options.speedup, options.start_utc)
-    check_session(mission, clock.start_utc, options)
+    light = check_session(mission, clock.start_utc, options, scene)
     out_dir.mkdir(parents=True, exist_ok=True)
     frames = duml_frames(mission)
     capture = out_dir / CAPTURE_NAME
@@ -182,9 +201,12 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
     if options.logs:
         write_flight_logs(mission, clock.start_utc, out_dir, options.geoid_undulation_m)
     camera = photo_camera(*options.photo_size, lens=options.imperfections.lens_distortion)
-    rendered = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, limit=options.photo_limit,
-                             progress=options.progress, geoid_undulation_m=options.geoid_undulation_m)
-    write_truth(out_dir, mission.flight, mission.photos, options.seed, gains=rendered.gains, extra={
+    rendered = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, lights=light.photos,
+                             limit=options.photo_limit, progress=options.progress,
+                             geoid_undulation_m=options.geoid_undulation_m)
+    sun, photo_suns = sun_truth(light, mission.flight.duration_s, scene.origin)
+    write_truth(out_dir, mission.flight, mission.photos, options.seed, gains=rendered.gains, photo_suns=photo_suns,
+                extra={
         "start_utc": clock.start_utc.isoformat(), "telemetry_clock_note": "UTC = start_utc + t_s",
         "mission_csv": str(mission_csv), "scene": scene.source, "link": options.link,
         "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist(), "camera": camera_truth(camera),
@@ -192,8 +214,8 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions) -> FlyR
         "gps_fix_bias_enu_m": mission.sensors.gps_fix_bias_enu_m.tolist(),
         "gps_fix_bias_note": "the flight's constant GPS error (ENU m), part of every GPS fix: its fix offset",
         "height_note": "h_ellipsoid_m is above the WGS84 ellipsoid; photos and logs carry h_ellipsoid_m - "
-                       "geoid_undulation_m as the height above sea level"})
-    return FlyReport(mission, clock.start_utc, len(frames), sent, rendered)
+                       "geoid_undulation_m as the height above sea level", "sun": sun})
+    return FlyReport(mission, clock.start_utc, len(frames), sent, rendered, sun)
 
 
 def flight_folder(out_dir, number: int) -> Path:
@@ -204,12 +226,19 @@ def flight_folder(out_dir, number: int) -> Path:
 def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> list[FlyReport]:
     """Fly the flights of an area plan in order, flight k (1-based) into :func:`flight_folder` with the seed
     ``(options.seed, k)`` (its own gusts, sensor errors and GPS fix offset) and, when ``options.start_utc`` is
-    set, taking off :data:`BATTERY_SWAP_S` after the previous one landed (else each at its own "now")."""
-    reports = []
-    start = options.start_utc
+    set, taking off :data:`BATTERY_SWAP_S` after the previous one landed (else each at its own "now"). Every flight
+    is flown as a model and checked (:func:`check_session`: hours later the sun may have set) before the first writes
+    anything."""
+    flights, start = [], options.start_utc
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
-        reports.append(run_session(mission_csv, scene, flight_folder(out_dir, number), flight_options))
+        mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections, options.home)
+        try:
+            check_session(mission, start or dt.datetime.now(dt.timezone.utc), flight_options, scene)
+        except ValueError as error:
+            raise ValueError(f"{mission_csv} (flight {number}): {error}") from None
+        flights.append((mission_csv, mission, flight_options))
         if start is not None:
-            start = reports[-1].start_utc + dt.timedelta(seconds=reports[-1].mission.flight.duration_s + BATTERY_SWAP_S)
-    return reports
+            start += dt.timedelta(seconds=mission.flight.duration_s + BATTERY_SWAP_S)
+    return [run_session(mission_csv, scene, flight_folder(out_dir, number), flight_options, mission)
+            for number, (mission_csv, mission, flight_options) in enumerate(flights, start=1)]

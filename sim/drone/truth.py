@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -115,11 +116,11 @@ def _truth_rows(photos: Photos, gains: np.ndarray) -> list[dict]:
 
 
 def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None, extra: dict | None = None,
-                gains: np.ndarray | None = None) -> None:
+                gains: np.ndarray | None = None, photo_suns: Sequence[dict] | None = None) -> None:
     """Write ``truth.json`` and ``truth.csv`` into ``out_dir``: the true pose of every photo (ENU with the
     home point as origin, and geodetic), its exposure ``gains`` (N,3) per channel if rendered (photo = gain x the
     unit-exposure render, in linear light; empty/null where NaN or not given), the true camera clock offset and
-    the imperfection parameters."""
+    the imperfection parameters; ``photo_suns``: each photo's sun, in ``truth.json`` only."""
     out_dir = Path(out_dir)
     rows = _truth_rows(photos, np.full((len(photos.t_s), 3), np.nan) if gains is None else gains)
     buffer = io.StringIO()
@@ -135,7 +136,7 @@ def write_truth(out_dir: Path, flight: Flight, photos: Photos, seed: int | None,
         "duration_s": flight.duration_s,
         "seed": seed,
         "imperfections": flight.imperfections.to_dict(),
-        "photos": rows,
+        "photos": rows if photo_suns is None else [{**row, "sun": sun} for row, sun in zip(rows, photo_suns)],
         **(extra or {}),
     }
     write_text_atomic(out_dir / "truth.csv", buffer.getvalue())

@@ -1,7 +1,7 @@
-"""One dataset frame from its index: the rig, the pose source per mode, the renderer, the camera effects.
+"""One dataset frame from its index: the rig, the pose source per mode, the light, the renderer, the camera effects.
 
 :class:`FrameRenderer` loads the scene and builds embree once, then turns frame ``i`` into a
-:class:`~sim.dataset.FrameRecord`. The pose, the sun and the anti-aliasing jitter of frame ``i`` come from
+:class:`~sim.dataset.FrameRecord`. The pose, the random sun and the anti-aliasing jitter of frame ``i`` come from
 generators seeded by ``(seed, i)`` only (sim/sampling/seeds.py), so the bytes of a frame do not depend on which
 process renders it, in which order, or in which shard.
 """
@@ -27,22 +27,16 @@ from sim.render.film import apply_photometric, effects_memory_bytes
 from sim.render.raycast import default_workers
 from sim.render.renderer import render, render_memory_bytes
 from sim.render.scene import SceneError, load_scene
-from sim.render.shade import UNLIT, Sun
-from sim.run.description import SUN_STRENGTH_TO_INTENSITY
 from sim.run.options import RenderInputError, RenderOptions
 from sim.run.poses import PoseSource
 from sim.run.rig import build_rig, replay_lenses
+from sim.sampling.light import FrameLight, frame_light
 from sim.sampling.pose import PoseSample
 from sim.sampling.seeds import EXPOSURE_STREAM, NOISE_STREAM, RENDER_STREAM, frame_rng
-from sim.sampling.sun import SunSample, random_sun
+from sim.sampling.sun import SunSample
 
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
-
-
-def frame_sun(sample: SunSample) -> Sun:
-    """The renderer's sun for a sampled (paper-units) sun."""
-    return Sun(sample.azimuth_deg, sample.elevation_deg, sample.intensity * SUN_STRENGTH_TO_INTENSITY)
 
 
 @dataclass(frozen=True)
@@ -83,6 +77,11 @@ class FrameRenderer:
             self.poses = PoseSource(self.scene, options.poses, options.rig, self.rig.cameras[0], options.seed)
         except ValueError as error:
             raise RenderInputError(str(error)) from None
+        self.sun = options.light.setting(options.poses)
+        try:
+            self.light(0)
+        except ValueError as error:  # the real sun below the horizon
+            raise RenderInputError(f"--sun {self.sun.text}: {error}; give a time when it is up there") from None
         self.threads = threads or default_workers()
         self.pool = ThreadPoolExecutor(self.threads)
         self._meterings: dict[int, tuple[float, float]] = {}
@@ -124,13 +123,18 @@ class FrameRenderer:
                              time_s=sample.time_s, seed=self.options.seed, sun=sun, extra=extra)
         return record, FrameStats(index, sample.rejected, elapsed)
 
-    def _rig_lighting(self, index: int) -> tuple[Rig, dict, SunSample | None]:
-        """Frame ``index``'s rig, the lighting keywords of :func:`render` and the sampled sun (None for a replay of
-        the scene's cameras: each photo's own lens, lit as the photo was, by the texture's shading, :data:`UNLIT`)."""
-        if self.lenses is None:
-            sun = random_sun(self.options.seed, 0 if self.options.poses.mode == "trajectory" else index)
-            return self.rig, {"sun": frame_sun(sun)}, sun
-        return build_rig(self.options.rig, self.lenses[index]), UNLIT, None
+    def light(self, index: int) -> FrameLight:
+        """Frame ``index``'s light (:func:`~sim.sampling.light.frame_light`): a trajectory is one flight under one sky,
+        frame 0's for every frame; random poses and replays draw their own (the random form)."""
+        draw = 0 if self.options.poses.mode == "trajectory" else index
+        return frame_light(self.sun, self.options.seed, draw, self.scene.origin)
+
+    def _rig_lighting(self, index: int) -> tuple[Rig, dict, SunSample | dict | None]:
+        """Frame ``index``'s rig (a replay of the scene's cameras: each photo's own lens), the lighting keywords of
+        :func:`render` and the record of its sun (None when unlit)."""
+        light = self.light(index)
+        rig = self.rig if self.lenses is None else build_rig(self.options.rig, self.lenses[index])
+        return rig, light.keywords, light.record
 
     def _with_effects(self, index: int, sample: PoseSample, frame, rig: Rig, lighting: dict,
                       gain: np.ndarray | None) -> list[np.ndarray]:

@@ -4,6 +4,8 @@
   anti-aliasing samples per pixel);
 - :class:`PoseOptions`: where the cameras go (random poses, a trajectory, replayed photos or scene cameras) and how
   many frames;
+- :class:`LightOptions`: how the frames are lit (a form of ``--sun``: the paper's random sun, a fixed sun, the real
+  sun at a UTC time, an overcast sky, or unlit);
 - :class:`OutputOptions`: which files each frame writes besides the images;
 - :class:`CameraEffects`: camera effects on the colour images (rolling shutter, motion blur, vignetting,
   auto-exposure drift, sensor noise; each off by default, depth, poses and times never touched);
@@ -25,6 +27,7 @@ from pathlib import Path
 from sim.dataset import DEFAULT_FORMATS, needs_disparity
 from sim.drone.exposure import AUTO_EXPOSURE
 from sim.render.camera import MAX_SAMPLES_PER_PIXEL
+from sim.sampling.light import RANDOM_SUN, UNLIT_SUN, SunSetting
 from sim.sampling.random_poses import RandomPoseSettings
 
 MODES = ("random", "trajectory", "replay")
@@ -94,6 +97,21 @@ class PoseOptions:
     def random_settings(self) -> RandomPoseSettings:
         """The paper's ranges with this run's margin and sky limit."""
         return RandomPoseSettings(margin_m=self.margin_m or 0.0, max_miss_fraction=self.max_sky_fraction)
+
+
+@dataclass(frozen=True)
+class LightOptions:
+    """How the frames are lit: ``sun``, one form of the sun (:class:`~sim.sampling.light.SunSetting`), or None (the
+    default) for the poses' own: the paper's random sun, except a replay of the scene's cameras, which stays unlit
+    (each photo's texture as captured)."""
+
+    sun: SunSetting | None = None
+
+    def setting(self, poses: PoseOptions) -> SunSetting:
+        """The form the frames of ``poses`` are lit with."""
+        if self.sun is not None:
+            return self.sun
+        return UNLIT_SUN if poses.replays_scene_cameras else RANDOM_SUN
 
 
 @dataclass(frozen=True)
@@ -191,6 +209,7 @@ class RenderOptions:
     seed: int = 0
     rig: RigOptions = field(default_factory=RigOptions)
     poses: PoseOptions = field(default_factory=PoseOptions)
+    light: LightOptions = field(default_factory=LightOptions)
     outputs: OutputOptions = field(default_factory=OutputOptions)
     effects: CameraEffects = field(default_factory=CameraEffects)
     run: RunOptions = field(default_factory=RunOptions)

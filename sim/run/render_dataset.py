@@ -136,7 +136,7 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
                                 formats=tuple(options.outputs.formats), scene=scene,
-                                sampling=sampling_description(options), command_line=list(command_line))
+                                sampling=sampling_description(options, renderer.scene.origin), command_line=list(command_line))
 
 
 def _cluster_scheduler(run: RunOptions):

@@ -14,6 +14,8 @@ from pathlib import Path
 import pytest
 
 from tests.bad_input.harness import PROGRAMS, Case, Result, assert_refused, run_case
+from tests.sim.drone_helpers import short_orbit_csv
+from tests.sim.render_scene_helpers import write_scene
 
 MISSION, INGEST, RECON, RENDER = "aerostereo-mission", "aerostereo-ingest", "aerostereo-recon", "aerostereo-render"
 
@@ -44,6 +46,18 @@ MESHES = Files({"a.ply": b"ply A", "b.ply": b"ply B", "pairs.txt": b"0 0 0 0 0 0
 DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'})
 MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
 FOLDER = Files({}, folders=("folder",))
+VARIANTS_OUT = Files({**SCENE.contents, "v/lighting_variants.json": b'{"format": "aerostereo-lighting-variants/1"}\n'})
+NIGHT = "time:2026-06-01T23:00:00Z"  # 03:00 local time at the test scene's and the demo world's origin
+
+
+def real_scene(tmp: Path) -> None:
+    """A scene that loads (flat ground and a box at 40.18 N, 44.50 E): the sun's refusals need its origin."""
+    write_scene(tmp / "scene")
+
+
+def orbit_csv(tmp: Path) -> None:
+    """A short orbit over the demo world."""
+    short_orbit_csv(tmp / "orbit.csv")
 FLIGHTS = Files({**{f"{f}/photos/DJI_0001.JPG": JPEG for f in ("f1", "f2", "other/f1")}, "f1/geotags.csv": b"image_name\n",
                  "f1/geotags.json": b"{}\n", "picks.txt": b"0 0 0 1 1 1\n2 0 0 3 1 1\n0 2 0 1 3 1\n",
                  "bad_picks.txt": b"0 0 0 1 1 1\n2 0 0 3 1\n0 2 0 1 3 1\n"}, folders=("folder",))
@@ -260,6 +274,43 @@ CASES = [
     Case("render-flight-without-mission", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--mode",
                                                    "trajectory", "--trajectory", "flight"],
          r"--trajectory flight needs --mission", SCENE),
+    Case("render-sun-elevation-95", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", "10,95,8"],
+         r"argument --sun: '10,95,8': elevation must be in \(0, 90\] degrees above the horizon, got 95\.0", SCENE),
+    Case("render-sun-strength-negative", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", "45,60,-1"],
+         r"argument --sun: '45,60,-1': strength must be a finite number >= 0 .*got -1\.0", SCENE),
+    Case("render-sun-azimuth-nan", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", "nan,60,8"],
+         r"argument --sun: 'nan,60,8': azimuth must be a finite number of degrees", SCENE),
+    Case("render-sun-word", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", "sunny"],
+         r"argument --sun: expected random, AZ,EL,STRENGTH, time:ISO8601, overcast or unlit .*got 'sunny'", SCENE),
+    Case("render-sun-time-yesterday", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", "time:yesterday"],
+         r"argument --sun: 'time:yesterday': expected time:ISO8601 \(a UTC time like", SCENE),
+    Case("render-sun-time-at-night", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", NIGHT],
+         rf"--sun {NIGHT}: at 2026-06-01T23:00:00Z the sun is at -21\.7 deg elevation over 40\.17920, 44\.49910 "
+         r"\(the scene's origin\), at or below the horizon; give a time when it is up there", real_scene),
+    Case("render-variants-bad-name", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--lighting-variants",
+                                              "../noon=45,60,8"],
+         r"argument --lighting-variants: variant name '\.\./noon': expected a folder name of letters, digits", SCENE),
+    Case("render-variants-duplicate", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--lighting-variants",
+                                               "noon=45,60,8,flat=overcast,Noon=unlit"],
+         r"argument --lighting-variants: variant names must differ \(letter case aside\): Noon, noon repeat", SCENE),
+    Case("render-variants-bad-sun", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--lighting-variants",
+                                             "noon=45,95,8"],
+         r"argument --lighting-variants: noon=45,95,8: '45,95,8': elevation must be in \(0, 90\]", SCENE),
+    Case("render-variants-no-equals", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--lighting-variants",
+                                               "overcast"],
+         r"argument --lighting-variants: expected NAME=SUN\[,NAME=SUN...\]", SCENE),
+    Case("render-variants-time-at-night", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--lighting-variants",
+                                                   f"day=45,60,8,night={NIGHT}"],
+         rf"--lighting-variants night={NIGHT}: at .* -21\.7 deg elevation over 40\.17920, 44\.49910", real_scene),
+    Case("render-variants-and-sun", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--sun", "unlit",
+                                             "--lighting-variants", "a=unlit"],
+         r"--lighting-variants and --sun exclude each other", SCENE),
+    Case("render-variants-into-a-dataset", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/dataset",
+                                                    "--lighting-variants", "a=unlit"],
+         r"--out .*dataset: holds a dataset; lighting variants are written into OUT/NAME/",
+         Files({**SCENE.contents, **DATASET.contents})),
+    Case("render-dataset-into-variants", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/v"],
+         r"--out .*v: holds lighting variants \(lighting_variants\.json\)", VARIANTS_OUT),
     # aerostereo-render compare
     Case("compare-no-folders", RENDER, ["compare"], r"^aerostereo-render compare: .*required: real_dir"),
     Case("compare-real-missing", RENDER, ["compare", "{tmp}/none", "{tmp}/folder"],
@@ -325,6 +376,19 @@ CASES = [
                                            "--out", "{tmp}/out"], r"--out .*out: holds --mission", MISSION_CSV),
     Case("fly-out-is-scene", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--scene", "{tmp}/scene",
                                       "--out", "{tmp}/scene"], r"--out .*scene: is also --scene", MISSION_CSV),
+    Case("fly-sun-random", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--sun", "random"],
+         r"argument --sun: random is the datasets' draw per frame; a flight takes AZ,EL,STRENGTH", MISSION_CSV),
+    Case("fly-sun-elevation-95", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--sun",
+                                          "10,95,8"], r"argument --sun: '10,95,8': elevation must be in \(0, 90\]",
+         MISSION_CSV),
+    Case("fly-at-night", RENDER, ["fly", "--mission", "{tmp}/orbit.csv", "--scene", "demo:small", "--out", "{tmp}/f",
+                                  "--start-utc", "2026-06-01T23:00:00Z"],
+         r"photo DJI_0001\.JPG: at 2026-06-01T23:00:\d\d(\.\d+)?Z the sun is at -2\d\.\d deg elevation over "
+         r"40\.17920, 44\.49910 .*at or below the horizon; give a daytime --start-utc or --sun", orbit_csv),
+    Case("fly-sun-time-at-night", RENDER, ["fly", "--mission", "{tmp}/orbit.csv", "--scene", "demo:small", "--out",
+                                           "{tmp}/f", "--sun", NIGHT],
+         rf"--sun {NIGHT}: photo DJI_0001\.JPG: at .* at or below the horizon; give a time when the sun is up there",
+         orbit_csv),
 ]
 
 

@@ -3,6 +3,7 @@ aircraft profile's lens distortion, both exactly in the truth and (for the lens)
 
 import csv
 import datetime as dt
+import json
 import math
 from dataclasses import replace
 
@@ -19,9 +20,10 @@ from sim.drone import Imperfections
 from sim.drone.exposure import GAIN_RANGE, auto_exposure_gains, metered_luminance
 from sim.drone.photos import DEFAULT_SUN, photo_camera, poses_in_scene, render_photos
 from sim.drone.session import FlyOptions, fly_litchi_mission, run_session
-from sim.render.renderer import Lighting, render
+from sim.render.renderer import Lighting, Sun, render
 from sim.render.scene import Scene, Surface, load_scene
 from sim.render.color import SRGB8_TO_LINEAR
+from sim.sampling.sun import SUN_STRENGTH_TO_INTENSITY
 from sim.worlds import demo_scene_dir
 from tests.sim.drone_helpers import short_orbit_csv
 
@@ -60,10 +62,12 @@ def sun_relative_heading_deg(mission, indices) -> np.ndarray:
 
 
 def test_photo_gains_measured_against_unit_exposure_renders_equal_the_truth(world, tmp_path):
-    options = FlyOptions(photo_size=(160, 120), seed=3, photo_limit=6, progress=False)
+    """Each photo is its unit-exposure render under the sun truth.json gives it, times its gains."""
+    options = FlyOptions(photo_size=(160, 120), seed=3, photo_limit=6, progress=False, start_utc=START)
     report = run_session(short_orbit_csv(tmp_path / "orbit.csv"), world, tmp_path / "fly", options)
     with open(tmp_path / "fly" / "truth.csv", newline="") as handle:
         truth = {row["image_name"]: row for row in csv.DictReader(handle) if row["gain_r"]}
+    suns = {row["image_name"]: row["sun"] for row in json.loads((tmp_path / "fly" / "truth.json").read_text())["photos"]}
     assert len(truth) == 6
     photos = report.mission.photos
     taken = np.flatnonzero(photos.taken)[:6]
@@ -72,8 +76,10 @@ def test_photo_gains_measured_against_unit_exposure_renders_equal_the_truth(worl
     camera = photo_camera(160, 120)
     measured, true = [], []
     for index, pose in zip(taken, poses):
-        unit = SRGB8_TO_LINEAR[render(world, Rig((camera,)), pose, DEFAULT_SUN).views[0].rgb]
         name = photos.names[index]
+        sun = Sun(suns[name]["azimuth_deg"], suns[name]["elevation_deg"],
+                  suns[name]["strength"] * SUN_STRENGTH_TO_INTENSITY)
+        unit = SRGB8_TO_LINEAR[render(world, Rig((camera,)), pose, sun).views[0].rgb]
         measured.append(measured_gain(linear(tmp_path / "fly" / "photos" / name), unit))
         true.append([float(truth[name][f"gain_{c}"]) for c in "rgb"])
     measured, true = np.array(measured), np.array(true)
@@ -168,7 +174,7 @@ def xmp_values(path) -> dict[str, str]:
 
 
 def test_photo_xmp_carries_the_profile_calibration_in_djis_convention(world, tmp_path):
-    options = FlyOptions(photo_size=(800, 600), seed=3, photo_limit=1, progress=False)
+    options = FlyOptions(photo_size=(800, 600), seed=3, photo_limit=1, progress=False, start_utc=START)
     run_session(short_orbit_csv(tmp_path / "orbit.csv"), world, tmp_path, options)
     xmp = xmp_values(tmp_path / "photos" / "DJI_0001.JPG")
     assert (xmp["CalibratedOpticalCenterX"], xmp["CalibratedOpticalCenterY"]) == ("400.000000", "300.000000")

@@ -101,6 +101,20 @@ def test_compare_undoes_the_exposure_gain_of_each_photo(replay, tmp_path, capsys
         assert gain_error < 0.3 and covered_gain_error == gain_error and fitted_error < 0.3
 
 
+def test_a_replay_stays_unlit_unless_a_sun_is_given(replay, tmp_path):
+    """The default keeps each photo's texture as captured; ``--sun`` relights the same views (same depth)."""
+    assert json.loads((replay / "dataset.json").read_text())["sampling"]["lighting"].startswith("unlit")
+    scene, out = scene_with_cameras(tmp_path / "scene"), tmp_path / "lit"
+    assert cli_main(["--scene", str(scene), "--out", str(out), "--mode", "replay", "--quiet", "--sun", "45,60,8"]) == 0
+    suns = [json.loads(line)["sun"] for line in (out / "sequences/00/frames.jsonl").read_text().splitlines()]
+    assert [sun["form"] for sun in suns] == ["fixed", "fixed"] and suns[0]["azimuth_deg"] == 45.0
+    sampling = json.loads((out / "dataset.json").read_text())["sampling"]
+    assert "lighting" not in sampling and sampling["sun"]["strength"] == 8.0
+    for index in range(2):
+        depth = f"sequences/00/depth_2/{index:06d}.exr"
+        np.testing.assert_array_equal(read_exr(out / depth), read_exr(replay / depth))
+
+
 def test_width_scales_every_lens(tmp_path):
     scene = scene_with_cameras(tmp_path / "scene")
     out = tmp_path / "out"
