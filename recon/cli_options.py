@@ -6,6 +6,7 @@ argument types, and the :class:`~recon.pipeline.ReconOptions` they make.
 from __future__ import annotations
 
 import argparse
+import math
 
 from recon.dense import DenseOptions
 from recon.pipeline import MESHES, TEXTURES, ReconOptions
@@ -61,11 +62,30 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
                         help="atlas: each face from its best photo; ortho: a true orthophoto (for --mesh 2.5d); "
                              "none: vertex colours only (default %(default)s)")
     parser.add_argument("--texel", type=float, help="texel size, m (default: one pixel of the photos on the surface)")
+    parser.add_argument("--capture-sun", type=sun_direction, metavar="AZ,EL",
+                        help="the sun every photo was taken under, azimuth and elevation in degrees (default: from "
+                             "each photo's UTC time in the geotags, over the scene's origin)")
+    parser.add_argument("--keep-capture-light", action="store_true",
+                        help="leave the capture day's light in the atlas (by default photos with a UTC time have it "
+                             "divided out: the texture is the albedo and capture_light.png the light, so the twin "
+                             "can be lit by any sun)")
     parser.add_argument("--hold-out", type=hold_out_count, default=0, metavar="K",
                         help="register every photo but leave every K-th (name order, K >= 2) out of depth maps, "
                              "fusion and texture, to measure photorealism on photos the texture never saw "
                              "(cameras.json marks them held_out; 0: off)")
     parser.add_argument("--verbose", action="store_true", help="show COLMAP's own log")
+
+
+def sun_direction(text: str) -> tuple[float, float]:
+    """``--capture-sun AZ,EL``: degrees, the elevation in (0, 90]."""
+    parts = text.split(",")
+    try:
+        azimuth, elevation = (float(part) for part in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AZ,EL in degrees (e.g. 150,50), got {text!r}") from None
+    if not (math.isfinite(azimuth) and math.isfinite(elevation) and 0 < elevation <= 90):
+        raise argparse.ArgumentTypeError(f"expected a finite azimuth and an elevation in (0, 90] degrees, got {text!r}")
+    return azimuth, elevation
 
 
 def recon_options(args: argparse.Namespace) -> ReconOptions:
@@ -79,4 +99,5 @@ def recon_options(args: argparse.Namespace) -> ReconOptions:
         mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
         texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
+        delight=not args.keep_capture_light, capture_sun=args.capture_sun,
     )

@@ -31,6 +31,7 @@ from sim.render.renderer import View, miss_fraction, render
 from sim.sampling.pose import PoseSample
 from sim.sampling.random_poses import RandomPoseSettings, random_pose
 from sim.render.scene import Scene
+from sim.render.color import SRGB8_TO_LINEAR
 from sim.render.shade import Sun
 
 #: A pixel shows a wall where its true surface normal is steeper than 45 deg from vertical (its up component).
@@ -179,6 +180,57 @@ def score_view(true_view: View, twin_view: View, polygon: np.ndarray, depth_scal
         depth_abs_rel=depth_errors(twin_depth, true_view.depth).abs_rel if covered.any() else math.nan,
         error_whole=photorealism_error_percent(truth, twin),
         wall_fraction=float((in_area & walls).sum() / count) if count else math.nan)
+
+
+#: A pixel is in a shadow of one light and lit by the other where its luminance under the first is below this
+#: fraction of its luminance under the second.
+SHADOW_CONTRAST = 0.6
+
+
+@dataclass(frozen=True)
+class LightScores:
+    """How the twin carries light at one pose, over the in-area pixels it covers. ``ghost_twin``/``ghost_truth``: the
+    summed luminance of twin and truth over the pixels in a shadow at capture that the drawn sun lights (the ghost
+    ratio is their quotient: 1 when the capture's shadows are gone); ``error_lit``: formula 3 over the pixels lit
+    by both suns; ``error_unlit_at_capture``: formula 3 of the twin rendered as captured against the truth under the
+    capture sun (the texture's own floor)."""
+
+    ghost_pixels: int
+    ghost_twin: float
+    ghost_truth: float
+    error_lit: float
+    error_unlit_at_capture: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def score_light(true_view: View, captured_view: View, twin_view: View, twin_as_captured: View,
+                polygon: np.ndarray) -> LightScores:
+    """:class:`LightScores` of a twin rendered under the drawn sun (``twin_view``) and as captured, against the
+    truth under the drawn sun and under the capture sun (``captured_view``), all from one pose."""
+    covered = true_view.valid & twin_view.valid & inside(polygon, surface_points(true_view))
+    now, then = _luminance(true_view.rgb), _luminance(captured_view.rgb)
+    ghost = covered & (then < SHADOW_CONTRAST * now)
+    lit_both = covered & ~ghost & (now >= SHADOW_CONTRAST * then)
+    twin_now = _luminance(twin_view.rgb)
+    return LightScores(int(ghost.sum()), float(twin_now[ghost].sum()), float(now[ghost].sum()),
+                       photorealism_error_masked(true_view.rgb, twin_view.rgb, lit_both),
+                       photorealism_error_masked(captured_view.rgb, twin_as_captured.rgb,
+                                                 covered & twin_as_captured.valid))
+
+
+def summarise_light(scores: Sequence[LightScores]) -> dict:
+    """The ghost ratio pooled over the views, and the mean errors."""
+    twin, truth = sum(s.ghost_twin for s in scores), sum(s.ghost_truth for s in scores)
+    return {"ghost_ratio": twin / truth if truth > 0 else math.nan,
+            "ghost_pixels": int(sum(s.ghost_pixels for s in scores)),
+            "error_lit": float(np.nanmean([s.error_lit for s in scores])),
+            "error_unlit_at_capture": float(np.nanmean([s.error_unlit_at_capture for s in scores]))}
+
+
+def _luminance(rgb: np.ndarray) -> np.ndarray:
+    return SRGB8_TO_LINEAR[rgb].mean(axis=-1)
 
 
 def summarise(scores: Sequence[ViewScores]) -> dict:

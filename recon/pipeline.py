@@ -40,6 +40,7 @@ from scipy.spatial import cKDTree
 from capture.geotag_io import sidecar_path
 from recon import dense, mesh as meshing, texture as texturing
 from recon.atlas import AtlasOptions, texture_atlas
+from recon.capture_sun import CaptureSuns, capture_suns, is_timed
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
 from cliutil.atomic import atomic_path, write_text_atomic
@@ -48,11 +49,12 @@ from cliutil.jsonfile import read_json
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
-from recon.scene_out import scene_cameras, write_scene
+from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
 from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
 from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
+from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
 
 MESHES = ("3d", "2.5d", "poisson")
@@ -83,7 +85,10 @@ class ReconOptions:
     ``crop_margin`` x the median viewing distance and trimmed at ``poisson_trim``, "2.5d" height field, or "poisson"
     of the whole cloud), grid cell (None = 2 GSD), decimation, ``texture`` ("atlas": a texture atlas, each face from
     its best photo; "ortho": a true orthophoto, for 2.5-D fields; "none": vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
-    but left out of depth maps, fusion and texture; 0 = none)."""
+    but left out of depth maps, fusion and texture; 0 = none), ``delight``: an atlas of photos with a UTC time stores
+    the albedo and the capture light it divided out (recon/delight.py), so the twin can be lit by another sun;
+    ``capture_sun``: (azimuth, elevation) degrees of the sun of every photo when it is known better than their times
+    say (a virtual flight lit by a fixed sun), None: from each photo's UTC time."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
@@ -97,12 +102,17 @@ class ReconOptions:
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
     atlas_options: AtlasOptions = field(default_factory=AtlasOptions)
     hold_out: int = 0
+    delight: bool = True
+    capture_sun: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         if self.mesh not in MESHES:
             raise ValueError(f"mesh must be one of {', '.join(MESHES)}, got {self.mesh!r}")
         if self.texture not in TEXTURES:
             raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
+        if self.capture_sun is not None and not (np.all(np.isfinite(self.capture_sun)) and
+                                                 0 < self.capture_sun[1] <= 90):
+            raise ValueError(f"capture sun must be an azimuth and an elevation in (0, 90] degrees, got {self.capture_sun}")
         if not (np.isfinite(self.crop_margin) and self.crop_margin >= 0):
             raise ValueError(f"crop margin must be a non-negative multiple of the viewing distance, got {self.crop_margin}")
         if self.hold_out == 1 or self.hold_out < 0:
@@ -351,12 +361,14 @@ class Recon:
         with self.step_progress("texture") as progress:
             count = lambda items: counted(items, "photos", progress)
             if self.options.texture == "atlas":
+                suns = self.capture_suns([photo.name for photo in photos])
                 textured = texture_atlas(surface, photos, self.options.atlas_options, count,
                                          log=lambda message: self.log(f"[texture] {message}"),
-                                         held_out=self.held_out_photos())
+                                         held_out=self.held_out_photos(),
+                                         sun_enu=None if suns is None else suns.directions_enu)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
             else:
-                textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
+                suns, textured = None, texturing.orthophoto(surface, photos, self.options.texture_options, count)
                 encoded, texel_m, coverage = texturing.textured_glb(surface, textured, self.priors.origin), textured.texels.texel_m, \
                     textured.coverage
         with atomic_path(self.work / "terrain.glb") as tmp:
@@ -366,8 +378,44 @@ class Recon:
                  f"{100 * coverage:.1f} %, exposure gains {min(textured.gains.values()):.3f}.."
                  f"{max(textured.gains.values()):.3f}")
         report = {"kind": self.options.texture, "texel_m": texel_m, "size_px": [width, height],
-                  "coverage": coverage, "gains": textured.gains}
+                  "coverage": coverage, "gains": textured.gains,
+                  "capture_light": self.write_capture_light(textured, suns)}
         write_text_atomic(marker, json.dumps(report, indent=2))
+
+    def capture_suns(self, names) -> CaptureSuns | None:
+        """The capture sun of each photo of ``names``, or None (logged) when the light is kept: delighting is off or
+        the photos cannot be timed."""
+        if not self.options.delight:
+            return None
+        if self.options.capture_sun is not None:
+            azimuth, elevation = self.options.capture_sun
+            return CaptureSuns(tuple(names), np.full(len(names), azimuth), np.full(len(names), elevation),
+                               "given (--capture-sun)")
+        if not is_timed(self.priors.utc_time_s):
+            self.log("[texture] the photos have no UTC time (EXIF clocks carry no time zone): the capture sun is "
+                     "unknown, so the texture keeps the capture day's light; geotag them from a flight log to relight")
+            return None
+        suns = capture_suns(self.priors.names, self.priors.utc_time_s, self.priors.origin, self.priors.source)
+        if np.all(suns.elevation_deg <= 0):
+            self.log("[texture] the sun was below the horizon at every photo's UTC time: no capture sun, the texture "
+                     "keeps its light (give --capture-sun AZ,EL if the times are not the photos' own)")
+            return None
+        return suns.for_names(names)
+
+    def write_capture_light(self, textured, suns: CaptureSuns | None) -> dict:
+        """Write ``work/capture_light.png`` when the atlas divided its light out; what the texture report says."""
+        path = self.work / CAPTURE_LIGHT_FILE
+        path.unlink(missing_ok=True)
+        if suns is None:
+            return {"applied": False, "reason": "off" if not self.options.delight else "photos not timed"}
+        report = {"applied": textured.capture_light is not None, "capture_sun": suns.description(),
+                  "sun_sky_ratio": np.round(textured.delighting.ratio, 4).tolist(),
+                  "shadow_edge_blocks": textured.delighting.blocks, "relit_texels": textured.delighting.relit}
+        if textured.capture_light is None:
+            report["reason"] = "no shadow edge to fit a sun on (an overcast capture keeps its colours)"
+        else:
+            write_capture_light(path, textured.capture_light)
+        return report
 
     def stage_scene(self):
         surface = self.surface_mesh()
@@ -389,4 +437,8 @@ class Recon:
         gains = provenance["texture"]["gains"] if textured_now else {}
         cameras = scene_cameras(pycolmap.Reconstruction(self.work / "sparse"), gains, self.held_out)
         mesh_name, encoded = ("terrain.glb", textured.read_bytes()) if textured_now else ("terrain.ply", None)
-        write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras)
+        light = self.work / CAPTURE_LIGHT_FILE
+        capture_light = (light.read_bytes(), provenance["texture"]["capture_light"]) if textured_now and \
+            light.is_file() else None
+        write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras,
+                    capture_light)

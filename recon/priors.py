@@ -55,6 +55,9 @@ class PosePriors:
     sigma_m: np.ndarray | None = None
     source: str = "geotags"
     untagged: tuple[str, ...] = ()
+    #: (N,) UTC of each photo, seconds since the epoch; None where the source cannot time them (EXIF clocks without
+    #: a time zone): recon.capture_sun then leaves the texture lit.
+    utc_time_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         sigma = DEFAULT_SIGMA_M if self.sigma_m is None else self.sigma_m
@@ -68,8 +71,9 @@ class PosePriors:
         """The priors of ``names`` (in that order)."""
         idx = [self.index()[n] for n in names]
         rot = None if self.rotations_world_cam is None else self.rotations_world_cam[idx]
+        utc = None if self.utc_time_s is None else self.utc_time_s[idx]
         return PosePriors(tuple(names), self.positions_enu[idx], rot, self.origin, self.sigma_m[idx], self.source,
-                          self.untagged)
+                          self.untagged, utc)
 
 
 def list_photos(photo_dir: Path) -> list[str]:
@@ -99,7 +103,8 @@ def read_geotags(csv_path: Path) -> PosePriors:
         raise PriorsError(f"{csv_path}: some rows have no camera attitude (qw,qx,qy,qz empty)")
     untagged = tuple(entry["image_name"] for entry in meta.get("untagged", []))
     return PosePriors(tuple(names), np.array([tag.position_enu_m for tag in tags]),
-                      np.array([tag.R_world_cam for tag in tags]), tags[0].origin, None, "geotags", untagged)
+                      np.array([tag.R_world_cam for tag in tags]), tags[0].origin, None, "geotags", untagged,
+                      np.array([tag.utc_time_s for tag in tags], dtype=float))
 
 
 @contextmanager

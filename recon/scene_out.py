@@ -21,10 +21,12 @@ from flightplan.geodesy import LocalFrame
 from cliutil.atomic import atomic_path, write_text_atomic
 from recon.observed import viewed_area
 from recon.sfm.cameras import camera_from_colmap, camera_poses
+from sim.render.capture_light import ENCODING
 from sim.render.scene_cameras import SceneCamera, write_cameras
 
 SCENE_FORMAT = "aerostereo-scene/1"
 CAMERAS_FILE = "cameras.json"
+CAPTURE_LIGHT_FILE = "capture_light.png"
 
 
 def scene_cameras(model: pycolmap.Reconstruction, gains: Mapping[str, float],
@@ -58,9 +60,10 @@ def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, pr
 
 def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, provenance: dict,
                 mesh_name: str = "terrain.ply", encoded: bytes | None = None,
-                cameras: Sequence[SceneCamera] = ()) -> Path:
+                cameras: Sequence[SceneCamera] = (), capture_light: tuple[bytes, dict] | None = None) -> Path:
     """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh), ``cameras.json``
-    when there are ``cameras``, and ``scene.json`` (last, so its presence means the scene is complete)."""
+    when there are ``cameras``, the ``capture_light`` (PNG bytes, what to say of it) of a delit texture, and
+    ``scene.json`` (last, so its presence means the scene is complete)."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
         if encoded is None:
@@ -68,6 +71,11 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
         else:
             tmp.write_bytes(encoded)
     meta = scene_metadata(mesh, mesh_name, origin, provenance)
+    if capture_light is not None:
+        png, description = capture_light
+        with atomic_path(scene_dir / CAPTURE_LIGHT_FILE) as tmp:
+            tmp.write_bytes(png)
+        meta["capture_light"] = {"file": CAPTURE_LIGHT_FILE, "encoding": ENCODING, **description}
     if cameras:
         write_cameras(scene_dir / CAMERAS_FILE, cameras)
         meta["cameras"] = CAMERAS_FILE

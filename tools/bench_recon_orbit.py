@@ -43,7 +43,7 @@ from recon.sfm.options import SfmOptions  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.virtual_flight import (  # noqa: E402
-    INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, reuse_stages, save_jpeg,
+    FLIGHT_SUN, INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, reuse_stages, save_jpeg,
 )
 
 TARGET_S = 15 * 60  # issue 17: a full default orbit to a 3-D textured scene in 15 min on 2 cores
@@ -63,7 +63,7 @@ def virtual_flight(world, orbit: Orbit, folder: Path) -> tuple[Flight, float]:
         staging.rename(folder)
     names = [photo_name(k) for k in range(orbit.photos)]  # fly()'s names, poses and camera
     poses = dict(zip(names, orbit_poses(world, orbit)))
-    return Flight(folder / "photos", folder / "geotags.csv", names, poses, orbit.camera), seconds
+    return Flight(folder / "photos", folder / "geotags.csv", names, poses, orbit.camera, FLIGHT_SUN), seconds
 
 
 def decode_seconds(size: tuple[int, int]) -> float:

@@ -16,6 +16,12 @@ Printed, a row per scene: over the pixels whose TRUE surface point lies in the o
 twin's coverage, formula 3 (%) where it has surface, split into walls (true normal > 45 deg from vertical) and
 flat, their ratio, depth abs rel, and formula 3 over whole images for reference; render seconds per view.
 Means over the views; the JSON has every view.
+
+A second table says how each twin carries light (recon.oblique.score_light): the truth is also rendered under the
+flight's capture sun (``--capture-sun AZ,EL,STRENGTH``, default truth.json's fixed sun), and per scene it prints the
+ghost ratio (twin / truth luminance over the pixels in a capture shadow that the drawn sun lights: 1 when the
+capture's shadows are gone, far below 1 for a texture that still holds them), formula 3 over the pixels lit by both
+suns, and the floor: the twin rendered as captured against the truth under the capture sun.
 """
 
 from __future__ import annotations
@@ -34,8 +40,8 @@ from scipy.spatial import ConvexHull  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from recon.cli_options import positive_int  # noqa: E402
-from recon.oblique import (render_view, sample_views, score_view, summarise, true_camera_area,  # noqa: E402
-                           twin_frame)
+from recon.oblique import (render_view, sample_views, score_light, score_view, summarise,  # noqa: E402
+                           summarise_light, true_camera_area, twin_frame)
 from recon.scene_cameras import scene_camera_poses  # noqa: E402
 from sim.render.camera import PinholeCamera  # noqa: E402
 from sim.dataset.images import write_png  # noqa: E402
@@ -44,6 +50,10 @@ from sim.render.raycast import default_workers  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.sampling.sun import random_sun  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
+from sim.render.camera import Rig  # noqa: E402
+from sim.render.renderer import render  # noqa: E402
+from sim.render.shade import UNLIT, Sun  # noqa: E402
+from sim.run.description import SUN_STRENGTH_TO_INTENSITY  # noqa: E402
 
 
 def labelled_scene(text: str) -> tuple[str, Path]:
@@ -54,6 +64,26 @@ def labelled_scene(text: str) -> tuple[str, Path]:
     return label, Path(folder)
 
 
+def sun_argument(text: str) -> Sun:
+    """``AZ,EL,STRENGTH`` (degrees, degrees, the paper's strength) -> the renderer's sun."""
+    try:
+        azimuth, elevation, strength = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected AZ,EL,STRENGTH, got {text!r}") from None
+    return Sun(azimuth, elevation, strength * SUN_STRENGTH_TO_INTENSITY)
+
+
+def flight_sun(args, truth: dict) -> Sun:
+    """The capture sun: ``--capture-sun``, else truth.json's fixed sun."""
+    if args.capture_sun is not None:
+        return args.capture_sun
+    sun = truth.get("sun", {})
+    if not all(key in sun for key in ("azimuth_deg", "elevation_deg", "strength")):
+        raise ValueError(f"{args.truth}: no fixed sun in truth.json (its photos followed the real sun): give "
+                         "--capture-sun AZ,EL,STRENGTH")
+    return Sun(sun["azimuth_deg"], sun["elevation_deg"], sun["strength"] * SUN_STRENGTH_TO_INTENSITY)
+
+
 def load_inputs(args) -> tuple:
     """The true world, each twin's scene and frame, and the observed area (world ENU)."""
     truth = json.loads(args.truth.read_text(encoding="utf-8"))
@@ -62,7 +92,7 @@ def load_inputs(args) -> tuple:
     for label, folder in args.scene:
         twins[label] = (load_scene(folder), twin_frame(folder, truth, world.origin))
         registered |= set(scene_camera_poses(folder))
-    return world, twins, true_camera_area(truth, registered, world.origin)
+    return world, twins, true_camera_area(truth, registered, world.origin), flight_sun(args, truth)
 
 
 def print_table(summaries: dict, truth_s: float, views: int) -> None:
@@ -85,6 +115,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--truth", type=Path, required=True, help="the flight's truth.json (aerostereo-render fly)")
     parser.add_argument("--scene", type=labelled_scene, action="append", required=True, metavar="LABEL=DIR",
                         help="a reconstructed scene folder of that flight (repeat to compare)")
+    parser.add_argument("--capture-sun", type=sun_argument, metavar="AZ,EL,STRENGTH",
+                        help="the sun of the flight's photos (default: truth.json's sun, when the flight had a fixed one)")
     parser.add_argument("--views", type=positive_int, default=20)
     parser.add_argument("--size", type=positive_int, nargs=2, default=(640, 360), metavar=("W", "H"))
     parser.add_argument("--fov", type=float, default=80.0, help="horizontal field of view, deg (default 80)")
@@ -95,26 +127,42 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def measure(args, world, twins: dict, area: np.ndarray, camera: PinholeCamera, poses) -> tuple[dict, dict, float]:
+def measure(args, world, twins: dict, area: np.ndarray, camera: PinholeCamera, poses,
+            capture: Sun) -> tuple[dict, dict, dict, float]:
     """Render every pose in the true world and in each twin (same camera, same sun: the dataset renderer's sun
-    of frame ``i``) and score them: per-view scores and render seconds per scene, and the true world's seconds."""
-    scores, render_s, truth_s = {label: [] for label in twins}, dict.fromkeys(twins, 0.0), 0.0
+    of frame ``i``) and score them; the truth also under the ``capture`` sun and each twin as captured, for the light
+    scores. Per-view scores and light scores and render seconds per scene, and the true world's seconds."""
+    scores, light, render_s, truth_s = ({label: [] for label in twins}, {label: [] for label in twins},
+                                        dict.fromkeys(twins, 0.0), 0.0)
     with ThreadPoolExecutor(default_workers()) as pool:
         for index, pose in enumerate(poses):
             sun = frame_sun(random_sun(args.seed, index))
             start = time.perf_counter()
             true_view = render_view(world, camera, pose.T_world_cam, sun, pool)
             truth_s += time.perf_counter() - start
+            captured = render_view(world, camera, pose.T_world_cam, capture, pool)
             for label, (scene, frame) in twins.items():
                 start = time.perf_counter()
-                twin_view = render_view(scene, camera, frame.camera_pose(pose.T_world_cam), frame.sun(sun), pool)
+                twin_pose = frame.camera_pose(pose.T_world_cam)
+                twin_view = render_view(scene, camera, twin_pose, frame.sun(sun), pool)
                 render_s[label] += time.perf_counter() - start
                 scores[label].append(score_view(true_view, twin_view, area, frame.scale))
+                as_captured = render(scene, Rig((camera,)), twin_pose, pool=pool, **UNLIT).views[0]
+                light[label].append(score_light(true_view, captured, twin_view, as_captured, area))
                 if args.pictures and index < args.picture_count:
                     write_png(args.pictures / f"view{index:03d}_{label}.png",
                               np.hstack([true_view.rgb, twin_view.rgb]))
             print(f"view {index + 1}/{len(poses)}", file=sys.stderr)
-    return scores, render_s, truth_s
+    return scores, light, render_s, truth_s
+
+
+def print_light_table(light: dict) -> None:
+    """One row per scene: the ghost ratio, formula 3 where both suns light the surface, the as-captured floor."""
+    header = ["scene", "ghost ratio", "ghost px", "f3 lit by both %", "f3 as captured vs capture sun %"]
+    print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
+    for label, s in light.items():
+        print(f"| {label} | {s['ghost_ratio']:.3f} | {s['ghost_pixels']} | {s['error_lit']:.2f} | "
+              f"{s['error_unlit_at_capture']:.2f} |")
 
 
 def main(argv=None) -> int:
@@ -128,7 +176,7 @@ def main(argv=None) -> int:
     except ValueError as error:
         parser.error(f"argument --fov: {error}")
     try:
-        world, twins, area = load_inputs(args)
+        world, twins, area, capture = load_inputs(args)
         start = time.perf_counter()
         poses = sample_views(world, camera, area, args.views, args.seed)
     except (OSError, ValueError, KeyError, RuntimeError) as error:  # SceneError, RenderInputError: ValueErrors
@@ -137,9 +185,13 @@ def main(argv=None) -> int:
     print(f"{args.views} views {args.size[0]}x{args.size[1]} ({args.fov:g} deg), seed {args.seed}, observed area "
           f"{len(area)}-gon of {ConvexHull(area).volume:.0f} m2; sampled in {time.perf_counter() - start:.1f} s "
           f"({sum(p.rejected for p in poses)} draws rejected)", file=sys.stderr)
-    scores, render_s, truth_s = measure(args, world, twins, area, camera, poses)
+    scores, light, render_s, truth_s = measure(args, world, twins, area, camera, poses, capture)
     summaries = {label: {**summarise(scores[label]), "render_s": render_s[label]} for label in twins}
+    light_summaries = {label: summarise_light(light[label]) for label in twins}
     print_table(summaries, truth_s, args.views)
+    print_light_table(light_summaries)
+    for label in twins:
+        summaries[label]["light"] = light_summaries[label]
     if args.json:
         write_text_atomic(args.json, json.dumps(report(args, area, poses, twins, summaries, scores, truth_s),
                                                 indent=1, default=str) + "\n")

@@ -56,6 +56,13 @@ from sim.render.scene import SceneError, read_scene_json  # noqa: E402
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
 
 
+def capture_sun_option(sun: str) -> list[str]:
+    """recon's ``--capture-sun AZ,EL`` for fly's fixed ``--sun AZ,EL,STRENGTH`` (the photos' sun is not the one of the
+    geotags' UTC times: the live link runs on the host clock); nothing for the other forms (recon times the photos)."""
+    parts = sun.split(",")
+    return ["--capture-sun", ",".join(parts[:2])] if len(parts) == 3 else []
+
+
 def cli(script: str) -> list[str]:
     """The command line that runs ``script``: its module run with this Python, so the loop works whether or not
     the console scripts are on PATH."""
@@ -351,6 +358,7 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
             options += ["--grid", str(config.grid_m)]
         if config.decimate_error_m is not None:
             options += ["--decimate-error", str(config.decimate_error_m)]
+        options += capture_sun_option(config.sun)
         add(run("recon", cli("aerostereo-recon") + ["--photos", str(fly_dir / "photos"), "--geotags", str(geotags),
                                                    "--out", str(recon_dir), *options], log_dir))
     else:

@@ -54,6 +54,7 @@ class Flight:
     names: list[str]
     poses: dict[str, np.ndarray]  # true T_world_cam, ENU of the world
     camera: PinholeCamera
+    sun: Sun  # the photos' light (their geotags' times are a placeholder, not the time of this sun)
 
     def pose_errors(self, estimated: dict[str, np.ndarray]) -> PoseErrors:
         """Errors of the ``estimated`` ``T_world_cam`` by name (same ENU frame) against the truth, over the
@@ -83,7 +84,11 @@ def save_jpeg(path: Path, rgb: np.ndarray) -> None:
     Image.fromarray(rgb).save(path, quality=95, exif=exif)
 
 
-def fly(scene: Scene, orbit: Orbit, folder: Path, sun: Sun = Sun(135.0, 45.0)) -> Flight:
+#: The sun of a virtual flight's photos unless told otherwise.
+FLIGHT_SUN = Sun(135.0, 45.0)
+
+
+def fly(scene: Scene, orbit: Orbit, folder: Path, sun: Sun = FLIGHT_SUN) -> Flight:
     """Render the orbit's photos into ``folder/photos`` and write ``folder/geotags.csv`` (+ sidecar) with GPS
     noise on the positions and attitude noise plus a compass bias on the rotations."""
     photo_dir = folder / "photos"
@@ -102,7 +107,7 @@ def fly(scene: Scene, orbit: Orbit, folder: Path, sun: Sun = Sun(135.0, 45.0)) -
         x, y, z, w = attitude.as_quat()
         rows.append(geotag_row(name, gps, (w, x, y, z)))
     geotags = write_geotags(folder, rows, origin=scene.origin)
-    return Flight(photo_dir, geotags, sorted(poses), poses, camera)
+    return Flight(photo_dir, geotags, sorted(poses), poses, camera, sun)
 
 
 @dataclass(frozen=True)

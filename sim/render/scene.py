@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import functools
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +23,7 @@ from PIL import Image
 from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
+from sim.render.capture_light import read_capture_light
 from sim.render.mesh_file import check_mesh_file
 from sim.render.scene_cameras import CamerasError, SceneCamera, read_cameras
 from sim.render.texture import MAX_TEXTURE_SIDE, linear_texture
@@ -245,9 +246,13 @@ def read_scene_json(scene_dir: Path) -> dict:
         raise SceneError(f"{path}: \"mesh\" must name the mesh file")
     if not isinstance(meta.get("cameras", ""), str):
         raise SceneError(f"{path}: \"cameras\" must name the cameras file (cameras.json)")
-    for key in ("mesh", "cameras"):
-        if key in meta:
-            _require_inside(Path(scene_dir), meta[key], f"{path}: \"{key}\"")
+    light = meta.get("capture_light")
+    if light is not None and not (isinstance(light, dict) and isinstance(light.get("file"), str)):
+        raise SceneError(f"{path}: \"capture_light\" must be {{\"file\": NAME, ...}}, got {light!r}")
+    for key, name in (("mesh", meta["mesh"]), ("cameras", meta.get("cameras")),
+                      ("capture_light.file", None if light is None else light["file"])):
+        if name is not None:
+            _require_inside(Path(scene_dir), name, f"{path}: \"{key}\"")
     try:
         meta["origin_frame"] = LocalFrame.from_dict(meta["origin"])
     except (KeyError, TypeError, ValueError) as exc:
@@ -286,9 +291,22 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     scene_dir = Path(scene_dir)
     meta = read_scene_json(scene_dir)
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
+    if "capture_light" in meta:
+        surface = replace(surface, capture_light=read_scene_capture_light(scene_dir, meta))
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
                  str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
                  observed_area_m=meta.get("observed_area_m"))
+
+
+def read_scene_capture_light(scene_dir: Path, meta: dict) -> np.ndarray:
+    """The capture light that ``scene.json`` (``meta``) names (:mod:`sim.render.capture_light`)."""
+    path = Path(scene_dir) / meta["capture_light"]["file"]
+    if not path.is_file():
+        raise SceneError(f"{path}: capture light file not found (scene.json names it)")
+    try:
+        return read_capture_light(path)
+    except ValueError as error:
+        raise SceneError(str(error)) from None
 
 
 def read_scene_cameras(scene_dir: Path, meta: dict) -> tuple[SceneCamera, ...]:

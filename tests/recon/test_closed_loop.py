@@ -25,8 +25,9 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     flight = fly(world, ORBIT, tmp_path)
     scene_dir = tmp_path / "scene"
     sizes = ("--image-size", 800, "--max-features", 4096, "--dense-size", 800)
+    sun = f"{flight.sun.azimuth_deg},{flight.sun.elevation_deg}"  # the geotags' times are not the photos' own
     code = main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", scene_dir,
-                                  *sizes)])
+                                  *sizes, "--capture-sun", sun)])
     assert code == 0, capsys.readouterr().err
     report = json.loads((scene_dir / "work" / "sfm_report.json").read_text())
     assert report["unregistered"] == []

@@ -24,15 +24,18 @@ def flight(tmp_path):
 def test_a_moved_copy_of_the_world_scores_full_coverage_and_no_error(flight, tmp_path, capsys):
     world, truth, twin = flight
     code = main(["--world", str(world), "--truth", str(truth), "--scene", f"copy={twin}", "--views", "2",
-                 "--size", "96", "72", "--json", str(tmp_path / "out.json"), "--pictures", str(tmp_path / "pics")])
+                 "--size", "96", "72", "--json", str(tmp_path / "out.json"), "--pictures", str(tmp_path / "pics"),
+                 "--capture-sun", "150,50,10"])
     assert code == 0
     row = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| copy |")]
-    assert len(row) == 1 and "| 100.0 % |" in row[0]
+    assert len(row) == 2 and "| 100.0 % |" in row[0]  # the scores, then the light
     report = json.loads((tmp_path / "out.json").read_text())
     summary = report["scenes"]["copy"]["summary"]
     assert summary["views"] == 2 and summary["coverage"] > 0.999
     assert summary["error_in_area"] < 0.1 and summary["depth_abs_rel"] < 1e-5
     assert report["scenes"]["copy"]["alignment"]["scale"] == pytest.approx(1 / 1.1)
+    # a copy of the world carries no capture light: where both suns light it, it is the truth
+    assert summary["light"]["error_lit"] < 0.1
     assert sorted(p.name for p in (tmp_path / "pics").iterdir()) == ["view000_copy.png", "view001_copy.png"]
 
 
