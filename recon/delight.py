@@ -227,13 +227,13 @@ def _least_squares_ratio(log_colour: np.ndarray, direct: np.ndarray, sky: np.nda
 def _blocks(flat_index: np.ndarray, shape: tuple[int, int], chart: np.ndarray | None = None) -> list[np.ndarray]:
     """Positions into ``flat_index`` grouped by the :data:`BLOCK_PX` atlas block their texel lies in (and by
     ``chart``, one per texel, where given)."""
+    if len(flat_index) == 0:
+        return []
     rows, cols = np.divmod(flat_index, shape[1])
     block = (rows // BLOCK_PX) * (shape[1] // BLOCK_PX + 1) + cols // BLOCK_PX
     if chart is not None:
         block = block * (int(chart.max()) + 1) + chart
     order = np.argsort(block, kind="stable")
-    if len(order) == 0:
-        return []
     starts = np.flatnonzero(np.r_[True, block[order][1:] != block[order][:-1]])
     return np.split(order, starts[1:])
 

@@ -26,12 +26,12 @@ from sim.sampling.sun import (SUN_STRENGTH_TO_INTENSITY, SunSample, clear_sky_st
 #: The forms of ``--sun`` as written on a command line.
 SUN_SYNTAX = "random, AZ,EL,STRENGTH, time:ISO8601, overcast or unlit"
 FORMS = ("random", "fixed", "time", "overcast", "unlit")
-#: An overcast sky's light: no sun, no cast shadows, the sky's diffuse light alone as the ambient, brighter than a
-#: clear day's sky ambient (:class:`~sim.render.shade.Lighting`'s 0.3, which the sun tops up to about 1 on surfaces
-#: facing it). 0.8 keeps an overcast frame as bright on average as a sunny one, as a camera exposing for the dimmer
-#: day would: on the demo world (16 random poses at 240x160) the paper's random sun gives a mean linear image level
-#: of 0.123 and the unlit texture 0.156, so an ambient of 0.79 matches.
-OVERCAST_AMBIENT = 0.8
+#: An overcast sky's light: no sun, no cast shadows, the sky's diffuse light alone as the ambient (scaled by each
+#: point's sky visibility), brighter than a clear day's sky ambient (:class:`~sim.render.shade.Lighting`'s 0.3, which
+#: the sun tops up to about 1 on surfaces facing it). It keeps an overcast frame as bright on average as a sunny one,
+#: as a camera exposing for the dimmer day would: on the demo world, random poses under the paper's random sun match
+#: an overcast sky of 0.97-0.99 in mean linear level (16 poses at 240x160, two samplings).
+OVERCAST_AMBIENT = 0.97
 OVERCAST_LIGHTING = Lighting(ambient=OVERCAST_AMBIENT, shadows=False)
 #: The renderer's sun of a sky without one (an overcast day): no light, so its direction is moot.
 NO_SUN = Sun(0.0, 90.0, 0.0)

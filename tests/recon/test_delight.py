@@ -121,3 +121,13 @@ def test_an_overcast_capture_keeps_its_colours():
     plain = texture_atlas(mesh, photos)
     assert not delit.delighting.applied and delit.capture_light is None
     np.testing.assert_array_equal(delit.image, plain.image)
+
+
+def test_photos_whose_sun_was_down_keep_their_colours(scenes):
+    """A capture sun below the horizon (zero directions) lights nothing: no edge, no fit, the lit texture."""
+    mesh, truth = village()
+    photos = take_photos(truth, oblique_poses(8, 30.0, 28.0))
+    night = texture_atlas(mesh, photos, sun_enu=np.zeros((len(photos), 3)))
+    _, _, lit, _ = scenes
+    assert not night.delighting.applied and night.delighting.blocks == 0 and night.capture_light is None
+    np.testing.assert_array_equal(night.image, lit.image)
