@@ -34,6 +34,7 @@ class Hits:
     """Closest hits of N rays: ``t`` ray parameter (float32, +inf on miss; metres for unit directions),
     ``tri`` triangle index into ``scene.faces`` (int32, -1 on miss), barycentrics ``u, v`` (float32; the hit
     is ``(1-u-v)*v0 + u*v1 + v*v2``) and ``normal`` unit geometric normals (float32 ENU, facing back along the ray; 0 on miss).
+    ``back``: True where the ray meets the side of the face its winding normal points away from (None: not known).
     """
 
     t: np.ndarray
@@ -41,6 +42,7 @@ class Hits:
     u: np.ndarray
     v: np.ndarray
     normal: np.ndarray
+    back: np.ndarray | None = None
 
     @property
     def hit(self) -> np.ndarray:
@@ -104,13 +106,15 @@ def intersect(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray, poo
     u = np.empty(n, np.float32)
     v = np.empty(n, np.float32)
     normal = np.empty((n, 3), np.float32)
+    back = np.empty(n, bool)
 
     def cast(block: slice) -> None:
         hits = intersect_local(scene, _rows(origins, block), _rows(dirs, block))
         t[block], tri[block], u[block], v[block], normal[block] = hits.t, hits.tri, hits.u, hits.v, hits.normal
+        back[block] = hits.back
 
     map_blocks(cast, n, pool)
-    return Hits(t, tri, u, v, normal)
+    return Hits(t, tri, u, v, normal, back)
 
 
 def intersect_local(scene: Scene, origins32: np.ndarray, directions32: np.ndarray) -> Hits:
@@ -121,14 +125,15 @@ def intersect_local(scene: Scene, origins32: np.ndarray, directions32: np.ndarra
     tri, t, ng = out["primID"], out["tfar"], out["Ng"]
     with np.errstate(divide="ignore"):
         scale = np.float32(1.0) / np.sqrt(row_dots(ng, ng))
-    np.negative(scale, out=scale, where=row_dots(ng, directions32) > 0)
+    back = row_dots(ng, directions32) > 0  # embree's Ng is the winding normal (v1 - v0) x (v2 - v0)
+    np.negative(scale, out=scale, where=back)
     miss = tri < 0
     if miss.any():
         t[miss], out["u"][miss], out["v"][miss], scale[miss] = np.inf, 0.0, 0.0, 0.0
     scale[~np.isfinite(scale)] = 0.0  # a zero-length normal (float32 sliver)
     for axis in range(3):
         ng[:, axis] *= scale
-    return Hits(t, tri, out["u"], out["v"], ng)
+    return Hits(t, tri, out["u"], out["v"], ng, back)
 
 
 def _recast_misses(scene: Scene, origins32: np.ndarray, dirs32: np.ndarray, out: dict) -> None:

@@ -208,7 +208,7 @@ def _radiance(scene, origin32, rays: Rays, hits: Hits, sun: Sun, lighting: Light
             return _surface_radiance(scene, hits, rays.directions, sun, lit, lighting)
         radiance = np.empty((len(hits.t), 3), np.float32)
         radiance[~hit] = sky_radiance(rays.directions[~hit], lighting) * lighting.channel_exposure
-        surface = Hits(hits.t[hit], hits.tri[hit], hits.u[hit], hits.v[hit], hits.normal[hit])
+        surface = Hits(hits.t[hit], hits.tri[hit], hits.u[hit], hits.v[hit], hits.normal[hit], hits.back[hit])
         radiance[hit] = _surface_radiance(scene, surface, rays.directions[hit], sun,
                                           None if lit is None else lit[hit], lighting)
     return radiance

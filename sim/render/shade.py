@@ -121,15 +121,18 @@ def lambert(
     """Linear radiance ``albedo * (I * max(0, n.s) * lit + sky * sky_visibility) * exposure`` for facing unit
     normals, float32 ``(N, 3)``, written into ``out`` when given; the sky's irradiance and the exposure per channel
     (:class:`Lighting`)."""
-    sun_irradiance = row_dots(normals, sun.direction_enu.astype(np.float32))
-    np.maximum(sun_irradiance, 0.0, out=sun_irradiance)
-    sun_irradiance *= lit
-    sun_irradiance *= np.float32(sun.intensity)
+    irradiance = row_dots(normals, sun.direction_enu.astype(np.float32))
+    np.maximum(irradiance, 0.0, out=irradiance)
+    irradiance *= lit
+    irradiance *= np.float32(sun.intensity)
+    sky = lighting.channel_ambient
+    grey_sky = bool(np.all(sky == sky[0]))
+    if grey_sky:  # one irradiance for the three channels
+        irradiance += sky[0] * sky_visibility
     radiance = np.empty(albedo.shape, np.float32) if out is None else out
-    for channel, (sky, exposure) in enumerate(zip(lighting.channel_ambient, lighting.channel_exposure)):
-        irradiance = sky * sky_visibility  # by columns: faster than broadcasting
-        irradiance += sun_irradiance
-        np.multiply(albedo[:, channel], irradiance, out=radiance[:, channel])
+    for channel, exposure in enumerate(lighting.channel_exposure):  # by columns: faster than broadcasting
+        channel_irradiance = irradiance if grey_sky else irradiance + sky[channel] * sky_visibility
+        np.multiply(albedo[:, channel], channel_irradiance, out=radiance[:, channel])
         radiance[:, channel] *= exposure
     return radiance
 

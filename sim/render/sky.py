@@ -13,6 +13,7 @@ its winding normal points to (``front``) and one for the other; a hit takes the 
 
 from __future__ import annotations
 
+import functools
 import math
 from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import nullcontext
@@ -45,6 +46,12 @@ class SkyVisibility:
 
     corner: np.ndarray
     values: np.ndarray
+
+    @functools.cached_property
+    def by_face_side(self) -> np.ndarray:
+        """``(2 F, 3)`` float32: row ``2 f + side`` holds face f's corner values on that side (0 front, 1 back), so
+        that a hit needs one gather at render time."""
+        return np.ascontiguousarray(self.values[self.corner].transpose(0, 2, 1).reshape(-1, 3))
 
 
 def corner_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = CREASE_DEG) -> np.ndarray:
@@ -170,11 +177,10 @@ def scene_sky_visibility(scene: Scene) -> SkyVisibility:
 def sky_at(scene: Scene, hits: Hits, directions: np.ndarray) -> np.ndarray:
     """Sky visibility ``(N,)`` float32 at ray hits (all hit): the hit face's corner values on the side that faces the
     ray, mixed by the barycentric weights."""
-    sky = scene_sky_visibility(scene)
-    corners = sky.corner.take(hits.tri, axis=0)
-    back = (row_dots(scene.face_normals.take(hits.tri, axis=0), directions) > 0).astype(np.intp)
-    values = sky.values
-    visibility = (1.0 - hits.u - hits.v) * values[corners[:, 0], back]
-    visibility += hits.u * values[corners[:, 1], back]
-    visibility += hits.v * values[corners[:, 2], back]
-    return visibility.astype(np.float32, copy=False)
+    row = 2 * hits.tri.astype(np.intp)
+    row += hits.back if hits.back is not None else row_dots(scene.face_normals.take(hits.tri, axis=0), directions) > 0
+    corners = scene_sky_visibility(scene).by_face_side.take(row, axis=0)
+    visibility = corners[:, 0] * (1.0 - hits.u - hits.v)
+    visibility += corners[:, 1] * hits.u
+    visibility += corners[:, 2] * hits.v
+    return visibility
