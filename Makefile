@@ -23,7 +23,7 @@ demo: $(STAMP_RUN)
 	$(BIN)/aerostereo-mission --demo --out demo/mission.csv --kml demo/mission.kml \
 		--geojson demo/mission.geojson --plot demo/mission.png --summary-json demo/summary.json
 	$(BIN)/python -m sim --out demo/dataset --frames 20 --width 640 --height 360 \
-		--contact-sheet demo/contact_sheet.png
+		--contact-sheet demo/contact_sheet.png --overwrite
 
 # The whole pipeline on the demo world, measured against the truth (report in closed_loop/report.md).
 closed-loop: $(STAMP_RUN)

@@ -25,6 +25,11 @@ from sim.render.scene import Scene
 from sim.render.texture import sample_linear
 
 
+#: The light model in words, as dataset.json records it: a dataset rendered under another model is another dataset
+#: (a rerun refuses to resume it and --overwrite renders it anew).
+LIGHT_MODEL = "albedo x (sun x max(0, n.s) x shadow ray + sky x baked sky visibility), sim/render/shade.py"
+
+
 @dataclass(frozen=True)
 class Sun:
     """The sun: azimuth clockwise from north and elevation above the horizon (degrees), linear intensity."""

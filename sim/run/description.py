@@ -12,6 +12,7 @@ from flightplan.geodesy import LocalFrame
 from sim.drone import Imperfections
 from sim.drone.flight import GRAVITY_MPS2
 from sim.motion.imu import EUROC_ADIS16448, NOISE_MODEL_NAME, T_body_cam0
+from sim.render.shade import LIGHT_MODEL
 from sim.run.options import RenderOptions
 from sim.run.rig import build_rig
 from sim.sampling.light import SunSetting, frame_light
@@ -42,7 +43,7 @@ def sampling_description(options: RenderOptions, origin: LocalFrame) -> dict:
     is the scene's (where the real sun of ``--sun time:`` is computed)."""
     poses = options.poses
     description = {"mode": poses.mode, "seed": options.seed, "samples_per_pixel": options.rig.spp,
-                   "sun_strength_to_intensity": SUN_STRENGTH_TO_INTENSITY}
+                   "sun_strength_to_intensity": SUN_STRENGTH_TO_INTENSITY, "light_model": LIGHT_MODEL}
     if poses.mode == "random":
         description["random"] = asdict(poses.random_settings())
     elif poses.mode == "trajectory":
