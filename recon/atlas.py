@@ -374,12 +374,6 @@ def texel_weights(uv_px: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
     return weights / np.maximum(weights.sum(axis=1), 1e-12)[:, None]
 
 
-def texel_points(uv_px: np.ndarray, corners_3d: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
-    """3-D points (N, 3) of texel centres ``texel_xy`` (N, 2) inside triangles given by their texel corners
-    ``uv_px`` (N, 3, 2) and 3-D corners (N, 3, 3) (:func:`texel_weights`)."""
-    return np.einsum("nk,nkj->nj", texel_weights(uv_px, texel_xy), corners_3d)
-
-
 def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
           photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray,
           capture: CaptureSetup | None = None) -> tuple[np.ndarray, np.ndarray | None, Delighting | None]:
@@ -409,7 +403,7 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
                                       ids.shape)
     image = to_srgb8(colour).reshape(height, width, 3)
     if len(texels) == 0:
-        return np.full_like(image, 128), None if light is None else np.ones((height, width, 3), np.float32), result
+        return np.full_like(image, 128), None, result
     nearest = _nearest_painted(texels, ids)
     return image[nearest], None if light is None else light.reshape(height, width, 3)[nearest], result
 

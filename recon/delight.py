@@ -27,7 +27,7 @@ from scipy import ndimage
 
 from sim.render.camera import row_dots
 from sim.render.raycast import occluded
-from sim.render.scene import Scene, Surface
+from sim.render.scene import Scene, Surface, unit_face_normals
 from sim.render.shade import Lighting
 from sim.render.sky import SkyVisibility, bake_corner_visibility
 
@@ -109,10 +109,8 @@ class CaptureSetup:
     def of(cls, vertices: np.ndarray, faces: np.ndarray, sun_enu: np.ndarray, chart: np.ndarray) -> "CaptureSetup":
         """The setup of an atlas mesh (``vertices`` ENU, ``faces``) and its photos' capture suns."""
         scene = Scene(vertices, faces, Surface(vertex_colors=np.zeros((len(vertices), 3), np.uint8)))
-        corners = vertices[faces]
-        normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-        length = np.linalg.norm(normals, axis=1, keepdims=True)
-        normals = np.divide(normals, length, out=np.tile([0.0, 0.0, 1.0], (len(faces), 1)), where=length > 0)
+        normals = unit_face_normals(vertices, faces)
+        normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)  # a zero-area face: no side to tell
         return cls(scene, normals, bake_corner_visibility(scene, vertices, faces), np.asarray(sun_enu, float),
                    np.asarray(chart))
 

@@ -114,7 +114,7 @@ class Scene:
         used = self.vertices[np.unique(self.faces)]
         self.bounds = np.stack([used.min(axis=0), used.max(axis=0)])
         self.surface = _checked_surface(self.surface, len(self.vertices), kept, self.source)
-        self.face_normals = _unit_face_normals(local32, self.faces)
+        self.face_normals = unit_face_normals(local32, self.faces).astype(np.float32)
         self.device = self.device or shared_device()
         self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
         mesh_construction.TriangleMesh(self.embree, local32, self.faces)
@@ -167,6 +167,8 @@ def _checked_surface(surface: Surface, n_vertices: int, kept: np.ndarray, source
             raise SceneError(f"{source}: a capture light needs one texture, not several")
         return Surface(uv=uv, textures=tuple(textures),
                        face_texture=_checked_face_texture(surface.face_texture, len(textures), kept, source))
+    if surface.capture_light is not None:
+        raise SceneError(f"{source}: a capture light lies on a texture's UVs, and this mesh has no texture")
     colors = surface.vertex_colors
     if colors is None or colors.shape != (n_vertices, 3) or colors.dtype != np.uint8:
         raise SceneError(f"{source}: need a texture with UVs or (N, 3) uint8 vertex colours for all {n_vertices} vertices")
@@ -198,11 +200,13 @@ def _checked_face_texture(index: np.ndarray | None, n_textures: int, kept: np.nd
     return np.ascontiguousarray(index[kept], dtype=np.int32)
 
 
-def _unit_face_normals(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
-    """``(F, 3)`` float32 unit normals of the triangles' winding (right-handed: v0, v1, v2 counter-clockwise)."""
-    corners = local32[faces].astype(np.float64)
+def unit_face_normals(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """``(F, 3)`` float64 unit normals of the triangles' winding (right-handed: v0, v1, v2 counter-clockwise; embree's
+    geometric normal points the same way), 0 for a zero-area triangle."""
+    corners = np.asarray(vertices, dtype=np.float64)[faces]
     normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    return (normals / np.linalg.norm(normals, axis=1, keepdims=True)).astype(np.float32)
+    length = np.linalg.norm(normals, axis=1, keepdims=True)
+    return np.divide(normals, length, out=np.zeros_like(normals), where=length > 0)
 
 
 def _non_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:

@@ -1,13 +1,15 @@
 """Sky visibility: the fraction of the sky's irradiance that reaches a surface point past the scene itself (ambient
-occlusion, cosine-weighted), baked once per scene at its vertices and interpolated at render time.
+occlusion, cosine-weighted), baked once per scene at its face corners and interpolated at render time.
 
 ``V = (1/pi) * integral over the hemisphere of visible(w) * cos(w, n) dw``: 1 on open flat ground, about 0.5 on a
 wall standing on open ground (the ground hides the lower half of its sky), less in courtyards, under eaves and
-crowns. It is estimated with :data:`SKY_RAYS` cosine-weighted rays per vertex and side (the stratified
-directions of a Fibonacci disk lifted to the hemisphere, turned by a random angle per vertex so neighbouring
-vertices do not share their sampling error's pattern), each tested for occlusion by embree over the whole scene.
+crowns. A corner's point is its vertex with the corner's normal (:func:`corner_normals`: a box corner keeps one
+normal per side, a smooth surface one per vertex); each distinct point is estimated once, with :data:`SKY_RAYS`
+cosine-weighted rays per side (the stratified directions of a Fibonacci disk lifted to the hemisphere, turned by a
+random angle per point so neighbouring points do not share their sampling error's pattern), each tested for
+occlusion by embree over the whole scene.
 
-Meshes are two-sided and their winding is not always consistent, so each vertex gets two values, one for the side
+Meshes are two-sided and their winding is not always consistent, so each point gets two values, one for the side
 its winding normal points to (``front``) and one for the other; a hit takes the side that faces the ray.
 """
 
@@ -23,9 +25,9 @@ import numpy as np
 
 from sim.render.camera import row_dots
 from sim.render.raycast import Hits, default_workers, occluded_local
-from sim.render.scene import Scene
+from sim.render.scene import Scene, unit_face_normals
 
-#: Rays per vertex and side; the standard error of V is at most 0.5 / sqrt(SKY_RAYS) (0.044 at 128).
+#: Rays per point and side; the standard error of V is at most 0.5 / sqrt(SKY_RAYS) (0.044 at 128).
 SKY_RAYS = 128
 #: Ray origins start this far off the surface along the corner normal (metres), past float32 noise and the
 #: faceting of a curved surface near the vertex...
@@ -60,8 +62,7 @@ def corner_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = 
     per side; a smooth surface one per vertex)."""
     corners = vertices[faces]
     weighted = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])  # length: twice the area
-    length = np.linalg.norm(weighted, axis=1, keepdims=True)
-    unit = np.divide(weighted, length, out=np.zeros_like(weighted), where=length > 0)
+    unit = unit_face_normals(vertices, faces)
     vertex = faces.ravel()  # corner c = 3 * face + k
     order = np.argsort(vertex, kind="stable")
     starts = np.searchsorted(vertex[order], np.arange(len(vertices) + 1))
