@@ -12,8 +12,11 @@ import struct
 import zlib
 from pathlib import Path
 
+import cv2
+import numpy as np
 import pytest
 import trimesh
+from PIL import Image
 
 from capture.geotag_io import GEOTAG_COLUMNS
 from flightplan.demo_location import DEMO_ORIGIN
@@ -125,6 +128,28 @@ def nested_cameras_json(tmp: Path) -> None:
     (tmp / "scene" / "cameras.json").write_text(NESTED)
 
 
+def scene_with_capture_light(name: str, contents: bytes | None = None, textured: bool = True):
+    """A box scene whose scene.json names the capture light ``name`` (written with ``contents`` if given)."""
+    def setup(tmp: Path) -> None:
+        write_scene(tmp, "box.glb" if textured else "box.ply", capture_light={"file": name})
+        box = trimesh.creation.box()
+        if textured:
+            uv = np.asarray(box.vertices)[:, :2] + 0.5
+            box.visual = trimesh.visual.TextureVisuals(uv=uv, image=Image.new("RGB", (8, 8), (90, 120, 60)))
+            box.export(tmp / "scene" / "box.glb")
+        else:
+            box.visual.vertex_colors = [200, 100, 50, 255]
+            box.export(tmp / "scene" / "box.ply")
+        if contents is not None:
+            (tmp / "scene" / name).write_bytes(contents)
+    return setup
+
+
+def capture_light_png() -> bytes:
+    """A valid 16-bit RGB capture light of 8 x 8 texels."""
+    return cv2.imencode(".png", np.full((8, 8, 3), 16384, np.uint16))[1].tobytes()
+
+
 def nested_dataset_json(tmp: Path) -> None:
     (tmp / "d").mkdir()
     (tmp / "d" / "dataset.json").write_text(NESTED)
@@ -208,6 +233,17 @@ CASES = [
     Case("scene-mesh-dotdot", "aerostereo-render", SCENE,
          r"scene\.json: \"mesh\" '\.\./elsewhere/box\.ply' is outside the scene",
          setup=scene_outside(lambda tmp: "../elsewhere/box.ply")),
+    # a relightable scene's capture light (sim/render/capture_light.py)
+    Case("scene-capture-light-missing", "aerostereo-render", SCENE, r"light\.png: capture light file not found",
+         setup=scene_with_capture_light("light.png")),
+    Case("scene-capture-light-8-bit", "aerostereo-render", SCENE, r"light\.png: not a 16-bit RGB PNG capture light",
+         setup=scene_with_capture_light("light.png", cv2.imencode(".png", np.zeros((8, 8, 3), np.uint8))[1].tobytes())),
+    Case("scene-capture-light-dotdot", "aerostereo-render", SCENE,
+         r"scene\.json: \"capture_light\.file\" '\.\./light\.png' is outside the scene",
+         setup=scene_with_capture_light("../light.png")),
+    Case("scene-capture-light-without-texture", "aerostereo-render", SCENE,
+         r"box\.ply: a capture light lies on a texture's UVs, and this mesh has no texture",
+         setup=scene_with_capture_light("light.png", capture_light_png(), textured=False)),
     # deeply nested JSON in each JSON file the CLIs read
     Case("scene-json-nested", "aerostereo-render", SCENE, r"scene\.json: .*nested deeper than", setup=nested_scene_json),
     Case("cameras-json-nested", "aerostereo-render", SCENE, r"cameras\.json: .*nested deeper than",
