@@ -112,7 +112,8 @@ class ReconOptions:
             raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
         if self.capture_sun is not None and not (np.all(np.isfinite(self.capture_sun)) and
                                                  0 < self.capture_sun[1] <= 90):
-            raise ValueError(f"capture sun must be an azimuth and an elevation in (0, 90] degrees, got {self.capture_sun}")
+            raise ValueError(f"capture sun must be an azimuth and an elevation in (0, 90] degrees, "
+                             f"got {self.capture_sun}")
         if not (np.isfinite(self.crop_margin) and self.crop_margin >= 0):
             raise ValueError(f"crop margin must be a non-negative multiple of the viewing distance, got {self.crop_margin}")
         if self.hold_out == 1 or self.hold_out < 0:
@@ -361,16 +362,19 @@ class Recon:
         with self.step_progress("texture") as progress:
             count = lambda items: counted(items, "photos", progress)
             if self.options.texture == "atlas":
-                suns = self.capture_suns([photo.name for photo in photos])
+                suns, kept = self.capture_suns([photo.name for photo in photos])
                 textured = texture_atlas(surface, photos, self.options.atlas_options, count,
                                          log=lambda message: self.log(f"[texture] {message}"),
                                          held_out=self.held_out_photos(),
                                          sun_enu=None if suns is None else suns.directions_enu)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
             else:
-                suns, textured = None, texturing.orthophoto(surface, photos, self.options.texture_options, count)
+                suns, kept = None, "an orthophoto keeps the capture day's light (--texture atlas takes it out)"
+                textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
                 encoded, texel_m, coverage = texturing.textured_glb(surface, textured, self.priors.origin), textured.texels.texel_m, \
                     textured.coverage
+        if kept:
+            self.log(f"[texture] capture light kept: {kept}")
         with atomic_path(self.work / "terrain.glb") as tmp:
             tmp.write_bytes(encoded)
         height, width = textured.image.shape[:2]
@@ -379,35 +383,34 @@ class Recon:
                  f"{max(textured.gains.values()):.3f}")
         report = {"kind": self.options.texture, "texel_m": texel_m, "size_px": [width, height],
                   "coverage": coverage, "gains": textured.gains,
-                  "capture_light": self.write_capture_light(textured, suns)}
+                  "capture_light": self.write_capture_light(textured, suns, kept)}
         write_text_atomic(marker, json.dumps(report, indent=2))
 
-    def capture_suns(self, names) -> CaptureSuns | None:
-        """The capture sun of each photo of ``names``, or None (logged) when the light is kept: delighting is off or
-        the photos cannot be timed."""
+    def capture_suns(self, names) -> tuple[CaptureSuns | None, str]:
+        """The capture sun of each photo of ``names``; or None and why the light is kept (delighting is off, the
+        photos cannot be timed, or the sun was down at their times)."""
         if not self.options.delight:
-            return None
+            return None, "--keep-capture-light"
         if self.options.capture_sun is not None:
             azimuth, elevation = self.options.capture_sun
             return CaptureSuns(tuple(names), np.full(len(names), azimuth), np.full(len(names), elevation),
-                               "given (--capture-sun)")
+                               "given (--capture-sun)"), ""
         if not is_timed(self.priors.utc_time_s):
-            self.log("[texture] the photos have no UTC time (EXIF clocks carry no time zone): the capture sun is "
-                     "unknown, so the texture keeps the capture day's light; geotag them from a flight log to relight")
-            return None
+            return None, ("the photos have no UTC time (EXIF clocks carry no time zone), so the capture sun is "
+                          "unknown; geotag them from a flight log, or give --capture-sun AZ,EL, to relight")
         suns = capture_suns(self.priors.names, self.priors.utc_time_s, self.priors.origin, self.priors.source)
         if np.all(suns.elevation_deg <= 0):
-            self.log("[texture] the sun was below the horizon at every photo's UTC time: no capture sun, the texture "
-                     "keeps its light (give --capture-sun AZ,EL if the times are not the photos' own)")
-            return None
-        return suns.for_names(names)
+            return None, ("the sun was below the horizon at every photo's UTC time (give --capture-sun AZ,EL if the "
+                          "times are not the photos' own)")
+        return suns.for_names(names), ""
 
-    def write_capture_light(self, textured, suns: CaptureSuns | None) -> dict:
-        """Write ``work/capture_light.png`` when the atlas divided its light out; what the texture report says."""
+    def write_capture_light(self, textured, suns: CaptureSuns | None, kept: str) -> dict:
+        """Write ``work/capture_light.png`` when the atlas divided its light out; what the texture report says
+        (``kept``: why the light stayed, when no capture sun was known)."""
         path = self.work / CAPTURE_LIGHT_FILE
         path.unlink(missing_ok=True)
         if suns is None:
-            return {"applied": False, "reason": "off" if not self.options.delight else "photos not timed"}
+            return {"applied": False, "reason": kept}
         report = {"applied": textured.capture_light is not None, "capture_sun": suns.description(),
                   "sun_sky_ratio": np.round(textured.delighting.ratio, 4).tolist(),
                   "shadow_edge_blocks": textured.delighting.blocks, "relit_texels": textured.delighting.relit}

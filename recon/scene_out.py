@@ -76,6 +76,8 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
         with atomic_path(scene_dir / CAPTURE_LIGHT_FILE) as tmp:
             tmp.write_bytes(png)
         meta["capture_light"] = {"file": CAPTURE_LIGHT_FILE, "encoding": ENCODING, **description}
+    else:  # a rerun that keeps the light leaves no capture light of an earlier run beside the lit texture
+        (scene_dir / CAPTURE_LIGHT_FILE).unlink(missing_ok=True)
     if cameras:
         write_cameras(scene_dir / CAMERAS_FILE, cameras)
         meta["cameras"] = CAMERAS_FILE
