@@ -45,7 +45,7 @@ from recon.oblique import (render_view, sample_views, score_light, score_view, s
 from recon.scene_cameras import scene_camera_poses  # noqa: E402
 from sim.render.camera import PinholeCamera  # noqa: E402
 from sim.dataset.images import write_png  # noqa: E402
-from sim.sampling.light import frame_sun  # noqa: E402
+from sim.sampling.light import SunSetting, frame_light, frame_sun, parse_sun  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.sampling.sun import random_sun  # noqa: E402
@@ -53,7 +53,6 @@ from sim.render.scene import load_scene  # noqa: E402
 from sim.render.camera import Rig  # noqa: E402
 from sim.render.renderer import render  # noqa: E402
 from sim.render.shade import UNLIT, Sun  # noqa: E402
-from sim.run.description import SUN_STRENGTH_TO_INTENSITY  # noqa: E402
 
 
 def labelled_scene(text: str) -> tuple[str, Path]:
@@ -64,24 +63,28 @@ def labelled_scene(text: str) -> tuple[str, Path]:
     return label, Path(folder)
 
 
-def sun_argument(text: str) -> Sun:
-    """``AZ,EL,STRENGTH`` (degrees, degrees, the paper's strength) -> the renderer's sun."""
+def sun_argument(text: str) -> SunSetting:
+    """``AZ,EL,STRENGTH`` (degrees, degrees, the paper's strength): a fixed sun
+    (:func:`sim.sampling.light.parse_sun`)."""
     try:
-        azimuth, elevation, strength = (float(part) for part in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected AZ,EL,STRENGTH, got {text!r}") from None
-    return Sun(azimuth, elevation, strength * SUN_STRENGTH_TO_INTENSITY)
+        setting = parse_sun(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    if setting.form != "fixed":
+        raise argparse.ArgumentTypeError(f"expected AZ,EL,STRENGTH, got {text!r}")
+    return setting
 
 
-def flight_sun(args, truth: dict) -> Sun:
-    """The capture sun: ``--capture-sun``, else truth.json's fixed sun."""
-    if args.capture_sun is not None:
-        return args.capture_sun
-    sun = truth.get("sun", {})
-    if not all(key in sun for key in ("azimuth_deg", "elevation_deg", "strength")):
-        raise ValueError(f"{args.truth}: no fixed sun in truth.json (its photos followed the real sun): give "
-                         "--capture-sun AZ,EL,STRENGTH")
-    return Sun(sun["azimuth_deg"], sun["elevation_deg"], sun["strength"] * SUN_STRENGTH_TO_INTENSITY)
+def flight_sun(args, truth: dict, origin) -> Sun:
+    """The renderer's capture sun: ``--capture-sun``, else truth.json's fixed sun."""
+    setting = args.capture_sun
+    if setting is None:
+        sun = truth.get("sun", {})
+        if sun.get("form") != "fixed":
+            raise ValueError(f"{args.truth}: no fixed sun in truth.json (its photos followed the real sun): give "
+                             "--capture-sun AZ,EL,STRENGTH")
+        setting = SunSetting("fixed", sun["azimuth_deg"], sun["elevation_deg"], sun["strength"])
+    return frame_light(setting, 0, 0, origin).keywords["sun"]
 
 
 def load_inputs(args) -> tuple:
@@ -92,7 +95,7 @@ def load_inputs(args) -> tuple:
     for label, folder in args.scene:
         twins[label] = (load_scene(folder), twin_frame(folder, truth, world.origin))
         registered |= set(scene_camera_poses(folder))
-    return world, twins, true_camera_area(truth, registered, world.origin), flight_sun(args, truth)
+    return world, twins, true_camera_area(truth, registered, world.origin), flight_sun(args, truth, world.origin)
 
 
 def print_table(summaries: dict, truth_s: float, views: int) -> None:
@@ -116,7 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--scene", type=labelled_scene, action="append", required=True, metavar="LABEL=DIR",
                         help="a reconstructed scene folder of that flight (repeat to compare)")
     parser.add_argument("--capture-sun", type=sun_argument, metavar="AZ,EL,STRENGTH",
-                        help="the sun of the flight's photos (default: truth.json's sun, when the flight had a fixed one)")
+                        help="the sun of the flight's photos (default: truth.json's sun, when the flight had a "
+                             "fixed one)")
     parser.add_argument("--views", type=positive_int, default=20)
     parser.add_argument("--size", type=positive_int, nargs=2, default=(640, 360), metavar=("W", "H"))
     parser.add_argument("--fov", type=float, default=80.0, help="horizontal field of view, deg (default 80)")

@@ -53,14 +53,15 @@ from flightplan import litchi  # noqa: E402
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from sim.render.scene import SceneError, read_scene_json  # noqa: E402
+from sim.sampling.light import parse_sun  # noqa: E402
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
 
 
 def capture_sun_option(sun: str) -> list[str]:
     """recon's ``--capture-sun AZ,EL`` for fly's fixed ``--sun AZ,EL,STRENGTH`` (the photos' sun is not the one of the
     geotags' UTC times: the live link runs on the host clock); nothing for the other forms (recon times the photos)."""
-    parts = sun.split(",")
-    return ["--capture-sun", ",".join(parts[:2])] if len(parts) == 3 else []
+    setting = parse_sun(sun)
+    return ["--capture-sun", f"{setting.azimuth_deg:g},{setting.elevation_deg:g}"] if setting.form == "fixed" else []
 
 
 def cli(script: str) -> list[str]:
