@@ -21,7 +21,8 @@ import pycolmap
 from PIL import ExifTags, Image, UnidentifiedImageError
 
 from capture.geotag_io import load_geotags, sidecar_path
-from capture.logs.photos import FactoryCalibration, PhotoInfo, parse_dji_xmp, read_camera_xmp, read_exif_gps
+from capture.logs.photos import (FactoryCalibration, PhotoInfo, parse_dji_xmp, read_camera_xmp, read_exif_gps,
+                                 read_photo)
 from capture.track import LogFormatError
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
 from cliutil.paths import path_problem
@@ -56,8 +57,11 @@ class PosePriors:
     source: str = "geotags"
     untagged: tuple[str, ...] = ()
     #: (N,) UTC of each photo, seconds since the epoch; None where the source cannot time them (EXIF clocks without
-    #: a time zone): recon.capture_sun then leaves the texture lit.
+    #: a time zone: see ``clock_time_s``).
     utc_time_s: np.ndarray | None = None
+    #: (N,) each photo's EXIF clock time in the clock's own unknown zone (read as if UTC), where ``utc_time_s`` is
+    #: None: recon times them by their shadows (recon.shadow_timing) or by ``--capture-utc-offset``.
+    clock_time_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         sigma = DEFAULT_SIGMA_M if self.sigma_m is None else self.sigma_m
@@ -72,8 +76,9 @@ class PosePriors:
         idx = [self.index()[n] for n in names]
         rot = None if self.rotations_world_cam is None else self.rotations_world_cam[idx]
         utc = None if self.utc_time_s is None else self.utc_time_s[idx]
+        clock = None if self.clock_time_s is None else self.clock_time_s[idx]
         return PosePriors(tuple(names), self.positions_enu[idx], rot, self.origin, self.sigma_m[idx], self.source,
-                          self.untagged, utc)
+                          self.untagged, utc, clock)
 
 
 def list_photos(photo_dir: Path) -> list[str]:
@@ -191,7 +196,7 @@ def with_receiver_sigmas(priors: PosePriors, photo_dir: Path) -> PosePriors:
 
 def priors_from_exif(photo_dir: Path, names) -> PosePriors:
     """Priors from the photos' own GPS (:func:`photo_gps`) in an ENU frame at the first photo's position (no
-    attitude), each with its receiver's sigma (:func:`receiver_sigma`).
+    attitude), each with its receiver's sigma (:func:`receiver_sigma`), and their EXIF times (:func:`exif_times`).
 
     The altitude is the receiver's (GPS/MSL, or RTK); using it as the origin height makes ``up`` relative to
     the first photo, which is all SfM needs.
@@ -206,7 +211,22 @@ def priors_from_exif(photo_dir: Path, names) -> PosePriors:
     fixes = np.array(fixes)
     origin = LocalFrame(*fixes[0])
     sigmas = np.array([receiver_sigma(Path(photo_dir) / name) for name in names])
-    return PosePriors(tuple(names), origin.enu_points(*fixes.T), None, origin, sigmas, "exif")
+    utc, clock = exif_times(photo_dir, names)
+    return PosePriors(tuple(names), origin.enu_points(*fixes.T), None, origin, sigmas, "exif", utc_time_s=utc,
+                      clock_time_s=clock)
+
+
+def exif_times(photo_dir: Path, names) -> tuple[np.ndarray | None, np.ndarray | None]:
+    """The photos' EXIF times (seconds): ``(utc, None)`` where every photo wrote its time zone, ``(None, clock)``
+    (the clocks' own local times) where not, ``(None, None)`` where some photo has no time."""
+    try:
+        infos = [read_photo(Path(photo_dir) / name) for name in names]
+    except LogFormatError as error:
+        raise PriorsError(str(error)) from None
+    times = np.array([info.exif_time_s for info in infos], dtype=float)
+    if not np.all(np.isfinite(times)):
+        return None, None
+    return (times, None) if all(info.exif_time_is_utc for info in infos) else (None, times)
 
 
 @dataclass(frozen=True)

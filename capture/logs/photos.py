@@ -45,13 +45,16 @@ FIELD_RANGES: dict[str, tuple[float, float]] = {
 
 @dataclass
 class PhotoInfo:
-    """What one photo says about itself. ``exif_time_s``: camera clock, seconds since the epoch (NaN if none)."""
+    """What one photo says about itself. ``exif_time_s``: camera clock, seconds since the epoch (NaN if none): UTC
+    where ``exif_time_is_utc`` (the photo wrote its zone, ``OffsetTimeOriginal``), else the clock's own local time
+    read as if it were UTC."""
 
     path: Path
     exif_time_s: float = math.nan
     time_resolution_s: float = 1.0
     values: dict[str, float] = field(default_factory=dict)  # track field -> value (EXIF GPS, then XMP)
     problems: list[str] = field(default_factory=list)
+    exif_time_is_utc: bool = False
 
     @property
     def name(self) -> str:
@@ -135,6 +138,7 @@ def read_exif_time(exif: Image.Exif, info: PhotoInfo) -> None:
             except OverflowError:
                 info.problems.append(f"EXIF: DateTimeOriginal {text!r} - {offset} is out of the calendar's range")
                 return
+            info.exif_time_is_utc = True
     info.exif_time_s = stamp.timestamp()
 
 

@@ -217,6 +217,16 @@ def test_unreadable_exif_time_parts_are_named_and_the_time_kept(tmp_path):
     assert photo.exif_time_s == START.timestamp() + 7.0 and photo.time_resolution_s == 1.0
     assert photo.problems == ["EXIF: SubSecTimeOriginal '4x' is not digits, ignored (whole seconds)",
                               "EXIF: OffsetTimeOriginal '+ab:cd' is not '+HH:MM', ignored"]
+    assert not photo.exif_time_is_utc
+
+
+def test_a_photo_that_wrote_its_time_zone_is_timed_in_utc(tmp_path):
+    exif = Image.Exif()
+    sub = exif.get_ifd(ExifTags.IFD.Exif)
+    sub[ExifTags.Base.DateTimeOriginal], sub[ExifTags.Base.OffsetTimeOriginal] = "2024:05:01 12:00:07", "+02:00"
+    Image.new("RGB", (8, 8)).save(tmp_path / "zoned.jpg", exif=exif)
+    photo = read_photo(tmp_path / "zoned.jpg")
+    assert photo.exif_time_is_utc and photo.exif_time_s == START.timestamp() + 7.0
 
 
 def run_cli(argv):
