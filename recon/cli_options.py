@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 
 from recon.dense import DenseOptions
 from recon.pipeline import MESHES, TEXTURES, ReconOptions
@@ -65,6 +66,9 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--capture-sun", type=sun_direction, metavar="AZ,EL",
                         help="the sun every photo was taken under, azimuth and elevation in degrees (default: from "
                              "each photo's UTC time in the geotags, over the scene's origin)")
+    parser.add_argument("--capture-utc-offset", type=utc_offset, metavar="+HH:MM",
+                        help="the time zone of the photos' EXIF clocks where they did not write it (default: the UTC "
+                             "offset their shadows on the twin show, if clear; else the texture keeps its light)")
     parser.add_argument("--keep-capture-light", action="store_true",
                         help="leave the capture day's light in the atlas (by default photos with a UTC time have it "
                              "divided out: the texture is the albedo and capture_light.png the light, so the twin "
@@ -88,6 +92,15 @@ def sun_direction(text: str) -> tuple[float, float]:
     return azimuth, elevation
 
 
+def utc_offset(text: str) -> float:
+    """``--capture-utc-offset +HH:MM``: hours east of UTC, in [-14, +14]."""
+    match = re.fullmatch(r"([+-])(\d{2}):([0-5]\d)", text.strip())
+    hours = None if match is None else (int(match[2]) + int(match[3]) / 60.0) * (1 if match[1] == "+" else -1)
+    if hours is None or abs(hours) > 14:
+        raise argparse.ArgumentTypeError(f"expected a UTC offset +HH:MM in [-14:00, +14:00] (e.g. -05:00), got {text!r}")
+    return hours
+
+
 def recon_options(args: argparse.Namespace) -> ReconOptions:
     """:class:`ReconOptions` from the options of :func:`add_recon_options`."""
     return ReconOptions(
@@ -100,4 +113,5 @@ def recon_options(args: argparse.Namespace) -> ReconOptions:
         texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
         delight=not args.keep_capture_light, capture_sun=args.capture_sun,
+        capture_utc_offset_h=args.capture_utc_offset,
     )

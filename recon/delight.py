@@ -27,7 +27,8 @@ from scipy import ndimage
 
 from sim.render.camera import row_dots
 from sim.render.raycast import occluded
-from sim.render.scene import Scene, Surface, unit_face_normals
+from recon.shadow_timing import untextured_scene
+from sim.render.scene import Scene, unit_face_normals
 from sim.render.shade import Lighting
 from sim.render.sky import SkyVisibility, bake_corner_visibility
 
@@ -108,7 +109,7 @@ class CaptureSetup:
     @classmethod
     def of(cls, vertices: np.ndarray, faces: np.ndarray, sun_enu: np.ndarray, chart: np.ndarray) -> "CaptureSetup":
         """The setup of an atlas mesh (``vertices`` ENU, ``faces``) and its photos' capture suns."""
-        scene = Scene(vertices, faces, Surface(vertex_colors=np.zeros((len(vertices), 3), np.uint8)))
+        scene = untextured_scene(vertices, faces)
         normals = unit_face_normals(vertices, faces)
         normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)  # a zero-area face: no side to tell
         return cls(scene, normals, bake_corner_visibility(scene, vertices, faces), np.asarray(sun_enu, float),

@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from capture.geotag_io import sidecar_path
 from recon import dense, mesh as meshing, texture as texturing
 from recon.atlas import AtlasOptions, texture_atlas
-from recon.capture_sun import CaptureSuns, capture_suns, is_timed
+from recon.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
 from cliutil.atomic import atomic_path, write_text_atomic
@@ -50,6 +50,7 @@ from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, 
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
+from recon.shadow_timing import ShadowFit, fit_utc_offset, mean_iou, refine_capture_time, shadow_views, untextured_scene
 from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
 from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
@@ -88,7 +89,8 @@ class ReconOptions:
     but left out of depth maps, fusion and texture; 0 = none), ``delight``: an atlas of photos with a UTC time stores
     the albedo and the capture light it divided out (recon/delight.py), so the twin can be lit by another sun;
     ``capture_sun``: (azimuth, elevation) degrees of the sun of every photo when it is known better than their times
-    say (a virtual flight lit by a fixed sun), None: from each photo's UTC time."""
+    say (a virtual flight lit by a fixed sun), None: from each photo's UTC time; ``capture_utc_offset_h``: the zone of
+    the photos' EXIF clocks (hours east of UTC) where they did not write it, None: found from their shadows."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
@@ -104,6 +106,7 @@ class ReconOptions:
     hold_out: int = 0
     delight: bool = True
     capture_sun: tuple[float, float] | None = None
+    capture_utc_offset_h: float | None = None
 
     def __post_init__(self) -> None:
         if self.mesh not in MESHES:
@@ -114,6 +117,8 @@ class ReconOptions:
                                                  0 < self.capture_sun[1] <= 90):
             raise ValueError(f"capture sun must be an azimuth and an elevation in (0, 90] degrees, "
                              f"got {self.capture_sun}")
+        if self.capture_utc_offset_h is not None and not -14.0 <= self.capture_utc_offset_h <= 14.0:
+            raise ValueError(f"capture UTC offset must be in [-14, +14] hours, got {self.capture_utc_offset_h}")
         if not (np.isfinite(self.crop_margin) and self.crop_margin >= 0):
             raise ValueError(f"crop margin must be a non-negative multiple of the viewing distance, got {self.crop_margin}")
         if self.hold_out == 1 or self.hold_out < 0:
@@ -362,11 +367,12 @@ class Recon:
         with self.step_progress("texture") as progress:
             count = lambda items: counted(items, "photos", progress)
             if self.options.texture == "atlas":
-                suns, kept = self.capture_suns([photo.name for photo in photos])
+                suns, kept = self.capture_suns(photos, surface)
                 textured = texture_atlas(surface, photos, self.options.atlas_options, count,
                                          log=lambda message: self.log(f"[texture] {message}"),
                                          held_out=self.held_out_photos(),
-                                         sun_enu=None if suns is None else suns.directions_enu)
+                                         sun_enu=None if suns is None else
+                                         suns.for_names([photo.name for photo in photos]).directions_enu)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
             else:
                 suns, kept = None, "an orthophoto keeps the capture day's light (--texture atlas takes it out)"
@@ -386,23 +392,51 @@ class Recon:
                   "capture_light": self.write_capture_light(textured, suns, kept)}
         write_text_atomic(marker, json.dumps(report, indent=2))
 
-    def capture_suns(self, names) -> tuple[CaptureSuns | None, str]:
-        """The capture sun of each photo of ``names``; or None and why the light is kept (delighting is off, the
-        photos cannot be timed, or the sun was down at their times)."""
+    def capture_suns(self, photos, surface: trimesh.Trimesh) -> tuple[CaptureSuns | None, str]:
+        """The capture sun of every photo (of ``photos`` where given as one sun; of every prior photo where timed),
+        timed (or its clock and yaw refined) by the shadows ``surface`` casts in ``photos``
+        (:mod:`recon.shadow_timing`); or None and why the light is kept (delighting is off, the photos cannot be
+        timed, or the sun was down at their times)."""
+        names = [photo.name for photo in photos]
         if not self.options.delight:
             return None, "--keep-capture-light"
         if self.options.capture_sun is not None:
             azimuth, elevation = self.options.capture_sun
             return CaptureSuns(tuple(names), np.full(len(names), azimuth), np.full(len(names), elevation),
                                "given (--capture-sun)"), ""
-        if not is_timed(self.priors.utc_time_s):
-            return None, ("the photos have no UTC time (EXIF clocks carry no time zone), so the capture sun is "
-                          "unknown; geotag them from a flight log, or give --capture-sun AZ,EL, to relight")
-        suns = capture_suns(self.priors.names, self.priors.utc_time_s, self.priors.origin, self.priors.source)
+        times, source, is_utc = self.photo_times()
+        if times is None:
+            return None, ("the photos have no time (EXIF DateTimeOriginal) to find the capture sun from; give "
+                          "--capture-sun AZ,EL to relight")
+        twin, origin = untextured_scene(surface.vertices, surface.faces), self.priors.origin
+        views = shadow_views(twin, photos, dict(zip(self.priors.names, times)))
+        if is_utc:
+            at_start = mean_iou(twin, views, origin, 0.0)
+            timing = refine_capture_time(twin, views, origin, ShadowFit(0.0, 0.0, 0.0, at_start, at_start))
+        elif (timing := fit_utc_offset(twin, views, origin)) is None:
+            return None, ("the photos' EXIF clocks carry no time zone and no UTC offset explains their shadows on the "
+                          "twin clearly; give --capture-utc-offset +HH:MM or --capture-sun AZ,EL to relight")
+        else:
+            source = f"{source}, UTC offset {timing.utc_offset_h:+.2f} h found from the shadows"
+        self.log(f"[texture] capture time from {source}: clock {timing.clock_correction_min:+.0f} min, yaw "
+                 f"{timing.yaw_deg:+.0f} deg, shadow IoU {timing.before:.2f} -> {timing.iou:.2f}")
+        suns = capture_suns(self.priors.names, times - 3600.0 * timing.utc_offset_h, origin, source, timing)
         if np.all(suns.elevation_deg <= 0):
             return None, ("the sun was below the horizon at every photo's UTC time (give --capture-sun AZ,EL if the "
                           "times are not the photos' own)")
-        return suns.for_names(names), ""
+        return suns, ""
+
+    def photo_times(self) -> tuple[np.ndarray | None, str, bool]:
+        """Each prior photo's time (seconds since the epoch), where it came from, and whether it is UTC (else the
+        photos' own clock in an unknown zone); None where some photo has no time."""
+        priors, offset_h = self.priors, self.options.capture_utc_offset_h
+        if is_timed(priors.utc_time_s):
+            return priors.utc_time_s, priors.source, True
+        if not is_timed(priors.clock_time_s):
+            return None, "", False
+        if offset_h is not None:
+            return priors.clock_time_s - 3600.0 * offset_h, f"EXIF clock at UTC{utc_offset_text(offset_h)}", True
+        return priors.clock_time_s, "EXIF clock", False
 
     def write_capture_light(self, textured, suns: CaptureSuns | None, kept: str) -> dict:
         """Write ``work/capture_light.png`` when the atlas divided its light out; what the texture report says
@@ -438,7 +472,9 @@ class Recon:
         provenance["texture"] = (json.loads((self.work / "texture_report.json").read_text(encoding="utf-8"))
                                  if textured_now else "vertex colours (texturing switched off)")
         gains = provenance["texture"]["gains"] if textured_now else {}
-        cameras = scene_cameras(pycolmap.Reconstruction(self.work / "sparse"), gains, self.held_out)
+        suns = provenance["texture"].get("capture_light", {}).get("capture_sun", {}).get("per_photo", {}) \
+            if textured_now else {}
+        cameras = scene_cameras(pycolmap.Reconstruction(self.work / "sparse"), gains, self.held_out, suns)
         mesh_name, encoded = ("terrain.glb", textured.read_bytes()) if textured_now else ("terrain.ply", None)
         light = self.work / CAPTURE_LIGHT_FILE
         capture_light = (light.read_bytes(), provenance["texture"]["capture_light"]) if textured_now and \

@@ -35,7 +35,7 @@ STAGE_OPTIONS = {
               "dense.min_texture_std", "dense.consistency"),
     "fusion": ("dense.fusion_min_pixels", "dense.fusion_max_normal_error_deg"),
     "mesh": ("mesh", "grid_m", "poisson_depth", "poisson_trim", "crop_margin", "decimate_error_m"),
-    "texture": ("texture", "texture_options", "atlas_options", "delight", "capture_sun"),
+    "texture": ("texture", "texture_options", "atlas_options", "delight", "capture_sun", "capture_utc_offset_h"),
     "scene": ("texture",),
 }
 
