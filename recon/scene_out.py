@@ -29,14 +29,17 @@ CAMERAS_FILE = "cameras.json"
 CAPTURE_LIGHT_FILE = "capture_light.png"
 
 
-def scene_cameras(model: pycolmap.Reconstruction, gains: Mapping[str, float],
-                  held_out: Collection[str]) -> list[SceneCamera]:
+def scene_cameras(model: pycolmap.Reconstruction, gains: Mapping[str, float], held_out: Collection[str],
+                  capture_suns: Mapping[str, Sequence[float]] | None = None) -> list[SceneCamera]:
     """The registered photos of an SfM ``model`` (full-resolution cameras, ENU metres) in name order, with their
-    texture exposure gain (1.0 where ``gains`` has none) and whether they were ``held_out``."""
-    poses = camera_poses(model)
+    texture exposure gain (1.0 where ``gains`` has none), whether they were ``held_out``, and their capture sun
+    (azimuth, elevation degrees; where ``capture_suns`` has one)."""
+    poses, capture_suns = camera_poses(model), capture_suns or {}
     images = sorted((image for image in model.images.values() if image.name in poses), key=lambda i: i.name)
     return [SceneCamera(image.name, camera_from_colmap(image.camera), poses[image.name],
-                        float(gains.get(image.name, 1.0)), image.name in held_out) for image in images]
+                        float(gains.get(image.name, 1.0)), image.name in held_out,
+                        None if image.name not in capture_suns else tuple(map(float, capture_suns[image.name])))
+            for image in images]
 
 
 def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, provenance: dict) -> dict:

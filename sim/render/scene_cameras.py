@@ -24,6 +24,8 @@ from sim.render.camera import PinholeCamera, check_pose
 
 CAMERAS_FORMAT = "aerostereo-cameras/1"
 CAMERAS_FRAME = "scene ENU (scene.json origin), OpenCV camera axes"
+#: The keys of a camera's optional ``capture_sun`` (degrees: azimuth clockwise from true north, elevation).
+SUN_KEYS = ("azimuth_deg", "elevation_deg")
 
 
 class CamerasError(ValueError):
@@ -33,13 +35,15 @@ class CamerasError(ValueError):
 @dataclass(frozen=True)
 class SceneCamera:
     """One registered photo: file ``name``, its lens ``camera``, pose ``T_world_cam`` (4x4, scene ENU),
-    ``exposure_gain`` (linear light, texture / photo) and whether it was ``held_out`` of the texture."""
+    ``exposure_gain`` (linear light, texture / photo), whether it was ``held_out`` of the texture, and its
+    ``capture_sun`` (azimuth, elevation: degrees, the true sun when it was taken; None where not known)."""
 
     name: str
     camera: PinholeCamera
     T_world_cam: np.ndarray
     exposure_gain: float = 1.0
     held_out: bool = False
+    capture_sun: tuple[float, float] | None = None
 
 
 def camera_entry(scene_camera: SceneCamera) -> dict:
@@ -49,7 +53,9 @@ def camera_entry(scene_camera: SceneCamera) -> dict:
             "fx": float(lens.fx), "fy": float(lens.fy), "cx": float(lens.cx), "cy": float(lens.cy),
             "distortion": [float(k) for k in (lens.dist or (0.0,) * 5)],
             "T_world_cam": np.asarray(scene_camera.T_world_cam, dtype=np.float64).tolist(),
-            "exposure_gain": float(scene_camera.exposure_gain), "held_out": bool(scene_camera.held_out)}
+            "exposure_gain": float(scene_camera.exposure_gain), "held_out": bool(scene_camera.held_out),
+            **({} if scene_camera.capture_sun is None else
+               {"capture_sun": dict(zip(SUN_KEYS, map(float, scene_camera.capture_sun)))})}
 
 
 def write_cameras(path: Path, cameras: Sequence[SceneCamera]) -> None:
@@ -113,4 +119,17 @@ def _scene_camera(path: Path, index: int, entry) -> SceneCamera:
     except (TypeError, ValueError) as error:
         raise CamerasError(f"{where}: \"T_world_cam\" must be a rigid 4x4 camera-to-world matrix ({error})") from None
     lens = PinholeCamera(fx, fy, cx, cy, size["width"], size["height"], coefficients)
-    return SceneCamera(entry["name"], lens, pose, gain, entry["held_out"])
+    return SceneCamera(entry["name"], lens, pose, gain, entry["held_out"], _capture_sun(entry, where))
+
+
+def _capture_sun(entry: dict, where: str) -> tuple[float, float] | None:
+    """The optional ``"capture_sun": {"azimuth_deg", "elevation_deg"}`` of a camera entry."""
+    if "capture_sun" not in entry:
+        return None
+    sun = entry["capture_sun"]
+    if not isinstance(sun, dict):
+        raise CamerasError(f"{where}: \"capture_sun\" must be an object with {' and '.join(SUN_KEYS)}, got {sun!r}")
+    azimuth, elevation = (_number(sun, key, f"{where} capture_sun") for key in SUN_KEYS)
+    if not -90.0 <= elevation <= 90.0:
+        raise CamerasError(f"{where} capture_sun: \"elevation_deg\" must be in [-90, 90], got {elevation!r}")
+    return azimuth, elevation

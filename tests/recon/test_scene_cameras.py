@@ -76,7 +76,8 @@ def known_model() -> pycolmap.Reconstruction:
 
 def test_cameras_json_round_trip_from_an_sfm_model_to_the_sim_scene(tmp_path):
     model = known_model()
-    cameras = scene_cameras(model, {"a.JPG": 1.25, "c.JPG": 0.8}, held_out={"c.JPG"})
+    cameras = scene_cameras(model, {"a.JPG": 1.25, "c.JPG": 0.8}, held_out={"c.JPG"},
+                            capture_suns={"a.JPG": [198.25, 24.5], "c.JPG": (199.0, 24.25)})
     mesh = trimesh.creation.box(extents=(10, 10, 1))
     mesh.visual.vertex_colors = np.full((len(mesh.vertices), 4), 200, np.uint8)
     write_scene(tmp_path, mesh, LocalFrame(46.0, 7.0, 500.0), {}, cameras=cameras)
@@ -85,6 +86,7 @@ def test_cameras_json_round_trip_from_an_sfm_model_to_the_sim_scene(tmp_path):
     assert [c.name for c in loaded] == ["a.JPG", "b.JPG", "c.JPG"]  # registered only, in name order
     assert [c.exposure_gain for c in loaded] == [1.25, 1.0, 0.8]
     assert [c.held_out for c in loaded] == [False, False, True]
+    assert [c.capture_sun for c in loaded] == [(198.25, 24.5), None, (199.0, 24.25)]
     for scene_camera in loaded:
         image = next(i for i in model.images.values() if i.name == scene_camera.name)
         np.testing.assert_allclose(np.linalg.inv(scene_camera.T_world_cam)[:3], image.cam_from_world().matrix(),
@@ -101,6 +103,8 @@ def test_cameras_json_round_trip_from_an_sfm_model_to_the_sim_scene(tmp_path):
     ("T_world_cam", np.diag([1.0, 1.0, -1.0, 1.0]).tolist(), "camera a.JPG: \"T_world_cam\" must be a rigid 4x4"),
     ("exposure_gain", "1", "camera a.JPG: \"exposure_gain\" must be a positive number"),
     ("width", 0, "camera a.JPG: \"width\" must be a positive integer"),
+    ("capture_sun", [198.0, 24.0], "camera a.JPG: \"capture_sun\" must be an object with azimuth_deg and"),
+    ("capture_sun", {"azimuth_deg": 198.0, "elevation_deg": 95.0}, "camera a.JPG capture_sun: \"elevation_deg\" must"),
 ])
 def test_bad_cameras_json_names_the_file_and_the_camera(tmp_path, field, value, message):
     mesh = trimesh.creation.box(extents=(10, 10, 1))
