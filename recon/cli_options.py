@@ -67,8 +67,9 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
                         help="the sun every photo was taken under, azimuth and elevation in degrees (default: from "
                              "each photo's UTC time in the geotags, over the scene's origin)")
     parser.add_argument("--capture-utc-offset", type=utc_offset, metavar="+HH:MM",
-                        help="the time zone of the photos' EXIF clocks where they did not write it (default: the UTC "
-                             "offset their shadows on the twin show, if clear; else the texture keeps its light)")
+                        help="the time zone of the photos' EXIF clocks where they did not write it, e.g. +01:00 "
+                             "(a negative one as --capture-utc-offset=-05:00; default: the UTC offset their shadows on "
+                             "the twin show, if clear; else the texture keeps its light)")
     parser.add_argument("--keep-capture-light", action="store_true",
                         help="leave the capture day's light in the atlas (by default photos with a UTC time have it "
                              "divided out: the texture is the albedo and capture_light.png the light, so the twin "

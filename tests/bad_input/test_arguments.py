@@ -160,7 +160,7 @@ CASES = [
                                                        "--capture-utc-offset", "1"],
          r"argument --capture-utc-offset: expected a UTC offset \+HH:MM in \[-14:00, \+14:00\] \(e.g. -05:00\), got '1'"),
     Case("recon-capture-utc-offset-too-far", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
-                                                      "--capture-utc-offset", "+15:00"],
+                                                      "--capture-utc-offset=-15:00"],
          r"argument --capture-utc-offset: expected a UTC offset \+HH:MM in \[-14:00, \+14:00\]"),
     Case("recon-photos-missing", RECON, ["--photos", "{tmp}/none", "--out", "{tmp}/s"],
          r"none: not found; expected a folder of photos"),
