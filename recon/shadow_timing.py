@@ -54,10 +54,10 @@ ZONE_STEP_MIN, FINE_STEP_MIN = 10.0, 2.5
 CLOCK_WINDOW_MIN, CLOCK_STEP_MIN = 30.0, 5.0
 #: The model yaw correction searched: +- this many degrees, in steps of...
 YAW_WINDOW_DEG, YAW_STEP_DEG = 6.0, 2.0
-#: A fitted UTC offset needs at least this mean IoU...
+#: A fitted UTC offset, or a capture sun the texture is delit with, needs at least this mean IoU...
 MIN_IOU = 0.35
 #: ...and a candidate must beat the one it would replace (the median candidate, or the time as given) by this much.
-MIN_MARGIN = 0.02
+MIN_MARGIN = 0.03
 #: Suns lower than this (degrees) are not candidates: every surface would be in shadow.
 MIN_ELEVATION_DEG = 5.0
 #: Luminance weights of linear RGB (Rec. 709).

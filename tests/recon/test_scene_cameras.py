@@ -125,13 +125,22 @@ def test_hold_out_of_one_would_leave_out_every_photo(tmp_path, capsys):
     assert not (tmp_path / "scene").exists()
 
 
+def assert_kept_light(scene, reason: str) -> None:
+    """The scene's texture kept its capture light, for ``reason``, and its cameras carry no capture sun."""
+    light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
+    assert not light["applied"] and reason in light["reason"]
+    assert not (scene / "capture_light.png").exists()
+    assert all(camera.capture_sun is None for camera in load_scene(scene).cameras)
+
+
 @pytest.mark.slow
 def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_data, tmp_path, capsys):
     """brighton_beach (18 DJI photos) with --hold-out 6: photos 6, 12, 18 are in cameras.json as held out, with
     their SfM pose, not in the depth/texture workspace, but with their exposure gain measured against the texture;
     cameras.json's full-size
     lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
-    photos by name. ~40 s of CPU (90 s on the shared 2-core machine)."""
+    photos by name; the texture keeps its capture light, timed or not (the forest casting the road's shadows is not in
+    the twin). ~50 s of CPU (110 s on the shared 2-core machine)."""
     photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
                        "--hold-out", "6"]) == 0
@@ -143,6 +152,7 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     gains = json.loads((scene / "work" / "texture_report.json").read_text())["gains"]
     assert sorted(gains) == names  # the held-out photos' exposure is measured against the texture
     assert all(cameras[name].exposure_gain == pytest.approx(gains.get(name, 1.0)) for name in names)
+    assert_kept_light(scene, "no UTC offset explains their shadows")
     model = pycolmap.Reconstruction(scene / "work" / "sparse")
     poses = camera_poses(model)
     for image in model.images.values():
@@ -167,3 +177,9 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     assert frame["sampler"]["image_name"] == names[5] and frame["sampler"]["held_out"] is True
     assert np.isfinite(read_exr(replay / "sequences/00/depth_2/000005.exr")).mean() == pytest.approx(
         results[names[5].rsplit(".", 1)[0]].covered)
+    # its photos say 16:32 local on 23 June 2016 (Minnesota, UTC-05:00); the road's shadows there are cast by a forest
+    # the dense stereo did not reconstruct: the twin cannot explain them, so the texture keeps its light rather than
+    # paint shadows where there are none (and untimed, above, no zone explained them either)
+    assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
+                       "--hold-out", "6", "--capture-utc-offset=-05:00"]) == 0
+    assert_kept_light(scene, "the twin predicts the photos' shadows poorly")
