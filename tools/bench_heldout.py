@@ -22,7 +22,9 @@ their ``--mesh``/``--texture`` change are redone (the stage stamps say which), a
 those stages.
 
 Table: one row per variant and group (held-out, used, all photos): mean formula 3 raw / with gain, whole image / covered
-pixels, mean coverage; then the seconds of each step. A held-out photo's "gain" is its own exposure measured
+pixels, mean coverage; then, with several variants, formula 3 raw over the pixels EVERY variant covers (each variant
+covers a different part of a photo, the 3-D surface the harder far field too: only common pixels compare the
+surfaces' looks); then the seconds of each step. A held-out photo's "gain" is its own exposure measured
 against the finished texture (``recon.atlas.held_out_gains``: one number per photo, the way the texture's photos'
 gains are measured; atlas texture only); its colours never enter the texture. A rerun with the same ``--work``
 resumes both runs.
@@ -41,7 +43,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from sim.evaluation.realism import compare_folders, mean_comparison  # noqa: E402
+from sim.dataset.images import read_exr  # noqa: E402
+from sim.dataset.source import replay_frames  # noqa: E402
+from sim.evaluation.realism import (compare_folders, fit_reference, mean_comparison, photorealism_error_masked,  # noqa: E402
+                                    read_rgb)
 from sim.render.scene import load_scene  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -86,8 +91,37 @@ def bench_folder(photos: Path, work: Path, args, label: str, mesh: str, texture:
     held_out = {Path(c.name).stem for c in load_scene(scene).cameras if c.held_out}
     groups = {"held-out": [r for r in results if r.name in held_out],
               "used": [r for r in results if r.name not in held_out], "all": results}
-    return {"folder": photos, "label": label, "scene": scene, "groups": {name: (len(rows), mean_comparison(rows)) for name, rows in groups.items()},
+    return {"folder": photos, "label": label, "scene": scene, "replay": replay / "sequences" / "00" / "replay_2",
+            "held_out": held_out, "groups": {name: (len(rows), mean_comparison(rows)) for name, rows in groups.items()},
             "seconds": seconds, "size": f"{args.image_size}/{args.dense_size}/{args.width or 'photo'}"}
+
+
+def common_pixel_errors(rows: list[dict]) -> dict[str, dict[str, float]]:
+    """Per variant of one photo folder (``rows``), mean formula 3 raw per group (held-out, used) over the pixels every
+    variant's replay covers."""
+    frames = [replay_frames(row["replay"]) for row in rows]
+    photos = {path.stem: path for path in rows[0]["folder"].iterdir() if path.stem in frames[0]}
+    errors = {row["label"]: {"held-out": [], "used": []} for row in rows}
+    for stem, path in sorted(photos.items()):
+        renders = [read_rgb(row["replay"] / f"{stem}.png") for row in rows]
+        covered = np.logical_and.reduce([np.isfinite(read_exr(frame[stem].depth)) for frame in frames])
+        photo = fit_reference(read_rgb(path), renders[0].shape, str(path))
+        group = "held-out" if stem in rows[0]["held_out"] else "used"
+        for row, render in zip(rows, renders):
+            errors[row["label"]][group].append(photorealism_error_masked(photo, render, covered))
+    return {label: {group: float(np.nanmean(values)) for group, values in groups.items()}
+            for label, groups in errors.items()}
+
+
+def print_common_table(rows: list[dict]) -> None:
+    folders = sorted({row["folder"] for row in rows}, key=str)
+    print("| set | variant | err % held-out, common pixels | err % used, common pixels |")
+    print("|---|---|---|---|")
+    for folder in folders:
+        variants = [row for row in rows if row["folder"] == folder]
+        for label, groups in common_pixel_errors(variants).items():
+            print(f"| {folder.parent.name} | {label} | {groups['held-out']:.2f} | {groups['used']:.2f} |")
+    print()
 
 
 def print_table(rows: list[dict]) -> None:
@@ -98,6 +132,8 @@ def print_table(rows: list[dict]) -> None:
             cells = [f"{means[key]:.2f}" if key != "covered" else f"{100 * means[key]:.1f} %" for key in METRICS]
             print(f"| {row['folder'].parent.name} | {row['label']} | {group} | {count} | {' | '.join(cells)} |")
     print()
+    if len({row["label"] for row in rows}) > 1:
+        print_common_table(rows)
     print("| set | variant | SfM/dense/replay px | recon s | replay s | compare s |")
     print("|---|---|---|---|---|---|")
     for row in rows:
