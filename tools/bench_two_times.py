@@ -1,0 +1,358 @@
+"""A twin relit to another time of day: the same mission flown at 08:00 and at 15:00, the twin built from the first.
+
+    .venv/bin/python tools/bench_two_times.py --work DIR [--quick] [--photo-interval S] [--seed N] [--json F]
+
+Through the command lines, as a user runs them (``tools/closed_loop.py``'s stages, each in a child process):
+
+1. ``aerostereo-mission`` plans the closed loop's orbit over the demo world's origin; ``aerostereo-render fly`` flies
+   it twice, ``--start-utc`` at 08:00 and at 15:00 mean local solar time over the scene's origin (UTC = local solar
+   time - longitude / 15 h; the equation of time, up to 16 min, is left out) on :data:`FLIGHT_DATE`, 2026-05-01: on
+   the demo world (40.18 N, 44.50 E) the sun stands at azimuth 98 deg, elevation 33 deg, then at 251 deg, 43 deg,
+   150 deg apart. The second flight has the next seed (another day: its own gusts, GPS errors and exposure drift).
+2. ``aerostereo-ingest geotag`` geotags the 08:00 photos (their geotags carry UTC), ``aerostereo-recon`` builds the
+   twin from them alone: its atlas is the albedo, the capture sun divided out ("relit albedo"). The same
+   reconstruction with ``--keep-capture-light`` (its work folder copied: only the texture stage is redone) is the
+   twin as it was before delighting ("lit texture", the 08:00 light baked in).
+3. Each twin is rendered at every photo of each flight: the photo's TRUE pose and camera (``truth.json``: pose,
+   intrinsics, lens distortion), its TRUE sun (the real sun at its UTC time), and its TRUE auto-exposure gain per
+   channel as the renderer's exposure (``truth.json``'s ``gain_r/g/b``: photo = gain x the unit-exposure render, in
+   linear light, exactly as the virtual drone rendered the photo). The twin is placed on the world by the
+   similarity that takes its registered cameras onto the true ones (:func:`recon.oblique.twin_frame`), which
+   removes the GPS georeference's error. The true world is rendered the same way as a check of that handling
+   (it differs from the photos by their JPEG coding only).
+4. Formula 3 (:func:`sim.evaluation.realism.photorealism_error_masked`) of each render against its photo over the
+   pixels the twin covers (where the twin has surface), and again after one gain per channel fitted to the photo
+   (:func:`sim.evaluation.realism.fit_channel_gains`: what is left when no exposure is known).
+
+Printed (stdout): per twin and flight the mean and median formula 3 (true gain), the mean with fitted gains, the
+covered fraction; per twin the difference other - own (issue 28's criterion: the relit twin within 1 point of
+itself at its own flight); the time of every stage. Progress on stderr. ``--work`` is resumed: a finished stage
+(its output present and its time recorded in ``stages.json``) is not run again.
+
+Defaults: the closed loop's (``tools/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
+(50 m radius, 30 m up), 800x600 photos, SfM at 800 px, depth maps at 640 px, a photo every :data:`DEFAULT_INTERVAL_S`
+s. The mission's own interval is 1 s (452 photos); 2 s (226 photos) keeps the run near 30 min on the 2-core machine
+(a 452-photo reconstruction alone takes 12-23 min there, tools/bench_recon_orbit.py, and every photo is rendered
+six times). ``--quick``: the closed loop's reduced settings (demo:small, a 3-waypoint arc, 480x360 photos).
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+import json
+import math
+import shutil
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np  # noqa: E402
+
+from cliutil.atomic import write_text_atomic  # noqa: E402
+from flightplan.geodesy import LocalFrame  # noqa: E402
+from recon.oblique import TwinFrame, twin_frame  # noqa: E402
+from recon.scene_cameras import truth_poses  # noqa: E402
+from sim.evaluation.realism import (fit_channel_gains, photorealism_error_masked, photorealism_error_percent,  # noqa: E402
+                                    read_rgb)
+from sim.render.camera import PinholeCamera, Rig  # noqa: E402
+from sim.render.raycast import default_workers  # noqa: E402
+from sim.render.renderer import View, render  # noqa: E402
+from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
+from sim.render.shade import Lighting, Sun  # noqa: E402
+from sim.sampling.light import SunSetting, frame_light, real_sun, utc_text  # noqa: E402
+from tools.closed_loop import LoopConfig, StageResult, cli, plan_mission, run, world_folder  # noqa: E402
+
+#: The day both flights are flown.
+FLIGHT_DATE = dt.date(2026, 5, 1)
+#: Mean local solar times (hours) of the two take-offs: the twin's flight, then the other.
+LOCAL_SOLAR_HOURS = (8.0, 15.0)
+#: Default seconds between photos (the module docstring says why not the mission's 1 s).
+DEFAULT_INTERVAL_S = 2.0
+#: The two suns must be at least this far apart (degrees) for the relighting to be a test.
+MIN_SUN_SEPARATION_DEG = 45.0
+#: The twins: label -> whether recon keeps the capture light.
+TWINS = {"lit texture": True, "relit albedo": False}
+#: What stands beside the twins: the true world, rendered the same way (the gain and sun handling's floor).
+TRUE_WORLD = "true world"
+
+
+def utc_at_local_solar_time(day: dt.date, hours: float, lon_deg: float) -> dt.datetime:
+    """The UTC instant (aware, to the second) at which mean local solar time at longitude ``lon_deg`` (degrees east)
+    reads ``hours`` on ``day``: UTC = local solar time - lon / 15 h. The equation of time is left out."""
+    midnight = dt.datetime(day.year, day.month, day.day, tzinfo=dt.timezone.utc)
+    return midnight + dt.timedelta(seconds=round(3600.0 * (hours - lon_deg / 15.0)))
+
+
+def sun_separation_deg(first: Sun, second: Sun) -> float:
+    """Angle (degrees) between the directions towards two suns."""
+    return math.degrees(math.acos(float(np.clip(first.direction_enu @ second.direction_enu, -1.0, 1.0))))
+
+
+@dataclass(frozen=True)
+class Flight:
+    """One flight of the mission: its label, its take-off UTC, its seed and its folder."""
+
+    label: str
+    start_utc: dt.datetime
+    seed: int
+    folder: Path
+
+
+def flights(work: Path, origin: LocalFrame, seed: int) -> list[Flight]:
+    """The twin's flight (own) and the later one (other), at :data:`LOCAL_SOLAR_HOURS` over ``origin``."""
+    return [Flight(f"{label} {int(hours):02d}:{round(60 * (hours % 1)):02d}",
+                   utc_at_local_solar_time(FLIGHT_DATE, hours, origin.lon0_deg), seed + k, work / f"fly_{k + 1}")
+            for k, (label, hours) in enumerate(zip(("own", "other"), LOCAL_SOLAR_HOURS))]
+
+
+def check_suns(flown: list[Flight], origin: LocalFrame) -> None:
+    """Print each take-off's sun (stderr); ``ValueError`` when one is down or they are too alike to test relighting."""
+    suns = []
+    for flight in flown:
+        light = real_sun(flight.start_utc, origin)
+        record = light.record
+        print(f"{flight.label}: take-off {utc_text(flight.start_utc)}, sun azimuth {record['azimuth_deg']:.1f} deg, "
+              f"elevation {record['elevation_deg']:.1f} deg, strength {record['strength']:.2f}", file=sys.stderr)
+        if record["elevation_deg"] <= 5.0:
+            raise ValueError(f"{flight.label}: the sun is at {record['elevation_deg']:.1f} deg at take-off")
+        suns.append(light.keywords["sun"])
+    separation = sun_separation_deg(*suns)
+    print(f"the two suns are {separation:.0f} deg apart", file=sys.stderr)
+    if separation < MIN_SUN_SEPARATION_DEG:
+        raise ValueError(f"the suns are only {separation:.0f} deg apart (< {MIN_SUN_SEPARATION_DEG:g})")
+
+
+class Stages:
+    """The stages of one ``--work`` folder, resumed: a stage whose output exists and whose time ``stages.json``
+    records is not run again (its recorded time is reported)."""
+
+    def __init__(self, work: Path):
+        self.work, self.log_dir = work, work / "logs"
+        self.log_dir.mkdir(parents=True, exist_ok=True)
+        self.path = work / "stages.json"
+        self.seconds = json.loads(self.path.read_text(encoding="utf-8")) if self.path.is_file() else {}
+        self.results: list[StageResult] = []
+
+    def done(self, name: str, output: Path) -> bool:
+        if output.exists() and name in self.seconds:
+            self.results.append(StageResult(name, "resumed", self.seconds[name]))
+            print(f"[{name}] resumed ({output} exists)", file=sys.stderr)
+            return True
+        return False
+
+    def record(self, result: StageResult) -> StageResult:
+        """Keep a finished stage's time; ``RuntimeError`` with the stage's reason when it failed."""
+        self.results.append(result)
+        if result.status != "ok":
+            raise RuntimeError(f"stage {result.name} failed: {result.detail}")
+        self.seconds[result.name] = result.wall_s
+        write_text_atomic(self.path, json.dumps(self.seconds, indent=1) + "\n")
+        print(f"[{result.name}] {result.wall_s:.1f} s", file=sys.stderr)
+        return result
+
+    def command(self, name: str, output: Path, argv: list[str]) -> None:
+        """Run a command-line stage unless it is done."""
+        if not self.done(name, output):
+            print(f"[{name}] running: {' '.join(argv[1:])}", file=sys.stderr)
+            self.record(run(name, argv, self.log_dir))
+
+
+def fly_and_reconstruct(config: LoopConfig, stages: Stages, world: Path, flown: list[Flight]) -> dict[str, Path]:
+    """Plan, fly both flights, geotag the first and reconstruct its two twins; their scene folders by label."""
+    work, origin = stages.work, read_scene_json(world)["origin_frame"]
+    mission = work / "mission"
+    if not stages.done("plan", mission / "mission.csv"):
+        mission.mkdir(exist_ok=True)
+        stages.record(plan_mission(config, origin, mission, stages.log_dir))
+    for flight in flown:
+        stages.command(f"fly {flight.label}", flight.folder / "truth.json", cli("aerostereo-render fly") + [
+            "--mission", str(mission / "mission.csv"), "--scene", str(world), "--out", str(flight.folder),
+            "--photo-size", *map(str, config.photo_size), "--noise", config.noise, "--seed", str(flight.seed),
+            "--start-utc", utc_text(flight.start_utc)])
+    own = flown[0].folder
+    geotags = work / "geotag" / "geotags.csv"
+    stages.command("geotag", geotags, cli("aerostereo-ingest") + [
+        "geotag", "--photos", str(own / "photos"), "--log", str(own / "flight.duml"), "--out", str(geotags)])
+    scenes = {}
+    for label, keep_light in sorted(TWINS.items(), key=lambda twin: twin[1]):  # the albedo's work folder first
+        scene = work / ("recon_lit" if keep_light else "recon")
+        if keep_light and not (scene / "work").exists():
+            shutil.copytree(work / "recon" / "work", scene / "work")  # only the texture stage is redone
+        stages.command(f"recon ({label})", scene / "scene.json", cli("aerostereo-recon") + [
+            "--photos", str(own / "photos"), "--geotags", str(geotags), "--out", str(scene),
+            "--image-size", str(config.sfm_image_size), "--dense-size", str(config.dense_size), "--mesh", config.mesh,
+            "--workers", str(config.workers), *(["--keep-capture-light"] if keep_light else [])])
+        scenes[label] = scene
+    return scenes
+
+
+def truth_camera(truth: dict) -> PinholeCamera:
+    """The drone's photo camera as ``truth.json`` states it (:func:`sim.drone.photos.camera_truth`)."""
+    camera = truth["camera"]
+    return PinholeCamera(camera["fx"], camera["fy"], camera["cx"], camera["cy"], camera["width"], camera["height"],
+                         dist=tuple(camera["distortion"]))
+
+
+@dataclass(frozen=True)
+class Photo:
+    """One photo of a flight as the virtual drone took it: its file, TRUE pose (world ENU ``T_world_cam``), sun
+    (world ENU) and exposure gain per channel (photo = gain x the unit-exposure render, linear light)."""
+
+    path: Path
+    T_world_cam: np.ndarray
+    sun: Sun
+    gain: tuple[float, float, float]
+
+
+def flight_photos(folder: Path, world_origin: LocalFrame) -> list[Photo]:
+    """Every photo a flight wrote, with its truth moved into the world's ENU frame."""
+    truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
+    to_world = LocalFrame.from_dict(truth["origin"]).transform_to(world_origin)
+    poses = truth_poses(truth)
+    photos = []
+    for row in truth["photos"]:
+        path = folder / "photos" / row["image_name"]
+        if row["image_name"] in poses and path.is_file():
+            sun = row["sun"]
+            setting = SunSetting("fixed", sun["azimuth_deg"], sun["elevation_deg"], sun["strength"])
+            photos.append(Photo(path, to_world @ poses[row["image_name"]],
+                                frame_light(setting, 0, 0, world_origin).keywords["sun"],
+                                (row["gain_r"], row["gain_g"], row["gain_b"])))
+    return photos
+
+
+def render_photo(scene: Scene, frame: TwinFrame | None, camera: PinholeCamera, photo: Photo, pool) -> View:
+    """``scene`` seen as ``photo`` was taken (its pose, sun and exposure); ``frame`` places a twin on the world
+    (None: the world itself)."""
+    pose, sun = ((photo.T_world_cam, photo.sun) if frame is None
+                 else (frame.camera_pose(photo.T_world_cam), frame.sun(photo.sun)))
+    return render(scene, Rig((camera,)), pose, sun, lighting=Lighting(exposure=photo.gain), pool=pool).views[0]
+
+
+def score(photo: np.ndarray, rendered: np.ndarray, covered: np.ndarray) -> tuple[float, float]:
+    """Formula 3 (%) over the ``covered`` pixels, as rendered and with one gain per channel fitted to the photo."""
+    fitted = fit_channel_gains(photo[covered], rendered[covered])
+    return photorealism_error_masked(photo, rendered, covered), photorealism_error_percent(photo[covered], fitted)
+
+
+def score_flight(world: Scene, twins: dict[str, tuple[Scene, TwinFrame]], folder: Path) -> dict[str, dict]:
+    """Every photo of the flight in ``folder`` against the twins' and the true world's renders, over the pixels
+    every twin covers: per label the per-photo formula 3 (true gain, fitted gains) and covered fractions."""
+    truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
+    camera, photos = truth_camera(truth), flight_photos(folder, world.origin)
+    scenes = {**twins, TRUE_WORLD: (world, None)}
+    scores = {label: {"error": [], "fitted": [], "covered": []} for label in scenes}
+    with ThreadPoolExecutor(default_workers()) as pool:
+        for index, photo in enumerate(photos):
+            rgb = read_rgb(photo.path)
+            views = {label: render_photo(scene, frame, camera, photo, pool) for label, (scene, frame) in
+                     scenes.items()}
+            covered = np.logical_and.reduce([views[label].valid for label in twins])
+            for label, view in views.items():
+                error, fitted = score(rgb, view.rgb, covered) if covered.any() else (math.nan, math.nan)
+                scores[label]["error"].append(error)
+                scores[label]["fitted"].append(fitted)
+                scores[label]["covered"].append(float(covered.mean()))
+            if (index + 1) % 10 == 0 or index + 1 == len(photos):
+                print(f"{folder.name}: {index + 1}/{len(photos)} photos scored", file=sys.stderr)
+    return scores
+
+
+def measure(stages: Stages, world_dir: Path, scenes: dict[str, Path], flown: list[Flight]) -> dict:
+    """Score both flights against every twin (per flight, per label: :func:`score_flight`'s lists)."""
+    world = load_scene(world_dir)
+    own_truth = json.loads((flown[0].folder / "truth.json").read_text(encoding="utf-8"))
+    twins = {label: (load_scene(folder), twin_frame(folder, own_truth, world.origin))
+             for label, folder in scenes.items()}
+    results = {}
+    for flight in flown:
+        started = time.perf_counter()
+        results[flight.label] = score_flight(world, twins, flight.folder)
+        stages.results.append(StageResult(f"render + score {flight.label}", "ok", time.perf_counter() - started))
+    return results
+
+
+def summary(values: list[float]) -> tuple[float, float]:
+    """Mean and median over the finite values."""
+    finite = np.asarray(values, float)
+    finite = finite[np.isfinite(finite)]
+    return (float(finite.mean()), float(np.median(finite))) if len(finite) else (math.nan, math.nan)
+
+
+def print_tables(results: dict, flown: list[Flight], stages: list[StageResult]) -> None:
+    """The scores per twin and flight, the other - own differences, the stage times (stdout, Markdown)."""
+    own, other = (flight.label for flight in flown)
+    print("| twin | flight | photos | f3 mean % | f3 median % | f3 fitted gains mean % | covered |")
+    print("|---|---|---|---|---|---|---|")
+    for label in (*TWINS, TRUE_WORLD):
+        for flight in flown:
+            scores = results[flight.label][label]
+            mean, median = summary(scores["error"])
+            print(f"| {label} | {flight.label} | {len(scores['error'])} | {mean:.2f} | {median:.2f} | "
+                  f"{summary(scores['fitted'])[0]:.2f} | {100 * np.mean(scores['covered']):.1f} % |")
+    print(f"\n| twin | {other} - {own}: mean | median | fitted gains mean | within 1 point |")
+    print("|---|---|---|---|---|")
+    for label in (*TWINS, TRUE_WORLD):
+        deltas = [np.subtract(summary(results[other][label][key]), summary(results[own][label][key]))
+                  for key in ("error", "fitted")]
+        print(f"| {label} | {deltas[0][0]:+.2f} | {deltas[0][1]:+.2f} | {deltas[1][0]:+.2f} | "
+              f"{'yes' if abs(deltas[0][0]) <= 1.0 else 'no'} |")
+    print("\n| stage | status | s |\n|---|---|---|")
+    for stage in stages:
+        print(f"| {stage.name} | {stage.status} | {stage.wall_s:.1f} |")
+    print(f"| total | | {sum(stage.wall_s for stage in stages):.1f} |")
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--work", required=True, type=Path, help="scratch folder, resumed on a rerun")
+    parser.add_argument("--quick", action="store_true",
+                        help="the closed loop's reduced settings: demo:small, 3-waypoint arc, 480x360 photos")
+    parser.add_argument("--photo-interval", type=float,
+                        help=f"seconds between photos (default {DEFAULT_INTERVAL_S:g}; --quick: 1)")
+    parser.add_argument("--seed", type=int, default=0, help="the first flight's seed; the second takes the next")
+    parser.add_argument("--json", type=Path, help="write every photo's scores and the stage times here")
+    return parser.parse_args(argv)
+
+
+def loop_config(args: argparse.Namespace) -> LoopConfig:
+    """The closed loop's settings (its quick ones with ``--quick``), with this bench's photo interval."""
+    config = LoopConfig.quick() if args.quick else LoopConfig(photo_interval_s=DEFAULT_INTERVAL_S)
+    if args.photo_interval is not None:
+        config.photo_interval_s = args.photo_interval
+    return config
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    config = loop_config(args)
+    world = world_folder(config.scene)
+    flown = flights(args.work, read_scene_json(world)["origin_frame"], args.seed)
+    try:
+        check_suns(flown, read_scene_json(world)["origin_frame"])
+    except ValueError as error:
+        print(f"bench_two_times: error: {error}", file=sys.stderr)
+        return 2
+    stages = Stages(args.work)
+    try:
+        scenes = fly_and_reconstruct(config, stages, world, flown)
+    except RuntimeError as error:
+        print(f"bench_two_times: {error}", file=sys.stderr)
+        return 1
+    results = measure(stages, world, scenes, flown)
+    print_tables(results, flown, stages.results)
+    if args.json:
+        write_text_atomic(args.json, json.dumps({"flights": {f.label: utc_text(f.start_utc) for f in flown},
+                                                 "scores": results,
+                                                 "stages": {s.name: s.wall_s for s in stages.results}}, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
