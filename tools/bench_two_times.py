@@ -46,7 +46,7 @@ import shutil
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
@@ -55,7 +55,8 @@ import numpy as np  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
-from recon.oblique import TwinFrame, twin_frame  # noqa: E402
+from recon.oblique import LightScores, TwinFrame, score_light, summarise_light, twin_frame  # noqa: E402
+from recon.observed import viewed_area  # noqa: E402
 from recon.scene_cameras import truth_poses  # noqa: E402
 from sim.evaluation.realism import (fit_channel_gains, photorealism_error_masked, photorealism_error_percent,  # noqa: E402
                                     read_rgb)
@@ -63,7 +64,7 @@ from sim.render.camera import PinholeCamera, Rig  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.render.renderer import View, render  # noqa: E402
 from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
-from sim.render.shade import Lighting, Sun  # noqa: E402
+from sim.render.shade import UNLIT, Lighting, Sun  # noqa: E402
 from sim.sampling.light import SunSetting, frame_light, real_sun, utc_text  # noqa: E402
 from tools.closed_loop import LoopConfig, StageResult, cli, plan_mission, run, world_folder  # noqa: E402
 
@@ -226,12 +227,20 @@ def flight_photos(folder: Path, world_origin: LocalFrame) -> list[Photo]:
     return photos
 
 
-def render_photo(scene: Scene, frame: TwinFrame | None, camera: PinholeCamera, photo: Photo, pool) -> View:
-    """``scene`` seen as ``photo`` was taken (its pose, sun and exposure); ``frame`` places a twin on the world
-    (None: the world itself)."""
-    pose, sun = ((photo.T_world_cam, photo.sun) if frame is None
-                 else (frame.camera_pose(photo.T_world_cam), frame.sun(photo.sun)))
+def render_photo(scene: Scene, frame: TwinFrame | None, camera: PinholeCamera, photo: Photo, pool,
+                 sun: Sun | None = None) -> View:
+    """``scene`` seen as ``photo`` was taken (its pose and exposure) under ``sun`` (world ENU; None: the photo's own);
+    ``frame`` places a twin on the world (None: the world itself)."""
+    sun = sun or photo.sun
+    pose, sun = ((photo.T_world_cam, sun) if frame is None else (frame.camera_pose(photo.T_world_cam), frame.sun(sun)))
     return render(scene, Rig((camera,)), pose, sun, lighting=Lighting(exposure=photo.gain), pool=pool).views[0]
+
+
+def render_as_captured(scene: Scene, frame: TwinFrame, camera: PinholeCamera, photo: Photo, pool) -> View:
+    """A twin's texture as photographed (:data:`sim.render.shade.UNLIT`) at ``photo``'s pose and exposure."""
+    lighting = replace(UNLIT["lighting"], exposure=photo.gain)
+    return render(scene, Rig((camera,)), frame.camera_pose(photo.T_world_cam), UNLIT["sun"], lighting=lighting,
+                  pool=pool).views[0]
 
 
 def score(photo: np.ndarray, rendered: np.ndarray, covered: np.ndarray) -> tuple[float, float]:
@@ -240,27 +249,70 @@ def score(photo: np.ndarray, rendered: np.ndarray, covered: np.ndarray) -> tuple
     return photorealism_error_masked(photo, rendered, covered), photorealism_error_percent(photo[covered], fitted)
 
 
-def score_flight(world: Scene, twins: dict[str, tuple[Scene, TwinFrame]], folder: Path) -> dict[str, dict]:
-    """Every photo of the flight in ``folder`` against the twins' and the true world's renders, over the pixels
-    every twin covers: per label the per-photo formula 3 (true gain, fitted gains) and covered fractions."""
+@dataclass(frozen=True)
+class Bench:
+    """What every photo is rendered and scored with: the true ``world``, the ``twins`` (scene and its place on the
+    world, by label), the twin's observed ``area`` (world ENU polygon, :func:`recon.oblique.true_camera_area`) and
+    its ``capture_sun`` (world ENU: the sun at the twin's flight's take-off)."""
+
+    world: Scene
+    twins: dict[str, tuple[Scene, TwinFrame]]
+    area: np.ndarray
+    capture_sun: Sun
+
+
+def photo_scores(bench: Bench, camera: PinholeCamera, photo: Photo, pool) -> tuple[dict, np.ndarray, dict]:
+    """One photo against the twins' and the true world's renders over the pixels every twin covers: per label
+    (formula 3 with the true gain, with fitted gains); the covered mask; the renders."""
+    rgb = read_rgb(photo.path)
+    scenes = {**bench.twins, TRUE_WORLD: (bench.world, None)}
+    views = {label: render_photo(scene, frame, camera, photo, pool) for label, (scene, frame) in scenes.items()}
+    covered = np.logical_and.reduce([views[label].valid for label in bench.twins])
+    scores = {label: score(rgb, view.rgb, covered) if covered.any() else (math.nan, math.nan)
+              for label, view in views.items()}
+    return scores, covered, views
+
+
+def light_scores(bench: Bench, camera: PinholeCamera, photo: Photo, views: dict, pool) -> dict[str, LightScores]:
+    """How each twin carries the light at a photo of the later flight (:func:`recon.oblique.score_light`): the true
+    world under the photo's sun and under the capture sun, each twin relit and as captured, over the observed area."""
+    captured = render_photo(bench.world, None, camera, photo, pool, sun=bench.capture_sun)
+    return {label: score_light(views[TRUE_WORLD], captured, views[label],
+                               render_as_captured(scene, frame, camera, photo, pool), bench.area)
+            for label, (scene, frame) in bench.twins.items()}
+
+
+def score_flight(bench: Bench, folder: Path, relit: bool) -> dict[str, dict]:
+    """Every photo of the flight in ``folder``: per label the per-photo formula 3 (``error``: true gain, ``fitted``:
+    fitted gains) and ``covered`` fractions (:func:`photo_scores`); with ``relit`` (the later flight) also each
+    twin's light scores summarised (``light``, :func:`recon.oblique.summarise_light`)."""
     truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
-    camera, photos = truth_camera(truth), flight_photos(folder, world.origin)
-    scenes = {**twins, TRUE_WORLD: (world, None)}
-    scores = {label: {"error": [], "fitted": [], "covered": []} for label in scenes}
+    camera, photos = truth_camera(truth), flight_photos(folder, bench.world.origin)
+    labels = (*bench.twins, TRUE_WORLD)
+    scores = {label: {"error": [], "fitted": [], "covered": []} for label in labels}
+    light = {label: [] for label in bench.twins}
     with ThreadPoolExecutor(default_workers()) as pool:
         for index, photo in enumerate(photos):
-            rgb = read_rgb(photo.path)
-            views = {label: render_photo(scene, frame, camera, photo, pool) for label, (scene, frame) in
-                     scenes.items()}
-            covered = np.logical_and.reduce([views[label].valid for label in twins])
-            for label, view in views.items():
-                error, fitted = score(rgb, view.rgb, covered) if covered.any() else (math.nan, math.nan)
-                scores[label]["error"].append(error)
-                scores[label]["fitted"].append(fitted)
-                scores[label]["covered"].append(float(covered.mean()))
+            errors, covered, views = photo_scores(bench, camera, photo, pool)
+            for label in labels:
+                for key, value in zip(("error", "fitted", "covered"), (*errors[label], float(covered.mean()))):
+                    scores[label][key].append(value)
+            if relit:
+                for label, scored in light_scores(bench, camera, photo, views, pool).items():
+                    light[label].append(scored)
             if (index + 1) % 10 == 0 or index + 1 == len(photos):
                 print(f"{folder.name}: {index + 1}/{len(photos)} photos scored", file=sys.stderr)
+    for label in light if relit else ():
+        scores[label]["light"] = summarise_light(light[label])
     return scores
+
+
+def flight_area(world: Scene, photos: list[Photo]) -> np.ndarray:
+    """What a flight stood over and looked at (:func:`recon.observed.viewed_area` of its true poses on the world's
+    ground under them, world ENU polygon): for a whole orbit its disc, for a short arc also the centre it looks at."""
+    poses = np.array([photo.T_world_cam for photo in photos])
+    ground = np.nanmedian(world.ground_height(poses[:, 0, 3], poses[:, 1, 3]))
+    return viewed_area(poses, float(ground))
 
 
 def measure(stages: Stages, world_dir: Path, scenes: dict[str, Path], flown: list[Flight]) -> dict:
@@ -269,10 +321,12 @@ def measure(stages: Stages, world_dir: Path, scenes: dict[str, Path], flown: lis
     own_truth = json.loads((flown[0].folder / "truth.json").read_text(encoding="utf-8"))
     twins = {label: (load_scene(folder), twin_frame(folder, own_truth, world.origin))
              for label, folder in scenes.items()}
+    bench = Bench(world, twins, flight_area(world, flight_photos(flown[0].folder, world.origin)),
+                  real_sun(flown[0].start_utc, world.origin).keywords["sun"])
     results = {}
     for flight in flown:
         started = time.perf_counter()
-        results[flight.label] = score_flight(world, twins, flight.folder)
+        results[flight.label] = score_flight(bench, flight.folder, relit=flight is not flown[0])
         stages.results.append(StageResult(f"render + score {flight.label}", "ok", time.perf_counter() - started))
     return results
 
@@ -302,6 +356,12 @@ def print_tables(results: dict, flown: list[Flight], stages: list[StageResult]) 
                   for key in ("error", "fitted")]
         print(f"| {label} | {deltas[0][0]:+.2f} | {deltas[0][1]:+.2f} | {deltas[1][0]:+.2f} | "
               f"{'yes' if abs(deltas[0][0]) <= 1.0 else 'no'} |")
+    print(f"\n| twin at {other} | ghost ratio | ghost px | f3 lit by both suns % | f3 as captured vs {own} sun % |")
+    print("|---|---|---|---|---|")
+    for label in TWINS:
+        light = results[other][label]["light"]
+        print(f"| {label} | {light['ghost_ratio']:.3f} | {light['ghost_pixels']} | {light['error_lit']:.2f} | "
+              f"{light['error_unlit_at_capture']:.2f} |")
     print("\n| stage | status | s |\n|---|---|---|")
     for stage in stages:
         print(f"| {stage.name} | {stage.status} | {stage.wall_s:.1f} |")
