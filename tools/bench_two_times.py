@@ -26,7 +26,11 @@ Through the command lines, as a user runs them (``tools/closed_loop.py``'s stage
 
 Printed (stdout): per twin and flight the mean and median formula 3 (true gain), the mean with fitted gains, the
 covered fraction; per twin the difference other - own (issue 28's criterion: the relit twin within 1 point of
-itself at its own flight); the time of every stage. Progress on stderr. ``--work`` is resumed: a finished stage
+itself at its own flight); at the later flight, how each twin carries the light (:func:`recon.oblique.score_light`,
+over the area the first flight stood over and looked at, :func:`flight_area`): the ghost ratio (twin / truth
+luminance where the 08:00 sun cast a shadow that the 15:00 sun lights: 1 when the capture's shadows are gone),
+formula 3 where both suns light the surface, and the twin as captured against the truth under the 08:00 sun (the
+texture's floor at those poses); the time of every stage. Progress on stderr. ``--work`` is resumed: a finished stage
 (its output present and its time recorded in ``stages.json``) is not run again.
 
 Defaults: the closed loop's (``tools/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
