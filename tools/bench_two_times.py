@@ -78,6 +78,8 @@ FLIGHT_DATE = dt.date(2026, 5, 1)
 LOCAL_SOLAR_HOURS = (8.0, 15.0)
 #: Default seconds between photos (the module docstring says why not the mission's 1 s).
 DEFAULT_INTERVAL_S = 2.0
+#: Each take-off's sun must stand higher than this (degrees): a lower one lights little but long shadows.
+MIN_SUN_ELEVATION_DEG = 5.0
 #: The two suns must be at least this far apart (degrees) for the relighting to be a test.
 MIN_SUN_SEPARATION_DEG = 45.0
 #: The twins: label -> whether recon keeps the capture light.
@@ -123,7 +125,7 @@ def check_suns(flown: list[Flight], origin: LocalFrame) -> None:
         record = light.record
         print(f"{flight.label}: take-off {utc_text(flight.start_utc)}, sun azimuth {record['azimuth_deg']:.1f} deg, "
               f"elevation {record['elevation_deg']:.1f} deg, strength {record['strength']:.2f}", file=sys.stderr)
-        if record["elevation_deg"] <= 5.0:
+        if record["elevation_deg"] <= MIN_SUN_ELEVATION_DEG:
             raise ValueError(f"{flight.label}: the sun is at {record['elevation_deg']:.1f} deg at take-off")
         suns.append(light.keywords["sun"])
     separation = sun_separation_deg(*suns)
@@ -144,6 +146,7 @@ class Stages:
         self.results: list[StageResult] = []
 
     def done(self, name: str, output: Path) -> bool:
+        """Whether stage ``name`` finished in an earlier run (its ``output`` exists, its time is recorded)."""
         if output.exists() and name in self.seconds:
             self.results.append(StageResult(name, "resumed", self.seconds[name]))
             print(f"[{name}] resumed ({output} exists)", file=sys.stderr)
@@ -214,9 +217,9 @@ class Photo:
     gain: tuple[float, float, float]
 
 
-def flight_photos(folder: Path, world_origin: LocalFrame) -> list[Photo]:
-    """Every photo a flight wrote, with its truth moved into the world's ENU frame."""
-    truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
+def flight_photos(truth: dict, folder: Path, world_origin: LocalFrame) -> list[Photo]:
+    """Every photo the flight in ``folder`` wrote, with its ``truth`` (``truth.json``) moved into the world's ENU
+    frame."""
     to_world = LocalFrame.from_dict(truth["origin"]).transform_to(world_origin)
     poses = truth_poses(truth)
     photos = []
@@ -256,8 +259,8 @@ def score(photo: np.ndarray, rendered: np.ndarray, covered: np.ndarray) -> tuple
 @dataclass(frozen=True)
 class Bench:
     """What every photo is rendered and scored with: the true ``world``, the ``twins`` (scene and its place on the
-    world, by label), the twin's observed ``area`` (world ENU polygon, :func:`recon.oblique.true_camera_area`) and
-    its ``capture_sun`` (world ENU: the sun at the twin's flight's take-off)."""
+    world, by label), the ``area`` its flight observed (world ENU polygon, :func:`flight_area`) and its
+    ``capture_sun`` (world ENU: the sun at the twin's flight's take-off)."""
 
     world: Scene
     twins: dict[str, tuple[Scene, TwinFrame]]
@@ -291,7 +294,7 @@ def score_flight(bench: Bench, folder: Path, relit: bool) -> dict[str, dict]:
     fitted gains) and ``covered`` fractions (:func:`photo_scores`); with ``relit`` (the later flight) also each
     twin's light scores summarised (``light``, :func:`recon.oblique.summarise_light`)."""
     truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
-    camera, photos = truth_camera(truth), flight_photos(folder, bench.world.origin)
+    camera, photos = truth_camera(truth), flight_photos(truth, folder, bench.world.origin)
     labels = (*bench.twins, TRUE_WORLD)
     scores = {label: {"error": [], "fitted": [], "covered": []} for label in labels}
     light = {label: [] for label in bench.twins}
@@ -306,8 +309,9 @@ def score_flight(bench: Bench, folder: Path, relit: bool) -> dict[str, dict]:
                     light[label].append(scored)
             if (index + 1) % 10 == 0 or index + 1 == len(photos):
                 print(f"{folder.name}: {index + 1}/{len(photos)} photos scored", file=sys.stderr)
-    for label in light if relit else ():
-        scores[label]["light"] = summarise_light(light[label])
+    if relit:
+        for label, scored in light.items():
+            scores[label]["light"] = summarise_light(scored)
     return scores
 
 
@@ -325,7 +329,7 @@ def measure(stages: Stages, world_dir: Path, scenes: dict[str, Path], flown: lis
     own_truth = json.loads((flown[0].folder / "truth.json").read_text(encoding="utf-8"))
     twins = {label: (load_scene(folder), twin_frame(folder, own_truth, world.origin))
              for label, folder in scenes.items()}
-    bench = Bench(world, twins, flight_area(world, flight_photos(flown[0].folder, world.origin)),
+    bench = Bench(world, twins, flight_area(world, flight_photos(own_truth, flown[0].folder, world.origin)),
                   real_sun(flown[0].start_utc, world.origin).keywords["sun"])
     results = {}
     for flight in flown:
@@ -342,9 +346,8 @@ def summary(values: list[float]) -> tuple[float, float]:
     return (float(finite.mean()), float(np.median(finite))) if len(finite) else (math.nan, math.nan)
 
 
-def print_tables(results: dict, flown: list[Flight], stages: list[StageResult]) -> None:
-    """The scores per twin and flight, the other - own differences, the stage times (stdout, Markdown)."""
-    own, other = (flight.label for flight in flown)
+def print_scores(results: dict, flown: list[Flight]) -> None:
+    """Formula 3 per twin and flight (mean, median; with fitted gains) and the covered fraction (stdout)."""
     print("| twin | flight | photos | f3 mean % | f3 median % | f3 fitted gains mean % | covered |")
     print("|---|---|---|---|---|---|---|")
     for label in (*TWINS, TRUE_WORLD):
@@ -353,23 +356,44 @@ def print_tables(results: dict, flown: list[Flight], stages: list[StageResult]) 
             mean, median = summary(scores["error"])
             print(f"| {label} | {flight.label} | {len(scores['error'])} | {mean:.2f} | {median:.2f} | "
                   f"{summary(scores['fitted'])[0]:.2f} | {100 * np.mean(scores['covered']):.1f} % |")
-    print(f"\n| twin | {other} - {own}: mean | median | fitted gains mean | within 1 point |")
+
+
+def print_differences(results: dict, own: str, other: str) -> None:
+    """Per twin, the later flight's formula 3 less its own flight's, and whether the mean is within 1 point."""
+    print(f"| twin | {other} - {own}: mean | median | fitted gains mean | within 1 point |")
     print("|---|---|---|---|---|")
     for label in (*TWINS, TRUE_WORLD):
         deltas = [np.subtract(summary(results[other][label][key]), summary(results[own][label][key]))
                   for key in ("error", "fitted")]
         print(f"| {label} | {deltas[0][0]:+.2f} | {deltas[0][1]:+.2f} | {deltas[1][0]:+.2f} | "
               f"{'yes' if abs(deltas[0][0]) <= 1.0 else 'no'} |")
-    print(f"\n| twin at {other} | ghost ratio | ghost px | f3 lit by both suns % | f3 as captured vs {own} sun % |")
+
+
+def print_light(results: dict, own: str, other: str) -> None:
+    """Per twin, how it carries the light at the later flight (:func:`light_scores`)."""
+    print(f"| twin at {other} | ghost ratio | ghost px | f3 lit by both suns % | f3 as captured vs {own} sun % |")
     print("|---|---|---|---|---|")
     for label in TWINS:
         light = results[other][label]["light"]
         print(f"| {label} | {light['ghost_ratio']:.3f} | {light['ghost_pixels']} | {light['error_lit']:.2f} | "
               f"{light['error_unlit_at_capture']:.2f} |")
-    print("\n| stage | status | s |\n|---|---|---|")
+
+
+def print_stages(stages: list[StageResult]) -> None:
+    """Each stage's wall time (a resumed stage: the time it took when it ran)."""
+    print("| stage | status | s |\n|---|---|---|")
     for stage in stages:
         print(f"| {stage.name} | {stage.status} | {stage.wall_s:.1f} |")
     print(f"| total | | {sum(stage.wall_s for stage in stages):.1f} |")
+
+
+def print_tables(results: dict, flown: list[Flight], stages: list[StageResult]) -> None:
+    """Every table, in Markdown on stdout."""
+    own, other = (flight.label for flight in flown)
+    for table in (lambda: print_scores(results, flown), lambda: print_differences(results, own, other),
+                  lambda: print_light(results, own, other), lambda: print_stages(stages)):
+        table()
+        print()
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -397,9 +421,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     config = loop_config(args)
     world = world_folder(config.scene)
-    flown = flights(args.work, read_scene_json(world)["origin_frame"], args.seed)
+    origin = read_scene_json(world)["origin_frame"]
+    flown = flights(args.work, origin, args.seed)
     try:
-        check_suns(flown, read_scene_json(world)["origin_frame"])
+        check_suns(flown, origin)
     except ValueError as error:
         print(f"bench_two_times: error: {error}", file=sys.stderr)
         return 2
