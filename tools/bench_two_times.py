@@ -8,7 +8,8 @@ Through the command lines, as a user runs them (``tools/closed_loop.py``'s stage
    it twice, ``--start-utc`` at 08:00 and at 15:00 mean local solar time over the scene's origin (UTC = local solar
    time - longitude / 15 h; the equation of time, up to 16 min, is left out) on :data:`FLIGHT_DATE`, 2026-05-01: on
    the demo world (40.18 N, 44.50 E) the sun stands at azimuth 98 deg, elevation 33 deg, then at 251 deg, 43 deg,
-   150 deg apart. The second flight has the next seed (another day: its own gusts, GPS errors and exposure drift).
+   their directions 100 deg apart. The second flight has the next seed (another day: its own gusts, GPS errors and
+   exposure drift).
 2. ``aerostereo-ingest geotag`` geotags the 08:00 photos (their geotags carry UTC), ``aerostereo-recon`` builds the
    twin from them alone: its atlas is the albedo, the capture sun divided out ("relit albedo"). The same
    reconstruction with ``--keep-capture-light`` (its work folder copied: only the texture stage is redone) is the
