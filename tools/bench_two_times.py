@@ -63,8 +63,8 @@ from flightplan.geodesy import LocalFrame  # noqa: E402
 from recon.oblique import LightScores, TwinFrame, score_light, summarise_light, twin_frame  # noqa: E402
 from recon.observed import viewed_area  # noqa: E402
 from recon.scene_cameras import truth_poses  # noqa: E402
-from sim.evaluation.realism import (fit_channel_gains, photorealism_error_masked, photorealism_error_percent,  # noqa: E402
-                                    read_rgb)
+from sim.evaluation.realism import (  # noqa: E402
+    fit_channel_gains, photorealism_error_masked, photorealism_error_percent, read_rgb)
 from sim.render.camera import PinholeCamera, Rig  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.render.renderer import View, render  # noqa: E402
