@@ -405,15 +405,15 @@ class Recon:
             azimuth, elevation = self.options.capture_sun
             return CaptureSuns(tuple(names), np.full(len(names), azimuth), np.full(len(names), elevation),
                                "given (--capture-sun)"), ""
-        times, source, is_utc = self.photo_times()
+        times, source, utc_offset_h = self.photo_times()
         if times is None:
             return None, ("the photos have no time (EXIF DateTimeOriginal) to find the capture sun from; give "
                           "--capture-sun AZ,EL to relight")
         twin, origin = untextured_scene(surface.vertices, surface.faces), self.priors.origin
         views = shadow_views(twin, photos, dict(zip(self.priors.names, times)))
-        if is_utc:
-            at_start = mean_iou(twin, views, origin, 0.0)
-            timing = refine_capture_time(twin, views, origin, ShadowFit(0.0, 0.0, 0.0, at_start, at_start))
+        if utc_offset_h is not None:
+            at_start = mean_iou(twin, views, origin, utc_offset_h)
+            timing = refine_capture_time(twin, views, origin, ShadowFit(utc_offset_h, 0.0, 0.0, at_start, at_start))
         elif (timing := fit_utc_offset(twin, views, origin)) is None:
             return None, ("the photos' EXIF clocks carry no time zone and no UTC offset explains their shadows on the "
                           "twin clearly; give --capture-utc-offset +HH:MM or --capture-sun AZ,EL to relight")
@@ -431,17 +431,18 @@ class Recon:
                           "times are not the photos' own)")
         return suns, ""
 
-    def photo_times(self) -> tuple[np.ndarray | None, str, bool]:
-        """Each prior photo's time (seconds since the epoch), where it came from, and whether it is UTC (else the
-        photos' own clock in an unknown zone); None where some photo has no time."""
+    def photo_times(self) -> tuple[np.ndarray | None, str, float | None]:
+        """Each prior photo's time (seconds since the epoch, its clock's), where it came from, and the clock's UTC
+        offset (hours; 0 for UTC) where known, else None (an EXIF clock in an unknown zone); no times where some
+        photo has none."""
         priors, offset_h = self.priors, self.options.capture_utc_offset_h
         if is_timed(priors.utc_time_s):
-            return priors.utc_time_s, priors.source, True
+            return priors.utc_time_s, priors.source, 0.0
         if not is_timed(priors.clock_time_s):
-            return None, "", False
+            return None, "", None
         if offset_h is not None:
-            return priors.clock_time_s - 3600.0 * offset_h, f"EXIF clock at UTC{utc_offset_text(offset_h)}", True
-        return priors.clock_time_s, "EXIF clock", False
+            return priors.clock_time_s, f"EXIF clock at UTC{utc_offset_text(offset_h)}", offset_h
+        return priors.clock_time_s, "EXIF clock", None
 
     def write_capture_light(self, textured, suns: CaptureSuns | None, kept: str) -> dict:
         """Write ``work/capture_light.png`` when the atlas divided its light out; what the texture report says
