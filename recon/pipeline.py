@@ -50,8 +50,7 @@ from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, 
                           read_geotags, with_receiver_sigmas)
 from recon.progress import StepProgress, counted, log_stderr
 from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
-from recon.shadow_timing import (MIN_IOU, ShadowFit, fit_utc_offset, mean_iou, refine_capture_time, shadow_views,
-                                 untextured_scene)
+from recon.shadow_timing import fit_utc_offset, refine_capture_time, shadow_views, start_fit, untextured_scene
 from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
 from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
@@ -412,19 +411,15 @@ class Recon:
         twin, origin = untextured_scene(surface.vertices, surface.faces), self.priors.origin
         views = shadow_views(twin, photos, dict(zip(self.priors.names, times)))
         if utc_offset_h is not None:
-            at_start = mean_iou(twin, views, origin, utc_offset_h)
-            timing = refine_capture_time(twin, views, origin, ShadowFit(utc_offset_h, 0.0, 0.0, at_start, at_start))
+            timing = refine_capture_time(twin, views, origin, start_fit(twin, views, origin, utc_offset_h))
         elif (timing := fit_utc_offset(twin, views, origin)) is None:
             return None, ("the photos' EXIF clocks carry no time zone and no UTC offset explains their shadows on the "
                           "twin clearly; give --capture-utc-offset +HH:MM or --capture-sun AZ,EL to relight")
         else:
             source = f"{source}, UTC offset {timing.utc_offset_h:+.2f} h found from the shadows"
         self.log(f"[texture] capture time from {source}: clock {timing.clock_correction_min:+.0f} min, yaw "
-                 f"{timing.yaw_deg:+.0f} deg, shadow IoU {timing.before:.2f} -> {timing.iou:.2f}")
-        if timing.iou < MIN_IOU:
-            return None, (f"the twin predicts the photos' shadows poorly (IoU {timing.iou:.2f} < {MIN_IOU}: what "
-                          f"casts them is missing from the mesh, or the day was overcast), so dividing its light out "
-                          f"would paint shadows where there are none")
+                 f"{timing.yaw_deg:+.0f} deg, shadow edge contrast {timing.before:.2f} -> {timing.contrast:.2f} "
+                 f"(log), shadow IoU {timing.iou:.2f}")
         suns = capture_suns(self.priors.names, times - 3600.0 * timing.utc_offset_h, origin, source, timing)
         if np.all(suns.elevation_deg <= 0):
             return None, ("the sun was below the horizon at every photo's UTC time (give --capture-sun AZ,EL if the "

@@ -1,6 +1,7 @@
 """The scene's cameras: COLMAP lenses as OpenCV lenses (against pycolmap's own projection), cameras.json from a
 known SfM model read back by the sim scene loader, and (slow) held-out photos of a real reconstruction."""
 
+import datetime as dt
 import json
 
 import numpy as np
@@ -16,7 +17,8 @@ from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.cli import main as render_main
 from sim.dataset.images import read_exr
 from sim.evaluation.realism import compare_folders
-from sim.render.scene import SceneError, load_scene
+from sim.render.scene import SceneError, load_scene, read_scene_json
+from sim.sampling.sun import solar_position
 
 RNG = np.random.default_rng(11)
 #: COLMAP model -> parameters (focal(s), principal point, extra), all used by sim's OpenCV lens.
@@ -139,8 +141,8 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     their SfM pose, not in the depth/texture workspace, but with their exposure gain measured against the texture;
     cameras.json's full-size
     lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
-    photos by name; the texture keeps its capture light, timed or not (the forest casting the road's shadows is not in
-    the twin). ~50 s of CPU (110 s on the shared 2-core machine)."""
+    photos by name; untimed, the texture keeps its capture light, and given its zone it is delit. ~50 s of CPU
+    (110 s on the shared 2-core machine)."""
     photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
                        "--hold-out", "6"]) == 0
@@ -177,9 +179,15 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     assert frame["sampler"]["image_name"] == names[5] and frame["sampler"]["held_out"] is True
     assert np.isfinite(read_exr(replay / "sequences/00/depth_2/000005.exr")).mean() == pytest.approx(
         results[names[5].rsplit(".", 1)[0]].covered)
-    # its photos say 16:32 local on 23 June 2016 (Minnesota, UTC-05:00); the road's shadows there are cast by a forest
-    # the dense stereo did not reconstruct: the twin cannot explain them, so the texture keeps its light rather than
-    # paint shadows where there are none (and untimed, above, no zone explained them either)
+    # its photos say 16:32 local on 23 June 2016 (Minnesota, UTC-05:00): untimed (above), the road's shadows, cast by
+    # a forest the dense stereo did not reconstruct, told no zone; given the zone, the texture is delit
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
                        "--hold-out", "6", "--capture-utc-offset=-05:00"]) == 0
-    assert_kept_light(scene, "the twin predicts the photos' shadows poorly")
+    light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
+    assert light["applied"] and light["capture_sun"]["time_source"] == "EXIF clock at UTC-05:00"
+    fit = light["capture_sun"]["shadow_fit"]
+    assert fit["zone_h"] == -5.0 and abs(fit["clock_correction_min"]) <= 30
+    taken = dt.datetime(2016, 6, 23, 21, 31, 59) + dt.timedelta(minutes=fit["clock_correction_min"])  # 16:31:59 local
+    origin = read_scene_json(scene)["origin_frame"]
+    expected = solar_position(origin.lat0_deg, origin.lon0_deg, taken)
+    assert {c.name: c.capture_sun for c in load_scene(scene).cameras}["DJI_0018.JPG"] == pytest.approx(expected, abs=0.01)

@@ -9,8 +9,8 @@ import pytest
 
 from flightplan.geodesy import LocalFrame
 from recon.priors import exif_times
-from recon.shadow_timing import (ShadowFit, dark_mask, fit_utc_offset, mean_iou, refine_capture_time,
-                                 shadow_views, untextured_scene)
+from recon.shadow_timing import (dark_mask, edge_contrast, fit_utc_offset, mean_contrast, predicted_shadow,
+                                 refine_capture_time, shadow_views, start_fit, sun_direction, untextured_scene)
 from recon.texture import Photo
 from sim.render.camera import Rig
 from sim.render.renderer import render
@@ -74,43 +74,54 @@ def test_the_utc_offset_of_a_local_clock_is_found_from_the_shadows(sunny):
     assert fit is not None
     assert fit.zone_h == pytest.approx(ZONE_H)
     assert abs(fit.utc_offset_h - ZONE_H) <= 0.25  # the sun within a quarter of an hour
-    assert fit.iou > 0.7 and fit.iou > fit.before + 0.1
+    assert fit.contrast > fit.before + 0.3 and fit.iou > 0.8
 
 
 def test_a_camera_clock_20_minutes_fast_is_corrected(sunny):
     twin, photos = sunny
     views = shadow_views(twin, photos, clocks(photos, 20 * 60.0))
-    start = mean_iou(twin, views, ORIGIN, 0.0)
-    fit = refine_capture_time(twin, views, ORIGIN, ShadowFit(0.0, 0.0, 0.0, start, start))
+    start = start_fit(twin, views, ORIGIN, 0.0)
+    fit = refine_capture_time(twin, views, ORIGIN, start)
     assert fit.clock_correction_min == pytest.approx(-20.0, abs=10.0)
     assert fit.zone_h == pytest.approx(0.0)
-    assert fit.iou > start
+    assert fit.contrast > start.contrast
 
 
 def test_a_right_clock_is_left_alone(sunny):
     twin, photos = sunny
     views = shadow_views(twin, photos, clocks(photos, 0.0))
-    start = mean_iou(twin, views, ORIGIN, 0.0)
-    fit = refine_capture_time(twin, views, ORIGIN, ShadowFit(0.0, 0.0, 0.0, start, start))
+    fit = refine_capture_time(twin, views, ORIGIN, start_fit(twin, views, ORIGIN, 0.0))
     assert (fit.clock_correction_min, fit.yaw_deg) == (0.0, 0.0)
-    assert start > 0.7
+    assert fit.iou > 0.8
 
 
 def test_a_model_turned_6_degrees_gets_its_sun_turned_alike():
     """Time and yaw both turn the sun; what matters (and is tested) is the sun in the model's frame."""
     twin, photos = photographed(true_sun(), model_turn_deg=6.0)
     views = shadow_views(twin, photos, clocks(photos, 0.0))
-    start = mean_iou(twin, views, ORIGIN, 0.0)
-    fit = refine_capture_time(twin, views, ORIGIN, ShadowFit(0.0, 0.0, 0.0, start, start))
+    start = start_fit(twin, views, ORIGIN, 0.0)
+    fit = refine_capture_time(twin, views, ORIGIN, start)
     fitted_sun = true_sun(UTC + dt.timedelta(minutes=fit.clock_correction_min))
     assert fitted_sun.azimuth_deg + fit.yaw_deg == pytest.approx(true_sun().azimuth_deg - 6.0, abs=2.5)
-    assert fit.iou > start + 0.02
+    assert fit.contrast > start.contrast + 0.05
 
 
 def test_an_overcast_capture_is_not_timed():
     twin, photos = photographed(Sun(*solar_position(ORIGIN.lat0_deg, ORIGIN.lon0_deg, UTC), 0.0))
     views = shadow_views(twin, photos, clocks(photos, 3600.0 * ZONE_H))
     assert fit_utc_offset(twin, views, ORIGIN) is None
+
+
+def test_the_edge_contrast_is_the_photos_across_the_predicted_edges(sunny):
+    """Lit ground over shadowed ground is sun plus sky over sky: log((1.0 cos + 0.3) / 0.3) on flat open ground under
+    the true sun; a sun from elsewhere puts the edges where the photo has none."""
+    twin, photos = sunny
+    views = shadow_views(twin, photos, clocks(photos, 0.0))
+    sun = sun_direction(ORIGIN, UTC.timestamp())
+    contrasts = [edge_contrast(view, predicted_shadow(twin, view, sun)) for view in views]
+    ground_cos = true_sun().direction_enu[2]
+    assert np.median(contrasts) == pytest.approx(np.log((ground_cos + 0.3) / 0.3), abs=0.25)
+    assert mean_contrast(twin, views, ORIGIN, 0.0, yaw_deg=90.0) < np.median(contrasts) - 0.3
 
 
 def test_dark_pixels_are_the_dark_and_blue_ones():
