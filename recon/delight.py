@@ -30,7 +30,8 @@ from sim.render.raycast import occluded
 from recon.shadow_timing import untextured_scene
 from sim.render.scene import Scene, unit_face_normals
 from sim.render.shade import Lighting
-from sim.render.sky import SkyVisibility, bake_corner_visibility
+from sim.render.sky import bake_corner_visibility
+from sim.render.sky_file import SkyVisibility
 
 #: The sky's irradiance of the capture, in the renderer's units (its default sky): what an albedo is relative to.
 CAPTURE_SKY = float(np.mean(Lighting().channel_ambient))

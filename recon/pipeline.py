@@ -13,7 +13,7 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
 | mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
 | texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture="none"``) |
-| scene | ``texture`` | | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` |
+| scene | ``texture`` | the sky visibility's bake settings | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` |
 
 The exact table is :data:`recon.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
 maps when rerun with the same fingerprint; redone for another one, it deletes them first (:data:`STALE_OUTPUTS`).
@@ -57,6 +57,7 @@ from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
+from sim.render.sky import bake_settings
 
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
@@ -215,11 +216,12 @@ class Recon:
     def inputs(self) -> dict[str, dict]:
         """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags;
         texture: the glTF convention it writes, so a terrain.glb written before the +Y-up GLBs is redone, not
-        taken for one)."""
+        taken for one; scene: the settings its sky visibility is baked with, so a scene baked with others, or before
+        scenes stored their bake, is redone)."""
         geotags = "exif" if self.geotags_csv is None else {
             path.name: file_sha256(path) for path in (self.geotags_csv, sidecar_path(self.geotags_csv))}
         return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags},
-                "texture": {"glb": GEOREF_FORMAT}}
+                "texture": {"glb": GEOREF_FORMAT}, "scene": {"sky_visibility": bake_settings()}}
 
     def run(self) -> dict:
         """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.

@@ -1,4 +1,5 @@
-"""Write the scene folder of INTERFACES.md: a mesh in local ENU metres, ``cameras.json`` and ``scene.json``.
+"""Write the scene folder of INTERFACES.md: a mesh in local ENU metres, ``cameras.json``, the mesh's baked sky
+visibility (``sky_visibility.npz``, sim/render/sky_file.py) and ``scene.json``.
 
 The normal case is a textured GLB from ``recon/texture.py`` (``encoded`` bytes); the fallback is the mesh with
 vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/render/scene_cameras.py) holds the registered photos of
@@ -22,7 +23,10 @@ from cliutil.atomic import atomic_path, write_text_atomic
 from recon.observed import viewed_area
 from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.render.capture_light import ENCODING
+from sim.render.scene import Scene, read_scene_mesh_enu
 from sim.render.scene_cameras import SceneCamera, write_cameras
+from sim.render.sky import write_scene_sky_visibility
+from sim.render.sky_file import FORMAT as SKY_FORMAT, SKY_FILE
 
 SCENE_FORMAT = "aerostereo-scene/1"
 CAMERAS_FILE = "cameras.json"
@@ -61,12 +65,21 @@ def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, pr
     }
 
 
+def store_sky_visibility(scene_dir: Path, meta: dict) -> None:
+    """Bake the sky visibility of the mesh that ``meta`` (scene.json's content, the mesh already written) names, read
+    as the scene loader reads it, into ``scene_dir/sky_visibility.npz``, and name it in ``meta``."""
+    vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
+    write_scene_sky_visibility(scene_dir / SKY_FILE, Scene(vertices, faces, surface, source=str(scene_dir)))
+    meta["sky_visibility"] = {"file": SKY_FILE, "format": SKY_FORMAT}
+
+
 def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, provenance: dict,
                 mesh_name: str = "terrain.ply", encoded: bytes | None = None,
                 cameras: Sequence[SceneCamera] = (), capture_light: tuple[bytes, dict] | None = None) -> Path:
     """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh), ``cameras.json``
-    when there are ``cameras``, the ``capture_light`` (PNG bytes, what to say of it) of a delit texture, and
-    ``scene.json`` (last, so its presence means the scene is complete)."""
+    when there are ``cameras``, the ``capture_light`` (PNG bytes, what to say of it) of a delit texture, the mesh's
+    sky visibility (:func:`store_sky_visibility`) and ``scene.json`` (last, so its presence means the scene is
+    complete)."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
         if encoded is None:
@@ -88,5 +101,6 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
             ground_z = float(np.median(np.asarray(mesh.vertices)[:, 2]))
             area = viewed_area(np.array([camera.T_world_cam for camera in cameras]), ground_z)
             meta["observed_area_m"] = area.round(3).tolist()
+    store_sky_visibility(scene_dir, meta)
     write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
     return scene_dir / "scene.json"

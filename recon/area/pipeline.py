@@ -39,7 +39,7 @@ from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions
-from recon.scene_out import CAMERAS_FILE, scene_metadata
+from recon.scene_out import CAMERAS_FILE, scene_metadata, store_sky_visibility
 from sim.render.scene import Scene, read_scene_cameras, read_scene_json
 from sim.render.scene_cameras import SceneCamera, write_cameras
 from sim.render.color import SRGB8_TO_LINEAR, to_srgb8
@@ -392,4 +392,5 @@ def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merge
                                                          "report": REPORT})
     meta["cameras"] = CAMERAS_FILE
     meta["observed_area_m"] = polygon.round(3).tolist()
+    store_sky_visibility(area_dir, meta)
     write_text_atomic(area_dir / "scene.json", json.dumps(meta, indent=2))

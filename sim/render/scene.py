@@ -26,6 +26,7 @@ from cliutil.jsonfile import loads_json
 from sim.render.capture_light import read_capture_light
 from sim.render.mesh_file import check_mesh_file
 from sim.render.scene_cameras import CamerasError, SceneCamera, read_cameras
+from sim.render.sky_file import SkyVisibility, StoredSky, read_sky_visibility
 from sim.render.texture import MAX_TEXTURE_SIDE, linear_texture
 from sim.render.glb import GEOREF_FORMAT, GEOREF_KEY, enu_from_gltf
 
@@ -92,8 +93,11 @@ class Scene:
     embree: rtcore_scene.EmbreeScene = field(init=False, repr=False)
     device: rtcore.EmbreeDevice | None = field(default=None, repr=False)
     observed_area_m: list | None = None  # scene.json's [[x, y], ...] ENU polygon (simple, maybe non-convex)
-    #: The sky visibility of every face corner (a sim.render.sky.SkyVisibility); None: baked on the first lit render.
-    sky_visibility: object | None = None
+    #: The sky visibility of every face corner; None: taken from ``stored_sky`` or baked on the first lit render
+    #: (sim.render.sky.scene_sky_visibility).
+    sky_visibility: SkyVisibility | None = None
+    #: The sky visibility the scene folder stores (scene.json's ``sky_visibility``), used only if baked from this mesh.
+    stored_sky: StoredSky | None = field(default=None, repr=False)
     #: ``(F, 3)`` float32 unit normals of the faces' winding (which side of a face is its front).
     face_normals: np.ndarray = field(init=False, repr=False)
 
@@ -250,11 +254,13 @@ def read_scene_json(scene_dir: Path) -> dict:
         raise SceneError(f"{path}: \"mesh\" must name the mesh file")
     if not isinstance(meta.get("cameras", ""), str):
         raise SceneError(f"{path}: \"cameras\" must name the cameras file (cameras.json)")
-    light = meta.get("capture_light")
-    if light is not None and not (isinstance(light, dict) and isinstance(light.get("file"), str)):
-        raise SceneError(f"{path}: \"capture_light\" must be {{\"file\": NAME, ...}}, got {light!r}")
-    for key, name in (("mesh", meta["mesh"]), ("cameras", meta.get("cameras")),
-                      ("capture_light.file", None if light is None else light["file"])):
+    named = [("mesh", meta["mesh"]), ("cameras", meta.get("cameras"))]
+    for key in ("capture_light", "sky_visibility"):
+        entry = meta.get(key)
+        if entry is not None and not (isinstance(entry, dict) and isinstance(entry.get("file"), str)):
+            raise SceneError(f"{path}: \"{key}\" must be {{\"file\": NAME, ...}}, got {entry!r}")
+        named.append((f"{key}.file", None if entry is None else entry["file"]))
+    for key, name in named:
         if name is not None:
             _require_inside(Path(scene_dir), name, f"{path}: \"{key}\"")
     try:
@@ -299,7 +305,21 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
         surface = replace(surface, capture_light=read_scene_capture_light(scene_dir, meta))
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
                  str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
-                 observed_area_m=meta.get("observed_area_m"))
+                 observed_area_m=meta.get("observed_area_m"), stored_sky=read_scene_sky_visibility(scene_dir, meta))
+
+
+def read_scene_sky_visibility(scene_dir: Path, meta: dict) -> StoredSky | None:
+    """The sky visibility that ``scene.json`` (``meta``) names (:mod:`sim.render.sky_file`); None where it names none
+    or the file is absent (the first lit render bakes it). A file that cannot be read is a :class:`SceneError`."""
+    if "sky_visibility" not in meta:
+        return None
+    path = Path(scene_dir) / meta["sky_visibility"]["file"]
+    if not path.is_file():
+        return None
+    try:
+        return read_sky_visibility(path)
+    except ValueError as error:
+        raise SceneError(f"{error}; delete it and renders bake the sky visibility themselves") from None
 
 
 def read_scene_capture_light(scene_dir: Path, meta: dict) -> np.ndarray:

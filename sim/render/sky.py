@@ -9,24 +9,29 @@ cosine-weighted rays per side (the stratified directions of a Fibonacci disk lif
 random angle per point so neighbouring points do not share their sampling error's pattern), each tested for
 occlusion by embree over the whole scene.
 
+A reconstruction stores its bake in the scene folder (:mod:`sim.render.sky_file`); :func:`scene_sky_visibility`
+uses it where it was baked from the very mesh loaded with today's settings (:func:`baked_from`), and bakes otherwise.
+
 Meshes are two-sided and their winding is not always consistent, so each point gets two values, one for the side
 its winding normal points to (``front``) and one for the other; a hit takes the side that faces the ray.
 """
 
 from __future__ import annotations
 
-import functools
 import math
 from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import nullcontext
-from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from sim.render.camera import row_dots
 from sim.render.raycast import Hits, default_workers, occluded_local
 from sim.render.scene import Scene, unit_face_normals
+from sim.render.sky_file import SkyVisibility, mesh_sha256, write_sky_visibility
 
+#: Bump when the bake computes other values from the same mesh and settings: stored bakes are then baked again.
+BAKE_VERSION = 1
 #: Rays per point and side; the standard error of V is at most 0.5 / sqrt(SKY_RAYS) (0.044 at 128).
 SKY_RAYS = 128
 #: Ray origins start this far off the surface along the corner normal (metres), past float32 noise and the
@@ -39,21 +44,8 @@ SKY_INSET_M = 0.05
 SKY_POINTS_PER_QUERY = 2048
 #: Faces around a vertex that turn more than this from a corner's own face do not share its normal (a crease).
 CREASE_DEG = 60.0
-
-
-@dataclass(frozen=True)
-class SkyVisibility:
-    """A scene's baked sky visibility: ``values`` ``(K, 2)`` float32 in [0, 1] of K surface points (a vertex with one
-    of its normals), front and back side; ``corner`` ``(F, 3)`` int32 the point of each face corner."""
-
-    corner: np.ndarray
-    values: np.ndarray
-
-    @functools.cached_property
-    def by_face_side(self) -> np.ndarray:
-        """``(2 F, 3)`` float32: row ``2 f + side`` holds face f's corner values on that side (0 front, 1 back), so
-        that a hit needs one gather at render time."""
-        return np.ascontiguousarray(self.values[self.corner].transpose(0, 2, 1).reshape(-1, 3))
+#: Seed of the random turn of each point's rays.
+SKY_SEED = 0
 
 
 def corner_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = CREASE_DEG) -> np.ndarray:
@@ -104,7 +96,7 @@ def _tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return tangent, np.cross(normals, tangent)
 
 
-def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = 0,
+def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = SKY_SEED,
                         pool: Executor | None = None) -> SkyVisibility:
     """The sky visibility of every face corner of ``scene`` (:class:`SkyVisibility`), baked once per surface point:
     a vertex with each of its corner normals (:func:`corner_normals`). Reproducible from ``seed``."""
@@ -112,7 +104,7 @@ def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = 0,
 
 
 def bake_corner_visibility(scene: Scene, vertices: np.ndarray, faces: np.ndarray, rays: int = SKY_RAYS,
-                           seed: int = 0, pool: Executor | None = None) -> SkyVisibility:
+                           seed: int = SKY_SEED, pool: Executor | None = None) -> SkyVisibility:
     """The sky visibility of the face corners of a mesh (``vertices`` ENU, ``faces``) lying in ``scene``, occluded by
     ``scene``: :func:`bake_sky_visibility` for faces that are not the scene's own (e.g. all of a mesh's faces where
     the scene dropped its degenerate ones; those get an upward normal)."""
@@ -167,11 +159,32 @@ def _visible_fraction(scene: Scene, points: np.ndarray, normals: np.ndarray, tur
     return 1.0 - blocked.reshape(len(normals), -1).mean(axis=1)
 
 
+def bake_settings() -> dict:
+    """What :func:`scene_sky_visibility` bakes with, beyond the mesh (stored with a bake, sim/render/sky_file.py)."""
+    return {"bake_version": BAKE_VERSION, "rays": SKY_RAYS, "seed": SKY_SEED, "bias_m": SKY_BIAS_M,
+            "inset_m": SKY_INSET_M, "crease_deg": CREASE_DEG}
+
+
+def baked_from(scene: Scene) -> dict:
+    """What the sky visibility of ``scene`` depends on: its face count, the SHA-256 of its vertices and faces as loaded
+    and :func:`bake_settings`."""
+    return {"faces": len(scene.faces), "mesh_sha256": mesh_sha256(scene.vertices, scene.faces), **bake_settings()}
+
+
+def write_scene_sky_visibility(path: Path, scene: Scene) -> None:
+    """Bake the sky visibility of ``scene`` as a render would (:func:`scene_sky_visibility`) and store it at ``path``
+    with what it was baked from."""
+    write_sky_visibility(path, bake_sky_visibility(scene), baked_from(scene))
+
+
 def scene_sky_visibility(scene: Scene) -> SkyVisibility:
-    """The scene's sky visibility: as loaded, or baked now (:func:`bake_sky_visibility`) and kept on the scene for its
-    later renders."""
+    """The scene's sky visibility, kept on the scene for its later renders: the one its folder stores
+    (``scene.stored_sky``) where that was baked from this very mesh with today's settings (:func:`baked_from`), else
+    baked now (:func:`bake_sky_visibility`)."""
     if scene.sky_visibility is None:
-        scene.sky_visibility = bake_sky_visibility(scene)
+        stored, scene.stored_sky = scene.stored_sky, None
+        fits = stored is not None and stored.baked_from == baked_from(scene)
+        scene.sky_visibility = stored.visibility if fits else bake_sky_visibility(scene)
     return scene.sky_visibility
 
 
