@@ -15,6 +15,8 @@ from recon.pipeline import Recon, ReconOptions
 from recon.progress import StepProgress
 from recon.sfm.options import SfmOptions
 from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
+from sim.render import sky
+from sim.render.sky_file import SKY_FILE, read_sky_visibility
 from tests.recon.synthetic import make_texture, write_nadir_photos
 from tools.geotag_csv import write_geotags
 
@@ -113,6 +115,21 @@ def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
     assert not {"work/sfm_report.json", "work/fused.ply", "work/dense/depth_report.json"} & differ
     assert json.loads((scene / "scene.json").read_text())["provenance"]["options"]["grid_m"] == 1.0
     assert Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0)).ran == []  # and now it is done
+
+
+@pytest.mark.slow
+def test_other_sky_bake_settings_redo_the_scene_stage_only(flight, scene, monkeypatch):
+    """The scene's baked sky visibility is an output of the scene stage, stamped with the settings it was baked
+    with."""
+    assert read_sky_visibility(scene / SKY_FILE).baked_from["bake_version"] == sky.BAKE_VERSION
+    monkeypatch.setattr(sky, "BAKE_VERSION", sky.BAKE_VERSION + 1)
+    before = snapshot(scene)
+    rerun = Run(flight, scene)
+    assert rerun.ran == ["scene"]
+    assert "[scene] sky_visibility changed (1 modified: bake_version): redoing scene" in rerun.logs
+    assert {SKY_FILE, "scene.json"} <= changed(before, snapshot(scene))
+    assert read_sky_visibility(scene / SKY_FILE).baked_from["bake_version"] == sky.BAKE_VERSION
+    assert Run(flight, scene).ran == []
 
 
 @pytest.mark.slow
