@@ -1,6 +1,7 @@
 """tools/three_suns.py: one photo pose of a twin rendered by the render CLI under several lights, in a labelled grid."""
 
 import numpy as np
+import pytest
 import trimesh
 from PIL import Image
 
@@ -44,3 +45,22 @@ def test_a_grid_of_one_pose_under_each_light_a_row_per_twin(tmp_path):
         assert np.abs(one - other).mean() > 3
     rendered = tmp_path / "work" / "before" / "east" / "sequences" / "00" / "image_2"
     assert [path.name for path in rendered.iterdir()] == ["000001.png"]  # only the photo asked for
+
+
+def test_crop_keeps_the_asked_part_of_each_image_and_refuses_an_empty_one(tmp_path, capsys):
+    scene = ground_and_building_with_photos(tmp_path / "scene")
+    common = ["--before", str(scene), "--after", str(scene), "--photo", "0", "--width", "40", "--lights",
+              "low=120,20,8,high=200,70,8", "--work", str(tmp_path / "work")]
+    assert main([*common, "--out", str(tmp_path / "whole.png")]) == 0
+    assert main([*common, "--out", str(tmp_path / "part.png"), "--crop", "0.5,0,1,0.5"]) == 0
+    whole, part = (np.asarray(Image.open(tmp_path / name).convert("RGB")) for name in ("whole.png", "part.png"))
+    assert part.shape == (LABEL_PX + 2 * (LABEL_PX + 15), 2 * 20, 3)
+    first_row = slice(2 * LABEL_PX, 2 * LABEL_PX + 15)
+    # the top right quarter of each picture (colours as the palette of each PNG kept them: within a few codes)
+    for column in range(2):
+        cropped = part[first_row, 20 * column:20 * (column + 1)].astype(int)
+        of_whole = whole[first_row, 40 * column + 20:40 * (column + 1)].astype(int)
+        assert np.abs(cropped - of_whole).mean() < 3
+    with pytest.raises(SystemExit):
+        main([*common, "--out", str(tmp_path / "none.png"), "--crop", "0.5,0,0.5,1"])
+    assert "expected 0 <= LEFT < RIGHT <= 1" in capsys.readouterr().err
