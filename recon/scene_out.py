@@ -79,7 +79,7 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
     """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh), ``cameras.json``
     when there are ``cameras``, the ``capture_light`` (PNG bytes, what to say of it) of a delit texture, the mesh's
     sky visibility (:func:`store_sky_visibility`) and ``scene.json`` (last, so its presence means the scene is
-    complete)."""
+    complete). A mesh the scene loader refuses (no texture and no vertex colours) is a ``SceneError`` naming it."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
         if encoded is None:

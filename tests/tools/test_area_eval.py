@@ -150,7 +150,9 @@ def scene_with_cameras(folder, origin: LocalFrame, poses: dict[str, np.ndarray],
     vertices, faces, _ = grid_mesh(2, 2, (-100.0, 100.0, -100.0, 100.0))
     lens = PinholeCamera.from_fov(64, 48, 80.0)
     cameras = [SceneCamera(prefix + name, lens, pose) for name, pose in poses.items()]
-    write_scene(folder, trimesh.Trimesh(vertices, faces, process=False), origin, {"generator": "test"}, cameras=cameras)
+    mesh = trimesh.Trimesh(vertices, faces, process=False)
+    mesh.visual.vertex_colors = np.full((len(vertices), 4), 128, np.uint8)  # a scene's mesh has colours to render
+    write_scene(folder, mesh, origin, {"generator": "test"}, cameras=cameras)
     return folder
 
 
