@@ -97,7 +97,7 @@ class Delighting:
 @dataclass(frozen=True)
 class CaptureSetup:
     """What taking the capture light out of an atlas needs: the twin as a ``scene`` (shadow rays), the atlas faces'
-    winding ``face_normals`` (F, 3) and ``sky`` visibility (a sim.render.sky.SkyVisibility of those faces), the
+    winding ``face_normals`` (F, 3) and ``sky`` visibility (a sim.render.sky_file.SkyVisibility of those faces), the
     capture sun of each photo ``sun_enu`` (K, 3) (unit ENU, towards the sun) and the ``chart`` of each face (texels of
     two charts never share a shadow edge)."""
 
