@@ -15,7 +15,7 @@ Two searches, both over the sun's daily path at the photos' place and date:
 
 * :func:`fit_utc_offset`: the photos' EXIF local time and an unknown UTC offset within
   :data:`ZONE_WINDOW_H` of the longitude's solar offset (time zones lie within about three hours of it); a fit is
-  accepted only where the shadows say so clearly (:data:`MIN_CONTRAST`, :data:`ZONE_MARGIN`, :data:`MIN_ZONE_IOU`),
+  accepted only where the shadows say so clearly (:data:`MIN_CONTRAST`, :data:`ZONE_MARGIN`, :data:`MIN_IOU`),
   else the set stays untimed.
 * :func:`refine_capture_time` (both cases): a small search over the camera clock (:data:`CLOCK_WINDOW_MIN`) and the
   model's yaw about the vertical (:data:`YAW_WINDOW_DEG`; turning the model by ``+d`` moves its shadows like turning
@@ -66,10 +66,11 @@ CONTRAST_BAND_PX = (1.0, 4.0)
 MIN_BAND_PIXELS = 20
 #: A fitted UTC offset needs a mean edge contrast of at least this (log luminance: 1.35 times brighter outside)...
 MIN_CONTRAST = 0.3
-#: ...this much above the median candidate's, and its predicted shadows must overlap the photos' dark pixels at
-#: least this much (IoU): brighton_beach's twin lacks the forest that shades its road, and its contrast peaks by
-#: chance half an hour off the true zone with an IoU of 0.01 (the demo world's true time: 0.26, p4m_rtk's: 0.57)...
-ZONE_MARGIN, MIN_ZONE_IOU = 0.1, 0.1
+#: ...this much above the median candidate's, and a fitted or refined sun's predicted shadows must overlap the photos'
+#: dark pixels at least this much (IoU): brighton_beach's twin lacks the forest that shades its road, and its
+#: contrast peaks by chance half an hour off the true zone with an IoU of 0.01 (the demo world's true time: 0.26,
+#: p4m_rtk's: 0.57)...
+ZONE_MARGIN, MIN_IOU = 0.1, 0.1
 #: ...and a clock or yaw correction must beat the fit before it by this much.
 MIN_MARGIN = 0.05
 #: Suns lower than this (degrees) are not candidates: every surface would be in shadow.
@@ -259,7 +260,7 @@ def fit_utc_offset(scene: Scene, views: list[ShadowView], origin: LocalFrame) ->
     :data:`FINE_STEP_MIN` around the best, then the yaw (:func:`refine_yaw`); reported as the nearest whole-hour zone
     and a clock correction. None where no offset explains the shadows clearly (a contrast under
     :data:`MIN_CONTRAST`, or not :data:`ZONE_MARGIN` above the median candidate's, or an IoU under
-    :data:`MIN_ZONE_IOU`)."""
+    :data:`MIN_IOU`)."""
     solar = origin.lon0_deg / 15.0
     coarse = np.arange(solar - ZONE_WINDOW_H, solar + ZONE_WINDOW_H + 1e-9, ZONE_STEP_MIN / 60.0)
     scores = np.array([mean_contrast(scene, views, origin, offset) for offset in coarse])
@@ -274,12 +275,16 @@ def fit_utc_offset(scene: Scene, views: list[ShadowView], origin: LocalFrame) ->
     offset = float(fine[int(np.nanargmax(fine_scores))])
     fit = ShadowFit(offset, 60.0 * (round(offset) - offset), 0.0, float(np.nanmax(fine_scores)), median)
     fit = with_iou(scene, views, origin, refine_yaw(scene, views, origin, fit))
-    return fit if fit.iou >= MIN_ZONE_IOU else None
+    return fit if fit.iou >= MIN_IOU else None
 
 
 def refine_capture_time(scene: Scene, views: list[ShadowView], origin: LocalFrame, start: ShadowFit) -> ShadowFit:
     """``start`` with the clock correction (+- :data:`CLOCK_WINDOW_MIN`) and then the yaw (:func:`refine_yaw`) whose
-    suns give the strongest edge contrast, each kept only where it beats the fit before it by :data:`MIN_MARGIN`."""
+    suns give the strongest edge contrast, each kept only where it beats the fit before it by :data:`MIN_MARGIN`;
+    ``start`` as it is where its shadows overlap the photos' dark pixels less than :data:`MIN_IOU` (a twin that lacks
+    what casts them: its contrast is noise)."""
+    if (start := with_iou(scene, views, origin, start)).iou < MIN_IOU:
+        return start
     fit = replace(start, contrast=start.contrast if math.isfinite(start.contrast) else -math.inf)
     minutes = np.arange(-CLOCK_WINDOW_MIN, CLOCK_WINDOW_MIN + 1e-9, CLOCK_STEP_MIN)
     scores = [mean_contrast(scene, views, origin, start.utc_offset_h - m / 60.0) for m in minutes]

@@ -141,8 +141,8 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     their SfM pose, not in the depth/texture workspace, but with their exposure gain measured against the texture;
     cameras.json's full-size
     lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
-    photos by name; untimed, the texture keeps its capture light, and given its zone it is delit. ~50 s of CPU
-    (110 s on the shared 2-core machine)."""
+    photos by name; untimed, the texture keeps its capture light, and given its zone each photo gets its sun. ~50 s
+    of CPU (110 s on the shared 2-core machine)."""
     photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
                        "--hold-out", "6"]) == 0
@@ -180,14 +180,14 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     assert np.isfinite(read_exr(replay / "sequences/00/depth_2/000005.exr")).mean() == pytest.approx(
         results[names[5].rsplit(".", 1)[0]].covered)
     # its photos say 16:32 local on 23 June 2016 (Minnesota, UTC-05:00): untimed (above), the road's shadows, cast by
-    # a forest the dense stereo did not reconstruct, told no zone; given the zone, the texture is delit
+    # a forest the dense stereo did not reconstruct, told no zone; given the zone, each photo gets that sun
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
                        "--hold-out", "6", "--capture-utc-offset=-05:00"]) == 0
     light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
-    assert light["applied"] and light["capture_sun"]["time_source"] == "EXIF clock at UTC-05:00"
-    fit = light["capture_sun"]["shadow_fit"]
-    assert fit["zone_h"] == -5.0 and abs(fit["clock_correction_min"]) <= 30
-    taken = dt.datetime(2016, 6, 23, 21, 31, 59) + dt.timedelta(minutes=fit["clock_correction_min"])  # 16:31:59 local
+    assert light["capture_sun"]["time_source"] == "EXIF clock at UTC-05:00"
+    fit = light["capture_sun"]["shadow_fit"]  # too few of its shadows in the twin (IoU < 0.1) to refine the clock
+    assert fit["shadow_iou"] < 0.1 and (fit["zone_h"], fit["clock_correction_min"], fit["yaw_deg"]) == (-5.0, 0.0, 0.0)
+    taken = dt.datetime(2016, 6, 23, 21, 31, 59)  # 16:31:59 local
     origin = read_scene_json(scene)["origin_frame"]
     expected = solar_position(origin.lat0_deg, origin.lon0_deg, taken)
     assert {c.name: c.capture_sun for c in load_scene(scene).cameras}["DJI_0018.JPG"] == pytest.approx(expected, abs=0.01)
