@@ -41,7 +41,8 @@ from scipy import ndimage  # noqa: E402
 from recon.capture_sun import CaptureSuns  # noqa: E402
 from recon.delight import CAPTURE_SKY, EDGE_BAND_PX, BLOCK_PX, MIN_BLOCK_TEXELS  # noqa: E402
 from recon.pipeline import read_rgb  # noqa: E402
-from recon.shadow_timing import ShadowFit, predicted_shadow, shadow_iou, shadow_views, untextured_scene  # noqa: E402
+from recon.shadow_timing import (LUMA, ShadowFit, predicted_shadow, shadow_iou, shadow_views,  # noqa: E402
+                                 untextured_scene)
 from recon.texture import load_photos  # noqa: E402
 from sim.render.color import SRGB8_TO_LINEAR  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
@@ -51,7 +52,6 @@ REPO = Path(__file__).resolve().parents[1]
 SHADOW_LIGHT = 1.05
 #: ...and texels lit by at least this many times it as in the sun.
 SUN_LIGHT = 1.8
-LUMA = np.array([0.2126, 0.7152, 0.0722])
 
 
 def reconstruct(photos: Path, scene: Path, args, utc_offset: str | None) -> float:
