@@ -128,10 +128,11 @@ def nested_cameras_json(tmp: Path) -> None:
     (tmp / "scene" / "cameras.json").write_text(NESTED)
 
 
-def scene_with_capture_light(name: str, contents: bytes | None = None, textured: bool = True):
-    """A box scene whose scene.json names the capture light ``name`` (written with ``contents`` if given)."""
+def scene_naming(key: str, name: str, contents: bytes | None = None, textured: bool = True):
+    """A box scene whose scene.json names the file ``name`` as its ``key`` (``capture_light``, ``sky_visibility``),
+    written with ``contents`` if given."""
     def setup(tmp: Path) -> None:
-        write_scene(tmp, "box.glb" if textured else "box.ply", capture_light={"file": name})
+        write_scene(tmp, "box.glb" if textured else "box.ply", **{key: {"file": name}})
         box = trimesh.creation.box()
         if textured:
             uv = np.asarray(box.vertices)[:, :2] + 0.5
@@ -235,15 +236,22 @@ CASES = [
          setup=scene_outside(lambda tmp: "../elsewhere/box.ply")),
     # a relightable scene's capture light (sim/render/capture_light.py)
     Case("scene-capture-light-missing", "aerostereo-render", SCENE, r"light\.png: capture light file not found",
-         setup=scene_with_capture_light("light.png")),
+         setup=scene_naming("capture_light", "light.png")),
     Case("scene-capture-light-8-bit", "aerostereo-render", SCENE, r"light\.png: not a 16-bit RGB PNG capture light",
-         setup=scene_with_capture_light("light.png", cv2.imencode(".png", np.zeros((8, 8, 3), np.uint8))[1].tobytes())),
+         setup=scene_naming("capture_light", "light.png", cv2.imencode(".png", np.zeros((8, 8, 3), np.uint8))[1].tobytes())),
     Case("scene-capture-light-dotdot", "aerostereo-render", SCENE,
          r"scene\.json: \"capture_light\.file\" '\.\./light\.png' is outside the scene",
-         setup=scene_with_capture_light("../light.png")),
+         setup=scene_naming("capture_light", "../light.png")),
     Case("scene-capture-light-without-texture", "aerostereo-render", SCENE,
          r"box\.ply: a capture light lies on a texture's UVs, and this mesh has no texture",
-         setup=scene_with_capture_light("light.png", capture_light_png(), textured=False)),
+         setup=scene_naming("capture_light", "light.png", capture_light_png(), textured=False)),
+    # its baked sky visibility (sim/render/sky_file.py)
+    Case("scene-sky-visibility-truncated", "aerostereo-render", SCENE,
+         r"sky\.npz: not a readable \.npz sky visibility .* delete it",
+         setup=scene_naming("sky_visibility", "sky.npz", b"PK\x03\x04 cut short")),
+    Case("scene-sky-visibility-dotdot", "aerostereo-render", SCENE,
+         r"scene\.json: \"sky_visibility\.file\" '\.\./sky\.npz' is outside the scene",
+         setup=scene_naming("sky_visibility", "../sky.npz")),
     # deeply nested JSON in each JSON file the CLIs read
     Case("scene-json-nested", "aerostereo-render", SCENE, r"scene\.json: .*nested deeper than", setup=nested_scene_json),
     Case("cameras-json-nested", "aerostereo-render", SCENE, r"cameras\.json: .*nested deeper than",
