@@ -122,6 +122,26 @@ def test_the_unlit_twin_still_reproduces_its_photos(scenes):
         assert photorealism_error_percent(texture.rgb[valid], with_light.rgb[valid]) < 1.0
 
 
+def test_albedos_above_one_fold_into_the_capture_light():
+    """Photos exposed brightly under a weak sun (exposure 1.6, sun 0.3): their colours divided by the model's light
+    exceed 1 (about 1.6 x the true albedo), which an 8-bit albedo cannot hold; the excess goes into the capture light,
+    so the albedo keeps its hue and the unlit twin still reproduces the lit texture."""
+    mesh, truth = village()
+    weak = Sun(SUN.azimuth_deg, SUN.elevation_deg, 0.3)
+    poses = oblique_poses(8, 30.0, 28.0)
+    photos = [Photo(f"p{k}", render(truth, Rig((CAMERA,), (np.eye(4),)), pose, weak,
+                                     lighting=Lighting(exposure=1.6)).views[0].rgb, CAMERA, pose)
+              for k, pose in enumerate(poses)]
+    delit = texture_atlas(mesh, photos, sun_enu=np.tile(weak.direction_enu, (len(photos), 1)))
+    lit = texture_atlas(mesh, photos)
+    assert delit.delighting.applied and delit.capture_light.max() > 1.0
+    for pose in oblique_poses(3, 26.0, 22.0, phase_deg=20.0):
+        with_light = render(twin(delit), Rig((CAMERA,), (np.eye(4),)), pose, **UNLIT).views[0]
+        texture = render(twin(lit), Rig((CAMERA,), (np.eye(4),)), pose, **UNLIT).views[0]
+        valid = with_light.valid & texture.valid
+        assert photorealism_error_percent(texture.rgb[valid], with_light.rgb[valid]) < 1.0
+
+
 def test_an_overcast_capture_keeps_its_colours():
     """Photos lit by the sky alone: no shadow edge to learn a sun from, so nothing is divided out."""
     mesh, truth = village()
