@@ -43,6 +43,15 @@ def margin_value(text: str) -> float | str:
         raise argparse.ArgumentTypeError(f"expected metres or '{FRUSTUM_MARGIN}', got {text!r}") from None
 
 
+def heights_value(text: str) -> tuple[float, float]:
+    """``--heights MIN,MAX``: metres above the ground."""
+    try:
+        low, high = (float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected MIN,MAX metres above the ground, got {text!r}") from None
+    return low, high
+
+
 def _shard(text: str) -> tuple[int, int]:
     try:
         return parse_shard(text)
@@ -105,6 +114,10 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--margin", type=margin_value, default=FRUSTUM_MARGIN,
         help="random mode, lawnmower and random-loop paths: keep cameras this far inside the valid area, metres; "
              f"'{FRUSTUM_MARGIN}': as far as each view reaches across the ground, so no frame sees past the area")
+    add("--heights", type=heights_value, default=pose_defaults.height_range_m, metavar="MIN,MAX",
+        help="random mode: heights above the ground, metres (default: the paper's 20,100, lowered where the scene "
+             "cannot hold views that high, and then the frustum margin relaxed to 0 where --margin is left alone; "
+             "what was changed is said on stderr and recorded in dataset.json)")
     add("--max-sky", type=float, default=pose_defaults.max_sky_fraction,
         help="random mode: redraw a pose whose view has more sky/miss than this")
     add("--trajectory", choices=TRAJECTORIES, default=pose_defaults.trajectory,
@@ -187,7 +200,8 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
     poses = PoseOptions(frames=args.frames, mode=args.mode, geotags=args.geotags, trajectory=args.trajectory,
                         altitude_m=args.altitude, speed_m_s=args.speed, frame_rate_hz=args.rate,
                         margin_m=None if args.margin == FRUSTUM_MARGIN else args.margin, max_sky_fraction=args.max_sky,
-                        imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission)
+                        imu_rate_hz=args.imu_rate if args.imu else None, mission=args.mission,
+                        height_range_m=args.heights)
     run = RunOptions(workers=args.workers, shard=args.shard, scheduler=args.scheduler)
     return RenderOptions(seed=args.seed, rig=rig, poses=poses, light=LightOptions(args.sun),
                          outputs=OutputOptions(formats), effects=effects_from_args(args), run=run)

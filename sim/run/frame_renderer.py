@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -77,6 +77,7 @@ class FrameRenderer:
             self.poses = PoseSource(self.scene, options.poses, options.rig, self.rig.cameras[0], options.seed)
         except ValueError as error:
             raise RenderInputError(str(error)) from None
+        self.options = options = replace(options, poses=self.poses.options)  # random poses fitted to the scene
         self.sun = options.light.setting(options.poses)
         try:
             self.light(0)

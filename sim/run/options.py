@@ -74,7 +74,8 @@ class PoseOptions:
     (sim/motion) and write its IMU record at this rate (a whole multiple of ``frame_rate_hz``); None: no IMU, the
     polyline trajectory. ``mission``: the Litchi CSV of the ``flight`` trajectory: the virtual drone flies it over the
     scene with realistic gusts drawn from the seed, the frames follow its flown path from the first waypoint to the
-    last.
+    last. ``height_range_m``: random poses' heights above the ground (metres); None: the paper's 20-100 m, lowered
+    where the scene cannot hold them (and with ``margin_m`` None the margin too: sim/run/poses.py).
     """
 
     frames: int | None = None
@@ -88,6 +89,7 @@ class PoseOptions:
     max_sky_fraction: float = 0.02
     imu_rate_hz: float | None = None
     mission: Path | None = None
+    height_range_m: tuple[float, float] | None = None
 
     @property
     def replays_scene_cameras(self) -> bool:
@@ -95,8 +97,9 @@ class PoseOptions:
         return self.mode == "replay" and self.geotags is None
 
     def random_settings(self) -> RandomPoseSettings:
-        """The paper's ranges with this run's margin and sky limit."""
-        return RandomPoseSettings(margin_m=self.margin_m or 0.0, max_miss_fraction=self.max_sky_fraction)
+        """The paper's ranges with this run's heights, margin and sky limit."""
+        heights = {} if self.height_range_m is None else {"height_range_m": tuple(self.height_range_m)}
+        return RandomPoseSettings(margin_m=self.margin_m or 0.0, max_miss_fraction=self.max_sky_fraction, **heights)
 
 
 @dataclass(frozen=True)
@@ -242,6 +245,9 @@ def check_options(options: RenderOptions) -> None:
                         ("speed", poses.speed_m_s), ("rate", poses.frame_rate_hz)):
         if not 0 < value < math.inf:
             problems.append(f"{name} must be a positive finite number, got {value}")
+    if poses.height_range_m is not None and not 0 < poses.height_range_m[0] <= poses.height_range_m[1] < math.inf:
+        problems.append("heights must be MIN,MAX metres with 0 < MIN <= MAX (finite), got "
+                        f"{','.join(f'{h:g}' for h in poses.height_range_m)}")
     if poses.margin_m is not None and not 0 <= poses.margin_m < math.inf:
         problems.append(f"margin must be a finite number >= 0, got {poses.margin_m}")
     if not 0 <= poses.max_sky_fraction <= 1:

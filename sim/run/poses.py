@@ -4,6 +4,7 @@ chosen mode (random, trajectory, replay)."""
 from __future__ import annotations
 
 import functools
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -20,9 +21,33 @@ from sim.run.options import PoseOptions, RenderInputError, RigOptions
 from sim.run.rig import build_rig
 from sim.sampling.frustum import ViewFrustum
 from sim.sampling.pose import PoseSample
-from sim.sampling.random_poses import frustum_margin, random_pose
+from sim.sampling.random_poses import fit_rate, frustum_margin, random_pose
 from sim.sampling.replay import replay_poses, scene_camera_poses
 from sim.sampling.trajectories import RANDOM_LOOP_TILT_DEG, Trajectory, lawnmower, orbit, random_loop
+
+
+#: Heights above the ground (metres) random poses fall back to, in turn, when the paper's 20-100 m do not fit a scene.
+LOWER_HEIGHTS_M = ((20.0, 60.0), (20.0, 40.0), (10.0, 30.0), (10.0, 20.0), (5.0, 10.0))
+#: The share of trial draws that must fit: a frame's 200 draws then all miss about once in ten million frames.
+MIN_FIT_RATE = 0.08
+#: The sky/miss fractions an error about a scene no pose fits tries, to name one that would.
+RELAXED_MAX_SKY = (0.1, 0.3)
+
+
+def _poses_text(poses: PoseOptions) -> str:
+    """``heights 20-100 m with the frustum margin`` (or ``with margin 0 m``) of random pose options."""
+    low, high = poses.random_settings().height_range_m
+    margin = "the frustum margin" if poses.margin_m is None else f"margin {poses.margin_m:g} m"
+    return f"heights {low:g}-{high:g} m with {margin}"
+
+
+def _area_text(ground: "SceneGround") -> str:
+    """The extent of a scene's area, e.g. ``110 x 95 m observed area``."""
+    if ground.covered_polygon is not None:
+        span = np.ptp(ground.covered_polygon, axis=0)
+        return f"{span[0]:.0f} x {span[1]:.0f} m observed area"
+    xmin, xmax, ymin, ymax = ground.valid_area
+    return f"{xmax - xmin:.0f} x {ymax - ymin:.0f} m valid area"
 
 
 class SceneGround:
@@ -46,12 +71,15 @@ class PoseSource:
 
     def __init__(self, scene: Scene, poses: PoseOptions, rig: RigOptions, left_camera: PinholeCamera, seed: int):
         self.options, self.seed, self.baseline_m = poses, seed, rig.baseline_m
+        self._rig = build_rig(rig, left_camera)
         self.ground = SceneGround(scene)
         self.replayed: list[PoseSample] | None = None
         self.path = None
-        self.frustum = ViewFrustum.of_rig(build_rig(rig, left_camera)) if poses.margin_m is None else None
+        self.frustum = ViewFrustum.of_rig(self._rig) if poses.margin_m is None else None
+        self.fitted: str | None = None
         if poses.mode == "random":
             self._probe = functools.partial(miss_fraction, scene, left_camera)
+            self._fit_random_poses()
         elif poses.mode == "trajectory":
             self.path = self._trajectory()
         elif poses.replays_scene_cameras:
@@ -59,6 +87,54 @@ class PoseSource:
         else:
             self.replayed = replay_poses(Path(poses.geotags), scene.origin, self.ground)
         self.frame_count = self._frame_count()
+
+    def _fit_random_poses(self) -> None:
+        """Make the random poses fit the scene: the options as given when at least :data:`MIN_FIT_RATE` of trial
+        draws fit, else (for what the user left at its default) the first that does of lower height ranges
+        (:data:`LOWER_HEIGHTS_M`) and at each, after the frustum margin, a margin of 0 (views may then reach past the
+        area, still hitting the scene as ``--max-sky`` allows). ``self.options`` get the heights and margin used;
+        ``self.fitted`` says what changed and why (None when nothing did). :class:`RenderInputError` when nothing
+        fits, naming the ``--max-sky`` that would."""
+        given = self.options
+        candidates = self._random_candidates(given)
+        rates = []
+        for candidate in candidates:
+            rates.append(self._fit_rate(candidate))
+            if rates[-1] >= MIN_FIT_RATE:
+                break
+        else:
+            raise RenderInputError(self._nothing_fits(candidates, rates))
+        chosen = candidates[len(rates) - 1]
+        self.options = replace(chosen, height_range_m=chosen.random_settings().height_range_m)
+        self.frustum = self.frustum if chosen.margin_m is None else None
+        if len(rates) > 1:
+            self.fitted = (f"random poses at {_poses_text(chosen)} ({rates[-1]:.0%} of trial draws fit): "
+                           f"at {_poses_text(given)} only {rates[0]:.0%} did, too few for the scene's "
+                           f"{_area_text(self.ground)} with at most {given.max_sky_fraction:.0%} sky/miss pixels")
+
+    def _random_candidates(self, given: PoseOptions) -> list[PoseOptions]:
+        """The options to try in turn: ``given``, then lower heights unless given and, at each, margin 0 after the
+        frustum's unless a margin was given."""
+        heights = [given.height_range_m] if given.height_range_m is not None else [None, *LOWER_HEIGHTS_M]
+        margins = [given.margin_m] if given.margin_m is not None else [None, 0.0]
+        return [replace(given, height_range_m=h, margin_m=m) for h in heights for m in margins]
+
+    def _fit_rate(self, candidate: PoseOptions) -> float:
+        frustum = ViewFrustum.of_rig(self._rig) if candidate.margin_m is None else None
+        return fit_rate(self.ground, self.seed, candidate.random_settings(), self._probe, frustum)
+
+    def _nothing_fits(self, candidates: list[PoseOptions], rates: list[float]) -> str:
+        """The error when no candidate fits: the best tried, and the ``--max-sky`` that would fit, if any."""
+        best = int(np.argmax(rates))
+        text = (f"{self.ground.scene.source}: no random poses fit the scene's {_area_text(self.ground)}: at best "
+                f"{rates[best]:.0%} of trial draws at {_poses_text(candidates[best])} see at most "
+                f"{candidates[best].max_sky_fraction:.0%} sky/miss pixels")
+        for max_sky in RELAXED_MAX_SKY:
+            for candidate in candidates:
+                looser = replace(candidate, max_sky_fraction=max_sky)
+                if max_sky > candidate.max_sky_fraction and self._fit_rate(looser) >= MIN_FIT_RATE:
+                    return f"{text}; --max-sky {max_sky:g} would fit at {_poses_text(looser)}"
+        return f"{text}, nor with --max-sky {RELAXED_MAX_SKY[-1]:g}: the scene's surface is too small or has too many holes"
 
     def _trajectory(self) -> Trajectory | RigPath:
         """The trajectory of the options: the polyline, or with an IMU its smooth version (sim/motion); a virtual

@@ -198,6 +198,9 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     workers = options.run.workers if scheduler is None else scheduler.local_workers or 0  # processes here
     threads = max(1, default_workers() // max(1, workers))  # casting threads per process
     renderer = FrameRenderer(scene_dir, options, threads)
+    options = renderer.options  # with the random poses' heights and margin fitted to the scene
+    if renderer.poses.fitted:
+        print(f"{scene_dir}: {renderer.poses.fitted}", file=sys.stderr)
     command_line = list(sys.argv if command_line is None else command_line)
     try:
         spec = dataset_spec(renderer, scene_dir, options, command_line)

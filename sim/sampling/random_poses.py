@@ -4,14 +4,18 @@ area, each reproducible from ``(seed, frame index)``; and the margin a view frus
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from sim.render.camera import pose_from_position
 from sim.sampling.frustum import ViewFrustum, bounding_area, deep_inside, placement_area, sees_inside
 from sim.sampling.pose import GroundModel, PoseSample, camera_rotation, covered_polygon, inner_area
-from sim.sampling.seeds import POSE_STREAM, frame_rng
+from sim.sampling.seeds import FIT_STREAM, POSE_STREAM, frame_rng
+
+
+#: Trial draws that tell how often a pose fits a scene (:func:`fit_rate`).
+FIT_TRIAL_DRAWS = 100
 
 
 @dataclass(frozen=True)
@@ -42,7 +46,35 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
     is redrawn when none exists (the view reaches the horizon) or when the scene under it lies higher than the
     height drawn assumed and the view then reaches past the area.
     """
-    rng = frame_rng(seed, index, POSE_STREAM)
+    sample = _first_fitting_draw(frame_rng(seed, index, POSE_STREAM), ground, index, settings, miss_fraction,
+                                 frustum)
+    if sample is None:
+        seeing = "seeing only the valid area and " if frustum is not None else ""
+        raise RuntimeError(f"frame {index} (seed {seed}): no pose {seeing}with at most "
+                           f"{settings.max_miss_fraction:.0%} sky/miss pixels in {settings.max_attempts} draws; raise "
+                           "the margin or the allowed miss fraction, or use a larger scene or a narrower field of view")
+    return sample
+
+
+def fit_rate(ground: GroundModel, seed: int, settings: RandomPoseSettings,
+             miss_fraction: Callable[[np.ndarray], float] | None = None, frustum: ViewFrustum | None = None,
+             draws: int = FIT_TRIAL_DRAWS) -> float:
+    """The share of single draws of :func:`random_pose` (``settings``, ``frustum``, ``miss_fraction``) that fit the
+    scene, from ``draws`` trials of their own random stream (``seed``); 0 when the margin leaves no area."""
+    rng, single = frame_rng(seed, 0, FIT_STREAM), replace(settings, max_attempts=1)
+    try:
+        fitting = sum(_first_fitting_draw(rng, ground, 0, single, miss_fraction, frustum) is not None
+                      for _ in range(draws))
+    except ValueError:  # the margin leaves no area
+        return 0.0
+    return fitting / draws
+
+
+def _first_fitting_draw(rng: np.random.Generator, ground: GroundModel, index: int, settings: RandomPoseSettings,
+                        miss_fraction: Callable[[np.ndarray], float] | None,
+                        frustum: ViewFrustum | None) -> PoseSample | None:
+    """The first of at most ``settings.max_attempts`` draws from ``rng`` that fits (:func:`random_pose`); None
+    when none does."""
     area, polygon = inner_area(ground, settings.margin_m), covered_polygon(ground)
     for attempt in range(settings.max_attempts):
         u_x, u_y = rng.random(), rng.random()  # what rng.uniform(min, max) scales: min + (max - min) * u
@@ -60,10 +92,7 @@ def random_pose(ground: GroundModel, seed: int, index: int, settings: RandomPose
         if miss_fraction is None or miss_fraction(T) <= settings.max_miss_fraction:
             details = {"mode": "random", "heading_deg": heading, "tilt_x_deg": tilt_x, "tilt_y_deg": tilt_y}
             return PoseSample(index, T, index / settings.frame_rate_hz, height, attempt, details)
-    seeing = "seeing only the valid area and " if frustum is not None else ""
-    raise RuntimeError(f"frame {index} (seed {seed}): no pose {seeing}with at most {settings.max_miss_fraction:.0%} "
-                       f"sky/miss pixels in {settings.max_attempts} draws; raise the margin or the allowed miss "
-                       "fraction, or use a larger scene or a narrower field of view")
+    return None
 
 
 def _above_ground(ground: GroundModel, area: tuple[float, float, float, float], unit_xy: tuple[float, float],

@@ -11,6 +11,8 @@ import numpy as np
 POSE_STREAM, SUN_STREAM, PATH_STREAM, RENDER_STREAM, IMU_STREAM = 0, 1, 2, 3, 4
 #: The streams of the camera effects: sensor noise, auto-exposure noise.
 NOISE_STREAM, EXPOSURE_STREAM = 10, 11
+#: The stream of the trial draws that fit the random poses' ranges to a scene (frame index 0).
+FIT_STREAM = 20
 
 
 def frame_rng(seed: int, index: int, stream: int) -> np.random.Generator:

@@ -14,6 +14,8 @@ from recon.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm.options import SfmOptions
 from recon.stages import STAGES
+from sim.cli import main as render_main
+from sim.dataset.images import read_exr
 from sim.render.scene import read_scene_mesh_enu
 from tools.geotag_csv import geotag_row, write_geotags
 from tests.recon.synthetic import HEIGHT, WIDTH, make_texture, write_nadir_photos
@@ -103,6 +105,22 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     assert main([str(a) for a in argv]) == 0  # the same options (other ones redo the stages they shape)
     assert capsys.readouterr().err.count("already done") == 7
     assert (scene / "scene.json").stat().st_mtime == mtime
+    assert_renders_with_the_defaults(scene, tmp_path / "dataset", capsys)
+
+
+def assert_renders_with_the_defaults(scene, out, capsys):
+    """A newcomer's first render of their own scene: 20 random frames, every other option at its default. The
+    twin (an 85 m observed area with holes where the forest did not densify) cannot hold the paper's 20-100 m
+    views: the heights and margin are lowered to what it holds, stderr says so, and the frames see the twin."""
+    assert render_main(["--scene", str(scene), "--out", str(out), "--frames", "20", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert "random poses at heights" in err and "only 0% did" in err, err
+    low, high = json.loads((out / "dataset.json").read_text())["sampling"]["random"]["height_range_m"]
+    lines = (out / "sequences/00/frames.jsonl").read_text().splitlines()
+    heights = [json.loads(line)["sampler"]["height_above_ground_m"] for line in lines]
+    assert len(heights) == 20 and all(low <= h <= high for h in heights) and high < 100
+    for path in sorted((out / "sequences/00/depth_2").glob("*.exr")):
+        assert np.isfinite(read_exr(path)).mean() > 0.95  # the twin, not its holes or the sky
 
 
 def test_bad_texel_size(tmp_path, capsys):
