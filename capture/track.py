@@ -20,6 +20,7 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from pathlib import Path
 
 import numpy as np
 
@@ -46,6 +47,8 @@ FIELDS: dict[str, str] = {
     "speed_m_s": "horizontal ground speed, m/s",
 }
 CLOCKS = ("utc", "relative", "camera")
+#: How a merged track's source names its parts (:meth:`Track.concat`).
+MERGED_SOURCES = " + "
 
 
 class LogFormatError(ValueError):
@@ -193,7 +196,7 @@ class Track:
             raise ValueError(f"cannot merge tracks on different clocks: {sorted(clocks)}")
         if len(tracks) == 1:
             return tracks[0]
-        report = ReadReport(" + ".join(t.report.source for t in tracks), "merged",
+        report = ReadReport(MERGED_SOURCES.join(t.report.source for t in tracks), "merged",
                             sum(t.report.rows_read for t in tracks), sum(t.report.rows_used for t in tracks),
                             [p for t in tracks for p in t.report.rejected], [n for t in tracks for n in t.report.notes])
         merged = cls.from_rows(
@@ -248,18 +251,25 @@ class Track:
         write_text_atomic(path, self.to_csv_text())
 
     def write_kml(self, path) -> None:
-        """Write the track as a KML LineString (height above take-off, relative to ground) atomically."""
+        """Write the track as a KML LineString (height above take-off, relative to ground) atomically; the document
+        (the layer GIS tools show) is named after the source files' names (:func:`source_name`)."""
         rows = self.positions_mask()
         heights = np.nan_to_num(self["height_above_takeoff_m"][rows])
         coords = " ".join(f"{lon:.8f},{lat:.8f},{h:.2f}" for lat, lon, h in
                           zip(self["lat_deg"][rows], self["lon_deg"][rows], heights))
-        name = escape_xml(self.report.source)
+        name = escape_xml(source_name(self.report.source))
         text = (
             '<?xml version="1.0" encoding="UTF-8"?>\n<kml xmlns="http://www.opengis.net/kml/2.2"><Document>'
             f"<name>{name}</name><Placemark><name>track</name><LineString><altitudeMode>relativeToGround"
             f"</altitudeMode><coordinates>{coords}</coordinates></LineString></Placemark></Document></kml>\n"
         )
         write_text_atomic(path, text)
+
+
+def source_name(source: str) -> str:
+    """A reader's ``source`` (a path, or merged paths joined by `` + ``) as file names without folder or extension:
+    ``/home/me/logs/DJIFlightRecord_2024.txt`` -> ``DJIFlightRecord_2024``."""
+    return MERGED_SOURCES.join(Path(part).stem for part in source.split(MERGED_SOURCES))
 
 
 def format_utc(time_s: float) -> str:

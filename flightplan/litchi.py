@@ -132,6 +132,13 @@ class LitchiFormatError(ValueError):
     """A Litchi CSV that cannot be read; the message names the file and line."""
 
 
+def hub_degrees(value: float) -> float:
+    """An angle (degrees) rounded to the whole degree as Litchi Mission Hub writes heading and gimbal pitch: its
+    exports hold integers there (``92``, ``358``, ``-55``; research/litchi.md [REAL]). How the Hub rounds a half is
+    not documented; here halves round up."""
+    return float(math.floor(value + 0.5))
+
+
 def format_number(value: float | int) -> str:
     """Shortest text that reads back to the same float64, positional (never ``1e-05``), ``.`` decimal point."""
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):

@@ -8,7 +8,9 @@ A ring of ``N`` waypoints is placed on the ellipsoid with GeographicLib's direct
 of ``360 / N`` from the centre, starting at ``start_bearing_deg``; the first waypoint is repeated at the end to
 close the loop. Each waypoint's heading is the bearing back to the centre, the gimbal is in Focus POI mode with
 the pitch towards the POI written too (or Interpolate with a fixed pitch when the ring asks for one), and the
-speed and photo interval are written on every row.
+speed and photo interval are written on every row. Heading and pitch are whole degrees, as Litchi Mission Hub
+writes them (:func:`flightplan.litchi.hub_degrees`), and the predictions (the heading error along the legs, the
+ring's pitch) are made from those rounded values: what the aircraft is told, not what was computed.
 
 ``N`` is by default the fewest waypoints whose flown path (see :mod:`flightplan.flown_path`: the path is inside
 the circle by at most the sagitta ``R (1 - cos(pi / N))``) keeps within ``deviation_tolerance_m``. Litchi's
@@ -240,7 +242,7 @@ def _ring_waypoints(request: OrbitRequest, ring: Ring, count: int) -> tuple[list
     """The closed ring's ``count + 1`` rows, and the curve size used on its interior rows."""
     sign = 1.0 if request.direction == "cw" else -1.0
     focus_poi = ring.gimbal_pitch_deg is None
-    pitch = (
+    pitch = litchi.hub_degrees(
         -math.degrees(math.atan2(ring.height_m - request.poi_height_m, ring.radius_m))
         if focus_poi
         else ring.gimbal_pitch_deg
@@ -258,7 +260,8 @@ def _ring_waypoints(request: OrbitRequest, ring: Ring, count: int) -> tuple[list
                 latitude_deg=point.lat_deg,
                 longitude_deg=point.lon_deg,
                 altitude_m=ring.height_m,
-                heading_deg=(point.azimuth_deg + 180.0) % 360.0,  # the geodesic continued back to the centre
+                # the geodesic continued back to the centre, in whole degrees (360 is north again: 0)
+                heading_deg=litchi.hub_degrees((point.azimuth_deg + 180.0) % 360.0) % 360.0,
                 curve_size_m=curve if k > 0 else litchi.MIN_CURVE_M,
                 rotation_dir=litchi.ROTATION_CW if sign > 0 else litchi.ROTATION_CCW,
                 gimbal_mode=litchi.GIMBAL_FOCUS_POI if focus_poi else litchi.GIMBAL_INTERPOLATE,

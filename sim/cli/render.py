@@ -19,7 +19,7 @@ from sim.dataset.contact_sheet import check_depth_written, write_contact_sheet
 from sim.dataset import FORMATS, parse_shard
 from sim.dataset.export import check_layouts, export_dataset, refuse_overlap
 from sim.dataset.writer import dataset_description
-from sim.cli.export import layout_list
+from sim.cli.export import add_vkitti2_scene_option, layout_list
 from sim.cli.light import SUN_HELP, lighting_variants_value, sun_value
 from sim.motion.imu import DEFAULT_RATE_HZ
 from sim.run.options import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, VIGNETTING_MODELS, CameraEffects,
@@ -185,6 +185,7 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
         help="once the dataset is complete, also write it in these layouts into --export-out (what "
              "'aerostereo-render export' does, e.g. euroc,kitti_flow)")
     add("--export-out", type=Path, metavar="DIR", help="folder for --export (outside --out)")
+    add_vkitti2_scene_option(add)
     add("--quiet", action="store_true", help="no progress bar")
     return parser
 
@@ -256,7 +257,7 @@ def run(args: argparse.Namespace, command_line: Sequence[str] | None = None) -> 
         if not summary.finalized:
             raise BadInput(f"--export needs the whole dataset; {summary.remaining} frames are missing (other shards "
                            f"still running? then run 'aerostereo-render export {args.out} ...' once they are done)")
-        for line in export_dataset(args.out, args.export_out, args.export):
+        for line in export_dataset(args.out, args.export_out, args.export, args.vkitti2_scene):
             print(line)
     return 0
 

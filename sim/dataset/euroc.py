@@ -12,8 +12,11 @@
   ``q_RS`` (w, x, y, z; body-to-world), velocity ``v_RS_R`` (m/s), gyroscope and accelerometer biases
   ``b_w_RS_S``, ``b_a_RS_S`` at every IMU sample.
 
-R (EuRoC's reference frame) is the dataset's ENU world; S is the body (IMU) frame. Timestamps are integer
-nanoseconds since frame 0, made from the same seconds for cameras, IMU and ground truth, so every image's
+R (EuRoC's reference frame) is the dataset's ENU world; S is the body (IMU) frame. Timestamps are Unix time in
+integer nanoseconds, written with 19 digits as EuRoC's are (zero-padded before 2001-09-09), so that sorting the
+names sorts the frames by time and Kalibr's bag creator reads ``<seconds><9-digit nanoseconds>``: frame 0 is at
+:meth:`~sim.dataset.source.DatasetSource.start_unix_ns` (the ``--sun time:`` UTC the dataset was rendered at, else
+2001-09-09T01:46:40Z = 10**18 ns), and every sensor adds the same seconds since frame 0, so every image's
 timestamp is an IMU sample's (the render requires the IMU rate to be a multiple of the frame rate).
 """
 
@@ -37,6 +40,12 @@ TRUTH_HEADER = ", ".join(["#timestamp", *(f"p_RS_R_{axis} [m]" for axis in AXES)
                           *(f"b_w_RS_S_{axis} [rad s^-1]" for axis in AXES),
                           *(f"b_a_RS_S_{axis} [m s^-2]" for axis in AXES)])
 VIEWS = (LEFT, RIGHT)
+STAMP_DIGITS = 19
+
+
+def stamp_text(unix_ns: int) -> str:
+    """A Unix time in integer nanoseconds as EuRoC writes it: 19 digits (zero-padded before 2001-09-09)."""
+    return f"{int(unix_ns):0{STAMP_DIGITS}d}"
 
 
 def yaml_matrix(T) -> str:
@@ -49,22 +58,24 @@ class EurocWriter:
     """Writes a :class:`DatasetSource` rendered with ``--imu`` in the EuRoC layout under ``OUT/mav0``."""
 
     name = "euroc"
-    needs = ("imu", "radtan")
+    needs = ("imu", "radtan", "unix_start")
 
     def __init__(self, source: DatasetSource, out: Path):
         source.require(self.needs, f"the {self.name} layout")
         self.source, self.root = source, Path(out) / "mav0"
         self.imu = source.require_imu(f"the {self.name} layout")
         self.distortion = source.radtan(f"the {self.name} layout")
+        self.start_ns = source.start_unix_ns(f"the {self.name} layout")
         self.record = read_imu_csv(source.layout.imu_csv)
         self.imu_stamps = set(self.record["timestamp_ns"].tolist())
-        self.stamps: list[int] = []
+        self.stamps: list[str] = []
 
     def write_frame(self, frame: SourceFrame) -> None:
-        stamp = int(timestamps_ns(frame.record["time_s"]))
-        if stamp not in self.imu_stamps:
-            raise DatasetError(f"{self.source.layout.frames_jsonl}: frame {frame.index} at {stamp} ns is not an IMU "
-                               f"sample's time in {self.source.layout.imu_csv}")
+        since_start_ns = int(timestamps_ns(frame.record["time_s"]))
+        if since_start_ns not in self.imu_stamps:
+            raise DatasetError(f"{self.source.layout.frames_jsonl}: frame {frame.index} at {since_start_ns} ns is not "
+                               f"an IMU sample's time in {self.source.layout.imu_csv}")
+        stamp = stamp_text(self.start_ns + since_start_ns)
         for view in VIEWS:
             grey = self.source.layout.grey_dir(view) / frame_file_name(frame.index, ".png")
             write_bytes_atomic(self.root / f"cam{view}" / "data" / f"{stamp}.png", grey.read_bytes())
@@ -77,7 +88,7 @@ class EurocWriter:
                               "\n".join([CAMERA_HEADER, *(f"{stamp},{stamp}.png" for stamp in self.stamps)]) + "\n")
             write_text_atomic(folder / "sensor.yaml", self._camera_yaml(view))
         column = self.record
-        stamps = column["timestamp_ns"]
+        stamps = [stamp_text(self.start_ns + since_start_ns) for since_start_ns in column["timestamp_ns"].tolist()]
 
         def block(*names):
             return np.column_stack([column[name] for name in names])

@@ -4,7 +4,8 @@
 and writes each layout under OUT. Every layout writer follows one protocol: built from the
 :class:`~sim.dataset.source.DatasetSource` and OUT it checks what it needs and writes nothing yet,
 ``write_frame(frame)`` writes one frame's files, ``finish()`` writes the files of the whole sequence and returns a
-one-line summary. The source is only read: OUT may not be SOURCE, lie inside it or contain it. Every file is
+one-line summary; a layout with options of its own takes them as keywords (``vkitti2``: ``scene``). The
+source is only read: OUT may not be SOURCE, lie inside it or contain it. Every file is
 written atomically and deterministically, so an interrupted export is simply run again.
 """
 
@@ -21,7 +22,7 @@ from sim.dataset.kitti2015 import Kitti2015Writer
 from sim.dataset.kitti_depth import KittiDepthWriter
 from sim.dataset.source import DatasetSource
 from sim.dataset.tum import TumWriter
-from sim.dataset.vkitti2 import Vkitti2Writer
+from sim.dataset.vkitti2 import DEFAULT_SCENE, Vkitti2Writer
 from sim.dataset.writer import DatasetError
 
 LAYOUT_WRITERS = {writer.name: writer for writer in (Kitti2015Writer, KittiDepthWriter, Vkitti2Writer, TumWriter,
@@ -44,8 +45,10 @@ def check_layouts(layouts: Sequence[str], out_dir: Path, description: dict) -> N
         planned.require(LAYOUT_WRITERS[name].needs, f"--export {name}")
 
 
-def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> list[str]:
-    """Write ``layouts`` (names of :data:`LAYOUTS`) of the dataset in ``source_dir`` under ``out_dir``.
+def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str],
+                   vkitti2_scene: str = DEFAULT_SCENE) -> list[str]:
+    """Write ``layouts`` (names of :data:`LAYOUTS`) of the dataset in ``source_dir`` under ``out_dir``; ``vkitti2``
+    as the scene folder ``vkitti2_scene`` (:data:`sim.dataset.vkitti2.SCENES`).
 
     Everything that can be checked up front is checked before the first file is written; a frame that turns out
     unreadable (a damaged depth EXR) stops the export, and an ``out_dir`` this export created is removed again, so
@@ -56,7 +59,8 @@ def export_dataset(source_dir: Path, out_dir: Path, layouts: Sequence[str]) -> l
         raise DatasetError(f"unknown layouts {unknown}; choose from {', '.join(LAYOUTS)}")
     refuse_overlap(Path(source_dir), Path(out_dir))
     source = DatasetSource(Path(source_dir))
-    writers = [LAYOUT_WRITERS[name](source, Path(out_dir)) for name in dict.fromkeys(layouts)]
+    options = {Vkitti2Writer.name: {"scene": vkitti2_scene}}
+    writers = [LAYOUT_WRITERS[name](source, Path(out_dir), **options.get(name, {})) for name in dict.fromkeys(layouts)]
     created = not Path(out_dir).exists()
     try:
         for frame in source.frames():

@@ -2,7 +2,8 @@
 
 One row per IMU sample, comma-separated, a header line naming the columns::
 
-    timestamp_ns                      integer nanoseconds since frame 0 (frame i: round(1e9 * i / frame rate))
+    timestamp_ns                      integer nanoseconds since frame 0 (frame i: round(1e9 * i / frame rate));
+                                      the EuRoC export adds frame 0's Unix time (sim/dataset/euroc.py)
     w_x,w_y,w_z / a_x,a_y,a_z         measured gyroscope (rad/s) and accelerometer (m/s^2), body (IMU) frame
     w_true_* / a_true_*               the same without noise or bias (a: specific force, gravity included)
     b_w_* / b_a_*                     the biases in the measured values (rad/s, m/s^2)
@@ -15,6 +16,7 @@ Numbers are written with 17 significant digits (float64 round-trips exactly). ``
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -34,8 +36,9 @@ def timestamps_ns(t_s) -> np.ndarray:
     return np.rint(np.asarray(t_s, dtype=np.float64) * 1e9).astype(np.int64)
 
 
-def csv_rows(header: str, stamps: np.ndarray, values: np.ndarray) -> str:
-    """``header`` then one ``timestamp,v1,v2...`` line per row of ``values`` (17 significant digits)."""
+def csv_rows(header: str, stamps: Sequence, values: np.ndarray) -> str:
+    """``header`` then one ``timestamp,v1,v2...`` line per row of ``values`` (17 significant digits); ``stamps``
+    are written as they print (integers, or text already formatted)."""
     lines = [header] + [f"{stamp}," + ",".join(f"{value:.17g}" for value in row) for stamp, row in zip(stamps, values)]
     return "\n".join(lines) + "\n"
 

@@ -2,12 +2,14 @@
 
 :class:`DatasetSource` opens ``dataset.json`` and ``frames.jsonl`` and checks what a layout needs (depth maps,
 pinhole cameras, a rectified pair); :class:`SourceFrame` hands each frame's record, colour PNGs, depth maps
-(planar z in metres, float32, +inf on miss, read once) and camera poses to the layout writers.
+(planar z in metres, float32, +inf on miss, read once) and camera poses to the layout writers;
+:meth:`DatasetSource.start_unix_ns` puts frame 0 on the Unix clock for the layouts whose timestamps are Unix time.
 :func:`replay_frames` reads a replay's photo-named folder back (each photo's exposure gain and depth map).
 """
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -23,6 +25,12 @@ from sim.dataset.replay import image_name
 from sim.dataset.writer import DatasetError, read_dataset_json
 
 LEFT, RIGHT = 0, 1
+#: Frame 0's Unix time (ns) in a dataset that records no real time: 10**18 ns = 2001-09-09T01:46:40Z, the first
+#: instant whose Unix nanoseconds have 19 digits, so a timestamp minus 10**18 is the time since frame 0.
+FIXED_START_UNIX_NS = 10**18
+#: A start after this (2255-03-14T16:00:00Z) is refused: it leaves 7 years before int64 nanoseconds end (2262).
+LATEST_START_UNIX_NS = 9 * 10**18
+UNIX_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
 
 
 class DatasetSource:
@@ -62,9 +70,9 @@ class DatasetSource:
     def require(self, needs: Sequence[str], needed_by: str) -> None:
         """Refuse (:class:`DatasetError` naming ``needed_by``) a dataset without what a layout ``needs``: "depth"
         (:meth:`require_depth`), "pinhole" (:meth:`require_pinhole`), "rectified" (:meth:`baseline_m`), "imu"
-        (:meth:`require_imu`), "radtan" (:meth:`radtan`)."""
+        (:meth:`require_imu`), "radtan" (:meth:`radtan`), "unix_start" (:meth:`start_unix_ns`)."""
         checks = {"depth": self.require_depth, "pinhole": self.require_pinhole, "rectified": self.baseline_m,
-                  "imu": self.require_imu, "radtan": self.radtan}
+                  "imu": self.require_imu, "radtan": self.radtan, "unix_start": self.start_unix_ns}
         for need in needs:
             checks[need](needed_by)
 
@@ -75,6 +83,20 @@ class DatasetSource:
             raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs an IMU; render the dataset with "
                                "--mode trajectory --imu")
         return imu
+
+    def start_unix_ns(self, needed_by: str) -> int:
+        """Frame 0's time on the Unix clock, integer nanoseconds: the UTC the dataset was rendered at (``--sun
+        time:UTC``, ``sampling.sun.utc``), else :data:`FIXED_START_UNIX_NS`. Refused before 1970 or after
+        :data:`LATEST_START_UNIX_NS`, where Unix nanoseconds are negative or leave no room in an int64."""
+        sun = self.description["sampling"].get("sun")  # a record, or a sentence for the random sun
+        utc = sun.get("utc") if isinstance(sun, dict) else None
+        if utc is None:
+            return FIXED_START_UNIX_NS
+        start_ns = (dt.datetime.fromisoformat(utc) - UNIX_EPOCH) // dt.timedelta(microseconds=1) * 1000
+        if not 0 <= start_ns <= LATEST_START_UNIX_NS:
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} times frames in Unix nanoseconds from the "
+                               f"sun's UTC {utc}, which must lie between 1970 and 2255")
+        return start_ns
 
     def radtan(self, needed_by: str) -> list[list[float]]:
         """Per rig camera, the radial-tangential coefficients (k1, k2, p1, p2); refused for a camera with a k3."""

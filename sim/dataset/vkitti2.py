@@ -1,6 +1,7 @@
 """The Virtual KITTI 2 layout (the rgb, depth and textgt archives extracted into one tree), as its loaders read it.
 
-Layout written under ``OUT/SceneNN/clone/`` (``NN`` = the sequence; ``clone`` is VKITTI2's unmodified variation)::
+Layout written under ``OUT/SCENE/clone/`` (``SCENE`` one of VKITTI2's scene folders, :data:`SCENES`, as its loaders
+list them; ``clone`` is VKITTI2's unmodified variation)::
 
     frames/rgb/Camera_V/rgb_NNNNN.jpg        colour of rig camera V (Camera_0 left, Camera_1 right), JPEG
     frames/depth/Camera_V/depth_NNNNN.png    uint16 planar depth in centimetres; 65535 (655.35 m) = far or miss
@@ -23,21 +24,29 @@ from cliutil.atomic import write_text_atomic
 from sim.dataset import images
 from sim.dataset.kitti import format_numbers
 from sim.dataset.source import DatasetSource, SourceFrame
+from sim.dataset.writer import DatasetError
 
 VARIATION = "clone"
+#: VKITTI2's scene folders (its clones of KITTI tracking sequences 1, 2, 6, 18 and 20): the names its loaders know.
+SCENES = ("Scene01", "Scene02", "Scene06", "Scene18", "Scene20")
+DEFAULT_SCENE = SCENES[0]
 INTRINSIC_HEADER = "frame cameraID K[0,0] K[1,1] K[0,2] K[1,2]"
 EXTRINSIC_HEADER = "frame cameraID r1,1 r1,2 r1,3 t1 r2,1 r2,2 r2,3 t2 r3,1 r3,2 r3,3 t3 0 0 0 1"
 
 
 class Vkitti2Writer:
-    """Writes the Virtual KITTI 2 layout of a :class:`DatasetSource` (needs depth and pinhole cameras)."""
+    """Writes the Virtual KITTI 2 layout of a :class:`DatasetSource` (needs depth and pinhole cameras) as the scene
+    folder ``scene`` (one of :data:`SCENES`)."""
 
     name = "vkitti2"
     needs = ("depth", "pinhole")
 
-    def __init__(self, source: DatasetSource, out: Path):
+    def __init__(self, source: DatasetSource, out: Path, scene: str = DEFAULT_SCENE):
+        if scene not in SCENES:
+            raise DatasetError(f"VKITTI2 scene {scene!r}: expected one of {', '.join(SCENES)}, the scene folders "
+                               "its loaders know")
         source.require(self.needs, f"the {self.name} layout")
-        self.root = Path(out) / f"Scene{source.sequence}" / VARIATION
+        self.root = Path(out) / scene / VARIATION
         self.views = range(source.view_count)
         self.intrinsic_lines = [INTRINSIC_HEADER]
         self.extrinsic_lines = [EXTRINSIC_HEADER]

@@ -27,7 +27,7 @@ from sim.render.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 
-GENERATOR_VERSION = 6
+GENERATOR_VERSION = 7
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"

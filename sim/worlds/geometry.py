@@ -58,10 +58,11 @@ def wall_part(facades: FacadeAtlas, wall_index: int) -> Part:
     wall = facades.walls[wall_index]
     mid = (wall.start + wall.end) / 2
     length = wall.length_m
-    xy = np.array([wall.start, wall.end, wall.end, wall.start, mid])
-    z = np.array([wall.base_z, wall.base_z, wall.eave_z, wall.eave_z, wall.apex_z])
-    along = np.array([0.0, length, length, 0.0, length / 2])
-    faces = [[0, 1, 2], [0, 2, 3]] + ([[3, 2, 4]] if wall.apex_z > wall.eave_z else [])
+    corners = 5 if wall.apex_z > wall.eave_z else 4  # the apex only where a gable triangle uses it
+    xy = np.array([wall.start, wall.end, wall.end, wall.start, mid])[:corners]
+    z = np.array([wall.base_z, wall.base_z, wall.eave_z, wall.eave_z, wall.apex_z])[:corners]
+    along = np.array([0.0, length, length, 0.0, length / 2])[:corners]
+    faces = [[0, 1, 2], [0, 2, 3]] + ([[3, 2, 4]] if corners == 5 else [])
     return Part(np.column_stack([xy, z]), np.array(faces), facades.uv(wall_index, along, z))
 
 

@@ -2,6 +2,7 @@
 
 import csv
 import json
+import xml.etree.ElementTree as ET
 from datetime import datetime, timezone
 
 import numpy as np
@@ -13,7 +14,10 @@ from capture.geotag_io import deg_to_dms, load_geotags
 from capture.logs.photos import read_photo
 from capture.logs.writers import write_litchi_csv
 from capture.synthetic import Noise, Orbit, shutter_times, telemetry
+from capture.track import source_name
 from flightplan.demo_location import DEMO_ORIGIN
+
+KML = "http://www.opengis.net/kml/2.2"
 
 
 def run(argv):
@@ -74,11 +78,20 @@ def test_track_command_real_samples(shared_data, tmp_path, capsys):
                 "--out", tmp_path / "t.csv", "--kml", tmp_path / "t.kml"]) == 0
     assert len((tmp_path / "t.csv").read_text().splitlines()) == 51
     assert "<LineString>" in (tmp_path / "t.kml").read_text()
+    # the layer (document) is named after the log file, without the folder it was read from
+    names = [element.text for element in ET.parse(tmp_path / "t.kml").iter(f"{{{KML}}}name")]
+    assert names == ["airdata_mini2_imperial_head", "track"]
     assert run(["track", shared_data / "dji" / "DJI_SRT_Parser__mavic_mini.SRT", "--start-time",
                 "2020-01-01T10:00:00Z", "--out", tmp_path / "m.csv"]) == 0
     assert (tmp_path / "m.csv").read_text().splitlines()[1].startswith("2020-01-01T10:00:00.000000Z,")
     printed = capsys.readouterr().err
     assert "117 of 117 rows used" in printed
+
+
+def test_track_names_are_file_names_without_folder_or_extension():
+    assert source_name("/home/me/logs/DJIFlightRecord_2024-05-01.txt") == "DJIFlightRecord_2024-05-01"
+    assert source_name("/data/a.SRT + /data/photos") == "a + photos"  # a merged track names each part
+    assert source_name("synthetic") == "synthetic"
 
 
 def test_geotag_from_the_photos_own_metadata(shared_data, tmp_path, capsys):

@@ -1,6 +1,8 @@
 """The orbit planner against GeographicLib: radius, height, headings, closure, hard places and predictions."""
 
+import csv
 import math
+import re
 
 import numpy as np
 import pytest
@@ -8,15 +10,17 @@ from geographiclib.geodesic import Geodesic
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flightplan import checks, litchi
+from flightplan import checks, flown_path, litchi
 from flightplan.aircraft import MINI_SE_CAMERA
+from flightplan.geodesy import LocalFrame
 from flightplan.orbit import OrbitRequest, Ring, consecutive_overlap, plan_orbit
 
 WGS84 = Geodesic.WGS84
 
 
 def assert_orbit_geometry(plan, ring_index=0):
-    """Every waypoint of the ring at the radius (1 mm) and height, heading at the centre (0.01 deg), loop closed."""
+    """Every waypoint of the ring at the radius (1 mm) and height, heading at the centre in whole degrees (the
+    Hub's), loop closed."""
     request, ring = plan.request, plan.request.rings[ring_index]
     start = sum(r.waypoints + 1 for r in plan.rings[:ring_index])
     rows = plan.mission.waypoints[start : start + plan.rings[ring_index].waypoints + 1]
@@ -26,8 +30,8 @@ def assert_orbit_geometry(plan, ring_index=0):
         assert back["s12"] == pytest.approx(ring.radius_m, abs=1e-3)
         assert w.altitude_m == ring.height_m
         heading_error = (w.heading_deg - back["azi1"] + 180.0) % 360.0 - 180.0
-        assert abs(heading_error) < 0.01
-        assert 0.0 <= w.heading_deg < 360.0
+        assert abs(heading_error) <= 0.5 + 1e-9
+        assert 0.0 <= w.heading_deg < 360.0 and w.heading_deg == int(w.heading_deg)
         assert w.speed_m_s == request.speed_m_s > 0.0
         assert w.photo_time_interval_s == request.photo_interval_s
     return rows
@@ -69,14 +73,14 @@ def test_defaults_match_the_paper_and_the_tolerance():
     sagitta = lambda count: 50.0 * (1.0 - math.cos(math.pi / count))  # noqa: E731
     assert sagitta(n) <= 0.25 < sagitta(n - 1), "the fewest waypoints within 0.25 m"
     assert plan.max_deviation_m == pytest.approx(sagitta(n), abs=1e-3)
-    assert ring.gimbal_pitch_deg == pytest.approx(-math.degrees(math.atan2(30.0, 50.0)), abs=1e-9)  # -31.0
+    assert ring.gimbal_pitch_deg == -31.0  # -atan(30 / 50) = -30.96 deg in the Hub's whole degrees
     assert all(w.gimbal_pitch_deg == ring.gimbal_pitch_deg for w in plan.mission.waypoints)
     # The flown path lies between the inscribed circle and the waypoint polygon.
     assert 2 * math.pi * 50.0 * math.cos(math.pi / n) - 1e-3 <= plan.path_length_m <= 2 * n * 50.0 * math.sin(math.pi / n)
     assert plan.flight_time_s == pytest.approx(plan.path_length_m / plan.request.speed_m_s)
     assert plan.photo_count == math.floor(plan.flight_time_s / 1.0) + 1
     assert ring.gsd_at_center_cm_px == pytest.approx(100 * math.hypot(50, 30) / MINI_SE_CAMERA.focal_length_px())
-    assert ring.max_heading_error_deg < 0.01
+    assert ring.max_heading_error_deg < 0.5 + 0.01  # the whole degrees' rounding + the interpolation's 0.01
 
 
 def test_centre_longitude_beyond_180_is_wrapped():
@@ -89,7 +93,7 @@ def test_centre_longitude_beyond_180_is_wrapped():
 def test_explicit_waypoint_count_and_poi_height():
     plan = plan_orbit(OrbitRequest(47.0, 8.0, (Ring(80.0, 40.0),), waypoints_per_ring=12, poi_height_m=10.0))
     assert len(plan.mission) == 13
-    assert plan.rings[0].gimbal_pitch_deg == pytest.approx(-math.degrees(math.atan2(30.0, 80.0)))
+    assert plan.rings[0].gimbal_pitch_deg == -21.0  # -atan(30 / 80) = -20.56 deg in whole degrees
     assert plan.max_deviation_m == pytest.approx(80.0 * (1 - math.cos(math.pi / 12)), abs=1e-3)
     assert all(w.poi_altitude_m == 10.0 for w in plan.mission.waypoints)
     assert_orbit_geometry(plan)
@@ -138,7 +142,7 @@ def test_radius_five_km_hits_waypoint_and_distance_limits():
 def test_heights_zero_and_five_hundred(height, severity, text):
     plan = plan_orbit(OrbitRequest(52.0, 5.0, (Ring(50.0, height),)))
     assert_orbit_geometry(plan)
-    assert plan.rings[0].gimbal_pitch_deg == pytest.approx(-math.degrees(math.atan2(height, 50.0)))
+    assert plan.rings[0].gimbal_pitch_deg == round(-math.degrees(math.atan2(height, 50.0)))  # 0 and -84
     assert checks.check_litchi_limits(plan.mission) == []  # 500 m is Litchi's own maximum
     assert any(f.severity == severity and text in f.message for f in checks.check_law(plan.mission))
 
@@ -213,3 +217,20 @@ def test_waypoints_per_ring_beyond_litchi_mission_limit_are_refused(rings, most)
         OrbitRequest(45.0, 7.0, rings, waypoints_per_ring=most + 1)
     with pytest.raises(ValueError, match="waypoints per ring"):
         OrbitRequest(45.0, 7.0, rings, waypoints_per_ring=10**9)
+
+
+def test_heading_and_pitch_are_whole_degrees_and_the_heading_check_uses_them(tmp_path):
+    """Litchi Mission Hub writes heading and gimbal pitch as integers (a real export's rows: 92, 178, 358 and 2, 0,
+    -55; research/litchi.md [REAL]): the CSV holds them so, and the predicted heading error along the legs is the one
+    of the headings written, read back from the file."""
+    plan = plan_orbit(OrbitRequest(40.1792, 44.4991, start_bearing_deg=12.345))
+    path = litchi.write_mission_csv(plan.mission, tmp_path / "m.csv")
+    rows = list(csv.DictReader(path.open()))
+    assert all(re.fullmatch(r"-?\d+", row[column]) for row in rows for column in ("heading(deg)", "gimbalpitchangle"))
+    assert {row["gimbalpitchangle"] for row in rows} == {"-31"}
+    written = litchi.read_mission_csv(path)
+    frame = LocalFrame(40.1792, 44.4991, 0.0)
+    east, north, _ = frame.to_enu(written.column("latitude_deg"), written.column("longitude_deg"), np.zeros(len(rows)))
+    error = flown_path.heading_error_along_legs_deg(np.stack([east, north], -1), written.column("heading_deg"))
+    assert plan.rings[0].max_heading_error_deg == pytest.approx(error, abs=1e-9)
+    assert 0.1 < error < 0.5 + 0.01  # rounding to whole degrees shows; the unrounded headings were within 0.01

@@ -212,7 +212,7 @@ def test_evo_loads_the_tum_trajectory_with_our_times_and_poses(plane):
 
 def test_vkitti2_names_depth_and_camera_files(plane):
     _, out, _ = plane
-    clone = out / "Scene00/clone"
+    clone = out / "Scene01/clone"  # the default scene: the first of the folders VKITTI2's loaders list
     for view in (0, 1):
         assert sorted(p.name for p in (clone / f"frames/rgb/Camera_{view}").iterdir()) == \
             [f"rgb_{i:05d}.jpg" for i in range(FRAMES)]
@@ -237,6 +237,37 @@ def test_vkitti2_names_depth_and_camera_files(plane):
     T_world_right = looking_down_pose(1) @ np.array([[1, 0, 0, BASELINE_M], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]])
     assert extrinsic[3, :2].tolist() == [1, 1]
     np.testing.assert_allclose(extrinsic[3, 2:].reshape(4, 4), np.linalg.inv(T_world_right), atol=1e-9)
+
+
+def test_vkitti2_scene_is_one_vkitti2_loaders_list(plane, tmp_path, capsys):
+    """``--vkitti2-scene``: the layout is written as that scene folder; a name VKITTI2 does not have (the sequence's
+    ``Scene00``) is refused with one line naming the option and the five it has, and nothing is written."""
+    source, _, _ = plane
+    assert cli_main(["export", str(source), "--layout", "vkitti2", "--vkitti2-scene", "Scene18",
+                     "--out", str(tmp_path / "out")]) == 0
+    assert [path.relative_to(tmp_path / "out").as_posix() for path in (tmp_path / "out").iterdir()] == ["Scene18"]
+    assert (tmp_path / "out/Scene18/clone/frames/rgb/Camera_0/rgb_00002.jpg").is_file()
+    assert "Scene18/clone" in capsys.readouterr().out
+    assert cli_main(["export", str(source), "--layout", "vkitti2", "--vkitti2-scene", "Scene00",
+                     "--out", str(tmp_path / "bad")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert "\n" not in error and "--vkitti2-scene" in error and "'Scene00'" in error
+    assert "'Scene01', 'Scene02', 'Scene06', 'Scene18', 'Scene20'" in error
+    assert not (tmp_path / "bad").exists()
+    with pytest.raises(ValueError, match=r"VKITTI2 scene 'Scene00': expected one of Scene01, Scene02, Scene06, "
+                                         r"Scene18, Scene20"):
+        export_dataset(source, tmp_path / "bad", ["vkitti2"], vkitti2_scene="Scene00")
+    assert not (tmp_path / "bad").exists()
+
+
+def test_render_export_writes_the_vkitti2_scene_asked_for(tmp_path, capsys):
+    """``render --export vkitti2 --vkitti2-scene S``: the one-command render and export names the scene folder too."""
+    assert cli_main(["--scene", "demo:small", "--out", str(tmp_path / "dataset"), "--frames", "2", "--width", "32",
+                     "--height", "16", "--quiet", "--export", "vkitti2", "--export-out", str(tmp_path / "out"),
+                     "--vkitti2-scene", "Scene06"]) == 0
+    assert "Scene06/clone" in capsys.readouterr().out
+    assert sorted(p.name for p in (tmp_path / "out/Scene06/clone/frames/depth/Camera_1").iterdir()) == \
+        ["depth_00000.png", "depth_00001.png"]
 
 
 # -- the command line -------------------------------------------------------------------------------------------------
