@@ -11,17 +11,20 @@ import io
 import json
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
 from PIL import ExifTags, Image, JpegImagePlugin
+from PIL.ExifTags import GPS
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
 
 from cliutil.atomic import atomic_path, write_text_atomic
+from .exif_tiff import ASCII, BYTE, RATIONAL, Entry
 from .geotag import HEIGHT_UNKNOWN, PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
 from .logs.photos import DRONE_DJI_NS
 from .track import csv_errors, csv_rows, format_number, format_utc, parse_utc
@@ -194,6 +197,22 @@ def deg_to_dms(value: float) -> tuple[float, float, float]:
     minutes = math.floor((abs(value) - degrees) * 60.0)
     seconds = (abs(value) - degrees - minutes / 60.0) * 3600.0
     return float(degrees), float(minutes), round(seconds, 6)
+
+
+def gps_entries(tag: Geotag) -> tuple[Entry, ...]:
+    """The geotag as EXIF GPS IFD entries, typed as the EXIF standard (and DJI) writes them: GPSVersionID 2.3,
+    latitude/longitude (DMS rationals, seconds to 1e-6) with their N/S, E/W references and, if known, the
+    absolute height as GPSAltitudeRef (0 above, 1 below the datum) + GPSAltitude (metres to 0.01 mm)."""
+    entries = [Entry(GPS.GPSVersionID, BYTE, b"\x02\x03\x00\x00")]
+    for ref, code, value, letters in ((GPS.GPSLatitudeRef, GPS.GPSLatitude, tag.lat_deg, "NS"),
+                                      (GPS.GPSLongitudeRef, GPS.GPSLongitude, tag.lon_deg, "EW")):
+        degrees, minutes, seconds = deg_to_dms(value)
+        entries += [Entry(ref, ASCII, letters[value < 0]),
+                    Entry(code, RATIONAL, (int(degrees), int(minutes), Fraction(round(seconds * 10**6), 10**6)))]
+    if math.isfinite(tag.absolute_height_m):
+        entries += [Entry(GPS.GPSAltitudeRef, BYTE, bytes([tag.absolute_height_m < 0])),
+                    Entry(GPS.GPSAltitude, RATIONAL, (Fraction(round(abs(tag.absolute_height_m) * 10**5), 10**5),))]
+    return tuple(entries)
 
 
 def set_exif_gps(exif: Image.Exif, tag: Geotag) -> None:
