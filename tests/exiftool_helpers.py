@@ -13,9 +13,10 @@ needs_exiftool = pytest.mark.skipif(EXIFTOOL is None, reason="exiftool is not in
                                                              "(Debian/Ubuntu: apt-get install libimage-exiftool-perl)")
 
 
-def exiftool(*args) -> str:
-    """exiftool's stdout for ``args`` (paths or options); its stderr too if it fails."""
-    done = subprocess.run([EXIFTOOL, *map(str, args)], capture_output=True, text=True, timeout=120)
+def exiftool(*args, binary: bool = False) -> str | bytes:
+    """exiftool's stdout for ``args`` (paths or options), as bytes if ``binary``; the test fails with its stderr
+    if it fails."""
+    done = subprocess.run([EXIFTOOL, *map(str, args)], capture_output=True, text=not binary, timeout=120)
     assert done.returncode == 0, done.stderr
     return done.stdout
 
