@@ -18,12 +18,9 @@ import struct
 from dataclasses import dataclass
 from fractions import Fraction
 
-BYTE, ASCII, SHORT, LONG, RATIONAL, UNDEFINED, SRATIONAL = 1, 2, 3, 4, 5, 7, 10
-IFD_TYPE = 13  # TIFF-EP's type for an IFD offset (some writers use it for sub-IFD pointers instead of LONG)
-TYPE_SIZES = {BYTE: 1, ASCII: 1, SHORT: 2, LONG: 4, RATIONAL: 8, 6: 1, UNDEFINED: 1, 8: 2, 9: 4, SRATIONAL: 8,
-              11: 4, 12: 8, IFD_TYPE: 4}
+BYTE, ASCII, SHORT, LONG, RATIONAL, UNDEFINED, SRATIONAL = 1, 2, 3, 4, 5, 7, 10  # TIFF 6.0 type codes
 EXIF_HEADER = b"Exif\x00\x00"
-EXIF_IFD, GPS_IFD, INTEROP_IFD = 0x8769, 0x8825, 0xA005
+GPS_IFD = 0x8825  # IFD0 tag pointing at the GPS IFD
 BIG_ENDIAN, LITTLE_ENDIAN = ">", "<"
 
 

@@ -6,6 +6,7 @@ exiftool (where installed)."""
 from __future__ import annotations
 
 import math
+import re
 from datetime import datetime, timezone
 
 import exifread
@@ -169,10 +170,20 @@ def test_xmp_fields_are_set_in_either_form_under_any_prefix_and_aliases_follow()
         with_dji_fields(b"<x:xmpmeta xmlns:x='adobe:ns:meta/'/>", {"GpsLatitude": "1"})
 
 
-def test_a_damaged_photo_is_refused_naming_it(tmp_path):
+SCAN = b"\xff\xda\x00\x08\x01\x01\x00\x00\x3f\x00\x00\xff\xd9"  # a scan header, one byte of data, EOI
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"\xff\xd8\xff\xe1\x10\x00Exif", "JPEG: the segment at byte 2 runs past the end of the file"),
+    (b"\xff\xd8\xff\xe1\x00\x10Exif\x00\x00II*\x00\x0f\x27\x00\x00" + SCAN,
+     "EXIF: IFD offset 9999 outside the 8-byte block"),
+    (b"\xff\xd8\xff\xe1\x00\x10Exif\x00\x00XX*\x00\x08\x00\x00\x00" + SCAN, "EXIF: no TIFF header"),
+    (b"\xff\xd8\xff\xd9", "JPEG: no image data"),
+], ids=["segment_past_the_end", "ifd_outside_the_block", "no_tiff_header", "no_scan"])
+def test_a_damaged_photo_is_refused_naming_it(tmp_path, data, message):
     source = tmp_path / "cut.jpg"
-    source.write_bytes(b"\xff\xd8\xff\xe1\x10\x00Exif")  # an APP1 segment longer than the file
-    with pytest.raises(ValueError, match=r"cut\.jpg: JPEG: the segment at byte 2 runs past the end"):
+    source.write_bytes(data)
+    with pytest.raises(ValueError, match=rf"cut\.jpg: {re.escape(message)}"):
         write_exif_copy(a_geotag("cut.jpg"), source, tmp_path / "out.jpg")
     assert not (tmp_path / "out.jpg").exists()
 
