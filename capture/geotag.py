@@ -6,7 +6,10 @@ from the EXIF time on the telemetry clock (``exif + offset + resolution / 2``, `
 the take-off (home) point, attitude by slerp (``capture/attitude.py``). A photo outside the span of the track's
 positions, or between two position samples further apart than ``max_gap_s``, is left untagged with the
 reason -- never extrapolated. Attitude is interpolated the same way from its own samples and left empty
-(NaN) where those are missing or too far apart.
+(NaN) where those are missing or too far apart. A geotag's absolute height is the logs' own where they have one,
+else the take-off's absolute height h0 + its height above take-off; h0 is the log's home point altitude, else
+from the log's absolute heights, else from the photos' own (:func:`photos_take_off_height`), and
+``GeotagResult.origin_height_datum`` says which.
 
 Such a photo falls back to its own EXIF GPS, XMP heights and XMP attitude (``source`` :data:`PHOTO_SOURCE`,
 listed in ``GeotagResult.from_photos``) where it has them. Photos and logs from different flights are refused
@@ -34,7 +37,8 @@ from .track import ReadReport, Track, format_utc, name_list
 
 # Where the origin's height h0 comes from (``GeotagResult.origin_height_datum``, the sidecar's field):
 HOME_POINT_ALTITUDE = "home_point_altitude"  # the log's home record (DUML Home Point, SRT HOME) as the aircraft gives it
-MEAN_SEA_LEVEL = "mean_sea_level"  # the log's absolute heights (EXIF GPS altitude, DJI AbsoluteAltitude, Airdata)
+MEAN_SEA_LEVEL = "mean_sea_level"  # the log's absolute heights (EXIF GPS altitude, DJI AbsoluteAltitude, Airdata),
+# or, where the logs have none, the photos' own minus their heights above take-off (photos_take_off_height)
 HEIGHT_UNKNOWN = "unknown"  # no absolute height in the logs: h0 = 0
 MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF second (manual offset)
 EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
@@ -83,11 +87,14 @@ class GeotagResult:
 
 
 class TrackInterpolator:
-    """Interpolates a track (UTC clock) in a local ENU frame; each quantity only from rows that carry it."""
+    """Interpolates a track (UTC clock) in a local ENU frame; each quantity only from rows that carry it. Absolute
+    height: the track's own where it has one at the time, else, when ``origin_height_known``, the frame's h0 + the
+    height above take-off (h0 is then the take-off's absolute height, :func:`take_off_frame`)."""
 
-    def __init__(self, track: Track, frame: LocalFrame, max_gap_s: float):
+    def __init__(self, track: Track, frame: LocalFrame, max_gap_s: float, origin_height_known: bool = False):
         self.frame = frame
         self.max_gap_s = max_gap_s
+        self.origin_height_known = origin_height_known
         self.notes: list[str] = []
         relative = self._relative_heights(track)
         rows = track.positions_mask() & np.isfinite(relative)
@@ -140,10 +147,11 @@ class TrackInterpolator:
         if reason:
             return reason
         enu = np.array([np.interp(t, self.pos_t, self.enu[:, k]) for k in range(3)])
-        absolute = math.nan
+        relative = float(np.interp(t, self.pos_t, self.relative))
+        absolute = self.frame.h0_m + relative if self.origin_height_known else math.nan
         if self.bracket(self.abs_t, t) is None:
             absolute = float(np.interp(t, self.abs_t, self.absolute))
-        return enu, float(np.interp(t, self.pos_t, self.relative)), absolute
+        return enu, relative, absolute
 
     def horizontal_at(self, times: np.ndarray) -> np.ndarray:
         """(N, 2) east/north at ``times`` by linear interpolation; NaN outside the position samples' span."""
@@ -240,27 +248,31 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     """Geotag ``photos`` from ``tracks`` (merged by time). ``clock_offset``: ``"auto"`` (within
     +-:data:`MAX_AUTO_CLOCK_OFFSET_S`) or seconds (telemetry UTC - camera clock). A photo the logs cannot tag
     (gap, outside the track) is tagged from its own EXIF GPS and XMP attitude (``source`` :data:`PHOTO_SOURCE`)
-    where it has them. :class:`BadInput` when the photos' own GPS is a median of more than ``max_misfit_m``
-    metres from their geotags."""
+    where it has them. Where the logs give no absolute height, the take-off's comes from the photos' own
+    (:func:`photos_take_off_height`). :class:`BadInput` when the photos' own GPS is a median of more than
+    ``max_misfit_m`` metres from their geotags."""
     relative = [t.report.source for t in tracks if t.clock == "relative"]
     if relative:
         raise ValueError(f"{relative[0]}: log has no wall-clock time (SRT without a date); give its start time (start_time_s, CLI --start-time)")
     track = Track.concat(tracks)
     frame, height_datum = take_off_frame(track)
-    interpolator = TrackInterpolator(track, frame, max_gap_s)
+    interpolator = TrackInterpolator(track, frame, max_gap_s, height_datum != HEIGHT_UNKNOWN)
     timed = [p for p in photos if math.isfinite(p.exif_time_s)]
     untagged = [(p.name, "no EXIF DateTimeOriginal") for p in photos if not math.isfinite(p.exif_time_s)]
     clock, resolution = resolve_clock(timed, track, clock_offset, interpolator)
     exif = np.array([p.exif_time_s for p in timed])
     slack = MATCH_SLACK_S if clock.method == "manual" else max(event_tolerance(track), min(MATCH_SLACK_S, 3 * clock.std_s))
     matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, slack)
+    times = [(float(track.photo_times_s[event]), "event") if event >= 0 else
+             (exif_s + clock.offset_s + resolution / 2.0, "exif") for exif_s, event in zip(exif, matches)]
+    origin_note = height_note(height_datum)
+    if height_datum == HEIGHT_UNKNOWN and (found := photos_take_off_height(timed, [t for t, _ in times], interpolator)):
+        h0, origin_note = found
+        frame, height_datum = LocalFrame(frame.lat0_deg, frame.lon0_deg, h0), MEAN_SEA_LEVEL
+        interpolator = TrackInterpolator(track, frame, max_gap_s, origin_height_known=True)
     kind = track.report.kind if len(tracks) == 1 else "+".join(sorted({t.report.kind for t in tracks}))
     tags, from_photos = [], []
-    for photo, exif_s, event in zip(timed, exif, matches):
-        if event >= 0:
-            t, time_source = float(track.photo_times_s[event]), "event"
-        else:
-            t, time_source = exif_s + clock.offset_s + resolution / 2.0, "exif"
+    for photo, (t, time_source) in zip(timed, times):
         tag = make_tag(photo.name, t, interpolator, f"{kind}/{time_source}", time_source)
         if isinstance(tag, str):
             reason, tag = tag, photo_tag(photo, t, frame, height_datum, time_source, reason=tag)
@@ -271,12 +283,39 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
         else:
             tags.append(tag)
     notes = list(interpolator.notes)
-    notes += [note for note in (check_misfit(tags, timed, max_misfit_m), fallback_note(from_photos)) if note]
-    if height_datum == HEIGHT_UNKNOWN:
-        notes.append("take-off absolute height unknown: origin h0 = 0")
-    elif height_datum == MEAN_SEA_LEVEL:
-        notes.append("origin h0 = take-off height above mean sea level (the log's absolute heights), not ellipsoidal")
+    notes += [note for note in (check_misfit(tags, timed, max_misfit_m), fallback_note(from_photos), origin_note)
+              if note]
     return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes, from_photos)
+
+
+def height_note(height_datum: str) -> str | None:
+    """The note saying where the origin's h0 came from, for an origin found by :func:`take_off_frame`."""
+    if height_datum == HEIGHT_UNKNOWN:
+        return "take-off absolute height unknown: origin h0 = 0"
+    if height_datum == MEAN_SEA_LEVEL:
+        return "origin h0 = take-off height above mean sea level (the log's absolute heights), not ellipsoidal"
+    return None
+
+
+def photos_take_off_height(photos: list[PhotoInfo], times_s: list[float],
+                           interpolator: TrackInterpolator) -> tuple[float, str] | None:
+    """The take-off's absolute height from the photos' own (EXIF GPSAltitude / DJI XMP ``AbsoluteAltitude``: above
+    mean sea level as the camera writes it) minus their height above take-off (their XMP ``RelativeAltitude``,
+    else the logs' at their telemetry time ``times_s``): the median over the photos that have both, and the note
+    saying so; None if none has."""
+    heights = []
+    for photo, t in zip(photos, times_s):
+        relative = photo.values.get("height_above_takeoff_m")
+        if relative is None and not isinstance(position := interpolator.position(t), str):
+            relative = position[1]
+        if "absolute_height_m" in photo.values and relative is not None:
+            heights.append(photo.values["absolute_height_m"] - relative)
+    if not heights:
+        return None
+    h0 = float(np.median(heights))
+    return h0, (f"origin h0 = {h0:.2f} m from the photos' own absolute heights (EXIF GPSAltitude / DJI XMP "
+                f"AbsoluteAltitude, above mean sea level as the camera writes it) minus their heights above take-off: "
+                f"median of {len(heights)} photos, spread {max(heights) - min(heights):.2f} m; not ellipsoidal")
 
 
 def make_tag(name: str, t: float, interpolator: TrackInterpolator, source: str, time_source: str) -> Geotag | str:

@@ -11,20 +11,24 @@ import io
 import json
 import math
 from dataclasses import dataclass
+from fractions import Fraction
 from pathlib import Path
 from xml.etree import ElementTree
 
 import numpy as np
-from PIL import ExifTags, Image, JpegImagePlugin
+from PIL.ExifTags import GPS
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
 
-from cliutil.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import write_bytes_atomic, write_text_atomic
+from .exif_tiff import ASCII, BYTE, EXIF_HEADER, GPS_IFD, RATIONAL, Entry, sub_ifd, tiff_bytes, with_gps_ifd
 from .geotag import HEIGHT_UNKNOWN, PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
+from .jpeg_segments import replace_metadata
 from .logs.photos import DRONE_DJI_NS
 from .track import csv_errors, csv_rows, format_number, format_utc, parse_utc
+from .xmp_update import with_dji_fields
 
 XMP_META_NS = "adobe:ns:meta/"
 RDF_NS = "http://www.w3.org/1999/02/22-rdf-syntax-ns#"
@@ -148,19 +152,25 @@ def load_geotags(csv_path) -> list[PosePrior]:
     return priors
 
 
+def dji_xmp_fields(tag: Geotag) -> dict[str, str]:
+    """The geotag as ``drone-dji:`` XMP fields (DJI's names and sign style, name -> text): ``GpsLatitude``,
+    ``GpsLongitude``, ``AbsoluteAltitude`` the geotag's absolute height, ``RelativeAltitude`` its height above
+    take-off, ``Gimbal/Flight Yaw/Pitch/RollDegree``; a value that is unknown (NaN) is left out."""
+    values = {"GpsLatitude": tag.lat_deg, "GpsLongitude": tag.lon_deg,
+              "AbsoluteAltitude": tag.absolute_height_m, "RelativeAltitude": tag.height_above_takeoff_m}
+    for prefix, angles in (("Gimbal", tag.gimbal_ypr_deg), ("Flight", tag.aircraft_ypr_deg)):
+        values.update({f"{prefix}YawDegree": angles[0], f"{prefix}PitchDegree": angles[1], f"{prefix}RollDegree": angles[2]})
+    return {k: f"{v:+.8f}" for k, v in values.items() if math.isfinite(v)}
+
+
 def dji_xmp_packet(tag: Geotag, extra: dict[str, str] | None = None) -> bytes:
-    """A minimal XMP packet with the geotag as ``drone-dji:`` attributes (DJI's own names and sign style:
-    ``AbsoluteAltitude`` the geotag's absolute height, ``RelativeAltitude`` its height above take-off), plus the
+    """A minimal XMP packet with the geotag's :func:`dji_xmp_fields` as ``drone-dji:`` attributes, plus the
     ``extra`` ``drone-dji:`` attributes given as text (e.g. :func:`dji_calibration_attributes`).
 
     Built as an element tree (:mod:`xml.etree.ElementTree`) and serialised by it, so every value is escaped
     whatever characters it holds (``&<>"`` and line breaks included); the elements and attributes are named with
     DJI's prefixes (``x:``, ``rdf:``, ``drone-dji:``, declared on them), which prefix-matching readers rely on."""
-    values = {"GpsLatitude": tag.lat_deg, "GpsLongitude": tag.lon_deg,
-              "AbsoluteAltitude": tag.absolute_height_m, "RelativeAltitude": tag.height_above_takeoff_m}
-    for prefix, angles in (("Gimbal", tag.gimbal_ypr_deg), ("Flight", tag.aircraft_ypr_deg)):
-        values.update({f"{prefix}YawDegree": angles[0], f"{prefix}PitchDegree": angles[1], f"{prefix}RollDegree": angles[2]})
-    texts = {k: f"{v:+.8f}" for k, v in values.items() if math.isfinite(v)} | (extra or {})
+    texts = dji_xmp_fields(tag) | (extra or {})
     meta = ElementTree.Element("x:xmpmeta", {"xmlns:x": XMP_META_NS})
     rdf = ElementTree.SubElement(meta, "rdf:RDF", {"xmlns:rdf": RDF_NS})
     ElementTree.SubElement(rdf, "rdf:Description", {"rdf:about": "DJI Meta Data", "xmlns:drone-dji": DRONE_DJI_NS}
@@ -190,38 +200,54 @@ def dji_calibration_attributes(fx: float, fy: float, cx: float, cy: float, width
 
 
 def deg_to_dms(value: float) -> tuple[float, float, float]:
+    """|value| in degrees as (degrees, minutes, seconds), the first two whole, seconds rounded to 1e-6."""
     degrees = math.floor(abs(value))
     minutes = math.floor((abs(value) - degrees) * 60.0)
     seconds = (abs(value) - degrees - minutes / 60.0) * 3600.0
     return float(degrees), float(minutes), round(seconds, 6)
 
 
-def set_exif_gps(exif: Image.Exif, tag: Geotag) -> None:
-    """Put the geotag's latitude, longitude and (if known) absolute height into ``exif``'s GPS IFD."""
-    gps = exif.get_ifd(ExifTags.IFD.GPSInfo)
-    gps[ExifTags.GPS.GPSVersionID] = b"\x02\x03\x00\x00"
-    gps[ExifTags.GPS.GPSLatitudeRef] = "N" if tag.lat_deg >= 0 else "S"
-    gps[ExifTags.GPS.GPSLatitude] = deg_to_dms(tag.lat_deg)
-    gps[ExifTags.GPS.GPSLongitudeRef] = "E" if tag.lon_deg >= 0 else "W"
-    gps[ExifTags.GPS.GPSLongitude] = deg_to_dms(tag.lon_deg)
+def gps_entries(tag: Geotag) -> tuple[Entry, ...]:
+    """The geotag as EXIF GPS IFD entries, typed as the EXIF standard (and DJI) writes them: GPSVersionID 2.3,
+    latitude/longitude (DMS rationals, seconds to 1e-6) with their N/S, E/W references and, if known, the
+    absolute height as GPSAltitudeRef (0 above, 1 below the datum) + GPSAltitude (metres to 0.01 mm)."""
+    entries = [Entry(GPS.GPSVersionID, BYTE, b"\x02\x03\x00\x00")]
+    for ref, code, value, letters in ((GPS.GPSLatitudeRef, GPS.GPSLatitude, tag.lat_deg, "NS"),
+                                      (GPS.GPSLongitudeRef, GPS.GPSLongitude, tag.lon_deg, "EW")):
+        degrees, minutes, seconds = deg_to_dms(value)
+        entries += [Entry(ref, ASCII, letters[value < 0]),
+                    Entry(code, RATIONAL, (int(degrees), int(minutes), Fraction(round(seconds * 10**6), 10**6)))]
     if math.isfinite(tag.absolute_height_m):
-        gps[ExifTags.GPS.GPSAltitudeRef] = b"\x00" if tag.absolute_height_m >= 0 else b"\x01"
-        gps[ExifTags.GPS.GPSAltitude] = abs(tag.absolute_height_m)
-    exif[ExifTags.IFD.GPSInfo] = gps
+        entries += [Entry(GPS.GPSAltitudeRef, BYTE, bytes([tag.absolute_height_m < 0])),
+                    Entry(GPS.GPSAltitude, RATIONAL, (Fraction(round(abs(tag.absolute_height_m) * 10**5), 10**5),))]
+    return tuple(entries)
+
+
+def geotagged_jpeg(data: bytes, tag: Geotag) -> bytes:
+    """A JPEG file's bytes with the geotag in its EXIF GPS IFD and its DJI XMP fields, the compressed image and
+    every other segment, EXIF tag and XMP field untouched (:mod:`capture.jpeg_segments`,
+    :func:`capture.exif_tiff.with_gps_ifd`, :mod:`capture.xmp_update`). ValueError for a damaged JPEG/EXIF/XMP."""
+    gps = gps_entries(tag)
+
+    def exif(old: bytes | None) -> bytes:
+        if old is None:
+            return EXIF_HEADER + tiff_bytes([sub_ifd(GPS_IFD, gps)])
+        return EXIF_HEADER + with_gps_ifd(old[len(EXIF_HEADER):], gps)
+
+    def xmp(old: bytes | None) -> bytes:
+        return dji_xmp_packet(tag) if old is None else with_dji_fields(old, dji_xmp_fields(tag))
+
+    return replace_metadata(data, exif, xmp)
 
 
 def write_exif_copy(tag: Geotag, source: Path, target: Path) -> None:
-    """Copy a JPEG with the geotag in its EXIF GPS IFD and a fresh DJI XMP packet (atomic).
-
-    Pillow re-encodes the JPEG with the original quantisation tables and chroma subsampling, so the copy is
-    visually identical but not byte-identical; the original XMP packet is replaced.
-    """
-    with Image.open(source) as image:
-        exif = image.getexif()
-        set_exif_gps(exif, tag)
-        with atomic_path(target) as tmp:
-            image.save(tmp, format="JPEG", exif=exif, xmp=dji_xmp_packet(tag), qtables=image.quantization,
-                       subsampling=JpegImagePlugin.get_sampling(image), icc_profile=image.info.get("icc_profile"))
+    """Copy a JPEG with the geotag written into its metadata (:func:`geotagged_jpeg`), atomically; ValueError
+    naming ``source`` if its metadata cannot be edited."""
+    try:
+        data = geotagged_jpeg(Path(source).read_bytes(), tag)
+    except ValueError as error:
+        raise ValueError(f"{source}: {error}") from None
+    write_bytes_atomic(target, data)
 
 
 def write_exif_copies(result: GeotagResult, photos_dir, out_dir) -> list[Path]:

@@ -14,11 +14,14 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+from fractions import Fraction
 
-from PIL import ExifTags, Image, TiffImagePlugin
+from PIL.ExifTags import IFD, Base, Interop
 
+from capture.exif_tiff import (ASCII, EXIF_HEADER, LONG, RATIONAL, SHORT, SRATIONAL, UNDEFINED, Entry, sub_ifd,
+                               tiff_bytes)
 from capture.geotag import Geotag
-from capture.geotag_io import set_exif_gps
+from capture.geotag_io import gps_entries
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM, CameraProfile
 from cliutil.program import package_version
 
@@ -40,7 +43,7 @@ NOT_WRITTEN = {
     "EXIF CompressedBitsPerPixel": "needs the compressed size, which is known only after the EXIF is written",
     "EXIF SceneType": "1 means 'directly photographed'; the image is rendered",
     "EXIF BodySerialNumber": "there is no camera body",
-    "Thumbnail Compression": "Pillow's EXIF writer writes no IFD1 thumbnail (no photogrammetry tool reads it)",
+    "Thumbnail Compression": "the virtual camera writes no IFD1 thumbnail (no photogrammetry tool reads it)",
     "Thumbnail XResolution": "no IFD1 thumbnail (above)",
     "Thumbnail YResolution": "no IFD1 thumbnail (above)",
     "Thumbnail ResolutionUnit": "no IFD1 thumbnail (above)",
@@ -49,45 +52,44 @@ NOT_WRITTEN = {
     "JPEGThumbnail": "no IFD1 thumbnail (above)",
 }
 
-# Fixed values of the virtual camera (EXIF 2.3 codes): centred chroma, 72 dpi, sRGB, program auto-exposure with
-# a centre-weighted meter (sim.drone.exposure), sunlight, no flash, normal processing, auto white balance.
-IFD0_FIXED = {
-    ExifTags.Base.Orientation: 1, ExifTags.Base.XResolution: 72.0, ExifTags.Base.YResolution: 72.0,
-    ExifTags.Base.ResolutionUnit: 2, ExifTags.Base.YCbCrPositioning: 1,
-}
-EXIF_FIXED = {
-    ExifTags.Base.ExifVersion: b"0230", ExifTags.Base.FlashPixVersion: b"0100",
-    ExifTags.Base.ComponentsConfiguration: b"\x01\x02\x03\x00", ExifTags.Base.ColorSpace: 1,
-    ExifTags.Base.ExposureProgram: 2, ExifTags.Base.MeteringMode: 2, ExifTags.Base.LightSource: 1,
-    ExifTags.Base.Flash: 0x20, ExifTags.Base.ExposureBiasValue: TiffImagePlugin.IFDRational(0, 1),
-    ExifTags.Base.SubjectDistance: TiffImagePlugin.IFDRational(0, 1), ExifTags.Base.SubjectDistanceRange: 0,
-    ExifTags.Base.FileSource: b"\x00", ExifTags.Base.CustomRendered: 0, ExifTags.Base.ExposureMode: 0,
-    ExifTags.Base.WhiteBalance: 0, ExifTags.Base.DigitalZoomRatio: TiffImagePlugin.IFDRational(0, 1),
-    ExifTags.Base.SceneCaptureType: 0, ExifTags.Base.GainControl: 0, ExifTags.Base.Contrast: 0,
-    ExifTags.Base.Saturation: 0, ExifTags.Base.Sharpness: 0,
-}
-INTEROP_FIXED = {ExifTags.Interop.InteropIndex: "R98", ExifTags.Interop.InteropVersion: b"0100"}
+# Fixed values of the virtual camera (EXIF 2.3 codes, each with the TIFF type real DJI photos give its tag):
+# centred chroma, 72 dpi, sRGB, program auto-exposure with a centre-weighted meter (sim.drone.exposure),
+# sunlight, no flash, normal processing, auto white balance, FileSource 3 (digital still camera, as DJI writes).
+IFD0_FIXED = (
+    Entry(Base.Orientation, SHORT, (1,)), Entry(Base.XResolution, RATIONAL, (72,)),
+    Entry(Base.YResolution, RATIONAL, (72,)), Entry(Base.ResolutionUnit, SHORT, (2,)),
+    Entry(Base.YCbCrPositioning, SHORT, (1,)),
+)
+EXIF_FIXED = (
+    Entry(Base.ExifVersion, UNDEFINED, b"0230"), Entry(Base.FlashPixVersion, UNDEFINED, b"0100"),
+    Entry(Base.ComponentsConfiguration, UNDEFINED, b"\x01\x02\x03\x00"), Entry(Base.ColorSpace, SHORT, (1,)),
+    Entry(Base.ExposureProgram, SHORT, (2,)), Entry(Base.MeteringMode, SHORT, (2,)),
+    Entry(Base.LightSource, SHORT, (1,)), Entry(Base.Flash, SHORT, (0x20,)),
+    Entry(Base.ExposureBiasValue, SRATIONAL, (0,)), Entry(Base.SubjectDistance, RATIONAL, (0,)),
+    Entry(Base.SubjectDistanceRange, SHORT, (0,)), Entry(Base.FileSource, UNDEFINED, b"\x03"),
+    Entry(Base.CustomRendered, SHORT, (0,)), Entry(Base.ExposureMode, SHORT, (0,)),
+    Entry(Base.WhiteBalance, SHORT, (0,)), Entry(Base.DigitalZoomRatio, RATIONAL, (0,)),
+    Entry(Base.SceneCaptureType, SHORT, (0,)), Entry(Base.GainControl, SHORT, (0,)),
+    Entry(Base.Contrast, SHORT, (0,)), Entry(Base.Saturation, SHORT, (0,)), Entry(Base.Sharpness, SHORT, (0,)),
+)
+INTEROP_FIXED = (Entry(Interop.InteropIndex, ASCII, "R98"), Entry(Interop.InteropVersion, UNDEFINED, b"0100"))
 
 
-def dji_exif(tag: Geotag, camera_time: dt.datetime, profile: CameraProfile, size_px: tuple[int, int]) -> Image.Exif:
-    """EXIF of a DJI photo of ``size_px`` (width, height) taken at ``camera_time`` (camera clock, written without a
-    time zone as DJI does; milliseconds in the three SubSecTime tags) at the geotag's position; ``GPSAltitude`` is
-    ``tag.absolute_height_m`` (the caller's height above sea level)."""
-    exif = Image.Exif()
-    exif.update(IFD0_FIXED)
+def dji_exif(tag: Geotag, camera_time: dt.datetime, profile: CameraProfile, size_px: tuple[int, int]) -> bytes:
+    """The EXIF block (APP1 payload: ``Exif\\0\\0`` + TIFF) of a DJI photo of ``size_px`` (width, height) taken
+    at ``camera_time`` (camera clock, written without a time zone as DJI does; milliseconds in the three
+    SubSecTime tags) at the geotag's position; ``GPSAltitude`` is ``tag.absolute_height_m`` (the caller's height
+    above sea level). Every tag has the TIFF type a real DJI photo gives it."""
     stamp, millis = camera_time.strftime("%Y:%m:%d %H:%M:%S"), f"{camera_time.microsecond // 1000:03d}"
-    exif.update({ExifTags.Base.Make: MAKE, ExifTags.Base.Model: MODEL, ExifTags.Base.Software: SOFTWARE,
-                 ExifTags.Base.DateTime: stamp})
-    sub = exif.get_ifd(ExifTags.IFD.Exif)
-    sub.update(EXIF_FIXED)
-    sub.update({ExifTags.Base.DateTimeOriginal: stamp, ExifTags.Base.DateTimeDigitized: stamp,
-                ExifTags.Base.SubsecTime: millis, ExifTags.Base.SubsecTimeOriginal: millis,
-                ExifTags.Base.SubsecTimeDigitized: millis,
-                ExifTags.Base.ExifImageWidth: int(size_px[0]), ExifTags.Base.ExifImageHeight: int(size_px[1]),
-                ExifTags.Base.FocalLength: TiffImagePlugin.IFDRational(round(profile.focal_length_mm * 100), 100),
-                ExifTags.Base.FocalLengthIn35mmFilm: round(
-                    FULL_FRAME_DIAGONAL_MM / 2.0 / math.tan(math.radians(profile.diagonal_fov_deg) / 2.0))})
-    sub[ExifTags.IFD.Interop] = dict(INTEROP_FIXED)
-    exif[ExifTags.IFD.Exif] = sub
-    set_exif_gps(exif, tag)
-    return exif
+    focal_35mm = round(FULL_FRAME_DIAGONAL_MM / 2.0 / math.tan(math.radians(profile.diagonal_fov_deg) / 2.0))
+    exif_ifd = (*EXIF_FIXED, Entry(Base.DateTimeOriginal, ASCII, stamp), Entry(Base.DateTimeDigitized, ASCII, stamp),
+                *(Entry(code, ASCII, millis) for code in (Base.SubsecTime, Base.SubsecTimeOriginal,
+                                                          Base.SubsecTimeDigitized)),
+                Entry(Base.ExifImageWidth, LONG, (int(size_px[0]),)),
+                Entry(Base.ExifImageHeight, LONG, (int(size_px[1]),)),
+                Entry(Base.FocalLength, RATIONAL, (Fraction(round(profile.focal_length_mm * 100), 100),)),
+                Entry(Base.FocalLengthIn35mmFilm, SHORT, (focal_35mm,)), sub_ifd(IFD.Interop, INTEROP_FIXED))
+    ifd0 = (*IFD0_FIXED, Entry(Base.Make, ASCII, MAKE), Entry(Base.Model, ASCII, MODEL),
+            Entry(Base.Software, ASCII, SOFTWARE), Entry(Base.DateTime, ASCII, stamp),
+            sub_ifd(IFD.Exif, exif_ifd), sub_ifd(IFD.GPSInfo, gps_entries(tag)))
+    return EXIF_HEADER + tiff_bytes(ifd0)

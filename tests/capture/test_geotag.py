@@ -201,9 +201,19 @@ def test_origin_height_datum_says_where_h0_came_from(tmp_path):
     assert sidecar["origin_height_datum"] == "mean_sea_level" and sidecar["origin_height_known"] is True
     without = Track.from_rows(track.time_s, {k: v for k, v in track.columns.items() if k != "absolute_height_m"},
                               track.report, photo_times_s=track.photo_times_s)
-    unknown = geotag_photos(photos, [without])
+    # no absolute height in the log (a Litchi log): the photos' own minus the log's height above take-off then
+    from_photos = geotag_photos(photos, [without])
+    assert from_photos.origin_height_datum == MEAN_SEA_LEVEL
+    assert from_photos.origin.h0_m == pytest.approx(orbit.frame.h0_m, abs=0.05)
+    assert any(note.startswith("origin h0 = ") and f"median of {len(photos)} photos" in note for note in from_photos.notes)
+    heights = np.array([tag.absolute_height_m for tag in from_photos.tags])
+    np.testing.assert_allclose(heights, [p.values["absolute_height_m"] for p in photos], atol=0.1)  # baro noise
+    bare = [dataclasses.replace(p, values={k: v for k, v in p.values.items() if k != "absolute_height_m"})
+            for p in photos]
+    unknown = geotag_photos(bare, [without])
     assert unknown.origin_height_datum == HEIGHT_UNKNOWN and not unknown.origin_height_known
     assert "take-off absolute height unknown: origin h0 = 0" in unknown.notes
+    assert all(math.isnan(tag.absolute_height_m) for tag in unknown.tags)
 
 
 def drone_dji_attributes(packet: bytes) -> dict[str, str]:

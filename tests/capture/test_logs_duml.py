@@ -8,6 +8,7 @@ import math
 
 import numpy as np
 import pytest
+from defusedxml import ElementTree as SafeET
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_cli_logs import write_jpeg
@@ -344,7 +345,8 @@ def test_geotag_command_with_a_duml_log(capture, tmp_path, capsys):
     for i, shutter in enumerate(shutters):
         write_jpeg(photos / f"IMG_{i:04d}.JPG", shutter - CAMERA_OFFSET_S, lat[i], lon[i])
     out = tmp_path / "out" / "geotags.csv"
-    assert main(["geotag", "--photos", str(photos), "--log", str(path), "--out", str(out)]) == 0
+    gpx = tmp_path / "out" / "photos.gpx"
+    assert main(["geotag", "--photos", str(photos), "--log", str(path), "--out", str(out), "--gpx", str(gpx)]) == 0
     printed = capsys.readouterr().out
     assert f"{len(shutters)} photos geotagged, 0 untagged" in printed
     rows = list(csv.DictReader(out.open()))
@@ -360,3 +362,11 @@ def test_geotag_command_with_a_duml_log(capture, tmp_path, capsys):
     assert np.abs(estimate - ORBIT.enu(shutters)).max() < 0.05 * ORBIT.speed_m_s + 0.01  # at the true shutter
     pitch = np.array([float(row["gimbal_pitch_deg"]) for row in rows])
     assert np.abs(pitch - ORBIT.gimbal_ypr(shutters)[:, 1]).max() < 0.1
+    # the log has no absolute height but a home point: absolute height = its altitude + the height above take-off,
+    # so exiftool -geotag gets an <ele> for every photo (it deletes GPSAltitude where there is none)
+    gpx_ns = "{http://www.topografix.com/GPX/1/1}"
+    points = SafeET.parse(gpx).getroot().iter(f"{gpx_ns}trkpt")
+    ele = np.array([float(point.findtext(f"{gpx_ns}ele")) for point in points])
+    true_height = ORBIT.frame.to_geodetic(*ORBIT.enu(truth["events"]).T)[2]
+    assert len(ele) == len(shutters) and np.abs(ele - true_height).max() < 0.01
+    np.testing.assert_allclose([float(row["absolute_height_m"]) for row in rows], ele, atol=1e-6)

@@ -1,6 +1,7 @@
-"""The virtual drone's photos carry the EXIF tag set a real DJI camera writes, read back by exifread (a reader
-independent of our writer, Pillow); their heights above sea level follow the stated geoid undulation. (XMP
-escaping: tests/capture/test_geotag.py; our own reader on these photos: tests/sim/test_drone_link.py.)"""
+"""The virtual drone's photos carry the EXIF tag set a real DJI camera writes, each tag with the TIFF type DJI gives
+it, read back by exifread (a reader independent of our writer, capture.exif_tiff) and validated by exiftool; their
+heights above sea level follow the stated geoid undulation. (XMP escaping: tests/capture/test_geotag.py; our own
+reader on these photos: tests/sim/test_drone_link.py.)"""
 
 import datetime as dt
 from fractions import Fraction
@@ -17,15 +18,26 @@ from sim.drone.photos import photo_camera, render_photos, write_dji_jpeg
 from sim.drone.session import fly_litchi_mission
 from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
+from tests.exiftool_helpers import exiftool, needs_exiftool, serious_warnings
 from tests.sim.drone_helpers import short_orbit_csv
 
 CAMERA_TIME = dt.datetime(2024, 5, 1, 10, 1, 2, 345000)
 REAL_DJI_FOLDERS = ("p4m_rtk/images", "brighton_beach/images")
 
 
+#: TIFF type codes (TIFF 6.0) that the checks below name.
+UNDEFINED, SRATIONAL = 7, 10
+
+
 def exif_tags(path) -> dict:
     with open(path, "rb") as handle:
         return exifread.process_file(handle, details=False)
+
+
+def tag_types(path) -> dict[str, int]:
+    """exifread name -> TIFF type code of each tag in IFD0 (``Image``), the Exif, GPS and Interop IFDs."""
+    return {name: tag.field_type for name, tag in exif_tags(path).items()
+            if name.split()[0] in ("Image", "EXIF", "GPS", "Interoperability")}
 
 
 def ratio(tag) -> float:
@@ -48,6 +60,13 @@ def real_dji_tag_sets(shared_data) -> list[set[str]]:
     return [set(exif_tags(path)) for path in paths]
 
 
+@pytest.fixture(scope="module")
+def real_dji_tag_types(shared_data) -> list[dict[str, int]]:
+    """The TIFF type code of every IFD0/Exif/GPS/Interop tag of one real photo of each DJI camera model."""
+    photos = [shared_data / "brighton_beach/images/DJI_0018.JPG", shared_data / "p4m_rtk/images/DJI_0010.JPG"]
+    return [tag_types(path) for path in photos]
+
+
 @pytest.fixture()
 def virtual_photo(tmp_path):
     path = tmp_path / "DJI_0001.JPG"
@@ -65,6 +84,26 @@ def test_virtual_photo_has_every_tag_all_real_dji_photos_have(real_dji_tag_sets,
     assert set(NOT_WRITTEN) <= set.union(*real_dji_tag_sets)
     assert {"EXIF ExifVersion", "EXIF FlashPixVersion", "EXIF ExifImageWidth", "EXIF ColorSpace",
             "EXIF ComponentsConfiguration", "GPS GPSVersionID", "GPS GPSAltitudeRef", "Image Software"} <= expected
+
+
+def test_virtual_photo_tags_have_the_tiff_types_of_real_dji_photos(real_dji_tag_types, virtual_photo):
+    """A reader decodes a tag by its TIFF type: ComponentsConfiguration and FileSource are UNDEFINED (not BYTE),
+    ExposureBiasValue SRATIONAL (an unsigned RATIONAL would read a negative compensation as a huge one)."""
+    ours = tag_types(virtual_photo)
+    for real in real_dji_tag_types:
+        shared = set(ours) & set(real)
+        assert len(shared) > 40
+        assert {name: ours[name] for name in shared} == {name: real[name] for name in shared}
+    assert (ours["EXIF ComponentsConfiguration"], ours["EXIF FileSource"]) == (UNDEFINED, UNDEFINED)
+    assert ours["EXIF ExposureBiasValue"] == SRATIONAL
+    assert exif_tags(virtual_photo)["EXIF FileSource"].values == [3]  # digital still camera, as DJI writes it
+
+
+@needs_exiftool
+def test_exiftool_validates_a_virtual_photo_without_a_serious_warning(virtual_photo):
+    assert serious_warnings(virtual_photo) == []
+    assert exiftool("-s3", "-FileSource", "-ComponentsConfiguration", virtual_photo).splitlines() == [
+        "Digital Camera", "Y, Cb, Cr, -"]
 
 
 def test_virtual_photo_tag_values(virtual_photo):
@@ -101,7 +140,7 @@ def test_heights_above_sea_level_follow_the_stated_geoid_undulation(tmp_path):
     relative = mission.photos.measured_height_above_takeoff_m[index]
     expected = mission.sensors.measured_home()[2] - undulation + relative
     path = tmp_path / "photos" / mission.photos.names[index]
-    assert ratio(exif_tags(path)["GPS GPSAltitude"]) == pytest.approx(expected, abs=1e-6)
+    assert ratio(exif_tags(path)["GPS GPSAltitude"]) == pytest.approx(expected, abs=1e-5)  # written to 0.01 mm
     values = read_photo(path).values
     assert values["absolute_height_m"] == pytest.approx(expected, abs=1e-6)
     assert values["height_above_takeoff_m"] == pytest.approx(relative, abs=1e-6)
