@@ -9,9 +9,10 @@ fx = fy = 1100 px, 400 m above the ground pitched 45 degrees down, stereo baseli
 Each table prints time and error side by side; ratios are against a baseline measured in the same run.
 
 Peers are measured in the same run, on the same scene (``--peers-scene``, default the demo world's mesh), camera,
-resolution and thread count, when installed (the ``bench`` extra): Open3D's ``RaycastingScene.cast_rays`` and
-Blender's Cycles through ``bpy`` (1 spp, the scene's GLB imported as it is: +Y up becomes Blender's ENU), each
-against our embree caster's planar depth; "not installed" otherwise.
+resolution and thread count, when installed: Open3D's ``RaycastingScene.cast_rays`` (the ``bench`` extra) and
+Blender's Cycles through ``bpy`` in its own interpreter (tools/blender_cycles.py: ``$AEROSTEREO_BPY_PYTHON`` or
+``.venv-bpy``; 1 spp at the pixel centres, the scene's GLB imported as it is: +Y up becomes Blender's ENU), each
+against our embree caster's planar depth; "not installed (why)" otherwise.
 """
 
 from __future__ import annotations
@@ -30,7 +31,6 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
-import OpenEXR  # noqa: E402
 
 from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at  # noqa: E402
 from sim.render.raycast import default_workers, intersect, map_blocks  # noqa: E402
@@ -38,6 +38,8 @@ from sim.render.renderer import StageTimes, Sun, render  # noqa: E402
 from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
 from sim.worlds.synthetic import height_field_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
+from tools.blender_cycles import (PIXEL_CENTRE_FILTER_PX, BpyUnavailable, CyclesJob, bpy_python, read_depth,  # noqa: E402
+                                  run_cycles)
 
 CAMERA = PinholeCamera(1100.0, 1100.0, 639.5, 359.5, 1280, 720)
 SUN = Sun(azimuth_deg=135.0, elevation_deg=35.0)
@@ -192,46 +194,23 @@ def open3d_run(scene, rays, workers: int) -> PeerRun | str:
 
 
 def blender_run(scene_dir: Path, pose: np.ndarray, workers: int) -> PeerRun | str:
-    """Blender Cycles through ``bpy``: the scene's GLB imported as it is (Blender turns glTF's +Y up into its
-    +Z up, so its world is our ENU), a camera with :data:`CAMERA`'s intrinsics at ``pose``, 1 sample per pixel,
-    ``workers`` threads, the depth pass read from a multilayer EXR; or why it was not measured."""
+    """Blender Cycles in ``bpy``'s own interpreter (:mod:`tools.blender_cycles`): the scene's GLB imported as it is,
+    a camera with :data:`CAMERA`'s intrinsics at ``pose``, 1 sample at each pixel centre, ``workers`` threads, the
+    depth pass written through the compositor; setup: the GLB import and scene set-up (not the interpreter's start
+    or ``import bpy``); or why it was not measured."""
     try:
-        import bpy
-        from mathutils import Matrix
-    except ImportError as error:
-        return f"not installed ({type(error).__name__}: {error})"
-    start = time.perf_counter()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    bpy.ops.import_scene.gltf(filepath=str(Path(scene_dir) / read_scene_json(scene_dir)["mesh"]))
-    render_scene = bpy.context.scene
-    camera = bpy.data.cameras.new("camera")
-    camera.sensor_fit, camera.sensor_width, camera.clip_end = "HORIZONTAL", 36.0, 1e5
-    camera.lens = CAMERA.fx * camera.sensor_width / CAMERA.width  # square pixels, centred principal point
-    camera_object = bpy.data.objects.new("camera", camera)
-    render_scene.collection.objects.link(camera_object)
-    camera_object.matrix_world = Matrix((pose @ np.diag([1.0, -1.0, -1.0, 1.0])).tolist())  # OpenCV -> Blender axes
-    sun = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
-    render_scene.collection.objects.link(sun)
-    sun.rotation_euler = (np.radians(90.0 - SUN.elevation_deg), 0.0, np.radians(180.0 - SUN.azimuth_deg))
-    render_scene.camera = camera_object
-    render_scene.render.engine = "CYCLES"
-    render_scene.cycles.samples = 1
-    render_scene.render.threads_mode, render_scene.render.threads = "FIXED", workers
-    render_scene.render.use_persistent_data = True
-    render_scene.render.resolution_x, render_scene.render.resolution_y = CAMERA.width, CAMERA.height
-    render_scene.render.resolution_percentage = 100
-    render_scene.view_layers[0].use_pass_z = True
-    render_scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
-    render_scene.render.image_settings.color_depth = "32"
-    setup_s = time.perf_counter() - start
+        bpy_python()
+    except BpyUnavailable as reason:
+        return f"not installed ({reason})"
     with tempfile.TemporaryDirectory() as folder:
-        render_scene.render.filepath = str(Path(folder) / "blender.exr")
-        seconds = median_seconds(lambda: bpy.ops.render.render(write_still=True))
-        with OpenEXR.File(render_scene.render.filepath) as exr:
-            channels = exr.channels()
-            depth = next(channels[name].pixels for name in channels if name.endswith("Depth.Z"))
-    depth = np.where(depth >= camera.clip_end, np.inf, depth).astype(np.float32)
-    return PeerRun(setup_s, seconds, depth.reshape(-1))
+        depth_exr = Path(folder) / "depth.exr"
+        job = CyclesJob(glb=str(Path(scene_dir) / read_scene_json(scene_dir)["mesh"]), fx=CAMERA.fx, fy=CAMERA.fy,
+                        cx=CAMERA.cx, cy=CAMERA.cy, width=CAMERA.width, height=CAMERA.height,
+                        T_world_cam=pose.tolist(), sun=None, world=0.0, samples=1, threads=workers,
+                        pixel_filter_px=PIXEL_CENTRE_FILTER_PX, repeats=5, depth_exr=str(depth_exr))
+        times = run_cycles(job)
+        depth = read_depth(depth_exr)
+    return PeerRun(times.setup_s, statistics.median(times.render_s[1:]), depth.reshape(-1))
 
 
 def depth_agreement(ours: np.ndarray, theirs: np.ndarray) -> tuple[float, float, float]:

@@ -33,7 +33,6 @@ from sim.run.rig import build_rig, replay_lenses
 from sim.sampling.light import FrameLight, frame_light
 from sim.sampling.pose import PoseSample
 from sim.sampling.seeds import EXPOSURE_STREAM, NOISE_STREAM, RENDER_STREAM, frame_rng
-from sim.sampling.sun import SunSample
 
 #: Width (pixels) of the small render on which auto-exposure meters a view.
 METERING_WIDTH = 64
@@ -130,12 +129,13 @@ class FrameRenderer:
         draw = 0 if self.options.poses.mode == "trajectory" else index
         return frame_light(self.sun, self.options.seed, draw, self.scene.origin)
 
-    def _rig_lighting(self, index: int) -> tuple[Rig, dict, SunSample | dict | None]:
+    def _rig_lighting(self, index: int) -> tuple[Rig, dict, dict | None]:
         """Frame ``index``'s rig (a replay of the scene's cameras: each photo's own lens), the lighting keywords of
-        :func:`render` and the record of its sun (None when unlit)."""
+        :func:`render` and the record of its sun (:attr:`~sim.sampling.light.FrameLight.frame_record`, None when
+        unlit)."""
         light = self.light(index)
         rig = self.rig if self.lenses is None else build_rig(self.options.rig, self.lenses[index])
-        return rig, light.keywords, light.record
+        return rig, light.keywords, light.frame_record
 
     def _with_effects(self, index: int, sample: PoseSample, frame, rig: Rig, lighting: dict,
                       gain: np.ndarray | None) -> list[np.ndarray]:

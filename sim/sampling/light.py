@@ -8,11 +8,13 @@ Records (``frames.jsonl`` ``sun``): the random form keeps the paper's draw as ev
 (``azimuth_deg``, ``elevation_deg``, ``intensity`` = the paper's strength, ``sweep_angle_deg``); the other lit forms
 write ``form``, ``azimuth_deg``, ``elevation_deg`` (degrees), ``strength`` (the paper's units) and
 ``linear_intensity`` (the renderer's, ``strength *`` :data:`~sim.sampling.sun.SUN_STRENGTH_TO_INTENSITY`), plus
-``utc`` for ``time``; unlit writes none (null).
+``utc`` for ``time``; unlit writes none (null). In ``frames.jsonl`` every lit record also has ``blender_strength``:
+the Strength (W/m²) of the Blender sun lamp that lights the frame as it was rendered (:attr:`FrameLight.frame_record`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import math
 from dataclasses import dataclass
@@ -20,8 +22,8 @@ from dataclasses import dataclass
 from capture.track import parse_utc
 from flightplan.geodesy import LocalFrame
 from sim.render.shade import UNLIT, Lighting, Sun
-from sim.sampling.sun import (SUN_STRENGTH_TO_INTENSITY, SunSample, clear_sky_strength, random_sun,
-                              solar_position)
+from sim.sampling.sun import (SUN_STRENGTH_TO_BLENDER, SUN_STRENGTH_TO_INTENSITY, SunSample, clear_sky_strength,
+                              random_sun, solar_position)
 
 #: The forms of ``--sun`` as written on a command line.
 SUN_SYNTAX = "random, AZ,EL,STRENGTH, time:ISO8601, overcast or unlit"
@@ -116,6 +118,18 @@ class FrameLight:
 
     keywords: dict
     record: SunSample | dict | None
+
+    @property
+    def frame_record(self) -> dict | None:
+        """What ``frames.jsonl`` says of the sun: :attr:`record` plus ``blender_strength``, its strength (the paper's
+        units: the random form's ``intensity``, the others' ``strength``) times
+        :data:`~sim.sampling.sun.SUN_STRENGTH_TO_BLENDER`; None when unlit. (``dataset.json`` keeps :attr:`record`, so
+        datasets rendered before still resume.)"""
+        if self.record is None:
+            return None
+        record = dataclasses.asdict(self.record) if isinstance(self.record, SunSample) else dict(self.record)
+        strength = record["intensity"] if "intensity" in record else record["strength"]
+        return {**record, "blender_strength": strength * SUN_STRENGTH_TO_BLENDER}
 
 
 def frame_light(setting: SunSetting, seed: int, index: int, origin: LocalFrame) -> FrameLight:

@@ -2,8 +2,8 @@
 place at a UTC time (PyEphem), with its clear-sky strength.
 
 Directions are those *towards* the sun: azimuth in degrees clockwise from north, elevation in degrees above the
-horizon. Strengths are the paper's (Blender sun "Strength", irradiance) units; times
-:data:`SUN_STRENGTH_TO_INTENSITY` they are the renderer's linear sun intensity.
+horizon. Strengths are in the paper's units (its range: 5-10); times :data:`SUN_STRENGTH_TO_INTENSITY` they are the
+renderer's linear sun intensity, times :data:`SUN_STRENGTH_TO_BLENDER` a Blender sun's Strength that lights a scene alike.
 """
 
 from __future__ import annotations
@@ -16,9 +16,14 @@ import ephem
 
 from sim.sampling.seeds import SUN_STREAM, frame_rng
 
-#: The paper's sun "Strength" (Blender irradiance units, drawn in 5-10) times this is the renderer's
-#: linear sun intensity: strength 10 lights a surface facing the sun at its full albedo (plus the sky).
+#: The paper's sun strength (drawn in 5-10) times this is the renderer's linear sun intensity: strength 10 lights a
+#: surface facing the sun at its full albedo (plus the sky).
 SUN_STRENGTH_TO_INTENSITY = 0.1
+#: The paper's sun strength times this is the Strength (irradiance, W/m²) of the Blender sun lamp that lights a scene
+#: as our renderer does: Blender's diffuse surface of albedo a facing a sun of Strength E has radiance a * E / pi, ours
+#: a * intensity. Cycles renders a dataset frame to 1-3 % (formula 3) with it, and 3x too bright with the strength
+#: itself (tests/tools/test_blender_cycles.py).
+SUN_STRENGTH_TO_BLENDER = SUN_STRENGTH_TO_INTENSITY * math.pi
 #: The atmosphere the apparent sun is refracted through: NREL SPA's defaults (sea-level pressure in hPa, annual
 #: mean temperature in Celsius). At 30 deg elevation refraction lifts the sun by 0.03 deg, at the horizon by 0.5 deg;
 #: a site's own weather or height changes that by a few percent of it.
@@ -33,8 +38,8 @@ class SunSample:
     """Sunlight for one frame.
 
     ``azimuth_deg`` clockwise from north, ``elevation_deg`` above the horizon (the direction
-    *towards* the sun); ``intensity`` is the sun's strength in the paper's (Blender sun
-    "Strength", irradiance) units. ``sweep_angle_deg`` is the paper's angle: the sun's angle
+    *towards* the sun); ``intensity`` is the sun's strength in the paper's units
+    (:data:`SUN_STRENGTH_TO_INTENSITY`, :data:`SUN_STRENGTH_TO_BLENDER`). ``sweep_angle_deg`` is the paper's angle: the sun's angle
     from the horizon measured within a vertical plane, 90 = zenith, over 90 = past the zenith
     (the sun then stands on the opposite azimuth).
     """

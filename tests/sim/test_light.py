@@ -150,6 +150,7 @@ def test_the_time_form_lights_with_the_real_sun_over_the_scene(scene_dir, tmp_pa
     assert first["elevation_deg"] == pytest.approx(73.26, abs=0.05)
     assert first["strength"] == pytest.approx(clear_sky_strength(first["elevation_deg"]))
     assert first["linear_intensity"] == pytest.approx(first["strength"] * SUN_STRENGTH_TO_INTENSITY)
+    assert first.pop("blender_strength") == pytest.approx(first["strength"] * 0.1 * math.pi)
     described = sampling(out)["sun"]
     assert {key: described[key] for key in first} == first and "refraction-corrected" in described["position"]
 
@@ -161,9 +162,10 @@ def test_fixed_overcast_and_unlit_are_recorded_in_every_frame_and_in_dataset_jso
     assert cli_main(render_argv(scene_dir, unlit, "--sun", "unlit")) == 0
     expected = {"form": "fixed", "azimuth_deg": 45.0, "elevation_deg": 60.0, "strength": 8.0,
                 "linear_intensity": pytest.approx(0.8)}
-    assert records(fixed) == [expected, expected] and sampling(fixed)["sun"] == expected
+    blender = {"blender_strength": pytest.approx(0.8 * math.pi)}  # frames only: dataset.json as datasets had it
+    assert records(fixed) == [{**expected, **blender}] * 2 and sampling(fixed)["sun"] == expected
     cloudy = {"form": "overcast", "strength": 0.0, "linear_intensity": 0.0, "ambient": OVERCAST_AMBIENT}
-    assert records(overcast) == [cloudy, cloudy] and sampling(overcast)["sun"] == cloudy
+    assert records(overcast) == [{**cloudy, "blender_strength": 0.0}] * 2 and sampling(overcast)["sun"] == cloudy
     assert records(unlit) == [None, None] and sampling(unlit)["lighting"].startswith("unlit")
     assert "sun" not in sampling(unlit)
 
@@ -173,7 +175,8 @@ def test_no_sun_option_is_the_papers_random_sun_byte_for_byte(scene_dir, tmp_pat
     assert cli_main(render_argv(scene_dir, tmp_path / "random", "--sun", "random")) == 0
     assert dataset_bytes(tmp_path / "default") == dataset_bytes(tmp_path / "random")
     first = records(tmp_path / "default")[0]
-    assert set(first) == {"azimuth_deg", "elevation_deg", "intensity", "sweep_angle_deg"}  # as every dataset had it
+    assert set(first) == {"azimuth_deg", "elevation_deg", "intensity", "sweep_angle_deg", "blender_strength"}
+    assert first["blender_strength"] == pytest.approx(first["intensity"] * 0.1 * math.pi)
     assert "sun" not in sampling(tmp_path / "default")
 
 
