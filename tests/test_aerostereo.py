@@ -7,12 +7,14 @@ PYTHONPATH, so that its code is run."""
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import os
 import re
 import subprocess
 import sys
+import tempfile
 import tomllib
 from importlib import metadata
 from pathlib import Path
@@ -34,19 +36,20 @@ def readme_examples() -> list[str]:
     return re.findall(r"^```python\n(.*?)^```$", (ROOT / "README.md").read_text(encoding="utf-8"), re.S | re.M)
 
 
+@functools.cache
 def installed_elsewhere() -> bool:
-    """Whether the installed aerostereo is an editable install of another folder than this checkout (PEP 610's
-    ``direct_url.json``)."""
-    try:
-        direct_url = metadata.distribution("aerostereo").read_text("direct_url.json")
-    except metadata.PackageNotFoundError:
-        return False
-    info = json.loads(direct_url or "{}")
-    return bool(info.get("dir_info", {}).get("editable")) and info.get("url") != ROOT.as_uri()
+    """Whether a fresh interpreter outside the checkout, without PYTHONPATH, imports the project from another folder
+    (the editable install of another checkout)."""
+    env = {name: value for name, value in os.environ.items() if name != "PYTHONPATH"}
+    code = "import importlib.util as u; spec = u.find_spec('sim'); print(spec.origin if spec else '')"
+    probe = subprocess.run([sys.executable, "-c", code], cwd=tempfile.gettempdir(), env=env, capture_output=True,
+                           text=True, check=True)
+    origin = probe.stdout.strip()
+    return bool(origin) and not Path(origin).is_relative_to(ROOT)
 
 
 def user_environment() -> dict[str, str]:
-    """This process's environment without PYTHONPATH (this checkout's alone where :func:`installed_elsewhere`)."""
+    """This process's environment without PYTHONPATH (this checkout alone on it where :func:`installed_elsewhere`)."""
     env = {name: value for name, value in os.environ.items() if name != "PYTHONPATH"}
     if installed_elsewhere():
         env["PYTHONPATH"] = str(ROOT)
