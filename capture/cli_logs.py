@@ -111,18 +111,11 @@ def log_inputs(paths) -> list[Path]:
     return [input_path for path in map(Path, paths) for input_path in (*folder_inputs(path), index_path(path))]
 
 
-def read_logs(args) -> list:
-    from .logs import read_track
-
-    return [read_track(path, start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset) for path in args.log]
-
-
 def run_geotag(args) -> int:
     """Geotag the photos; print a per-source summary and the clock offset (stderr), the result line (stdout)."""
-    from .geotag import geotag_photos
     from .geotag_export import check_line_names, write_exports
+    from .geotag_folder import geotag_folder
     from .geotag_io import geotag_paths, write_exif_copies, write_geotags
-    from .logs.photos import read_photos
 
     csv_path, json_path = geotag_paths(args.out)  # a bad --out fails before the logs are read
     if problem := path_problem(args.photos, folder=True):
@@ -132,15 +125,9 @@ def run_geotag(args) -> int:
     refuse_clobbering({"--photos": folder_inputs(args.photos), "--log": log_inputs(args.log)},
                       {**files, "--exif-dir": exif_dir if args.write_exif else None})
     refuse_folders(files)
-    tracks = read_logs(args)
-    photos, photo_report = read_photos(args.photos)
-    if not photos:
-        raise BadInput(f"{args.photos}: no readable JPEG photos")
-    result = geotag_photos(photos, tracks, clock_offset=args.clock_offset, max_gap_s=args.max_gap,
-                           max_misfit_m=args.max_misfit)
-    if len(result.from_photos) == len(result.tags):
-        reasons = "; ".join(f"{name}: {reason}" for name, reason in (result.untagged + result.from_photos)[:3])
-        raise BadInput(f"no photo could be geotagged from the logs ({reasons})")
+    result, photo_report = geotag_folder(args.photos, args.log, clock_offset=args.clock_offset,
+                                         max_gap_s=args.max_gap, max_misfit_m=args.max_misfit,
+                                         start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset)
     if args.odm_geo or args.colmap_ref:
         check_line_names([tag.image_name for tag in result.tags])  # before anything is written
     write_geotags(result, csv_path)

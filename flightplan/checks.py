@@ -15,6 +15,7 @@ import numpy as np
 from flightplan import litchi
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M, AircraftProfile
 from flightplan.geodesy import geodesic_inverse
+from flightplan.orbit import OrbitPlan, OrbitRequest, plan_orbit
 
 ERROR, WARNING = "error", "warning"
 
@@ -199,3 +200,12 @@ def raise_on_errors(findings: list[Finding]) -> list[str]:
     if errors:
         raise MissionCheckError(errors)
     return [f.message for f in findings if f.severity == WARNING]
+
+
+def checked_orbit(request: OrbitRequest, aircraft: AircraftProfile = DJI_MINI_SE,
+                  legal_max_height_m: float = LEGAL_MAX_HEIGHT_M) -> tuple[OrbitPlan, list[str]]:
+    """Plan the orbit of ``request`` for ``aircraft`` and check it (:func:`check_mission`, the legal height in
+    metres above take-off): the plan and its warnings; :class:`MissionCheckError` when a check fails."""
+    plan = plan_orbit(request, aircraft)
+    findings = check_mission(plan.mission, aircraft, plan.flight_time_s, legal_max_height_m)
+    return plan, raise_on_errors(findings)

@@ -32,7 +32,6 @@ from flightplan.orbit import (
     OrbitPlan,
     OrbitRequest,
     Ring,
-    plan_orbit,
 )
 
 PROGRAM = "aerostereo-mission"
@@ -193,9 +192,7 @@ def run(args: argparse.Namespace) -> int:
         return run_area(args)
     refuse_clobbering({}, output_paths(args))
     refuse_folders(output_paths(args))
-    plan = plan_orbit(request_from_args(args), DJI_MINI_SE)
-    findings = checks.check_mission(plan.mission, DJI_MINI_SE, plan.flight_time_s, args.legal_height)
-    warnings = checks.raise_on_errors(findings)
+    plan, warnings = checks.checked_orbit(request_from_args(args), DJI_MINI_SE, args.legal_height)
     written = _write_outputs(args, plan, warnings)
     print(summary_text(plan))
     for warning in warnings:

@@ -1,6 +1,6 @@
 """The project's layout, read from the source with ``ast`` (nothing is imported or run): no import circle between
-its modules, the packages layered ``cliutil ◄ flightplan ◄ capture ◄ sim ◄ recon`` (each imports only those to its
-left), the render core ``sim/render/`` free of datasets, drones, command lines and run machinery, and no module
+its modules, the packages layered ``cliutil ◄ flightplan ◄ capture ◄ sim ◄ recon ◄ aerostereo`` (each imports only
+those to its left; aerostereo is the Python entry point over them all), the render core ``sim/render/`` free of datasets, drones, command lines and run machinery, and no module
 longer than 600 lines. Each rule is checked on a small tree that breaks it too, so a rule that can no longer fail is
 caught."""
 
@@ -13,7 +13,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The import packages, lowest first: each may import only those before it (and itself).
-LAYERS = ("cliutil", "flightplan", "capture", "sim", "recon")
+LAYERS = ("cliutil", "flightplan", "capture", "sim", "recon", "aerostereo")
 #: What the render core may import from the project: itself, geodesy and the domain-free helpers.
 RENDER_CORE_MAY_IMPORT = ("sim.render", "flightplan.geodesy", "cliutil")
 #: Standard-library modules the render core never needs (command lines, processes).
@@ -155,8 +155,8 @@ def write_tree(root: Path, files: dict[str, str]) -> Path:
 
 @pytest.fixture
 def broken_tree(tmp_path):
-    """A tree breaking every rule: a circle through a function-level import, an upward import, a render core
-    importing argparse and the run machinery, and a 601-line module."""
+    """A tree breaking every rule: a circle through a function-level import, two upward imports (one into the
+    entry point), a render core importing argparse and the run machinery, and a 601-line module."""
     return write_tree(tmp_path, {
         "cliutil/__init__.py": "",
         "flightplan/__init__.py": "",
@@ -168,8 +168,9 @@ def broken_tree(tmp_path):
         "sim/run/__init__.py": "",
         "sim/run/options.py": "def f():\n    from sim.run.frames import renderer\n",
         "sim/run/frames.py": "from sim.run import options\nrenderer = 1\n",
-        "recon/__init__.py": "",
+        "recon/__init__.py": "import aerostereo\n",
         "recon/long.py": "x = 1\n" * 601,
+        "aerostereo/__init__.py": "from recon import long\n",
         "tools/ok.py": "",
         "tests/ok.py": "",
     })
@@ -178,6 +179,6 @@ def broken_tree(tmp_path):
 def test_the_rules_catch_a_tree_that_breaks_them(broken_tree):
     graph = import_graph(broken_tree)
     assert import_circles(graph) == [["sim.run.frames", "sim.run.options"]]
-    assert layering_breaks(graph) == ["flightplan.geodesy -> sim.render.camera"]
+    assert layering_breaks(graph) == ["flightplan.geodesy -> sim.render.camera", "recon -> aerostereo"]
     assert render_core_breaks(broken_tree) == ["sim.render.camera: argparse", "sim.render.camera: sim.run.options"]
     assert long_modules(broken_tree) == ["recon/long.py: 601"]
