@@ -75,7 +75,8 @@ class PoseOptions:
     polyline trajectory. ``mission``: the Litchi CSV of the ``flight`` trajectory: the virtual drone flies it over the
     scene with realistic gusts drawn from the seed, the frames follow its flown path from the first waypoint to the
     last. ``height_range_m``: random poses' heights above the ground (metres); None: the paper's 20-100 m, lowered
-    where the scene cannot hold them (and with ``margin_m`` None the margin too: sim/run/poses.py).
+    where the scene cannot hold them (and with ``margin_m`` None the margin too: sim/run/poses.py). ``max_draws``:
+    draws per random pose before a frame fails; None: 200, or more where few draws fit the scene (sim/run/poses.py).
     """
 
     frames: int | None = None
@@ -90,6 +91,7 @@ class PoseOptions:
     imu_rate_hz: float | None = None
     mission: Path | None = None
     height_range_m: tuple[float, float] | None = None
+    max_draws: int | None = None
 
     @property
     def replays_scene_cameras(self) -> bool:
@@ -97,9 +99,11 @@ class PoseOptions:
         return self.mode == "replay" and self.geotags is None
 
     def random_settings(self) -> RandomPoseSettings:
-        """The paper's ranges with this run's heights, margin and sky limit."""
-        heights = {} if self.height_range_m is None else {"height_range_m": tuple(self.height_range_m)}
-        return RandomPoseSettings(margin_m=self.margin_m or 0.0, max_miss_fraction=self.max_sky_fraction, **heights)
+        """The paper's ranges with this run's heights, margin, sky limit and draws."""
+        given = {"height_range_m": None if self.height_range_m is None else tuple(self.height_range_m),
+                 "max_attempts": self.max_draws}
+        return RandomPoseSettings(margin_m=self.margin_m or 0.0, max_miss_fraction=self.max_sky_fraction,
+                                  **{name: value for name, value in given.items() if value is not None})
 
 
 @dataclass(frozen=True)

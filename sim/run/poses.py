@@ -4,6 +4,7 @@ chosen mode (random, trajectory, replay)."""
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import replace
 from pathlib import Path
 
@@ -28,8 +29,11 @@ from sim.sampling.trajectories import RANDOM_LOOP_TILT_DEG, Trajectory, lawnmowe
 
 #: Heights above the ground (metres) random poses fall back to, in turn, when the paper's 20-100 m do not fit a scene.
 LOWER_HEIGHTS_M = ((20.0, 60.0), (20.0, 40.0), (10.0, 30.0), (10.0, 20.0), (5.0, 10.0))
-#: The share of trial draws that must fit: a frame's 200 draws then all miss about once in ten million frames.
-MIN_FIT_RATE = 0.08
+#: The share of trial draws that must fit for a setting to be used...
+MIN_FIT_RATE = 0.03
+#: ...and the odds, at the share measured, that all of a frame's draws miss: it gets as many as that takes (at
+#: least the paper's 200; a frame that fails stops the run, and fails again on a rerun).
+FRAME_FAILURE_ODDS = 1e-6
 #: The sky/miss fractions an error about a scene no pose fits tries, to name one that would.
 RELAXED_MAX_SKY = (0.1, 0.3)
 
@@ -105,7 +109,10 @@ class PoseSource:
         else:
             raise RenderInputError(self._nothing_fits(candidates, rates))
         chosen = candidates[len(rates) - 1]
-        self.options = replace(chosen, height_range_m=chosen.random_settings().height_range_m)
+        default_draws = chosen.random_settings().max_attempts
+        draws = max(default_draws, math.ceil(math.log(FRAME_FAILURE_ODDS) / math.log(1.0 - min(rates[-1], 0.999))))
+        self.options = replace(chosen, height_range_m=chosen.random_settings().height_range_m,
+                               max_draws=chosen.max_draws or draws)
         self.frustum = self.frustum if chosen.margin_m is None else None
         if len(rates) > 1:
             self.fitted = (f"random poses at {_poses_text(chosen)} ({rates[-1]:.0%} of trial draws fit): "

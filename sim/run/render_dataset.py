@@ -198,9 +198,7 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
     workers = options.run.workers if scheduler is None else scheduler.local_workers or 0  # processes here
     threads = max(1, default_workers() // max(1, workers))  # casting threads per process
     renderer = FrameRenderer(scene_dir, options, threads)
-    options = renderer.options  # with the random poses' heights and margin fitted to the scene
-    if renderer.poses.fitted:
-        print(f"{scene_dir}: {renderer.poses.fitted}", file=sys.stderr)
+    options = renderer.options  # with the random poses' heights, margin and draws fitted to the scene
     command_line = list(sys.argv if command_line is None else command_line)
     try:
         spec = dataset_spec(renderer, scene_dir, options, command_line)
@@ -209,6 +207,8 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
         shard = shard_frames(spec.frame_count, *options.run.shard)
         _check_resources(renderer, spec, out_dir, shard, options.run, workers)
         writer = _open_writer(out_dir, spec, overwrite)
+        if renderer.poses.fitted:  # said once every check has passed: a refusal stays one line
+            print(f"{scene_dir}: {renderer.poses.fitted}", file=sys.stderr)
         pending = writer.pending(shard)
         shard_size = len(shard)
         bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,

@@ -15,7 +15,7 @@ from sim.sampling.seeds import FIT_STREAM, POSE_STREAM, frame_rng
 
 
 #: Trial draws that tell how often a pose fits a scene (:func:`fit_rate`).
-FIT_TRIAL_DRAWS = 100
+FIT_TRIAL_DRAWS = 200
 
 
 @dataclass(frozen=True)

@@ -76,13 +76,26 @@ def test_given_heights_are_kept(small_scene, tmp_path, capsys):
     assert np.all((sampled_heights(tmp_path / "d") >= 6.0) & (sampled_heights(tmp_path / "d") <= 8.0))
 
 
-def test_a_scene_nothing_fits_is_refused_naming_the_sky_limit_that_would(tmp_path, capsys):
-    """Ground 8 m across: every view from 5 m up or more sees sky past it."""
-    tiny = write_scene(tmp_path / "tiny", valid_half_size_m=4.0, ground_half_size_m=4.0)
-    code, _, err = render(tiny, tmp_path / "d", capsys)
+def test_a_scene_few_draws_fit_gets_draws_enough_for_every_frame(tmp_path, capsys):
+    """Ground 6 m across beside the box: 5 % of trial draws fit at 5-10 m, so 200 draws would leave a frame without a
+    pose once in 30,000; it gets as many as put that at one in a million."""
+    scene = write_scene(tmp_path / "tiny", valid_half_size_m=3.0, ground_half_size_m=3.0)
+    code, _, err = render(scene, tmp_path / "d", capsys)
+    assert code == 0, err
+    assert "random poses at heights 5-10 m with margin 0 m (5% of trial draws fit)" in err
+    draws = random_settings(tmp_path / "d")["max_attempts"]
+    assert (1 - 0.055) ** draws <= 1e-6 <= (1 - 0.045) ** draws  # the share said, rounded to a whole percent
+
+
+@pytest.mark.parametrize("options, says", [
+    (("--max-sky", "0"), "see at most 0% sky/miss pixels; --max-sky 0.1 would fit at heights 5-10 m with margin 0 m"),
+    (("--fov", "170"), "nor with --max-sky 0.3: the scene's surface is too small or has too many holes")])
+def test_a_scene_nothing_fits_is_refused_naming_what_would(tmp_path, capsys, options, says):
+    """Ground 4 m across beside the 10 m box: with no sky allowed, or a 170-degree view, no pose fits."""
+    tiny = write_scene(tmp_path / "tiny", valid_half_size_m=2.0, ground_half_size_m=2.0)
+    code, _, err = render(tiny, tmp_path / "d", capsys, *options)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err
-    assert "no random poses fit the scene's 8 x 8 m valid area" in err
-    assert "--max-sky" in err
+    assert "no random poses fit the scene's 4 x 4 m valid area" in err and says in err, err
     assert not (tmp_path / "d").exists()
 
 
