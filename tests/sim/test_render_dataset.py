@@ -376,7 +376,7 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
                                                            seed=9))
     islet = write_scene(tmp_path / "islet", valid_half_size_m=25.0, ground_half_size_m=15.0)  # every view sees sky
     assert "sky/miss pixels" in _error_of(capsys, _argv(islet, tmp_path / "g", frames=2, width=16, height=8,
-                                                        workers=2))
+                                                        workers=2, heights="20,100"))  # given: not lowered
     assert "--shard must look like I/N" in _error_of(capsys, _argv(scene_dir, tmp_path / "e", shard="2/2"))
 
 
