@@ -46,6 +46,10 @@ MESHES = Files({"a.ply": b"ply A", "b.ply": b"ply B", "pairs.txt": b"0 0 0 0 0 0
 DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'})
 MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
 FOLDER = Files({}, folders=("folder",))
+EARLIER_FLIGHT = Files({**MISSION_CSV.contents, "f/photos/DJI_0002.JPG": JPEG, "f/flight.duml": b"\x55 bytes",
+                        "f/truth.json": b"{}\n"})
+EARLIER_AREA_FLIGHTS = Files({**MISSION_CSV.contents, "f/flight_01/truth.csv": b"image_name\n",
+                              "f/flight_02/photos/DJI_0001.JPG": JPEG})
 VARIANTS_OUT = Files({**SCENE.contents, "v/lighting_variants.json": b'{"format": "aerostereo-lighting-variants/1"}\n'})
 NIGHT = "time:2026-06-01T23:00:00Z"  # 03:00 local time at the test scene's and the demo world's origin
 
@@ -386,6 +390,12 @@ CASES = [
                                            "--out", "{tmp}/out"], r"--out .*out: holds --mission", MISSION_CSV),
     Case("fly-out-is-scene", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--scene", "{tmp}/scene",
                                       "--out", "{tmp}/scene"], r"--out .*scene: is also --scene", MISSION_CSV),
+    Case("fly-out-holds-a-flight", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f"],
+         r"^aerostereo-render fly: error: --out \S+/f: holds an earlier flight \(photos\); pass --overwrite to "
+         r"replace it", EARLIER_FLIGHT),
+    Case("fly-out-holds-area-flights", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--mission",
+                                                "{tmp}/mission.csv", "--out", "{tmp}/f"],
+         r"--out \S+/f: holds an earlier flight \(flight_01/truth\.csv\); pass --overwrite", EARLIER_AREA_FLIGHTS),
     Case("fly-sun-random", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--sun", "random"],
          r"argument --sun: random is the datasets' draw per frame; a flight takes AZ,EL,STRENGTH", MISSION_CSV),
     Case("fly-sun-elevation-95", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--sun",
