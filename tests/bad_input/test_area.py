@@ -5,6 +5,11 @@ the file or option, exit code 2, nothing written."""
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -85,6 +90,10 @@ CASES = [
     Case("area-out-holds-a-plan", MISSION, ["--area", "{tmp}/f.geojson", "--out", "{tmp}"],
          r"already holds a plan \(area\.json\)",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}), area_json=b"{}\n")),
+    Case("area-out-holds-half-a-plan", MISSION, ["--area", "{tmp}/f.geojson", "--out", "{tmp}"],
+         r"--out \S+: holds part of a plan \(flight_01\.csv, no area\.json: an interrupted run\); delete its",
+         lambda tmp: (files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))(tmp),
+                      (tmp / "flight_01.csv").write_bytes(b"latitude\n"))),
     Case("area-take-off-too-far", MISSION, ["--area", "{tmp}/f.geojson", "--home", "40.3", "44.5", *OUT],
          r"an orbit \d+ m from take-off does not fit one battery",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
@@ -105,3 +114,30 @@ def test_refused(case, tmp_path):
     result = run_case(case, tmp_path)
     assert_refused(result, case, tmp_path)
     assert not result.out.strip(), f"{case.id}: stdout on a refusal: {result.out!r}"
+
+
+ROOT = Path(__file__).resolve().parents[2]
+#: About 1 km² at the demo location: 305 orbits in 150 flights, whose CSVs take a few hundred ms to write.
+LARGE_FIELD = [[44.49, 40.175], [44.502, 40.175], [44.502, 40.184], [44.49, 40.184], [44.49, 40.175]]
+
+
+def test_an_area_plan_killed_while_writing_leaves_no_half_plan_and_the_rerun_completes(tmp_path):
+    """kill -9 once a few of the 150 flight CSVs are on disk: --out shows no plan file (the half plan would refuse
+    every rerun as 'already holds a plan'), and the same command then writes the whole plan, nothing else left."""
+    files(f_geojson=geojson({"type": "Polygon", "coordinates": [LARGE_FIELD]}))(tmp_path)
+    argv = ["--area", str(tmp_path / "f.geojson"), "--out", str(tmp_path / "plan")]
+    process = subprocess.Popen([sys.executable, "-m", "flightplan", *argv], cwd=ROOT, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    deadline = time.monotonic() + 60
+    while len(list(tmp_path.rglob("flight_*.csv"))) < 5 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    process.send_signal(signal.SIGKILL)
+    assert process.wait() == -signal.SIGKILL, "the plan was written before the kill: the test needs a larger field"
+    assert not [path.name for path in (tmp_path / "plan").iterdir() if not path.name.startswith(".")]
+    rerun = run_case(Case("area-rerun", MISSION, argv, ""), tmp_path)
+    assert rerun.code == 0, rerun.err
+    plan = json.loads((tmp_path / "plan" / "area.json").read_text())
+    assert len(plan["flights"]) == 150
+    assert sorted(path.name for path in (tmp_path / "plan").iterdir()) == sorted(
+        [*(f"flight_{number:02d}.csv" for number in range(1, 151)),
+         "area.kml", "area.geojson", "area.png", "area.json"])
