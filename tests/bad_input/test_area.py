@@ -42,6 +42,8 @@ def polygon_kml(coordinates: str) -> bytes:
 
 
 BOWTIE = [[44.499, 40.179], [44.5, 40.18], [44.5, 40.179], [44.499, 40.18], [44.499, 40.179]]
+COLLINEAR = [[44.499, 40.179], [44.4995, 40.179], [44.5, 40.179], [44.499, 40.179]]  # "0 m²": 4 orbits, 2 flights
+SLIVER = [[44.499, 40.179], [44.5, 40.179], [44.5, 40.179005], [44.499, 40.179005], [44.499, 40.179]]  # 85 x 0.55 m
 HUGE = [[44.45, 40.15], [44.53, 40.15], [44.53, 40.21], [44.45, 40.21], [44.45, 40.15]]  # about 6.8 x 6.7 km
 VERY_WIDE = [[44.0, 40.0], [44.5, 40.0], [44.5, 40.01], [44.0, 40.01], [44.0, 40.0]]  # 42 km long
 ENTITIES = (b'<?xml version="1.0"?><!DOCTYPE kml [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;">]>'
@@ -65,6 +67,13 @@ CASES = [
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [[[44.5, 91.0], *SQUARE[1:]]]}))),
     Case("area-self-intersecting", MISSION, ["--area", "{tmp}/f.geojson", *OUT], r"f\.geojson: the polygon intersects itself",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [BOWTIE]}))),
+    Case("area-collinear", MISSION, ["--area", "{tmp}/f.geojson", *OUT],
+         r"f\.geojson: the polygon encloses 0\.00\d+ m² within its 170 m boundary, a sliver or a line; expected a "
+         r"field at least 1 m wide \(85 m² or more\)",
+         files(f_geojson=geojson({"type": "Polygon", "coordinates": [COLLINEAR]}))),
+    Case("area-sliver", MISSION, ["--area", "{tmp}/f.kml", *OUT],
+         r"f\.kml: the polygon encloses 47\.\d m² within its 171 m boundary, a sliver .* \(86 m² or more\)",
+         files(f_kml=polygon_kml(" ".join(f"{lon},{lat}" for lon, lat in SLIVER)))),
     Case("area-too-many-orbits", MISSION, ["--area", "{tmp}/f.geojson", *OUT],
          r"f\.geojson: the field of 4\d\.\d\d km² needs about \d+ orbits .* at most 1000: split the field",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [HUGE]}))),
