@@ -19,6 +19,7 @@ import numpy as np
 from defusedxml import ElementTree as SafeET
 
 from cliutil.errors import BadInput
+from cliutil.paths import path_problem
 from flightplan.geodesy import WGS84, LocalFrame, validate_latlon
 from cliutil.jsonfile import loads_json
 
@@ -52,6 +53,8 @@ def read_field(path: str | Path) -> Field:
     suffix = path.suffix.lower()
     if suffix not in (".kml", ".geojson", ".json"):
         raise BadInput(f"--area {path}: expected a .kml or .geojson file holding one polygon, got {suffix or 'no suffix'!r}")
+    if problem := path_problem(path, folder=False):
+        raise BadInput(f"--area {path}: {problem}; expected a .kml or .geojson file holding one polygon")
     with path.open("rb") as stream:
         raw = stream.read(MAX_FIELD_FILE_BYTES + 1)
     if len(raw) > MAX_FIELD_FILE_BYTES:

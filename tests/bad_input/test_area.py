@@ -128,6 +128,14 @@ def test_refused(case, tmp_path):
     assert not result.out.strip(), f"{case.id}: stdout on a refusal: {result.out!r}"
 
 
+@pytest.mark.timeout(30)  # the field was opened and read: a FIFO no one writes to waited for ever
+def test_a_fifo_as_the_field_is_refused_before_it_is_read(tmp_path):
+    case = Case("area-fifo", MISSION, ["--area", "{tmp}/f.geojson", *OUT],
+                r"--area \S+f\.geojson: is not a regular file \(a FIFO, socket or device\); expected a \.kml or "
+                r"\.geojson file", lambda tmp: os.mkfifo(tmp / "f.geojson"))
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
 ROOT = Path(__file__).resolve().parents[2]
 #: About 1 km² at the demo location: 305 orbits in 150 flights, whose CSVs take a few hundred ms to write.
 LARGE_FIELD = [[44.49, 40.175], [44.502, 40.175], [44.502, 40.184], [44.49, 40.184], [44.49, 40.175]]

@@ -7,6 +7,7 @@ not repeated here. Every case is refused before any work starts, so the table ru
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -410,6 +411,28 @@ CASES = [
          rf"--sun {NIGHT}: photo DJI_0001\.JPG: at .* at or below the horizon; give a time when the sun is up there",
          orbit_csv),
 ]
+
+
+def fifo(name: str):
+    """A setup making the named pipe ``name`` in the case's folder, which no one writes to."""
+    return lambda tmp: os.mkfifo(tmp / name)
+
+
+#: Files that are FIFOs: opened and read, they waited for ever for a writer.
+FIFO_CASES = [
+    Case("fly-mission-fifo", RENDER, ["fly", "--mission", "{tmp}/m.csv", "--out", "{tmp}/f"],
+         r"m\.csv: is not a regular file \(a FIFO, socket or device\); expected a Litchi mission CSV", fifo("m.csv")),
+    Case("decode-input-fifo", INGEST, ["decode", "{tmp}/x.duml", "--out", "{tmp}/t.csv"],
+         r"x\.duml: is not a regular file \(a FIFO, socket or device\); expected a raw capture", fifo("x.duml")),
+]
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize("case", FIFO_CASES, ids=lambda c: c.id)
+def test_a_fifo_given_as_a_file_is_refused_before_it_is_read(case, tmp_path):
+    result = run_case(case, tmp_path)
+    assert_refused(result, case, tmp_path)
+    _assert_no_result_on_stdout(result, case)
 
 
 def _assert_inputs_untouched(case: Case, tmp: Path) -> None:
