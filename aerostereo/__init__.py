@@ -99,8 +99,9 @@ def fly(mission_csv: _Path, scene: _Path, out_dir: _Path, options: FlyOptions | 
 
     ``options`` (:class:`FlyOptions`): photo size in pixels, imperfections, seed, ``start_utc`` (an aware datetime:
     the photos are lit by the real sun at their UTC time, refused when it is down; default now) or a fixed ``sun``,
-    ``photo_limit``... Returns the flown mission, its start and what was written. Several missions (an area plan's
-    flights): :func:`sim.drone.session.run_flights`.
+    ``photo_limit``, ``overwrite`` (an ``out_dir`` holding an earlier flight is refused unless it is set)...
+    Returns the flown mission, its start and what was written. Several missions (an area plan's flights):
+    :func:`sim.drone.session.run_flights`.
     """
     from sim.drone.session import FlyOptions, run_session
     from sim.render.scene import load_scene

@@ -52,13 +52,16 @@ def folder_holds(folder: Path, path: Path) -> bool:
 
 
 def path_problem(path: Path, folder: bool) -> str | None:
-    """Why ``path`` is not the existing folder (``folder=True``) or file asked for: ``"not found"``, ``"is a
-    file"``, ``"is a folder"``; ``None`` when it is what was asked for."""
+    """Why ``path`` is not the existing folder (``folder=True``) or regular file asked for: ``"not found"``, ``"is a
+    file"``, ``"is a folder"``, ``"is not a regular file (...)"`` (a FIFO, socket or device: reading one may wait
+    for ever or never end); ``None`` when it is what was asked for."""
     path = Path(path)
     if not path.exists():
         return "not found"
     if path.is_dir() != folder:
         return "is a folder" if path.is_dir() else "is a file"
+    if not folder and not path.is_file():
+        return "is not a regular file (a FIFO, socket or device)"
     return None
 
 

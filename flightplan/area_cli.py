@@ -17,7 +17,7 @@ import numpy as np
 from flightplan import checks
 from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import AreaRequest, orbit_at, plan_area
-from flightplan.area_outputs import OVERVIEW_NAMES, summary_text, write_area_plan
+from flightplan.area_outputs import OVERVIEW_NAMES, SUMMARY_NAME, summary_text, write_area_plan
 from cliutil.errors import BadInput
 from cliutil.paths import refuse_clobbering
 from flightplan.field import read_field
@@ -37,13 +37,17 @@ def refuse_single_orbit_options(args: argparse.Namespace) -> None:
 
 
 def refuse_output_folder(folder: Path) -> None:
-    """:class:`BadInput` if ``folder`` is a file or already holds a plan (its flights would mix with stale ones)."""
+    """:class:`BadInput` if ``folder`` is a file or already holds a plan, or part of one (its flights would mix
+    with stale ones). A run of this version leaves none half-written (:func:`write_area_plan`)."""
     if folder.exists() and not folder.is_dir():
         raise BadInput(f"--out {folder}: is a file; with --area, --out is the folder for the flights and overview")
     if folder.is_dir():
         taken = sorted(p.name for p in folder.iterdir() if p.name in OVERVIEW_NAMES or p.name.startswith("flight_"))
+        if SUMMARY_NAME in taken:
+            raise BadInput(f"--out {folder}: already holds a plan ({SUMMARY_NAME}); choose an empty folder")
         if taken:
-            raise BadInput(f"--out {folder}: already holds a plan ({taken[0]}); choose an empty folder")
+            raise BadInput(f"--out {folder}: holds part of a plan ({taken[0]}, no {SUMMARY_NAME}: an interrupted "
+                           "run); delete its flight_* and area.* files, or choose an empty folder")
 
 
 def request_from_args(args: argparse.Namespace, field) -> AreaRequest:

@@ -3,12 +3,16 @@ predictions (a table on stdout, ``area.json``).
 
 KML and GeoJSON carry WGS84 degrees (``lon,lat[,height above take-off m]``): the field polygon, each orbit's
 waypoint ring, each well-covered disc (a 72-gon), and per flight the line take-off -> orbit centres -> take-off.
-The PNG shows the same in the field's ENU plane (metres). Every write is atomic.
+The PNG shows the same in the field's ENU plane (metres). The plan is written whole or not at all
+(:func:`write_area_plan`).
 """
 
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -17,11 +21,14 @@ from matplotlib.figure import Figure
 
 from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import AreaPlan
-from cliutil.atomic import atomic_path, write_text_atomic
+from cliutil.atomic import TEMP_MARK, atomic_path, write_text_atomic
 from flightplan.litchi import write_mission_csv
 from flightplan.preview import KML_NAMESPACE, coordinates_text
 
 OVERVIEW_NAMES = ("area.kml", "area.geojson", "area.png", "area.json")
+SUMMARY_NAME = OVERVIEW_NAMES[-1]  # written last: a folder with the plan's other files but not this one is a half plan
+#: The hidden folder inside ``--out`` that a plan is written into before it is moved in (:func:`write_area_plan`).
+STAGING_PREFIX = ".area-plan."
 _DISC_SIDES = 72
 
 
@@ -203,21 +210,51 @@ def summary_text(plan: AreaPlan) -> str:
 
 
 def write_area_plan(plan: AreaPlan, folder: Path, warnings: list[str]) -> list[Path]:
-    """Write every flight's CSV and the overview into ``folder``; return the paths. A write that fails (a full
-    disk, Ctrl-C) removes the files already written, so no half plan is left to block the rerun."""
-    kml, geojson, png, summary = (folder / name for name in OVERVIEW_NAMES)
-    writes = [*(lambda n=n, f=f: write_mission_csv(f.mission, folder / flight_csv_name(n))
-                for n, f in enumerate(plan.flights, start=1)),
-              lambda: write_text_atomic(kml, overview_kml(plan)),
-              lambda: write_text_atomic(geojson, json.dumps(overview_geojson(plan), indent=1) + "\n"),
-              lambda: write_overview_png(plan, png),
-              lambda: write_text_atomic(summary, json.dumps(summary_dict(plan, warnings), indent=2) + "\n")]
-    written: list[Path] = []
+    """Write every flight's CSV and the overview into ``folder`` (created if absent); return the paths.
+
+    Everything is written first into a hidden staging folder inside ``folder`` (:data:`STAGING_PREFIX`), then
+    renamed into place, ``area.json`` last. A write that fails (a full disk, Ctrl-C) removes the staging folder,
+    the files already moved and ``folder`` if this call created it; a run killed while writing leaves only the
+    staging folder, which the next run removes (:func:`remove_stale_staging`): no half plan blocks the rerun.
+    """
+    created = not folder.exists()
+    folder.mkdir(parents=True, exist_ok=True)
+    remove_stale_staging(folder)
+    staging = Path(tempfile.mkdtemp(prefix=STAGING_PREFIX, suffix=TEMP_MARK, dir=folder))
+    moved: list[Path] = []
     try:
-        for write in writes:
-            written.append(write())
-    except BaseException:
-        for path in written:
+        names = [write().name for write in _plan_writes(plan, staging, warnings)]
+        for name in names:  # area.json, written last, is moved in last
+            os.replace(staging / name, folder / name)
+            moved.append(folder / name)
+        staging.rmdir()
+    except BaseException as error:
+        shutil.rmtree(staging, ignore_errors=True)
+        for path in moved:
             path.unlink(missing_ok=True)
+        if created and not any(folder.iterdir()):
+            folder.rmdir()
+        if isinstance(error, OSError) and error.filename and Path(error.filename).parent == staging:
+            final = folder / Path(error.filename).name  # the name the user asked for, not the staging one
+            raise type(error)(error.errno, error.strerror, str(final)) from error
         raise
-    return written
+    return moved
+
+
+def _plan_writes(plan: AreaPlan, folder: Path, warnings: list[str]) -> list:
+    """One call per file of the plan in ``folder``, in order (``area.json``, the summary, last); each returns the
+    path it wrote."""
+    kml, geojson, png, summary = (folder / name for name in OVERVIEW_NAMES)
+    return [*(lambda n=n, f=f: write_mission_csv(f.mission, folder / flight_csv_name(n))
+              for n, f in enumerate(plan.flights, start=1)),
+            lambda: write_text_atomic(kml, overview_kml(plan)),
+            lambda: write_text_atomic(geojson, json.dumps(overview_geojson(plan), indent=1) + "\n"),
+            lambda: write_overview_png(plan, png),
+            lambda: write_text_atomic(summary, json.dumps(summary_dict(plan, warnings), indent=2) + "\n")]
+
+
+def remove_stale_staging(folder: Path) -> None:
+    """Delete the staging folders that killed runs of :func:`write_area_plan` left in ``folder``."""
+    for stale in folder.glob(f"{STAGING_PREFIX}*{TEMP_MARK}"):
+        if stale.is_dir() and not stale.is_symlink():
+            shutil.rmtree(stale)

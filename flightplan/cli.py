@@ -32,6 +32,7 @@ from flightplan.orbit import (
     OrbitPlan,
     OrbitRequest,
     Ring,
+    oversized_radius,
 )
 
 PROGRAM = "aerostereo-mission"
@@ -184,8 +185,19 @@ def output_paths(args: argparse.Namespace) -> dict[str, Path | None]:
             "--summary-json": args.summary_json}
 
 
+def refuse_oversized_rings(args: argparse.Namespace) -> None:
+    """:class:`BadInput` naming ``--radius`` or ``--rings`` for a ring larger than any Litchi mission flies
+    (:func:`flightplan.orbit.oversized_radius`), before any planning or reading."""
+    given = [("--rings", ring.radius_m) for ring in args.rings or ()]
+    given += [("--radius", args.radius)] if args.radius is not None else []
+    for option, radius in given:
+        if problem := oversized_radius(radius, len(args.rings or ()) or 1):
+            raise BadInput(f"{option} {radius:g}: {problem}")
+
+
 def run(args: argparse.Namespace) -> int:
     """Plan, check and write the mission of ``args``; print the summary (stdout) and warnings (stderr)."""
+    refuse_oversized_rings(args)
     if args.area is not None:
         from flightplan.area_cli import run_area  # matplotlib and scipy only where an area is planned
 

@@ -19,6 +19,7 @@ import numpy as np
 from defusedxml import ElementTree as SafeET
 
 from cliutil.errors import BadInput
+from cliutil.paths import path_problem
 from flightplan.geodesy import WGS84, LocalFrame, validate_latlon
 from cliutil.jsonfile import loads_json
 
@@ -28,6 +29,9 @@ MAX_VERTICES = 5000
 MAX_FIELD_FILE_BYTES = 16 * 1024 ** 2
 #: Widest field (bounding box diagonal, metres) kept in one local ENU plane and flown from one take-off area.
 MAX_EXTENT_M = 10_000.0
+#: Narrowest field (metres): a polygon enclosing less than a strip this wide along half its boundary
+#: (``perimeter * MIN_WIDTH_M / 2``) is a sliver or a line (collinear points), not a field to cover.
+MIN_WIDTH_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -49,6 +53,8 @@ def read_field(path: str | Path) -> Field:
     suffix = path.suffix.lower()
     if suffix not in (".kml", ".geojson", ".json"):
         raise BadInput(f"--area {path}: expected a .kml or .geojson file holding one polygon, got {suffix or 'no suffix'!r}")
+    if problem := path_problem(path, folder=False):
+        raise BadInput(f"--area {path}: {problem}; expected a .kml or .geojson file holding one polygon")
     with path.open("rb") as stream:
         raw = stream.read(MAX_FIELD_FILE_BYTES + 1)
     if len(raw) > MAX_FIELD_FILE_BYTES:
@@ -161,8 +167,10 @@ def field_from_lonlat(lonlat: np.ndarray, source: str) -> Field:
         raise BadInput(f"--area {source}: the polygon intersects itself (edges {crossing[0] + 1} and "
                        f"{crossing[1] + 1}); expected a simple polygon")
     area, perimeter = geodesic_area_perimeter(lonlat)
-    if area <= 0.0:
-        raise BadInput(f"--area {source}: the polygon encloses no area")
+    least = perimeter * MIN_WIDTH_M / 2.0
+    if area < least:
+        raise BadInput(f"--area {source}: the polygon encloses {area:.3g} m² within its {perimeter:.0f} m boundary, a "
+                       f"sliver or a line; expected a field at least {MIN_WIDTH_M:g} m wide ({least:.0f} m² or more)")
     return Field(source, lonlat[:, 1].copy(), lonlat[:, 0].copy(), frame, enu, area, perimeter)
 
 

@@ -77,6 +77,8 @@ class OrbitRequest:
             raise ValueError("at least one ring is needed")
         for ring in self.rings:
             _require(ring.radius_m > 0.0, "radius must be a positive number of metres", ring.radius_m)
+            if problem := oversized_radius(ring.radius_m, len(self.rings)):
+                raise ValueError(f"radius {ring.radius_m:g} m: {problem}")
             _require(math.isfinite(ring.height_m), "height must be a finite number of metres", ring.height_m)
             if ring.gimbal_pitch_deg is not None:
                 _require(math.isfinite(ring.gimbal_pitch_deg), "gimbal pitch must be finite", ring.gimbal_pitch_deg)
@@ -99,6 +101,27 @@ class OrbitRequest:
 def max_waypoints_per_ring(ring_count: int) -> int:
     """Most waypoints a ring may have when ``ring_count`` closed rings share one Litchi mission."""
     return litchi.MAX_WAYPOINTS // ring_count - 1
+
+
+def largest_radius_m(ring_count: int = 1) -> float:
+    """The largest ring radius (m) a Litchi mission of ``ring_count`` rings can fly: a ring closes with at most
+    :func:`max_waypoints_per_ring` legs (at least :data:`MIN_WAYPOINTS_PER_RING`) of at most ``litchi.MAX_LEG_M``
+    each, and its circle (2 pi r, which the ring's legs approach) fits the mission's
+    ``litchi.MAX_MISSION_DISTANCE_M``."""
+    legs = max(MIN_WAYPOINTS_PER_RING, max_waypoints_per_ring(ring_count))
+    return min(litchi.MAX_LEG_M / (2.0 * math.sin(math.pi / legs)), litchi.MAX_MISSION_DISTANCE_M / (2.0 * math.pi))
+
+
+def oversized_radius(radius_m: float, ring_count: int = 1) -> str | None:
+    """Why no Litchi mission of ``ring_count`` rings flies a ring of ``radius_m`` metres (:func:`largest_radius_m`),
+    or ``None`` when one may."""
+    largest = largest_radius_m(ring_count)
+    if radius_m <= largest:
+        return None
+    legs = max(MIN_WAYPOINTS_PER_RING, max_waypoints_per_ring(ring_count))
+    return (f"expected at most {largest:.0f} m: no Litchi mission flies a larger orbit "
+            f"({litchi.MAX_MISSION_DISTANCE_M / 1000:g} km in all, a ring of at most {legs} legs of at most "
+            f"{litchi.MAX_LEG_M:g} m)")
 
 
 def _require(condition: bool, message: str, value) -> None:
@@ -161,7 +184,7 @@ def sagitta_m(radius_m: float, waypoints: int) -> float:
 
 def chord_m(radius_m: float, waypoints: int) -> float:
     """Straight distance between neighbouring waypoints on a circle of ``waypoints`` equal steps (metres)."""
-    return 2.0 * radius_m * math.sin(math.pi / waypoints)
+    return radius_m * (2.0 * math.sin(math.pi / waypoints))  # 2 R would overflow for R above 9e307 m
 
 
 def feasible_waypoint_range(radius_m: float, max_waypoints: int) -> tuple[int, int]:
@@ -178,11 +201,17 @@ def feasible_waypoint_range(radius_m: float, max_waypoints: int) -> tuple[int, i
 def fewest_waypoints_for_leg(radius_m: float, max_leg_m: float) -> int:
     """The fewest equal steps around a circle of ``radius_m`` whose chords are at most ``max_leg_m`` (metres).
 
-    Closed form (``chord = 2 R sin(pi / N)``), so a huge radius costs no time; at least 1.
+    Closed form (``chord = 2 R sin(pi / N)``), so a huge radius costs no time; at least 1. ``ValueError`` for a
+    radius or leg that is not a positive finite number, or a count beyond any float (``1e308`` m with legs of 1e-10 m).
     """
-    if 2.0 * radius_m <= max_leg_m:
+    if not (0.0 < radius_m < math.inf and 0.0 < max_leg_m < math.inf):
+        raise ValueError(f"radius and leg must be positive finite numbers of metres, got {radius_m}, {max_leg_m}")
+    if radius_m <= max_leg_m / 2.0:
         return 1
-    count = math.ceil(math.pi / math.asin(max_leg_m / (2.0 * radius_m)))
+    try:  # max_leg / R / 2, not max_leg / (2 R): 2 R overflows to inf from R = 9e307 m
+        count = math.ceil(math.pi / math.asin(max_leg_m / radius_m / 2.0))
+    except (ZeroDivisionError, OverflowError):
+        raise ValueError(f"a circle of radius {radius_m:g} m needs more than 1e308 legs of {max_leg_m:g} m") from None
     return count + (chord_m(radius_m, count) > max_leg_m)  # one more where rounding left the chord a hair long
 
 

@@ -127,7 +127,7 @@ def fly_stage(config: AreaConfig, world: Path, plan: Path, fly: Path, log_dir: P
     """``aerostereo-render fly`` of every mission of the plan into ``fly/<mission name>/`` (several missions: one
     folder per mission under ``--out``; one: ``--out`` is that flight's folder), taking off from the plan's
     ``take_off`` (the pilot's place: under an edge orbit's first waypoint there may be no ground); skipped when
-    every flight has its truth."""
+    every flight has its truth, else flown anew over what an interrupted run left (``--overwrite``)."""
     missions = sorted(plan.glob("flight_*.csv"))
     flights = [fly / m.stem for m in missions]
     if flights and all((f / "truth.json").is_file() for f in flights):
@@ -138,7 +138,7 @@ def fly_stage(config: AreaConfig, world: Path, plan: Path, fly: Path, log_dir: P
         "--scene", str(world), "--out", str(flights[0] if len(flights) == 1 else fly),
         "--home", f"{take_off['lat_deg']:.9f}", f"{take_off['lon_deg']:.9f}",
         "--photo-size", *map(str, config.photo_size), "--start-utc", config.start_utc, "--seed", str(config.seed),
-        *noise], log_dir)
+        "--overwrite", *noise], log_dir)
 
 
 def geotag_stage(flights: list[Path], log_dir: Path) -> StageResult:
@@ -176,7 +176,7 @@ def fuller_stages(config: AreaConfig, world: Path, plan: Path, fuller: Path, log
             "--mission", str(mission), "--scene", str(world), "--out", str(flight),
             "--home", f"{take_off['lat_deg']:.9f}", f"{take_off['lon_deg']:.9f}",
             "--photo-size", *map(str, config.photo_size), "--start-utc", config.start_utc, "--seed",
-            str(config.seed), *noise], log_dir)]
+            str(config.seed), "--overwrite", *noise], log_dir)]
     stages.append(geotag_stage([flight], log_dir) if stages[-1].status in DONE else skipped("fuller_geotag", "fly"))
     stages[-1].name = "fuller_geotag"
     recon_dir = fuller / f"recon_{name}"

@@ -182,7 +182,7 @@ def fly_and_reconstruct(config: LoopConfig, stages: Stages, world: Path, flown: 
         stages.command(f"fly {flight.label}", flight.folder / "truth.json", cli("aerostereo-render fly") + [
             "--mission", str(mission / "mission.csv"), "--scene", str(world), "--out", str(flight.folder),
             "--photo-size", *map(str, config.photo_size), "--noise", config.noise, "--seed", str(flight.seed),
-            "--start-utc", utc_text(flight.start_utc)])
+            "--start-utc", utc_text(flight.start_utc), "--overwrite"])  # over what an interrupted run left
     own = flown[0].folder
     geotags = work / "geotag" / "geotags.csv"
     stages.command("geotag", geotags, cli("aerostereo-ingest") + [

@@ -12,8 +12,8 @@ from cliutil.argtypes import finite_number
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
-from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder, run_flights,
-                               run_session)
+from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder,
+                               refuse_earlier_flight, run_flights, run_session)
 from sim.render.scene import load_scene
 from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
 
@@ -37,7 +37,12 @@ def add_fly_parser(subparsers) -> None:
                         help="Litchi Mission Hub CSV; repeat it for each flight of an area plan")
     parser.add_argument("--scene", default="demo",
                         help="scene folder, or 'demo' / 'demo:small' / 'demo:large' (default: demo)")
-    parser.add_argument("--out", required=True, type=Path, help="output folder")
+    parser.add_argument("--out", required=True, type=Path,
+                        help="output folder; one holding an earlier flight is refused unless --overwrite")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="if --out holds an earlier flight, delete it first (its photos/, flight.duml + .idx, "
+                             "truth.json/.csv, flight_log.csv, flight.srt, and those of its flight_NN/ folders; "
+                             "anything else in --out is kept)")
     parser.add_argument("--photo-size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"),
                         help="render size in pixels (default 800 600; the Mini SE field of view is kept)")
     parser.add_argument("--link", choices=LINKS, default="file",
@@ -72,8 +77,9 @@ def add_fly_parser(subparsers) -> None:
 
 
 def refuse_clobbering_fly(args) -> None:
-    """Refuse (:class:`BadInput`) an ``--out`` folder that is, or holds, the mission or the scene: fly writes
-    fixed names (photos/, flight.duml, truth.json...) into it."""
+    """Refuse (:class:`BadInput`) an ``--out`` folder that is, or holds, the mission or the scene (fly writes fixed
+    names, photos/, flight.duml, truth.json..., into it), and without ``--overwrite`` one holding an earlier
+    flight (:func:`sim.drone.session.refuse_earlier_flight`), before the scene is loaded."""
     scene = None if is_demo_scene(args.scene) else Path(args.scene)
     inputs = {"--mission": args.mission, "--scene": folder_inputs(scene)}
     refuse_clobbering(inputs, {"--out": args.out})
@@ -81,6 +87,7 @@ def refuse_clobbering_fly(args) -> None:
         if path is not None and folder_holds(args.out, path):
             raise BadInput(f"--out {args.out}: holds {name} {path}, which the flight's outputs could overwrite; "
                            "choose an --out folder outside it")
+    refuse_earlier_flight(args.out, args.overwrite)
 
 
 def run_fly(args) -> int:
@@ -95,7 +102,7 @@ def run_fly(args) -> int:
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
-                         home=tuple(args.home) if args.home else None, sun=args.sun)
+                         home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite)
     scene = load_scene(resolve_scene_dir(args.scene))
     if not several:
         print_flight(run_session(args.mission[0], scene, args.out, options), args.mission[0], scene.source, args.out)

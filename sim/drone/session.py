@@ -2,7 +2,10 @@
 write the ground truth. What ``aerostereo-render fly`` runs.
 
 Output folder: ``photos/DJI_0001.JPG ...``, ``flight.duml`` + ``flight.duml.idx`` (the telemetry as received),
-``truth.json`` + ``truth.csv``, and with ``logs`` a Litchi-style ``flight_log.csv`` and ``flight.srt``. Order: the telemetry is delivered first (on a live link its clock fixes the
+``truth.json`` + ``truth.csv``, and with ``logs`` a Litchi-style ``flight_log.csv`` and ``flight.srt``
+(:data:`FLIGHT_OUTPUTS`). A folder already holding an earlier flight's outputs (or area-plan flights ``flight_NN/``)
+is refused, unless ``FlyOptions.overwrite``: then those outputs, and nothing else, are removed once every check has
+passed (:func:`remove_earlier_flight`). Order: the telemetry is delivered first (on a live link its clock fixes the
 flight's start time), then the photos are rendered with EXIF times on that same time line, each lit by the real sun at
 its UTC time unless ``FlyOptions.sun`` says otherwise (:mod:`sim.drone.sunlight`); a photo whose real sun is at or below
 the horizon is refused before anything is written.
@@ -18,6 +21,9 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+import os
+import re
+import shutil
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -27,9 +33,10 @@ import serial
 from tqdm import tqdm
 
 from capture.messages import default_registry
-from capture.raw import atomic_capture
+from capture.raw import atomic_capture, index_path
 from capture.recorder import record
 from capture.transports import SerialSource
+from cliutil.atomic import remove_stale_temps
 from cliutil.resources import require_memory
 from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
@@ -48,6 +55,11 @@ LINKS = ("file", "loop", "tcp")
 NOISE = {"realistic": Imperfections.realistic, "area": Imperfections.area, "rtk": Imperfections.rtk,
          "none": Imperfections.none}
 CAPTURE_NAME = "flight.duml"
+#: What one flight writes into its folder: the photos' folder, the capture and its index, the truth, the logs.
+FLIGHT_OUTPUTS = ("photos", CAPTURE_NAME, index_path(CAPTURE_NAME).name, "truth.json", "truth.csv", "flight_log.csv",
+                  "flight.srt")
+#: The folders of an area plan's flights (:func:`flight_folder`).
+FLIGHT_FOLDER = re.compile(r"flight_\d{2,}")
 #: JPEG stores a photo's width and height in 16 bits.
 MAX_PHOTO_SIDE_PX = 65535
 #: How far past the flight's end its time stamps may reach (the camera clock's offset is seconds at most).
@@ -78,6 +90,7 @@ class FlyOptions:
     geoid_undulation_m: float = 0.0
     home: tuple[float, float] | None = None  # take-off (lat, lon) WGS84 degrees; None: under the first waypoint
     sun: SunSetting | None = None
+    overwrite: bool = False  # replace an earlier flight in the output folder (else it is refused)
 
     def __post_init__(self) -> None:
         if self.sun is not None and self.sun.form == "random":
@@ -185,9 +198,12 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     """Fly (unless ``mission`` is the flown model already), deliver the telemetry, take the photos and write the truth
     into ``out_dir`` (module docstring)."""
     out_dir = Path(out_dir)
+    refuse_earlier_flight(out_dir, options.overwrite)
     mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
     clock = MissionClock(options.speedup, options.start_utc)
     light = check_session(mission, clock.start_utc, options, scene)
+    if options.overwrite:
+        remove_earlier_flight(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     frames = duml_frames(mission)
     capture = out_dir / CAPTURE_NAME
@@ -228,7 +244,8 @@ def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> lis
     ``(options.seed, k)`` (its own gusts, sensor errors and GPS fix offset) and, when ``options.start_utc`` is
     set, taking off :data:`BATTERY_SWAP_S` after the previous one landed (else each at its own "now"). Every flight
     is flown as a model and checked (:func:`check_session`: hours later the sun may have set) before the first writes
-    anything."""
+    anything; an earlier flight in ``out_dir`` is refused or, with ``options.overwrite``, removed then."""
+    refuse_earlier_flight(out_dir, options.overwrite)
     flights, start = [], options.start_utc
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
@@ -240,5 +257,47 @@ def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> lis
         flights.append((mission_csv, mission, flight_options))
         if start is not None:
             start += dt.timedelta(seconds=mission.flight.duration_s + BATTERY_SWAP_S)
+    if options.overwrite:
+        remove_earlier_flight(out_dir)
     return [run_session(mission_csv, scene, flight_folder(out_dir, number), flight_options, mission)
             for number, (mission_csv, mission, flight_options) in enumerate(flights, start=1)]
+
+
+def earlier_flight(out_dir) -> list[Path]:
+    """The outputs (:data:`FLIGHT_OUTPUTS`) that earlier flights left in ``out_dir`` and in its area-plan flight
+    folders ``flight_NN/``, in that order (``[]`` where ``out_dir`` is no folder)."""
+    return [folder / name for folder in _flight_folders(out_dir) for name in FLIGHT_OUTPUTS
+            if os.path.lexists(folder / name)]
+
+
+def refuse_earlier_flight(out_dir, overwrite: bool) -> None:
+    """``ValueError`` naming ``out_dir`` and the first earlier flight's output in it, unless ``overwrite``: a new
+    flight would replace some of its files and keep others (photos beyond the new count), a mixed flight."""
+    if not overwrite and (found := earlier_flight(out_dir)):
+        raise ValueError(f"--out {out_dir}: holds an earlier flight ({found[0].relative_to(out_dir)}); pass "
+                         "--overwrite to replace it, or choose another folder")
+
+
+def remove_earlier_flight(out_dir) -> None:
+    """Delete what earlier flights wrote into ``out_dir`` and its ``flight_NN/`` (:func:`earlier_flight`: the
+    photos' folder whole, the capture, index, truth and logs, and the temporaries of interrupted writes), then the
+    flight folders left empty; nothing else."""
+    folders = _flight_folders(out_dir)
+    for folder in folders:
+        for path in (folder / name for name in FLIGHT_OUTPUTS):
+            remove_stale_temps(path)
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path)
+            elif os.path.lexists(path):
+                path.unlink()
+    for folder in folders[1:]:
+        if not folder.is_symlink() and not any(folder.iterdir()):
+            folder.rmdir()
+
+
+def _flight_folders(out_dir) -> list[Path]:
+    """``out_dir`` and its area-plan flight folders (:data:`FLIGHT_FOLDER`); ``[]`` where it is no folder."""
+    out_dir = Path(out_dir)
+    if not out_dir.is_dir():
+        return []
+    return [out_dir, *sorted(path for path in out_dir.iterdir() if FLIGHT_FOLDER.fullmatch(path.name) and path.is_dir())]

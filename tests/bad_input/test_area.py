@@ -5,6 +5,11 @@ the file or option, exit code 2, nothing written."""
 from __future__ import annotations
 
 import json
+import os
+import signal
+import subprocess
+import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -37,6 +42,8 @@ def polygon_kml(coordinates: str) -> bytes:
 
 
 BOWTIE = [[44.499, 40.179], [44.5, 40.18], [44.5, 40.179], [44.499, 40.18], [44.499, 40.179]]
+COLLINEAR = [[44.499, 40.179], [44.4995, 40.179], [44.5, 40.179], [44.499, 40.179]]  # "0 m²": 4 orbits, 2 flights
+SLIVER = [[44.499, 40.179], [44.5, 40.179], [44.5, 40.179005], [44.499, 40.179005], [44.499, 40.179]]  # 85 x 0.55 m
 HUGE = [[44.45, 40.15], [44.53, 40.15], [44.53, 40.21], [44.45, 40.21], [44.45, 40.15]]  # about 6.8 x 6.7 km
 VERY_WIDE = [[44.0, 40.0], [44.5, 40.0], [44.5, 40.01], [44.0, 40.01], [44.0, 40.0]]  # 42 km long
 ENTITIES = (b'<?xml version="1.0"?><!DOCTYPE kml [<!ENTITY a "aaaaaaaaaa"><!ENTITY b "&a;&a;&a;&a;&a;">]>'
@@ -60,6 +67,13 @@ CASES = [
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [[[44.5, 91.0], *SQUARE[1:]]]}))),
     Case("area-self-intersecting", MISSION, ["--area", "{tmp}/f.geojson", *OUT], r"f\.geojson: the polygon intersects itself",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [BOWTIE]}))),
+    Case("area-collinear", MISSION, ["--area", "{tmp}/f.geojson", *OUT],
+         r"f\.geojson: the polygon encloses 0\.00\d+ m² within its 170 m boundary, a sliver or a line; expected a "
+         r"field at least 1 m wide \(85 m² or more\)",
+         files(f_geojson=geojson({"type": "Polygon", "coordinates": [COLLINEAR]}))),
+    Case("area-sliver", MISSION, ["--area", "{tmp}/f.kml", *OUT],
+         r"f\.kml: the polygon encloses 47\.\d m² within its 171 m boundary, a sliver .* \(86 m² or more\)",
+         files(f_kml=polygon_kml(" ".join(f"{lon},{lat}" for lon, lat in SLIVER)))),
     Case("area-too-many-orbits", MISSION, ["--area", "{tmp}/f.geojson", *OUT],
          r"f\.geojson: the field of 4\d\.\d\d km² needs about \d+ orbits .* at most 1000: split the field",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [HUGE]}))),
@@ -85,6 +99,10 @@ CASES = [
     Case("area-out-holds-a-plan", MISSION, ["--area", "{tmp}/f.geojson", "--out", "{tmp}"],
          r"already holds a plan \(area\.json\)",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}), area_json=b"{}\n")),
+    Case("area-out-holds-half-a-plan", MISSION, ["--area", "{tmp}/f.geojson", "--out", "{tmp}"],
+         r"--out \S+: holds part of a plan \(flight_01\.csv, no area\.json: an interrupted run\); delete its",
+         lambda tmp: (files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))(tmp),
+                      (tmp / "flight_01.csv").write_bytes(b"latitude\n"))),
     Case("area-take-off-too-far", MISSION, ["--area", "{tmp}/f.geojson", "--home", "40.3", "44.5", *OUT],
          r"an orbit \d+ m from take-off does not fit one battery",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
@@ -93,6 +111,9 @@ CASES = [
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
     Case("area-radius-zero", MISSION, ["--area", "{tmp}/f.geojson", "--radius", "0", *OUT],
          r"radius must be a positive number of metres, got 0",
+         files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
+    Case("area-radius-1e308", MISSION, ["--area", "{tmp}/f.geojson", "--radius", "1e308", *OUT],
+         r"--radius 1e\+308: expected at most 4775 m: no Litchi mission flies a larger orbit",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))),
     Case("area-take-off-latitude", MISSION, ["--area", "{tmp}/f.geojson", "--home", "91", "44.5", *OUT],
          r"--home: latitude must be within",
@@ -105,3 +126,38 @@ def test_refused(case, tmp_path):
     result = run_case(case, tmp_path)
     assert_refused(result, case, tmp_path)
     assert not result.out.strip(), f"{case.id}: stdout on a refusal: {result.out!r}"
+
+
+@pytest.mark.timeout(30)  # the field was opened and read: a FIFO no one writes to waited for ever
+def test_a_fifo_as_the_field_is_refused_before_it_is_read(tmp_path):
+    case = Case("area-fifo", MISSION, ["--area", "{tmp}/f.geojson", *OUT],
+                r"--area \S+f\.geojson: is not a regular file \(a FIFO, socket or device\); expected a \.kml or "
+                r"\.geojson file", lambda tmp: os.mkfifo(tmp / "f.geojson"))
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+ROOT = Path(__file__).resolve().parents[2]
+#: About 1 km² at the demo location: 305 orbits in 150 flights, whose CSVs take a few hundred ms to write.
+LARGE_FIELD = [[44.49, 40.175], [44.502, 40.175], [44.502, 40.184], [44.49, 40.184], [44.49, 40.175]]
+
+
+def test_an_area_plan_killed_while_writing_leaves_no_half_plan_and_the_rerun_completes(tmp_path):
+    """kill -9 once a few of the 150 flight CSVs are on disk: --out shows no plan file (the half plan would refuse
+    every rerun as 'already holds a plan'), and the same command then writes the whole plan, nothing else left."""
+    files(f_geojson=geojson({"type": "Polygon", "coordinates": [LARGE_FIELD]}))(tmp_path)
+    argv = ["--area", str(tmp_path / "f.geojson"), "--out", str(tmp_path / "plan")]
+    process = subprocess.Popen([sys.executable, "-m", "flightplan", *argv], cwd=ROOT, stdout=subprocess.DEVNULL,
+                               stderr=subprocess.DEVNULL, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    deadline = time.monotonic() + 60
+    while len(list(tmp_path.rglob("flight_*.csv"))) < 5 and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.001)
+    process.send_signal(signal.SIGKILL)
+    assert process.wait() == -signal.SIGKILL, "the plan was written before the kill: the test needs a larger field"
+    assert not [path.name for path in (tmp_path / "plan").iterdir() if not path.name.startswith(".")]
+    rerun = run_case(Case("area-rerun", MISSION, argv, ""), tmp_path)
+    assert rerun.code == 0, rerun.err
+    plan = json.loads((tmp_path / "plan" / "area.json").read_text())
+    assert len(plan["flights"]) == 150
+    assert sorted(path.name for path in (tmp_path / "plan").iterdir()) == sorted(
+        [*(f"flight_{number:02d}.csv" for number in range(1, 151)),
+         "area.kml", "area.geojson", "area.png", "area.json"])

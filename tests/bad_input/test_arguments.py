@@ -7,6 +7,7 @@ not repeated here. Every case is refused before any work starts, so the table ru
 
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -46,6 +47,10 @@ MESHES = Files({"a.ply": b"ply A", "b.ply": b"ply B", "pairs.txt": b"0 0 0 0 0 0
 DATASET = Files({"dataset/dataset.json": b'{"format": "aerostereo-dataset/1"}\n'})
 MISSION_CSV = Files({**SCENE.contents, "mission.csv": b"latitude,longitude\n", "out/mission.csv": b"latitude\n"})
 FOLDER = Files({}, folders=("folder",))
+EARLIER_FLIGHT = Files({**MISSION_CSV.contents, "f/photos/DJI_0002.JPG": JPEG, "f/flight.duml": b"\x55 bytes",
+                        "f/truth.json": b"{}\n"})
+EARLIER_AREA_FLIGHTS = Files({**MISSION_CSV.contents, "f/flight_01/truth.csv": b"image_name\n",
+                              "f/flight_02/photos/DJI_0001.JPG": JPEG})
 VARIANTS_OUT = Files({**SCENE.contents, "v/lighting_variants.json": b'{"format": "aerostereo-lighting-variants/1"}\n'})
 NIGHT = "time:2026-06-01T23:00:00Z"  # 03:00 local time at the test scene's and the demo world's origin
 
@@ -386,6 +391,12 @@ CASES = [
                                            "--out", "{tmp}/out"], r"--out .*out: holds --mission", MISSION_CSV),
     Case("fly-out-is-scene", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--scene", "{tmp}/scene",
                                       "--out", "{tmp}/scene"], r"--out .*scene: is also --scene", MISSION_CSV),
+    Case("fly-out-holds-a-flight", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f"],
+         r"^aerostereo-render fly: error: --out \S+/f: holds an earlier flight \(photos\); pass --overwrite to "
+         r"replace it", EARLIER_FLIGHT),
+    Case("fly-out-holds-area-flights", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--mission",
+                                                "{tmp}/mission.csv", "--out", "{tmp}/f"],
+         r"--out \S+/f: holds an earlier flight \(flight_01/truth\.csv\); pass --overwrite", EARLIER_AREA_FLIGHTS),
     Case("fly-sun-random", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--sun", "random"],
          r"argument --sun: random is the datasets' draw per frame; a flight takes AZ,EL,STRENGTH", MISSION_CSV),
     Case("fly-sun-elevation-95", RENDER, ["fly", "--mission", "{tmp}/mission.csv", "--out", "{tmp}/f", "--sun",
@@ -400,6 +411,28 @@ CASES = [
          rf"--sun {NIGHT}: photo DJI_0001\.JPG: at .* at or below the horizon; give a time when the sun is up there",
          orbit_csv),
 ]
+
+
+def fifo(name: str):
+    """A setup making the named pipe ``name`` in the case's folder, which no one writes to."""
+    return lambda tmp: os.mkfifo(tmp / name)
+
+
+#: Files that are FIFOs: opened and read, they waited for ever for a writer.
+FIFO_CASES = [
+    Case("fly-mission-fifo", RENDER, ["fly", "--mission", "{tmp}/m.csv", "--out", "{tmp}/f"],
+         r"m\.csv: is not a regular file \(a FIFO, socket or device\); expected a Litchi mission CSV", fifo("m.csv")),
+    Case("decode-input-fifo", INGEST, ["decode", "{tmp}/x.duml", "--out", "{tmp}/t.csv"],
+         r"x\.duml: is not a regular file \(a FIFO, socket or device\); expected a raw capture", fifo("x.duml")),
+]
+
+
+@pytest.mark.timeout(30)
+@pytest.mark.parametrize("case", FIFO_CASES, ids=lambda c: c.id)
+def test_a_fifo_given_as_a_file_is_refused_before_it_is_read(case, tmp_path):
+    result = run_case(case, tmp_path)
+    assert_refused(result, case, tmp_path)
+    _assert_no_result_on_stdout(result, case)
 
 
 def _assert_inputs_untouched(case: Case, tmp: Path) -> None:

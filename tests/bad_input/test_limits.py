@@ -188,9 +188,15 @@ RECON = ["--photos", "{data}/brighton_beach/images", "--out", "{tmp}/s"]
 SCENE = ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--quiet", "--frames", "1"]
 
 CASES = [
-    # aerostereo-mission: the planner looped over 1e12 m of legs; 1e9 waypoints grew the memory
+    # aerostereo-mission: the planner looped over 1e12 m of legs and divided by zero at 1e308 m; 1e9 waypoints grew
+    # the memory
     Case("mission-radius-1e12", "aerostereo-mission", ["--demo", "--radius", "1e12", "--out", "{tmp}/m.csv"],
-         r"no feasible waypoint count for radius 1e\+12 m: .* at most 98 waypoints"),
+         r"^aerostereo-mission: error: --radius 1e\+12: expected at most 4775 m: no Litchi mission flies a larger "
+         r"orbit \(30 km in all, a ring of at most 98 legs of at most 1999 m\)$"),
+    Case("mission-radius-1e308", "aerostereo-mission", ["--demo", "--radius", "1e308", "--out", "{tmp}/m.csv"],
+         r"--radius 1e\+308: expected at most 4775 m: no Litchi mission flies a larger orbit"),
+    Case("mission-rings-1e308", "aerostereo-mission", ["--demo", "--rings", "50:30", "1e308:40", "--out", "{tmp}/m.csv"],
+         r"--rings 1e\+308: expected at most 4775 m: .* a ring of at most 48 legs"),
     Case("mission-waypoints-1e9", "aerostereo-mission", ["--demo", "--waypoints", "1000000000", "--out", "{tmp}/m.csv"],
          r"waypoints per ring must be 3\.\.98 \(Litchi holds at most 99 waypoints"),
     # aerostereo-render: sizes checked against the machine before the first frame

@@ -14,6 +14,7 @@ from flightplan import checks, litchi
 from flightplan.aircraft import DJI_MINI_SE
 from flightplan.area import (AreaRequest, WELL_SEEN_FRACTION, lattice_spacing_m, plan_area, transit_lower_bound_m,
                              well_covered_radius_m)
+from cliutil.errors import BadInput
 from flightplan.cli import main
 from flightplan.field import field_from_lonlat, first_self_intersection, read_field
 from flightplan.geodesy import LocalFrame
@@ -43,6 +44,19 @@ def square_plan():
 
 def test_square_area_is_the_geodesic_area():
     assert field_from_lonlat(square_lonlat(300.0), "square").area_m2 == pytest.approx(300.0 ** 2, rel=1e-6)
+
+
+@pytest.mark.parametrize("width_m, planned", [(1.05, True), (0.95, False), (0.0, False)])
+def test_a_field_narrower_than_a_metre_is_a_sliver(width_m, planned):
+    """A 200 m strip: 1.05 m wide is a field (a road to cover), 0.95 m or three collinear points is none."""
+    east = np.array([-100.0, 0.0, 100.0, 100.0, -100.0]) if width_m else np.array([-100.0, 0.0, 100.0])
+    north = np.array([0.0, 0.0, 0.0, width_m, width_m]) if width_m else np.zeros(3)
+    lat, lon, _ = ORIGIN.to_geodetic(east, north, np.zeros(len(east)))
+    if planned:
+        assert field_from_lonlat(np.stack([lon, lat], -1), "strip").area_m2 == pytest.approx(200.0 * width_m, rel=1e-3)
+    else:
+        with pytest.raises(BadInput, match=r"strip: the polygon encloses .* m² within its 40\d m boundary, a sliver"):
+            field_from_lonlat(np.stack([lon, lat], -1), "strip")
 
 
 def test_well_covered_discs_cover_a_square_field(square_plan):

@@ -128,14 +128,34 @@ def test_radius_below_the_leg_rules_is_refused():
         plan_orbit(OrbitRequest(45.0, 7.0, (Ring(0.6, 10.0),)))
 
 
-def test_radius_five_km_hits_waypoint_and_distance_limits():
-    plan = plan_orbit(OrbitRequest(45.0, 7.0, (Ring(5000.0, 100.0),)))
+def test_the_largest_radius_fills_the_waypoints_and_fits_the_mission_distance_and_5_km_is_refused():
+    """One ring: the 30 km mission bounds its circle (4774.6 m); 98 legs of 1999 m would reach 31 km."""
+    from flightplan.orbit import largest_radius_m
+
+    largest = largest_radius_m()
+    assert largest == pytest.approx(litchi.MAX_MISSION_DISTANCE_M / (2.0 * math.pi))
+    plan = plan_orbit(OrbitRequest(45.0, 7.0, (Ring(largest, 100.0),)))
     assert len(plan.mission) == litchi.MAX_WAYPOINTS
     assert checks.leg_lengths_m(plan.mission).max() <= litchi.MAX_LEG_M
-    assert plan.max_deviation_m == pytest.approx(5000.0 * (1 - math.cos(math.pi / 98)), abs=1e-2)
+    assert plan.max_deviation_m == pytest.approx(largest * (1 - math.cos(math.pi / 98)), abs=1e-2)
     assert_orbit_geometry(plan)
-    errors = [f.message for f in checks.check_litchi_limits(plan.mission)]
-    assert len(errors) == 1 and "km long" in errors[0]  # 31.4 km > 30 km
+    assert checks.check_litchi_limits(plan.mission) == []  # 29.99 km
+    with pytest.raises(ValueError, match=r"^radius 5000 m: expected at most 4775 m: no Litchi mission flies a "
+                                         r"larger orbit \(30 km in all, a ring of at most 98 legs of at most 1999 m\)"):
+        OrbitRequest(45.0, 7.0, (Ring(5000.0, 100.0),))
+
+
+def test_with_many_rings_the_leg_length_bounds_the_radius():
+    """24 rings share 99 rows: 3 legs a ring, each at most 1999 m, close a circle of at most 1154 m."""
+    from flightplan.orbit import largest_radius_m
+
+    largest = largest_radius_m(24)
+    assert largest == pytest.approx(litchi.MAX_LEG_M / math.sqrt(3.0))
+    rings = tuple(Ring(1150.0 if k == 0 else 10.0, 10.0 + k) for k in range(24))
+    plan = plan_orbit(OrbitRequest(45.0, 7.0, rings))
+    assert plan.rings[0].waypoints == 3 and 1990.0 < checks.leg_lengths_m(plan.mission)[:3].max() <= litchi.MAX_LEG_M
+    with pytest.raises(ValueError, match=r"radius 1200 m: expected at most 1154 m: .* at most 3 legs"):
+        OrbitRequest(45.0, 7.0, (Ring(1200.0, 10.0), *rings[1:]))
 
 
 @pytest.mark.parametrize("height, severity, text", [(0.0, checks.WARNING, "less than 5 m"), (500.0, checks.ERROR, "legal 120 m")])
@@ -195,19 +215,37 @@ def test_a_tolerance_below_rounding_gives_the_most_waypoints_not_a_crash():
         assert choose_waypoint_count(50.0, tolerance, 98) == feasible_waypoint_range(50.0, 98)[1] == 98
 
 
-@pytest.mark.parametrize("radius", [999.0, 999.6, 1000.0, 5000.0, 31_000.0, 1e6, 1e12])
+@pytest.mark.parametrize("radius", [999.0, 999.6, 1000.0, 5000.0, 31_000.0, 1e6, 1e12, 1e300, 1.7976931348623157e308])
 def test_fewest_waypoints_for_leg_is_the_smallest_count_whose_chord_fits(radius):
+    """Up to the largest float (1e308 m used to divide by zero: 2 R overflowed); beyond 2**53 legs a count is exact
+    only to the float's precision."""
     from flightplan.orbit import chord_m, fewest_waypoints_for_leg
 
     count = fewest_waypoints_for_leg(radius, litchi.MAX_LEG_M)
-    assert chord_m(radius, count) <= litchi.MAX_LEG_M
-    assert count == 1 or chord_m(radius, count - 1) > litchi.MAX_LEG_M
+    if count < 2**53:
+        assert chord_m(radius, count) <= litchi.MAX_LEG_M
+        assert count == 1 or chord_m(radius, count - 1) > litchi.MAX_LEG_M
+    else:
+        assert count == pytest.approx(math.pi / (litchi.MAX_LEG_M / radius / 2.0), rel=1e-9)  # sin x = x, tiny x
+
+
+@pytest.mark.parametrize("radius", [math.inf, math.nan, 0.0, -1.0])
+def test_fewest_waypoints_for_leg_refuses_what_is_no_radius(radius):
+    from flightplan.orbit import fewest_waypoints_for_leg
+
+    with pytest.raises(ValueError, match="radius and leg must be positive finite numbers of metres"):
+        fewest_waypoints_for_leg(radius, litchi.MAX_LEG_M)
 
 
 def test_a_radius_beyond_litchi_limits_is_refused_at_once():
-    # 1e12 m needs ~3e9 legs of 1999 m; the planner used to count them one by one.
-    with pytest.raises(ValueError, match="no feasible waypoint count for radius 1e\\+12 m"):
-        plan_orbit(OrbitRequest(45.0, 7.0, (Ring(1e12, 30.0),)))
+    # 1e12 m needs ~3e9 legs of 1999 m; the planner used to count them one by one. 1e308 m divided by zero.
+    from flightplan.orbit import choose_waypoint_count
+
+    for radius in (1e12, 1e308):
+        with pytest.raises(ValueError, match=rf"^radius {re.escape(f'{radius:g}')} m: expected at most 4775 m"):
+            OrbitRequest(45.0, 7.0, (Ring(radius, 30.0),))
+        with pytest.raises(ValueError, match=f"no feasible waypoint count for radius {re.escape(f'{radius:g}')} m"):
+            choose_waypoint_count(radius, 0.25, 98)
 
 
 @pytest.mark.parametrize("rings, most", [((Ring(),), 98), ((Ring(), Ring(80.0, 40.0)), 48)])

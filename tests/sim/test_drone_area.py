@@ -81,6 +81,39 @@ def test_cli_flies_every_mission_into_its_own_folder(mission_csv, tmp_path, caps
     assert truths[0]["gps_fix_bias_enu_m"] != truths[1]["gps_fix_bias_enu_m"]
 
 
+def test_cli_refuses_an_earlier_flight_and_overwrite_removes_only_its_files(mission_csv, tmp_path, capsys):
+    """An --out holding a flight (three area flights of two photos) is refused whole, before anything is written;
+    --overwrite replaces it by two flights of one photo (no third flight or second photo of the old one left: a
+    mixed flight), then by one flight at the top, and keeps the files that are not a flight's."""
+    scene_dir = build_demo_world(tmp_path / "world", variant="small", seed=0)
+    out = tmp_path / "out"
+
+    def fly_into_out(missions: int, photos: int, *extra: str) -> int:
+        capsys.readouterr()
+        return main(["fly", *["--mission", str(mission_csv)] * missions, "--scene", str(scene_dir), "--out", str(out),
+                     "--photo-size", "64", "48", "--photos", str(photos), "--start-utc", "2024-05-01T10:00:00Z",
+                     *extra])
+
+    assert fly_into_out(3, 2) == 0
+    (out / "notes.txt").write_text("mine")
+    (out / "flight_01" / "notes.txt").write_text("mine too")
+    before = {path: path.read_bytes() for path in out.rglob("*") if path.is_file()}
+    assert fly_into_out(2, 1) == 2
+    error = capsys.readouterr().err.splitlines()
+    assert error == [f"aerostereo-render fly: error: --out {out}: holds an earlier flight (flight_01/photos); pass "
+                     "--overwrite to replace it, or choose another folder"]
+    assert {path: path.read_bytes() for path in out.rglob("*") if path.is_file()} == before
+    assert fly_into_out(2, 1, "--overwrite") == 0
+    assert sorted(path.name for path in out.iterdir()) == ["flight_01", "flight_02", "notes.txt"]
+    for number in (1, 2):
+        assert sorted(path.name for path in (out / f"flight_0{number}" / "photos").iterdir()) == ["DJI_0001.JPG"]
+    assert (out / "flight_01" / "notes.txt").read_text() == "mine too"
+    assert fly_into_out(1, 1, "--overwrite") == 0
+    assert sorted(path.name for path in out.rglob("*")) == sorted([
+        "flight.duml", "flight.duml.idx", "truth.json", "truth.csv", "photos", "DJI_0001.JPG", "notes.txt",
+        "flight_01", "notes.txt"])
+
+
 def test_cli_takes_off_from_home_and_refuses_one_off_the_scene(mission_csv, tmp_path, capsys):
     """``--home`` (an area plan's take-off) is the flight's origin on the scene's ground, and the drone transits from
     it to the first waypoint, so the flight lasts longer than one taking off below it; a home with no ground under
