@@ -48,6 +48,26 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         raise
 
 
+@contextmanager
+def staged_folder(path: str | Path) -> Iterator[Path]:
+    """Yield a new hidden folder beside the folder ``path`` to write files into; on success move each of them into
+    ``path`` (made if missing; a file of the same name there is replaced), on error delete them all, so a run that
+    fails halfway leaves nothing in ``path``. Only the files directly in the staging folder are moved."""
+    target = Path(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=TEMP_MARK, dir=target.parent))
+    except OSError as error:
+        raise _naming(error, target) from error
+    try:
+        yield staging
+        target.mkdir(exist_ok=True)
+        for staged in sorted(staging.iterdir()):
+            os.replace(staged, target / staged.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+
+
 def _temp_suffix(target: Path) -> str:
     return f"{TEMP_MARK}{target.suffix}"
 

@@ -2,7 +2,9 @@
 
 import os
 
-from cliutil.atomic import atomic_path
+import pytest
+
+from cliutil.atomic import atomic_path, staged_folder
 
 
 def test_linking_a_file_onto_a_name_it_already_has_leaves_no_temporary(tmp_path):
@@ -25,3 +27,31 @@ def test_a_failed_write_leaves_nothing(tmp_path):
     except RuntimeError:
         pass
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_staged_folder_moves_its_files_in_only_on_success(tmp_path):
+    """The files written in the staging folder land in the target (replacing same-named ones, keeping others);
+    a failure halfway leaves the target as it was and no staging folder beside it."""
+    target = tmp_path / "copies"
+    target.mkdir()
+    (target / "a.jpg").write_bytes(b"old a")
+    (target / "kept.jpg").write_bytes(b"kept")
+    with pytest.raises(RuntimeError):
+        with staged_folder(target) as staging:
+            (staging / "a.jpg").write_bytes(b"new a")
+            raise RuntimeError("the second photo cannot be edited")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["copies"]
+    assert (target / "a.jpg").read_bytes() == b"old a"
+    with staged_folder(target) as staging:
+        (staging / "a.jpg").write_bytes(b"new a")
+        (staging / "b.jpg").write_bytes(b"new b")
+        assert not (target / "b.jpg").exists()  # nothing shows before the block ends
+    assert {p.name: p.read_bytes() for p in target.iterdir()} == {"a.jpg": b"new a", "b.jpg": b"new b",
+                                                                  "kept.jpg": b"kept"}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["copies"]
+
+
+def test_a_staged_folder_makes_a_missing_target(tmp_path):
+    with staged_folder(tmp_path / "new" / "copies") as staging:
+        (staging / "a.jpg").write_bytes(b"a")
+    assert [p.name for p in (tmp_path / "new" / "copies").iterdir()] == ["a.jpg"]
