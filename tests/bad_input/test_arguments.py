@@ -87,6 +87,13 @@ CASES = [
     Case("mission-summary-is-plot", MISSION, ["--demo", "--out", "{tmp}/a.csv", "--plot", "{tmp}/p",
                                               "--summary-json", "{tmp}/sub/../p"],
          r"--summary-json .*: is also --plot"),
+    # the last output cannot be written: none is (the earlier ones were once left behind), the old plan is kept
+    Case("mission-plot-under-a-file", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--plot", "{tmp}/file/x.png"],
+         r"file/x\.png: a parent of it is a file", Files({"m.csv": b"the plan flown yesterday\n", "file": b"x"})),
+    Case("mission-summary-under-a-file", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--kml", "{tmp}/m.kml",
+                                                   "--geojson", "{tmp}/m.geojson", "--plot", "{tmp}/m.png",
+                                                   "--summary-json", "{tmp}/file/s.json"],
+         r"file/s\.json: a parent of it is a file", Files({"file": b"x"})),
     # aerostereo-ingest
     Case("ingest-no-command", INGEST, [], r"aerostereo-ingest: error: .*required: COMMAND"),
     Case("ingest-unknown-command", INGEST, ["frobnicate"], r"invalid choice: 'frobnicate'"),
