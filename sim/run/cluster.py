@@ -25,6 +25,7 @@ sim/run/render_dataset.py imports this module only when a scheduler is given.
 from __future__ import annotations
 
 import asyncio
+import concurrent.futures
 import contextlib
 import logging
 import math
@@ -126,9 +127,13 @@ def peer_type(address: str, timeout_s: float) -> str:
         finally:
             comm.abort()
 
-    with logs_silenced():
+    async def within_timeout() -> dict:
+        return await asyncio.wait_for(identity(), timeout_s)
+
+    # on a thread of its own: the caller may be running an event loop already (a notebook)
+    with logs_silenced(), concurrent.futures.ThreadPoolExecutor(max_workers=1) as thread:
         try:
-            reply = asyncio.run(asyncio.wait_for(identity(), timeout_s))
+            reply = thread.submit(asyncio.run, within_timeout()).result()
         except Exception:  # anything but a reply (its bytes read as a huge Dask frame, a reset, a timeout): not Dask
             return "it does not speak Dask's protocol"
     kind = reply.get("type") if isinstance(reply, dict) else None

@@ -7,6 +7,7 @@ run with that reason; a rerun resumes. Needs ``distributed`` (the ``dask`` and `
 
 from __future__ import annotations
 
+import asyncio
 import importlib.abc
 import os
 import signal
@@ -84,10 +85,15 @@ def test_an_address_where_no_scheduler_listens_is_refused_before_any_file(scene_
 
 
 def test_only_a_dask_scheduler_passes_the_identity_probe():
-    """The scheduler of a running cluster answers Dask's identity call as "Scheduler"; the address of one of its
-    workers (a Dask server too, but no scheduler) is refused, naming what answered."""
+    """The scheduler of a running cluster answers Dask's identity call as "Scheduler" (also asked from inside a
+    running event loop, as a notebook calls); the address of one of its workers (a Dask server too, but no
+    scheduler) is refused, naming what answered."""
+    async def from_a_running_loop(address: str) -> str:
+        return peer_type(address, CONNECT_TIMEOUT_S)
+
     with distributed.LocalCluster(n_workers=1, processes=False, protocol="tcp://", dashboard_address=":0") as cluster:
         check_reachable(Scheduler(address=cluster.scheduler_address))
+        assert asyncio.run(from_a_running_loop(cluster.scheduler_address)) == "Scheduler"
         worker = next(iter(cluster.workers.values())).address
         assert peer_type(worker, CONNECT_TIMEOUT_S) == "it is a Dask Worker"
         with pytest.raises(RenderInputError, match=rf"--scheduler {worker}: .* not answer as a Dask scheduler "
