@@ -27,7 +27,7 @@ from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, Transpor
 from cliutil.argtypes import positive_number
 from cliutil.errors import BadInput
 from cliutil.program import Parser, add_version, run_cli
-from cliutil.paths import path_problem, refuse_clobbering, refuse_folders
+from cliutil.paths import path_problem, refuse_clobbering, refuse_folders, refuse_links
 
 PROGRAM = "aerostereo-ingest"
 
@@ -106,6 +106,11 @@ def _parse_ids(port: str, ids: str, allow_empty: bool) -> tuple[int, int | None]
 
 
 def run_record(args) -> int:
+    outputs = {"--out": args.out, "--out's index": index_path(args.out)}
+    refuse_links(outputs)  # appended to in place: a planted link would append into the file it points to
+    port = Path(args.port)
+    refuse_clobbering({"--port": port if port.exists() else None}, outputs)
+    refuse_folders(outputs)
     source = open_source(args.port, args.baud)
     source.open()  # fail before creating any file
     stop = stop_after(args.duration)

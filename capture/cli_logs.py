@@ -10,10 +10,12 @@ are refused before anything is read. The readers' reports go to stderr, the resu
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
 from cliutil.argtypes import finite_number, positive_number
+from cliutil.atomic import staged_folder
 from cliutil.errors import BadInput
 from cliutil.paths import folder_inputs, path_problem, refuse_clobbering, refuse_folders
 
@@ -125,15 +127,19 @@ def run_geotag(args) -> int:
     refuse_clobbering({"--photos": folder_inputs(args.photos), "--log": log_inputs(args.log)},
                       {**files, "--exif-dir": exif_dir if args.write_exif else None})
     refuse_folders(files)
+    if args.write_exif and exif_dir.is_file():
+        raise BadInput(f"--exif-dir {exif_dir}: is a file; expected a folder for the geotagged copies")
     result, photo_report = geotag_folder(args.photos, args.log, clock_offset=args.clock_offset,
                                          max_gap_s=args.max_gap, max_misfit_m=args.max_misfit,
                                          start_time_s=args.start_time, srt_utc_offset_h=args.srt_utc_offset)
     if args.odm_geo or args.colmap_ref:
         check_line_names([tag.image_name for tag in result.tags])  # before anything is written
-    write_geotags(result, csv_path)
-    export_notes = write_exports(csv_path, args.gpx, args.odm_geo, args.colmap_ref)
-    if args.write_exif:
-        write_exif_copies(result, args.photos, exif_dir)
+    # the copies first, beside --exif-dir: a photo whose metadata cannot be edited leaves no output at all
+    with staged_folder(exif_dir) if args.write_exif else contextlib.nullcontext() as staging:
+        if staging is not None:
+            write_exif_copies(result, args.photos, staging)
+        write_geotags(result, csv_path)
+        export_notes = write_exports(csv_path, args.gpx, args.odm_geo, args.colmap_ref)
     for report in result.sources:
         print_report(report, shown_rejects=0)  # counts per reason; `track` lists a log's rejects
     if photo_report.source not in {report.source for report in result.sources}:

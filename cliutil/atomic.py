@@ -13,8 +13,8 @@ import errno
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
-from contextlib import contextmanager
+from collections.abc import Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 
 TEMP_MARK = ".tmp"  # before the target's suffix in every temporary name
@@ -24,7 +24,8 @@ TEMP_MARK = ".tmp"  # before the target's suffix in every temporary name
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it to ``path``, on error delete it.
 
-    An ``OSError`` (unwritable folder, ``path`` is a folder...) is re-raised naming ``path``.
+    An ``OSError`` (unwritable folder, ``path`` is a folder...) about the temporary (or no file) is re-raised naming
+    ``path``.
     """
     target = Path(path)
     try:
@@ -43,9 +44,38 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
         Path(temporary).unlink(missing_ok=True)
     except BaseException as error:
         Path(temporary).unlink(missing_ok=True)
-        if isinstance(error, OSError):
-            raise _naming(error, target) from error
+        if isinstance(error, OSError) and str(error.filename or temporary).startswith(temporary):
+            raise _naming(error, target) from error  # an error about another file (a nested write) keeps its name
         raise
+
+
+@contextmanager
+def atomic_paths(paths: Sequence[str | Path]) -> Iterator[list[Path]]:
+    """Yield a temporary path beside each of ``paths`` (:func:`atomic_path`); when the block succeeds, rename each
+    onto its target, on an error delete them all: a run whose last output cannot be written leaves none of its
+    outputs (and the files that were there as they were). A parent that cannot be made fails before the block."""
+    with ExitStack() as stack:
+        yield [stack.enter_context(atomic_path(path)) for path in paths]
+
+
+@contextmanager
+def staged_folder(path: str | Path) -> Iterator[Path]:
+    """Yield a new hidden folder beside the folder ``path`` to write files into; on success move each of them into
+    ``path`` (made if missing; a file of the same name there is replaced), on error delete them all, so a run that
+    fails halfway leaves nothing in ``path``. Only the files directly in the staging folder are moved."""
+    target = Path(path)
+    try:
+        target.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=TEMP_MARK, dir=target.parent))
+    except OSError as error:
+        raise _naming(error, target) from error
+    try:
+        yield staging
+        target.mkdir(exist_ok=True)
+        for staged in sorted(staging.iterdir()):
+            os.replace(staged, target / staged.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
 
 
 def _temp_suffix(target: Path) -> str:

@@ -1,7 +1,8 @@
 """Paths a command is handed: outputs that never name an input, and why a path is not what was asked for.
 
 :func:`refuse_clobbering` refuses an output path that names an input or another output (an existing file in an
-input folder counts as an input: :func:`folder_inputs`); :func:`refuse_folders` an output file that is a folder;
+input folder counts as an input: :func:`folder_inputs`); :func:`refuse_folders` an output file that is a folder,
+:func:`refuse_links` one written in place that is a symbolic link;
 :func:`folder_holds` says whether one folder is or contains another path, and :func:`path_problem` says why a path
 is not the file or folder asked for.
 """
@@ -42,6 +43,16 @@ def refuse_folders(outputs: Mapping[str, Path | None]) -> None:
     for name, path in outputs.items():
         if path is not None and Path(path).is_dir():
             raise BadInput(f"{name} {path}: is a folder; expected the name of a file to write")
+
+
+def refuse_links(outputs: Mapping[str, Path | None]) -> None:
+    """Raise :class:`BadInput` if an output that is opened in place (appended to) is a symbolic link: writing
+    through it would change the file it points to, which the user never named. (An atomic write replaces the
+    link itself, so only outputs written in place need this.)"""
+    for name, path in outputs.items():
+        if path is not None and Path(path).is_symlink():
+            raise BadInput(f"{name} {path}: is a symbolic link (to {os.readlink(path)}); expected a file to write "
+                           "in place, name the file itself")
 
 
 def folder_holds(folder: Path, path: Path) -> bool:

@@ -17,7 +17,7 @@ from flightplan import checks, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
 from flightplan.area import DEFAULT_OVERLAP, DEFAULT_TRANSIT_SPEED_M_S
 from cliutil.argtypes import finite_number
-from cliutil.atomic import write_text_atomic
+from cliutil.atomic import atomic_paths, write_text_atomic
 from cliutil.errors import BadInput
 from cliutil.program import Parser, add_version, run_cli
 from cliutil.paths import refuse_clobbering, refuse_folders
@@ -165,18 +165,22 @@ def summary_text(plan: OrbitPlan) -> str:
 
 
 def _write_outputs(args: argparse.Namespace, plan: OrbitPlan, warnings: list[str]) -> list[Path]:
+    """Write every output asked for, all or none (one that cannot be written leaves no other); their paths."""
     request = plan.request
-    written = [write_mission_csv(plan.mission, args.out)]
-    if args.kml:
-        written.append(preview.write_kml(plan.mission, args.kml, name=args.out.stem))
-    if args.geojson:
-        written.append(preview.write_geojson(plan.mission, args.geojson))
-    if args.plot:
-        written.append(preview.write_plot_png(plan.mission, request.center_lat_deg, request.center_lon_deg, args.plot))
-    if args.summary_json:
-        summary = plan.summary_dict() | {"aircraft": DJI_MINI_SE.name, "warnings": warnings, "csv": str(args.out)}
-        written.append(write_text_atomic(args.summary_json, json.dumps(summary, indent=2) + "\n"))
-    return written
+    outputs = {name: path for name, path in output_paths(args).items() if path is not None}
+    with atomic_paths(list(outputs.values())) as temporaries:
+        files = dict(zip(outputs, temporaries))
+        write_mission_csv(plan.mission, files["--out"])
+        if "--kml" in files:
+            preview.write_kml(plan.mission, files["--kml"], name=args.out.stem)
+        if "--geojson" in files:
+            preview.write_geojson(plan.mission, files["--geojson"])
+        if "--plot" in files:
+            preview.write_plot_png(plan.mission, request.center_lat_deg, request.center_lon_deg, files["--plot"])
+        if "--summary-json" in files:
+            summary = plan.summary_dict() | {"aircraft": DJI_MINI_SE.name, "warnings": warnings, "csv": str(args.out)}
+            write_text_atomic(files["--summary-json"], json.dumps(summary, indent=2) + "\n")
+    return list(outputs.values())
 
 
 def output_paths(args: argparse.Namespace) -> dict[str, Path | None]:

@@ -26,7 +26,10 @@ def _unit(vector: np.ndarray) -> np.ndarray:
 
 
 def _corner_arc(previous: np.ndarray, vertex: np.ndarray, following: np.ndarray, curve_m: float, samples: int):
-    """Points of the circular turn at ``vertex``, from the incoming tangent point to the outgoing one."""
+    """Points of the circular turn at ``vertex``, from the incoming tangent point to the outgoing one (just the
+    vertex where a leg has no length: there is no turn to round)."""
+    if not (np.any(vertex != previous) and np.any(following != vertex)):
+        return vertex[None, :]
     u_in, u_out = _unit(vertex - previous), _unit(following - vertex)
     turn = np.arctan2(u_in[0] * u_out[1] - u_in[1] * u_out[0], u_in @ u_out)  # signed, counter-clockwise > 0
     curve_m = min(curve_m, 0.5 * np.linalg.norm(vertex - previous), 0.5 * np.linalg.norm(following - vertex))

@@ -282,7 +282,9 @@ def _ring_waypoints(request: OrbitRequest, ring: Ring, count: int) -> tuple[list
     rows = []
     for k in range(count):
         point = geodesic_direct(
-            request.center_lat_deg, request.center_lon_deg, request.start_bearing_deg + sign * 360.0 * k / count, ring.radius_m
+            request.center_lat_deg, request.center_lon_deg,
+            request.start_bearing_deg % 360.0 + sign * 360.0 * k / count,  # a huge bearing would swallow the steps
+            ring.radius_m,
         )
         rows.append(
             litchi.Waypoint(

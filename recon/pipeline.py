@@ -53,7 +53,7 @@ from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
 from recon.shadow_timing import fit_utc_offset, refine_capture_time, shadow_views, start_fit, untextured_scene
 from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
-from recon.sfm.pipeline import MIN_PHOTOS, run_sfm, sfm_disk_bytes
+from recon.sfm.pipeline import MIN_PHOTOS, check_inputs, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
@@ -137,7 +137,8 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
 
     Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out; a photo
     that is not a readable image, or whose image data is cut short (a truncated JPEG), is a :class:`PriorsError`
-    naming it (:func:`recon.priors.check_readable`).
+    naming it (:func:`recon.priors.check_readable`), and so are too few photos left and photos without a geotag
+    (:func:`recon.sfm.pipeline.check_inputs`): all before any stage starts.
     """
     names = list_photos(photo_dir)
     if len(names) < MIN_PHOTOS:
@@ -147,7 +148,11 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
     else:
         geotags = read_geotags(geotags_csv)
         names = [n for n in names if n not in set(geotags.untagged)]
+        if len(names) < MIN_PHOTOS:
+            raise PriorsError(f"{geotags_csv}: {len(geotags.untagged)} of the photos in {photo_dir} are untagged "
+                              f"(geotags.json), leaving {len(names)}; need at least {MIN_PHOTOS}")
         priors = with_receiver_sigmas(geotags, photo_dir)
+    check_inputs(names, priors)
     check_readable(photo_dir, names)
     return names, priors
 
@@ -193,22 +198,20 @@ class Recon:
     """One run into ``scene_dir``; ``run()`` executes the stages not yet done and returns a summary dict."""
 
     def __init__(self, photo_dir: Path, geotags_csv: Path | None, scene_dir: Path, options: ReconOptions,
-                 log=log_stderr, progress=None):
+                 log=log_stderr, progress=None, loaded: tuple[list[str], PosePriors] | None = None):
         """``log``: one line at a time (default stderr); ``progress``: ``(stage, step, done, total)`` counts from
-        inside a stage (default: :class:`recon.progress.StepProgress` bars or lines on stderr)."""
+        inside a stage (default: :class:`recon.progress.StepProgress` bars or lines on stderr); ``loaded``: what
+        :func:`load_priors` returned for these photos and geotags, where the caller checked them already."""
         self.photo_dir, self.geotags_csv = Path(photo_dir), geotags_csv and Path(geotags_csv)
         self.scene_dir, self.options, self.log = Path(scene_dir), options, log
         self.progress = progress
         if self.scene_dir.exists() and not self.scene_dir.is_dir():
             raise ValueError(f"{self.scene_dir}: is a file; the output must be a (new or resumable) scene folder")
         self.work = self.scene_dir / "work"
-        self.names, self.priors = load_priors(self.photo_dir, self.geotags_csv)
+        self.names, self.priors = loaded or load_priors(self.photo_dir, self.geotags_csv)
         if options.mesh == "2.5d" and options.grid_m is not None:  # refuse before SfM what meshing could not hold
             extent = np.ptp(self.priors.positions_enu[:, :2], axis=0)  # orbits and grids surround what they see
             meshing.require_height_field_memory(*extent, options.grid_m, "at least the photos' extent")
-        if self.priors.untagged:
-            self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
-                     f"{', '.join(self.priors.untagged[:10])}")
         self.seconds: dict[str, float] = {}
         k = self.options.hold_out
         self.held_out = frozenset(self.names[k - 1::k] if k else ())
@@ -223,15 +226,40 @@ class Recon:
         return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags},
                 "texture": {"glb": GEOREF_FORMAT}, "scene": {"sky_visibility": bake_settings()}}
 
+    def stage_plan(self):
+        """Each stage's record, the stamps and the plan (the stages to do, and why) they make together."""
+        records = stage_records(self.options, self.inputs())
+        stamps = StageStamps(self.work / "stages")
+        return records, stamps, stamps.plan(records, lambda stage: (self.scene_dir / OLD_MARKERS[stage]).exists())
+
+    def check_before_run(self) -> None:
+        """The check :meth:`run` makes before its first stage that writes nothing (room on the disk for SfM, where
+        SfM is still to do), for a caller that checks several runs before it starts any (``recon area``)."""
+        if "sfm" in self.stage_plan()[2].todo:
+            self.check_room_for_sfm()
+
     def run(self) -> dict:
         """Run the stages the stamps do not show as done (see the module docstring); the scene.json dict.
         ``self.seconds``: wall time per stage in this run (0 for a stage already done)."""
-        records = stage_records(self.options, self.inputs())
-        stamps = StageStamps(self.work / "stages")
-        plan = stamps.plan(records, lambda stage: (self.scene_dir / OLD_MARKERS[stage]).exists())
+        records, stamps, plan = self.stage_plan()
+        created = not self.scene_dir.exists()
         self.work.mkdir(parents=True, exist_ok=True)  # a read-only disk says so here, before any size check
-        if "sfm" in plan.todo:
-            self.check_room_for_sfm()
+        try:
+            if "sfm" in plan.todo:
+                self.check_room_for_sfm()
+            self.run_stages(plan, records, stamps)
+        except BaseException:
+            if created and not any(stage in self.seconds for stage in plan.todo):
+                shutil.rmtree(self.scene_dir, ignore_errors=True)  # no stage finished: nothing worth resuming
+            raise
+        return read_json(self.scene_dir / "scene.json")
+
+    def run_stages(self, plan, records: dict, stamps: StageStamps) -> None:
+        """Say what is done already and run the stages of ``plan.todo``, stamping each (and timing it in
+        ``self.seconds``) as it starts and finishes."""
+        if self.priors.untagged:  # said once the checks have passed, so a refusal stays one line
+            self.log(f"[sfm] leaving out {len(self.priors.untagged)} photo(s) untagged by capture: "
+                     f"{', '.join(self.priors.untagged[:10])}")
         for stage in STAGES[:len(STAGES) - len(plan.todo)]:
             self.seconds[stage] = 0.0
             self.log(f"[{stage}] already done")
@@ -248,7 +276,6 @@ class Recon:
             stamps.write(stage, *records[stage], finished=True)
             self.seconds[stage] = round(time.perf_counter() - t0, 2)
             self.log(f"[{stage}] done ({self.seconds[stage]} s)")
-        return read_json(self.scene_dir / "scene.json")
 
     def step_progress(self, stage: str):
         """The progress callback ``(step, done, total)`` for counts from inside ``stage``."""

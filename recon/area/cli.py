@@ -13,6 +13,7 @@ recon/area/pipeline.py, recon/area/merge.py, docs/recon.md ("An area").
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 from pathlib import Path
 
@@ -20,9 +21,9 @@ import pycolmap
 
 from cliutil.errors import BadInput
 from cliutil.program import Parser, add_version, stdout_to_stderr
-from cliutil.paths import folder_inputs, refuse_clobbering
-from recon.area.pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, flight_inputs, flights_of, merge_area,
-                                  reconstruct_pieces)
+from cliutil.paths import folder_holds, folder_inputs, refuse_clobbering
+from recon.area.pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, checked_flights, flight_inputs,
+                                  flights_of, merge_area, reconstruct_pieces)
 from recon.merge import read_pairs
 from recon.cli_options import PROGRAM, add_recon_options, recon_options
 
@@ -56,6 +57,8 @@ def build_area_parser() -> Parser:
 
 
 def run_area(argv) -> int:
+    """Check every argument and every flight's inputs, then reconstruct the pieces and join them (stdout: the
+    summary JSON). A run that fails before any piece is finished leaves no area folder it made."""
     args = build_area_parser().parse_args(argv)
     options = AreaOptions(cell_m=args.cell, blend_width_m=args.blend_width)
     flights = flights_of(args.flights)
@@ -63,23 +66,46 @@ def run_area(argv) -> int:
     refuse_clobbering({"FLIGHT_DIR": [p for f in flights for p in folder_inputs(f.photos)] + flight_inputs(flights),
                        "--control": [Path(tie.source) for tie in control]},
                       {"--out": args.out})
+    refuse_area_folder(args.out, args.flights)
     scheduler = None
     if args.scheduler:
         from sim.run.cluster import check_reachable, parse_scheduler
 
         scheduler = parse_scheduler(args.scheduler)
         check_reachable(scheduler)
+    recon = recon_options(args)
+    loaded = checked_flights(flights, args.out, recon)
     if not args.verbose:
         pycolmap.logging.minloglevel = 2
-    with stdout_to_stderr():
-        pieces = reconstruct_pieces(flights, args.out, recon_options(args), scheduler, log=_log)
-        report = merge_area([folder for folder, _ in pieces], args.out, options, log=_log,
-                            flights=[flight for _, flight in pieces], control=control)
+    created = not args.out.exists()
+    try:
+        with stdout_to_stderr():
+            pieces = reconstruct_pieces(flights, args.out, recon, scheduler, log=_log, loaded=loaded)
+            report = merge_area([folder for folder, _ in pieces], args.out, options, log=_log,
+                                flights=[flight for _, flight in pieces], control=control)
+    except BaseException:
+        if created and args.out.is_dir() and not any(path.is_file() for path in args.out.rglob("*")):
+            shutil.rmtree(args.out)  # nothing finished in it (a failed piece removes its own folder)
+        raise
     print(json.dumps({"scene": str(args.out / "scene.json"), "pieces": len(pieces),
                       "covered_area_m2": report["covered_area_m2"],
                       "pairs": [{k: pair[k] for k in ("a", "b", "before_m", "after_joint_m")}
-                                for pair in report["pairs"]]}, indent=2))
+                                for pair in report["pairs"]],
+                      "join_warnings": report["join_warnings"]}, indent=2))
     return 0
+
+
+def refuse_area_folder(out: Path, flight_dirs: list[Path]) -> None:
+    """:class:`BadInput` for an ``--out`` that is a file or lies under one, or that is (or lies inside) a flight
+    folder: the area writes its pieces and scene there."""
+    existing = next(path for path in (out, *out.absolute().parents) if path.exists())
+    if not existing.is_dir():
+        where = "is a file" if existing == out else f"lies under the file {existing}"
+        raise BadInput(f"--out {out}: {where}; expected a (new or resumable) area folder")
+    for folder in flight_dirs:
+        if folder_holds(folder, out):
+            raise BadInput(f"--out {out}: is or lies inside the flight folder {folder}; the area writes its pieces "
+                           "and scene there, choose a folder outside every flight")
 
 
 def control_ties(arguments: list[list[str]], flights: list[Flight]) -> list[ControlTie]:

@@ -7,7 +7,8 @@ Layout of the output folder ``AREA``::
                               pieces have no texture), +Y up, georeferenced (sim/render/glb.py)
     AREA/cameras.json         every piece's registered photos in the area frame, named <flight>/<photo>
     AREA/ownership.png        16-bit: per ground cell the index of the piece that owns it (65535: none)
-    AREA/area_report.json     pieces, corrections, pair offsets before/after, seams, colour gains, timings
+    AREA/area_report.json     pieces, corrections, pair offsets before/after (join_warnings: pairs the join left
+                              farther apart, also in scene.json), seams, colour gains, timings
     AREA/scene.json           written last: the scene renders as one (aerostereo-render --scene AREA)
 
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
@@ -20,6 +21,7 @@ corrections average to none, so every flight's own GPS fix counts the same); joi
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import json
 import time
 from collections.abc import Callable, Sequence
@@ -33,12 +35,15 @@ import trimesh
 from capture.geotag_io import sidecar_path
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.errors import BadInput
-from flightplan.geodesy import LocalFrame
-from recon.area.align import AreaAlignment, AreaError, Link, Piece, SurfaceQuery, align_area, control_link, load_pieces
+from flightplan.field import MAX_EXTENT_M
+from flightplan.geodesy import LocalFrame, geodesic_inverse
+from recon.area.align import (AreaAlignment, AreaError, Link, PairReport, Piece, SurfaceQuery, align_area, control_link,
+                              load_pieces)
 from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.merge import ControlPairs
-from recon.pipeline import Recon, ReconOptions
+from recon.pipeline import Recon, ReconOptions, load_priors
+from recon.priors import PosePriors
 from recon.scene_out import CAMERAS_FILE, scene_metadata, store_sky_visibility
 from sim.render.scene import Scene, read_scene_cameras, read_scene_json
 from sim.render.scene_cameras import SceneCamera, write_cameras
@@ -50,6 +55,13 @@ REST = "rest"
 #: A flight's photos that SfM left out are reconstructed as a piece of their own when there are at least this many.
 MIN_REST_PHOTOS = 8
 MAX_PARTS = 3
+#: Farthest apart two flights of one area may lie (their photos' mean positions): the widest field
+#: ``aerostereo-mission --area`` plans.
+MAX_FLIGHT_SPREAD_M = MAX_EXTENT_M
+#: A pair whose overlap lies this much farther apart (m, median point-to-surface) after the join than before is
+#: reported as joined worse: well above the centimetres by which the joint adjustment may trade one pair's fit for
+#: the others' and the pieces' own GPS placement.
+WORSE_JOIN_M = 0.1
 REPORT = "area_report.json"
 OWNERSHIP = "ownership.png"
 NO_OWNER_PIXEL = 65535
@@ -123,12 +135,38 @@ def flight_inputs(flights: Sequence[Flight]) -> list[Path]:
     return paths
 
 
-def reconstruct_flight(flight: Flight, area_dir: Path, options: ReconOptions) -> list[str]:
+def checked_flights(flights: Sequence[Flight], area_dir: Path,
+                    options: ReconOptions) -> list[tuple[list[str], PosePriors]]:
+    """Every flight's photo names and priors (:func:`recon.pipeline.load_priors`: readable photos, a geotag for
+    each, enough of them), read and checked as its reconstruction will check them (memory, disk room:
+    :meth:`recon.pipeline.Recon.check_before_run`) before any piece is reconstructed, so that a bad later flight is
+    refused before the first one runs; :class:`BadInput` naming the two flights farthest apart when their photos'
+    mean positions lie more than :data:`MAX_FLIGHT_SPREAD_M` apart (flights of different places, or a flight's
+    geotags of another place)."""
+    loaded = []
+    for flight in flights:
+        inputs = load_priors(flight.photos, flight.geotags)
+        Recon(flight.photos, flight.geotags, area_dir / PIECES / flight.name, options, loaded=inputs).check_before_run()
+        loaded.append(inputs)
+    centres = [priors.origin.to_geodetic(*priors.positions_enu.mean(axis=0))[:2] for _, priors in loaded]
+    distance_m, i, j = max((geodesic_inverse(*centres[i], *centres[j]).distance_m, i, j)
+                           for i, j in itertools.combinations(range(len(flights)), 2))
+    if distance_m > MAX_FLIGHT_SPREAD_M:
+        raise BadInput(f"{flights[i].photos.parent} and {flights[j].photos.parent}: their photos lie "
+                       f"{distance_m / 1000:.1f} km apart; the flights of one area lie within "
+                       f"{MAX_FLIGHT_SPREAD_M / 1000:g} km of each other (aerostereo-mission --area's widest field): "
+                       "reconstruct far-apart flights as areas of their own")
+    return loaded
+
+
+def reconstruct_flight(flight: Flight, area_dir: Path, options: ReconOptions,
+                       loaded: tuple[list[str], PosePriors] | None = None) -> list[str]:
     """Reconstruct one flight into ``area_dir/pieces/<flight>`` (resumes a finished or partial run with the same
     options). SfM keeps the largest connected model; when it leaves at least :data:`MIN_REST_PHOTOS` photos out (two
     orbits of one flight that share too few features to join), those photos are reconstructed again on their own as
     piece ``<flight>-2`` (their links in ``area_dir/rest/``), and so on, up to :data:`MAX_PARTS` pieces per flight.
-    Returns the scene folders. Runs in a Dask worker too: it silences COLMAP's log like the CLI does."""
+    ``loaded``: the flight's photos and priors as :func:`checked_flights` read them (else read again). Returns the
+    scene folders. Runs in a Dask worker too: it silences COLMAP's log like the CLI does."""
     import pycolmap
 
     pycolmap.logging.minloglevel = 2
@@ -136,7 +174,7 @@ def reconstruct_flight(flight: Flight, area_dir: Path, options: ReconOptions) ->
     for part in range(1, MAX_PARTS + 1):
         name = flight.name if part == 1 else f"{flight.name}-{part}"
         folder = area_dir / PIECES / name
-        Recon(photos, flight.geotags, folder, options).run()
+        Recon(photos, flight.geotags, folder, options, loaded=loaded if part == 1 else None).run()
         folders.append(str(folder))
         left_out = read_scene_json(folder)["provenance"]["sfm"]["unregistered"]
         if len(left_out) < MIN_REST_PHOTOS:
@@ -157,15 +195,18 @@ def linked_photos(folder: Path, source: Path, names: Sequence[str]) -> Path:
 
 
 def reconstruct_pieces(flights: Sequence[Flight], area_dir: Path, options: ReconOptions, scheduler=None,
-                       log: Callable[[str], None] = print) -> list[tuple[Path, str]]:
+                       log: Callable[[str], None] = print,
+                       loaded: Sequence[tuple[list[str], PosePriors]] | None = None) -> list[tuple[Path, str]]:
     """Every flight's scene folders under ``area_dir/pieces`` (:func:`reconstruct_flight`, in flight order) with the
     flight each belongs to, run here one after another or as one Dask task per flight on ``scheduler``
-    (sim.run.cluster.Scheduler); the first failure stops the run with it."""
+    (sim.run.cluster.Scheduler); the first failure stops the run with it. ``loaded``: per flight, what
+    :func:`checked_flights` read."""
+    loaded = list(loaded) if loaded is not None else [None] * len(flights)
     if scheduler is None:
         pieces = []
-        for number, flight in enumerate(flights, start=1):
+        for number, (flight, inputs) in enumerate(zip(flights, loaded), start=1):
             log(f"[area] flight {number}/{len(flights)}: {flight.name}")
-            pieces += [(Path(f), flight.name) for f in reconstruct_flight(flight, area_dir, options)]
+            pieces += [(Path(f), flight.name) for f in reconstruct_flight(flight, area_dir, options, inputs)]
         return pieces
     import distributed
 
@@ -173,8 +214,8 @@ def reconstruct_pieces(flights: Sequence[Flight], area_dir: Path, options: Recon
 
     with connect(scheduler) as client:
         log(dashboard_line(client))
-        futures = [client.submit(reconstruct_flight, flight, area_dir, options, pure=False, retries=0)
-                   for flight in flights]
+        futures = [client.submit(reconstruct_flight, flight, area_dir, options, inputs, pure=False, retries=0)
+                   for flight, inputs in zip(flights, loaded)]
         try:
             for done, future in enumerate(distributed.as_completed(futures), start=1):
                 log(f"[area] flight {done}/{len(flights)} done: {', '.join(Path(f).name for f in future.result())}")
@@ -276,6 +317,9 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     if left_out:
         log(f"[area] left out, joined to no other piece: {', '.join(left_out)}")
         pieces, names, flights, alignment = without_pieces(alignment, pieces, names, flights)
+    join_warnings = worse_joins(alignment.pairs, names)
+    for warning in join_warnings:
+        log(f"[area] WARNING: {warning}")
     lap("align")
     corrections = alignment.corrections
     vertices = [_apply(c, np.asarray(p.mesh.vertices)) for p, c in zip(pieces, corrections)]
@@ -309,6 +353,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report = area_report(names, flights, alignment, grid, owner, neighbours, gains, colour_pairs, polygon, holes_m2,
                          merged)
     report["left_out"] = left_out
+    report["join_warnings"] = join_warnings
     report["control"] = control_report
     report["timings_s"] = timings
     write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
@@ -317,6 +362,16 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report["timings_s"] = timings
     write_text_atomic(area_dir / REPORT, json.dumps(report, indent=2) + "\n")
     return report
+
+
+def worse_joins(pairs: Sequence[PairReport], names: Sequence[str]) -> list[str]:
+    """One line per overlapping pair that the join left farther apart than it found them: the median offset of B's
+    overlap points from A's surface after the joint adjustment exceeds the one before by over :data:`WORSE_JOIN_M`
+    (ICP caught in a wrong fit, control points that contradict the overlap). Such a scene is not what the pieces
+    show; the lines go to stderr, the report and scene.json."""
+    return [f"{names[r.a]} and {names[r.b]} lie {r.after_joint_m:.2f} m apart on their overlap after the join, "
+            f"{r.before_m:.2f} m before it: check the pieces and any --control points before using the scene"
+            for r in pairs if r.after_joint_m > r.before_m + WORSE_JOIN_M]
 
 
 def control_links(ties: Sequence[ControlTie], names: Sequence[str], pieces: list[Piece],
@@ -392,5 +447,6 @@ def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merge
                                                          "report": REPORT})
     meta["cameras"] = CAMERAS_FILE
     meta["observed_area_m"] = polygon.round(3).tolist()
+    meta["join_warnings"] = report["join_warnings"]
     store_sky_visibility(area_dir, meta)
     write_text_atomic(area_dir / "scene.json", json.dumps(meta, indent=2))

@@ -106,14 +106,26 @@ def write_exr(path: Path, values: np.ndarray) -> None:
             raise write_failed(path, str(error)) from error
 
 
-def read_exr(path: Path) -> np.ndarray:
-    """Read the ``Y`` channel of an EXR as a float32 (H, W) array; ``ValueError`` naming ``path`` if it is missing
-    or not a readable EXR (OpenEXR says so with a ``RuntimeError``)."""
+def _open_exr(path: Path, header_only: bool = False) -> OpenEXR.File:
+    """An EXR opened (pixels read too unless ``header_only``); ``ValueError`` naming ``path`` if it is missing or not
+    a readable EXR (OpenEXR says so with a ``RuntimeError``)."""
     try:
-        exr = OpenEXR.File(str(path))
+        return OpenEXR.File(str(path), header_only=header_only)
     except RuntimeError as error:
         raise ValueError(f"{path}: not a readable EXR ({error})") from None
-    with exr:
+
+
+def exr_size(path: Path) -> tuple[int, int]:
+    """``(width, height)`` in pixels of an EXR's data window, from its header alone (microseconds a file)."""
+    with _open_exr(path, header_only=True) as exr:
+        low, high = exr.header()["dataWindow"]
+    return int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
+
+
+def read_exr(path: Path) -> np.ndarray:
+    """Read the ``Y`` channel of an EXR as a float32 (H, W) array; ``ValueError`` naming ``path`` if it is missing
+    or not a readable EXR."""
+    with _open_exr(path) as exr:
         channels = exr.channels()
         if EXR_CHANNEL not in channels:
             raise ValueError(f"{path}: EXR has channels {sorted(channels)}, expected {EXR_CHANNEL!r}")

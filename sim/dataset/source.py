@@ -111,11 +111,15 @@ class DatasetSource:
 
     def require_depth(self, needed_by: str) -> None:
         """Refuse what needs depth (``needed_by``: "the kitti2015 layout", "--depth") when the dataset was rendered
-        without depth EXRs."""
+        without depth EXRs, or when any frame's depth map is unreadable or not its camera's image size (from the
+        EXR headers, before any frame is used)."""
         if "depth_exr" not in self.description["formats"]:
             raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs the depth maps, but this "
                                f"dataset has formats {self.description['formats']}; render it with --formats "
                                "including depth_exr")
+        for frame in self.frames():
+            for view in range(self.view_count):
+                frame.check_depth_size(view, images.exr_size(frame.depth_path(view)))
 
     def require_pinhole(self, needed_by: str) -> None:
         """Refuse what assumes undistorted pinhole images (``needed_by``) when a camera has lens distortion."""
@@ -168,12 +172,26 @@ class SourceFrame:
         so editing the export never edits the source)."""
         write_bytes_atomic(target, self.colour_png(view).read_bytes())
 
+    def depth_path(self, view: int) -> Path:
+        """The depth EXR of rig camera ``view``."""
+        return self.source.layout.depth_dir(view) / frame_file_name(self.index, ".exr")
+
     def depth(self, view: int) -> np.ndarray:
         """Planar depth of rig camera ``view`` (H, W) float32 metres, +inf on miss (read once per frame)."""
         if view not in self._depth:
-            path = self.source.layout.depth_dir(view) / frame_file_name(self.index, ".exr")
-            self._depth[view] = images.read_exr(path)
+            depth = images.read_exr(self.depth_path(view))
+            self.check_depth_size(view, (depth.shape[1], depth.shape[0]))
+            self._depth[view] = depth
         return self._depth[view]
+
+    def check_depth_size(self, view: int, size: tuple[int, int]) -> None:
+        """Refuse (:class:`DatasetError` naming the file) a depth map of rig camera ``view`` whose ``size``
+        (width, height pixels) is not the camera's image size."""
+        camera = self.camera(view)
+        expected = (int(camera["width"]), int(camera["height"]))
+        if tuple(size) != expected:
+            raise DatasetError(f"{self.depth_path(view)}: a {size[0]}x{size[1]} depth map, expected "
+                               f"{expected[0]}x{expected[1]} (camera {view}'s image size)")
 
     def camera(self, view: int) -> dict:
         """Intrinsics (``fx, fy, cx, cy`` pixels, ``width, height``) of rig camera ``view`` in this frame: the

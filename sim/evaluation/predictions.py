@@ -79,16 +79,25 @@ def _load_map(path: Path) -> np.ndarray:
     suffix = path.suffix.lower()
     try:
         if suffix == ".npy":
-            return np.squeeze(np.load(path, allow_pickle=False))
+            return _load_npy(path)
         if suffix == ".exr":
             return read_exr(path)
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    except (OSError, ValueError, TypeError) as error:
-        raise BadInput(f"{path}: not a readable {suffix} prediction ({error})") from None
+    except (OSError, ValueError, TypeError, EOFError) as error:  # EOFError: an empty or cut-short .npy
+        raise BadInput(f"{path}: not a readable {suffix} prediction ({error or type(error).__name__})") from None
     if image is None or image.dtype != np.uint16 or image.ndim != 2:
         what = "unreadable" if image is None else f"{image.dtype} with shape {image.shape}"
         raise BadInput(f"{path}: expected a 16-bit single-channel PNG (value * 256, 0 = none), got {what}")
     return np.where(image > 0, image / KITTI_DISPARITY_SCALE, np.nan)
+
+
+def _load_npy(path: Path) -> np.ndarray:
+    """A ``.npy`` file's array, squeezed; an ``.npz`` archive under a ``.npy`` name is refused."""
+    loaded = np.load(path, allow_pickle=False)
+    if not isinstance(loaded, np.ndarray):
+        loaded.close()
+        raise BadInput(f"{path}: an .npz archive, expected one array saved by numpy.save")
+    return np.squeeze(loaded)
 
 
 @dataclass(frozen=True)

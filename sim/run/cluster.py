@@ -24,7 +24,10 @@ sim/run/render_dataset.py imports this module only when a scheduler is given.
 
 from __future__ import annotations
 
+import asyncio
+import concurrent.futures
 import contextlib
+import logging
 import math
 import os
 import re
@@ -90,8 +93,10 @@ def parse_scheduler(text: str) -> Scheduler:
 
 
 def check_reachable(scheduler: Scheduler, timeout_s: float = CONNECT_TIMEOUT_S) -> None:
-    """Refuse (:class:`RenderInputError`) a scheduler address whose port does not accept a TCP connection, before
-    the dataset folder is opened (a wrong address leaves no file behind)."""
+    """Refuse (:class:`RenderInputError`) a scheduler address whose port does not accept a TCP connection, or
+    whose server does not answer Dask's ``identity`` call as a scheduler (a web or SSH server: its reply, read as
+    a Dask message length, once ended the run as "out of memory"), before the dataset folder is opened (a wrong
+    address leaves no file behind)."""
     if scheduler.address is None:
         return
     try:
@@ -103,6 +108,47 @@ def check_reachable(scheduler: Scheduler, timeout_s: float = CONNECT_TIMEOUT_S) 
     except OSError as error:
         raise RenderInputError(f"--scheduler {scheduler.address}: no Dask scheduler answers there "
                                f"({error.strerror or error}); start one with 'dask scheduler' or use local:N") from None
+    peer = peer_type(scheduler.address, timeout_s)
+    if peer != "Scheduler":
+        raise RenderInputError(f"--scheduler {scheduler.address}: the server there does not answer as a Dask "
+                               f"scheduler ({peer}); give the address 'dask scheduler' prints (tcp://HOST:8786) or "
+                               "use local:N")
+
+
+def peer_type(address: str, timeout_s: float) -> str:
+    """What answers at ``address``: ``"Scheduler"`` for a Dask scheduler (the ``type`` of its ``identity`` reply),
+    else a phrase saying what it is (another Dask server; one that gives no Dask reply within ``timeout_s``)."""
+
+    async def identity() -> dict:
+        comm = await distributed.comm.connect(address, timeout=timeout_s,
+                                              **distributed.Security().get_connection_args("client"))
+        try:
+            return await distributed.core.send_recv(comm, op="identity")
+        finally:
+            comm.abort()
+
+    async def within_timeout() -> dict:
+        return await asyncio.wait_for(identity(), timeout_s)
+
+    # on a thread of its own: the caller may be running an event loop already (a notebook)
+    with logs_silenced(), concurrent.futures.ThreadPoolExecutor(max_workers=1) as thread:
+        try:
+            reply = thread.submit(asyncio.run, within_timeout()).result()
+        except Exception:  # anything but a reply (its bytes read as a huge Dask frame, a reset, a timeout): not Dask
+            return "it does not speak Dask's protocol"
+    kind = reply.get("type") if isinstance(reply, dict) else None
+    return kind if kind == "Scheduler" else f"it is a Dask {kind}" if isinstance(kind, str) else "not a Dask reply"
+
+
+@contextlib.contextmanager
+def logs_silenced() -> Iterator[None]:
+    """Within the block no logger prints (Dask logs a failed handshake): a refusal stays one line."""
+    saved = logging.root.manager.disable
+    logging.disable(logging.CRITICAL)
+    try:
+        yield
+    finally:
+        logging.disable(saved)
 
 
 def batch_size(pending: int, workers: int) -> int:

@@ -7,8 +7,12 @@ not repeated here. Every case is refused before any work starts, so the table ru
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
+import socket
+import threading
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,6 +92,13 @@ CASES = [
     Case("mission-summary-is-plot", MISSION, ["--demo", "--out", "{tmp}/a.csv", "--plot", "{tmp}/p",
                                               "--summary-json", "{tmp}/sub/../p"],
          r"--summary-json .*: is also --plot"),
+    # the last output cannot be written: none is (the earlier ones were once left behind), the old plan is kept
+    Case("mission-plot-under-a-file", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--plot", "{tmp}/file/x.png"],
+         r"file/x\.png: a parent of it is a file", Files({"m.csv": b"the plan flown yesterday\n", "file": b"x"})),
+    Case("mission-summary-under-a-file", MISSION, ["--demo", "--out", "{tmp}/m.csv", "--kml", "{tmp}/m.kml",
+                                                   "--geojson", "{tmp}/m.geojson", "--plot", "{tmp}/m.png",
+                                                   "--summary-json", "{tmp}/file/s.json"],
+         r"file/s\.json: a parent of it is a file", Files({"file": b"x"})),
     # aerostereo-ingest
     Case("ingest-no-command", INGEST, [], r"aerostereo-ingest: error: .*required: COMMAND"),
     Case("ingest-unknown-command", INGEST, ["frobnicate"], r"invalid choice: 'frobnicate'"),
@@ -451,6 +462,43 @@ def test_refused(case, tmp_path):
     assert_refused(result, case, tmp_path)
     _assert_no_result_on_stdout(result, case)
     _assert_inputs_untouched(case, tmp_path)
+
+
+@contextlib.contextmanager
+def server_saying(greeting: bytes, reply: bytes) -> Iterator[str]:
+    """A loopback TCP server that is not Dask: it sends ``greeting`` on every connection and ``reply`` to whatever
+    it receives (an SSH banner, an HTTP error); yields its ``tcp://`` address."""
+    listener = socket.create_server(("127.0.0.1", 0))
+
+    def serve(connection: socket.socket) -> None:
+        with connection, contextlib.suppress(OSError):
+            connection.sendall(greeting)
+            while connection.recv(4096):
+                connection.sendall(reply)
+
+    def accept() -> None:
+        with contextlib.suppress(OSError):  # the listener closed
+            while True:
+                threading.Thread(target=serve, args=(listener.accept()[0],), daemon=True).start()
+
+    threading.Thread(target=accept, daemon=True).start()
+    with listener:
+        yield f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+
+
+@pytest.mark.parametrize("greeting, reply", [(b"SSH-2.0-OpenSSH_9.6\r\n", b""),
+                                             (b"", b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n")],
+                         ids=["ssh-banner", "http-error"])
+def test_a_scheduler_address_that_is_no_dask_scheduler_is_named(greeting, reply, tmp_path):
+    """A server that is not Dask's (its bytes read as a Dask frame length once ended the run "out of memory") is
+    refused as such before the dataset folder is made."""
+    pytest.importorskip("distributed")
+    with server_saying(greeting, reply) as address:
+        case = Case("render-scheduler-not-dask", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--scheduler",
+                                                          address],
+                    rf"--scheduler {address}: the server there does not answer as a Dask scheduler \(it does not "
+                    r"speak Dask's protocol\)", real_scene)
+        assert_refused(run_case(case, tmp_path), case, tmp_path)
 
 
 def test_every_program_and_subcommand_has_cases():

@@ -3,6 +3,7 @@ damaged file in one line and exit 2."""
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import cv2
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from sim.cli import main as render_main
+from sim.dataset.images import write_exr
 from tests.bad_input.harness import Case, assert_refused, run_case
 from tests.sim.render_scene_helpers import write_scene
 
@@ -40,6 +42,62 @@ def test_a_truncated_depth_exr_is_named_by_export(dataset, tmp_path):
     case = Case("export-truncated-depth-exr", "aerostereo-render",
                 ["export", "{tmp}/d", "--layout", "kitti_depth", "--out", "{tmp}/e"],
                 r"depth_2/000001\.exr: not a readable EXR")
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+@pytest.mark.parametrize("layout", ["kitti_flow", "kitti_depth", "flo"])
+def test_a_depth_exr_of_another_size_is_named_by_export(dataset, tmp_path, layout):
+    """A depth map of the wrong size (here the right camera's, frame 1) is refused from its header before any
+    frame is exported (into an --out folder that was there, which a failed export keeps): the layouts that read it
+    once indexed past its end (IndexError) or wrote garbage flow."""
+    write_exr(_copy(dataset, tmp_path) / "sequences/00/depth_3/000001.exr", np.ones((8, 16), np.float32))
+    case = Case(f"export-{layout}-depth-exr-of-another-size", "aerostereo-render",
+                ["export", "{tmp}/d", "--layout", layout, "--out", "{tmp}/e"],
+                r"depth_3/000001\.exr: a 16x8 depth map, expected 32x16 \(camera 1's image size\)",
+                lambda tmp: (tmp / "e").mkdir())
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+def _predictions(tmp: Path, first: bytes) -> None:
+    """A --depth folder whose frame 0 holds the bytes ``first`` and frame 1 a valid 32x16 prediction."""
+    folder = tmp / "pred"
+    folder.mkdir()
+    (folder / "000000.npy").write_bytes(first)
+    (folder / "000001.npy").write_bytes(_npy(np.ones((16, 32))))
+
+
+def _npy(array: np.ndarray) -> bytes:
+    """The bytes ``numpy.save`` writes for ``array``."""
+    file = io.BytesIO()
+    np.save(file, array)
+    return file.getvalue()
+
+
+def _npz(**arrays: np.ndarray) -> bytes:
+    """The bytes ``numpy.savez`` writes for the named ``arrays``."""
+    file = io.BytesIO()
+    np.savez(file, **arrays)
+    return file.getvalue()
+
+
+@pytest.mark.parametrize("name, first, message", [
+    ("empty-npy", b"", r"pred/000000\.npy: not a readable \.npy prediction \(No data left in file\)"),
+    ("npz-named-npy", _npz(depth=np.ones((16, 32))),
+     r"pred/000000\.npy: an \.npz archive, expected one array saved by numpy\.save"),
+], ids=["empty-npy", "npz-named-npy"])
+def test_a_damaged_npy_prediction_is_named_by_evaluate(dataset, tmp_path, name, first, message):
+    _copy(dataset, tmp_path)
+    case = Case(f"evaluate-{name}", "aerostereo-render", ["evaluate", "{tmp}/d", "--depth", "{tmp}/pred"], message,
+                lambda tmp: _predictions(tmp, first))
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+def test_a_truth_depth_of_another_size_is_named_by_evaluate(dataset, tmp_path):
+    write_exr(_copy(dataset, tmp_path) / "sequences/00/depth_2/000000.exr", np.ones((16, 33), np.float32))
+    case = Case("evaluate-truth-depth-of-another-size", "aerostereo-render",
+                ["evaluate", "{tmp}/d", "--depth", "{tmp}/pred"],
+                r"depth_2/000000\.exr: a 33x16 depth map, expected 32x16",
+                lambda tmp: _predictions(tmp, _npy(np.ones((16, 32)))))
     assert_refused(run_case(case, tmp_path), case, tmp_path)
 
 

@@ -28,6 +28,13 @@ def _write(name: str, content: bytes | str):
     return setup
 
 
+def _link(name: str, target: str):
+    """A setup planting the symbolic link ``name`` -> ``target`` (relative, in the case's folder)."""
+    def setup(tmp: Path) -> None:
+        (tmp / name).symlink_to(target)
+    return setup
+
+
 def _both(*setups):
     def setup(tmp: Path) -> None:
         for step in setups:
@@ -91,9 +98,25 @@ CASES = [
     Case("record-port-refused", "aerostereo-ingest",
          ["record", "--port", "socket://127.0.0.1:9", "--out", "{tmp}/r.duml"],
          r"cannot open serial port socket://127\.0\.0\.1:9"),
+    Case("record-out-is-a-planted-link", "aerostereo-ingest",
+         ["record", "--port", "loop://", "--duration", "0.1", "--out", "{tmp}/r.duml"],
+         r"--out .*r\.duml: is a symbolic link \(to victim\.txt\)", _both(_write("victim.txt", "kept\n"),
+                                                                          _link("r.duml", "victim.txt"))),
+    Case("record-index-is-a-planted-link", "aerostereo-ingest",
+         ["record", "--port", "loop://", "--duration", "0.1", "--out", "{tmp}/r.duml"],
+         r"--out's index .*r\.duml\.idx: is a symbolic link \(to victim\.txt\)",
+         _both(_write("victim.txt", "kept\n"), _link("r.duml.idx", "victim.txt"))),
+    Case("record-out-is-the-port", "aerostereo-ingest",
+         ["record", "--port", "{tmp}/ttyUSB0", "--duration", "0.1", "--out", "{tmp}/ttyUSB0"],
+         r"--out .*ttyUSB0: is also --port", _write("ttyUSB0", b"")),
+    Case("record-out-is-a-folder", "aerostereo-ingest",
+         ["record", "--port", "loop://", "--duration", "0.1", "--out", "{tmp}/folder"],
+         r"--out .*folder: is a folder", _write("folder/inside.txt", b"x")),
 ]
 
 
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.id)
 def test_refused(case, tmp_path):
     assert_refused(run_case(case, tmp_path), case, tmp_path)
+    if (tmp_path / "victim.txt").exists():
+        assert (tmp_path / "victim.txt").read_text() == "kept\n"  # nothing appended through the link

@@ -10,6 +10,7 @@ import shutil
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from tests.bad_input.harness import Case, assert_refused, run_case
 from tests.capture.test_cli_logs import write_jpeg
@@ -41,6 +42,23 @@ def minnesota_photos_and_a_yerevan_log(tmp):
     shutil.copytree(MINNESOTA_PHOTOS, tmp / "photos")
 
 
+def flight_with_a_png_named_jpg(tmp):
+    """The synthetic flight with DJI_0005.JPG re-saved as a PNG that keeps its EXIF (so it is geotagged, but its
+    metadata cannot be edited as a JPEG's)."""
+    flight(tmp)
+    photo = tmp / "photos" / "DJI_0005.JPG"
+    with Image.open(photo) as image:
+        image.load()
+        exif, pixels = image.getexif(), image.copy()
+    pixels.save(photo, format="PNG", exif=exif)
+
+
+def flight_and_a_file(tmp):
+    """The synthetic flight and a file ``flight.csv.bak`` beside it."""
+    flight(tmp)
+    (tmp / "flight.csv.bak").write_text("x\n")
+
+
 GEOTAG = ["geotag", "--photos", "{tmp}/photos", "--log", "{tmp}/flight.csv"]
 
 CASES = [
@@ -64,6 +82,12 @@ CASES = [
          r"--out .*DJI_0001\.JPG: is also --photos", flight),
     Case("geotag-out-is-the-log", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/flight.csv"],
          r"--out .*flight\.csv: is also --log", flight),
+    Case("geotag-write-exif-png-named-jpg", "aerostereo-ingest", [*GEOTAG, "--out", "{tmp}/g.csv", "--write-exif"],
+         r"photos/DJI_0005\.JPG: not a JPEG \(no SOI marker\)", flight_with_a_png_named_jpg),
+    Case("geotag-exif-dir-is-a-file", "aerostereo-ingest",
+         [*GEOTAG, "--out", "{tmp}/g.csv", "--write-exif", "--exif-dir", "{tmp}/flight.csv.bak"],
+         r"--exif-dir .*flight\.csv\.bak: is a file; expected a folder",
+         flight_and_a_file),
     Case("geotag-colmap-ref-is-the-log", "aerostereo-ingest",
          [*GEOTAG, "--out", "{tmp}/g.csv", "--colmap-ref", "{tmp}/flight.csv"], r"--colmap-ref .*: is also --log",
          flight),

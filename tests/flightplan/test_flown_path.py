@@ -33,3 +33,13 @@ def test_heading_error_is_zero_when_the_heading_stays_on_the_centre():
 def test_max_radial_deviation():
     points = np.array([[3.0, 4.0], [0.0, 4.5]])
     assert flown_path.max_radial_deviation_m(points, 5.0) == pytest.approx(0.5)
+
+
+def test_a_leg_of_no_length_is_passed_through_without_a_turn(recwarn):
+    """Two waypoints on one spot (two rings of one radius and height meet there) have no direction between them:
+    the path passes the vertex, with no division by the zero length (it once warned 'invalid value')."""
+    vertices = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
+    path = flown_path.curved_turns_path(vertices, np.full(4, 2.0))
+    assert np.isfinite(path).all()
+    assert [10.0, 0.0] in path.tolist()
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]

@@ -208,6 +208,18 @@ def test_property_random_orbits(lat, lon, radius, direction, start):
         assert plan.max_deviation_m <= plan.request.deviation_tolerance_m + 1e-3
 
 
+@pytest.mark.parametrize("turns", [1e17, 1e308 / 360.0])
+def test_a_start_bearing_of_many_turns_is_the_same_orbit(turns, recwarn):
+    """A start bearing of many turns flies the orbit of that bearing reduced to 0..360 deg: 1e308 deg once
+    swallowed the 360 / N steps between waypoints (every waypoint on one spot, a refusal with RuntimeWarnings)."""
+    bearing = math.floor(turns) * 360.0 + 30.0
+    far, near = (plan_orbit(OrbitRequest(40.1792, 44.4991, start_bearing_deg=b)) for b in (bearing, bearing % 360.0))
+    assert [(w.latitude_deg, w.longitude_deg) for w in far.mission.waypoints] == \
+        [(w.latitude_deg, w.longitude_deg) for w in near.mission.waypoints]
+    assert_orbit_geometry(far)
+    assert not [w for w in recwarn if issubclass(w.category, RuntimeWarning)]
+
+
 def test_a_tolerance_below_rounding_gives_the_most_waypoints_not_a_crash():
     from flightplan.orbit import choose_waypoint_count, feasible_waypoint_range
 

@@ -5,6 +5,7 @@ photographed in 30 % brighter light; cameras circling each piece's centre as an 
 from __future__ import annotations
 
 import json
+import re
 
 import cv2
 import numpy as np
@@ -212,3 +213,32 @@ def test_helpers_on_a_hand_made_grid():
     down = look_at(np.array([0.0, 0.0, 10.0]), np.array([3.0, 4.0, 0.0]))
     level = look_at(np.array([0.0, 0.0, 10.0]), np.array([3.0, 4.0, 10.0]))
     np.testing.assert_allclose(look_at_points(np.stack([down, level]), 0.0), [[3.0, 4.0]], atol=1e-9)
+
+
+def test_a_join_that_leaves_pieces_farther_apart_says_so(tmp_path):
+    """Control points picked on the wrong spots (B's picks 15 m north of A's, on ground both pieces saw) pull B
+    away from where the overlap puts it: the overlap's offset grows from decimetres to metres. The join still
+    writes the scene, but says so on stderr, in the report and in scene.json; a sound join says nothing."""
+    folders = [tmp_path / "pieces" / "flight_a", tmp_path / "pieces" / "flight_b"]
+    for folder, (x0, y0, error, gain) in zip(folders, LAYOUT[:2]):
+        write_piece(folder, x0, y0, error, gain)
+    rng = np.random.default_rng(5)
+    ground = np.column_stack([rng.uniform([42.0, 5.0], [58.0, 40.0], (40, 2)), np.zeros(40)])
+    ground[:, 2] = terrain_height(ground)
+    mispicked = ground + [0.0, 15.0, 0.0]
+    mispicked[:, 2] = terrain_height(mispicked)
+    error_b = LAYOUT[1][2]
+    on_a = to_frame(ground, frame_at(PIECE_M / 2, PIECE_M / 2, 0.0))
+    on_b = to_frame(mispicked @ error_b[:3, :3].T + error_b[:3, 3], frame_at(40.0 + PIECE_M / 2, PIECE_M / 2, 0.0))
+    tie = ControlTie("flight_a", "flight_b", ControlPairs(moving=on_b, reference=on_a), "picks.txt")
+    lines: list[str] = []
+    report = merge_area(folders, tmp_path, AreaOptions(cell_m=0.5), log=lines.append, control=[tie])
+    (pair,) = report["pairs"]
+    assert pair["before_m"] < 0.5 and pair["after_joint_m"] > pair["before_m"] + 1.0
+    (warning,) = report["join_warnings"]
+    assert re.fullmatch(rf"flight_a and flight_b lie {pair['after_joint_m']:.2f} m apart on their overlap after the "
+                        rf"join, {pair['before_m']:.2f} m before it: check .*", warning)
+    assert f"[area] WARNING: {warning}" in lines
+    assert read_scene_json(tmp_path)["join_warnings"] == [warning]
+    sound = merge_area(folders, tmp_path / "sound", AreaOptions(cell_m=0.5), log=lines.append)
+    assert sound["join_warnings"] == [] and read_scene_json(tmp_path / "sound")["join_warnings"] == []

@@ -7,6 +7,7 @@ run with that reason; a rerun resumes. Needs ``distributed`` (the ``dask`` and `
 
 from __future__ import annotations
 
+import asyncio
 import importlib.abc
 import os
 import signal
@@ -24,6 +25,7 @@ distributed = pytest.importorskip("distributed")
 
 import sim.run
 from sim.run.cluster import (
+    CONNECT_TIMEOUT_S,
     MAX_BATCH_FRAMES,
     TASKS_PER_WORKER,
     THREADS_PER_WORKER,
@@ -31,9 +33,11 @@ from sim.run.cluster import (
     Scheduler,
     batch_size,
     batches,
+    check_reachable,
     connect,
     environment_kept,
     parse_scheduler,
+    peer_type,
 )
 from sim.run.options import PoseOptions, RenderInputError, RenderOptions, RigOptions, RunOptions
 from sim.run.render_dataset import render_dataset
@@ -78,6 +82,23 @@ def test_an_address_where_no_scheduler_listens_is_refused_before_any_file(scene_
         with pytest.raises(RenderInputError, match=reason):
             render_dataset(scene_dir, tmp_path / "out", _options(SMALL, address), progress=False)
     assert not (tmp_path / "out").exists()
+
+
+def test_only_a_dask_scheduler_passes_the_identity_probe():
+    """The scheduler of a running cluster answers Dask's identity call as "Scheduler" (also asked from inside a
+    running event loop, as a notebook calls); the address of one of its workers (a Dask server too, but no
+    scheduler) is refused, naming what answered."""
+    async def from_a_running_loop(address: str) -> str:
+        return peer_type(address, CONNECT_TIMEOUT_S)
+
+    with distributed.LocalCluster(n_workers=1, processes=False, protocol="tcp://", dashboard_address=":0") as cluster:
+        check_reachable(Scheduler(address=cluster.scheduler_address))
+        assert asyncio.run(from_a_running_loop(cluster.scheduler_address)) == "Scheduler"
+        worker = next(iter(cluster.workers.values())).address
+        assert peer_type(worker, CONNECT_TIMEOUT_S) == "it is a Dask Worker"
+        with pytest.raises(RenderInputError, match=rf"--scheduler {worker}: .* not answer as a Dask scheduler "
+                                                   r"\(it is a Dask Worker\)"):
+            check_reachable(Scheduler(address=worker))
 
 
 def test_without_dask_installed_a_scheduler_is_refused_and_nothing_is_written(scene_dir, tmp_path, monkeypatch):
