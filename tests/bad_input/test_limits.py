@@ -163,6 +163,23 @@ def geotags(tmp: Path, sidecar: str, field: str = "DJI_0018.JPG") -> None:
     (tmp / "geotags.json").write_text(sidecar)
 
 
+#: A geotags.csv row that loads: a photo 30 m above the demo origin, looking down.
+GEOTAG_ROW = {"image_name": "DJI_0001.JPG", "utc_time": "2024-05-01T10:00:00Z", "lat_deg": "40.1792",
+              "lon_deg": "44.4991", "height_above_takeoff_m": "30", "absolute_height_m": "1020", "source": "log",
+              "time_offset_s": "0", "east_m": "0", "north_m": "0", "up_m": "30", "qw": "1"}
+NUMBER_309_DIGITS = "1" + "0" * 308  # 1e308: finite, and 309 digits once printed in full
+
+
+def geotags_with(**values: str):
+    """``geotags.csv`` (+ sidecar) whose first row loads and whose second (file line 3) has ``values`` instead."""
+    def setup(tmp: Path) -> None:
+        rows = [{**GEOTAG_ROW}, {**GEOTAG_ROW, "image_name": "DJI_0002.JPG", **values}]
+        lines = [",".join(GEOTAG_COLUMNS)] + [",".join(row.get(name, "0") for name in GEOTAG_COLUMNS) for row in rows]
+        (tmp / "geotags.csv").write_text("\n".join(lines) + "\n")
+        (tmp / "geotags.json").write_text(json.dumps({"origin": ORIGIN, "origin_height_datum": "mean_sea_level"}))
+    return setup
+
+
 def huge_log_field(tmp: Path) -> None:
     write_flight_log(tmp)
     lines = (tmp / "flight_log.csv").read_text().splitlines()
@@ -266,6 +283,23 @@ CASES = [
          setup=lambda tmp: geotags(tmp, json.dumps({"origin": ORIGIN}), HUGE_FIELD)),
     Case("flight-log-20mb-field", "aerostereo-ingest", ["track", "{tmp}/flight_log.csv", "--out", "{tmp}/t.csv"],
          r"flight_log\.csv:4: field larger than field limit", setup=huge_log_field),
+    # impossible geotags (issue 31): ranges checked where geotags.csv is read, naming file, line and column
+    *(Case(f"export-geotag-{name}", "aerostereo-ingest", ["export", "{tmp}/geotags.csv", "--gpx", "{tmp}/g.gpx"],
+           rf"geotags\.csv:3: {expect}", setup=geotags_with(**values))
+      for name, values, expect in [
+          ("latitude-91.5", {"lat_deg": "91.5"}, r"lat_deg 91\.5 is not a finite number within \[-90, 90\]"),
+          ("latitude-309-digits", {"lat_deg": NUMBER_309_DIGITS}, r"lat_deg 1e\+308 is not .* within \[-90, 90\]"),
+          ("longitude-200", {"lon_deg": "200"}, r"lon_deg 200 is not a finite number within \[-180, 180\]"),
+          ("elevation-309-digits", {"absolute_height_m": NUMBER_309_DIGITS},
+           r"absolute_height_m 1e\+308 is not a finite number within \[-1000, 12000\]"),
+          ("height-nan", {"height_above_takeoff_m": "nan"}, r"height_above_takeoff_m nan is not a finite number"),
+          ("east-inf", {"east_m": "inf"}, r"east_m inf is not a finite number within \[-100000, 100000\]"),
+          ("quaternion-1e308", {"qw": "1e308"}, r"qw 1e\+308 is not a finite number within \[-1, 1\]"),
+      ]),
+    Case("replay-geotag-latitude-91.5", "aerostereo-render",
+         ["--scene", "demo:small", "--mode", "replay", "--geotags", "{tmp}/geotags.csv", "--out", "{tmp}/d"],
+         r"geotags\.csv:3: lat_deg 91\.5 is not a finite number within \[-90, 90\]",
+         setup=geotags_with(lat_deg="91.5")),
     # aerostereo-ingest record
     Case("record-baud-negative", "aerostereo-ingest", ["record", "--port", "loop://", "--baud", "-1", "--out",
                                                        "{tmp}/c.duml"], r"baud rate must be a positive .*got -1"),
