@@ -219,6 +219,8 @@ CASES = [
     Case("render-baseline-inf", "aerostereo-render", [*RENDER, "--baseline", "inf"],
          r"baseline must be a positive finite number, got inf"),
     # aerostereo-render fly
+    Case("fly-geoid-undulation-1e308", "aerostereo-render", [*FLY, "--geoid-undulation", "1e308"],
+         r"argument --geoid-undulation: expected metres in \[-150, 150\], got '1e308'", setup=write_mission),
     Case("fly-photo-size-1e6", "aerostereo-render", [*FLY, "--photo-size", "1000000", "1000000"],
          r"photo size must be 1\.\.65535 pixels a side", setup=write_mission),
     Case("fly-log-as-mission", "aerostereo-render", [*FLY[:-1], "{tmp}/flight_log.csv"],
