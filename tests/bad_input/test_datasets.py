@@ -106,7 +106,8 @@ def imu_dataset(tmp_path_factory) -> Path:
     ("accel-1e308", 4, "a_y", "1e308", r"imu/00\.csv:4: a_y 1e\+308 is not a finite number within \+-1000"),
     ("position-far", 2, "p_x", "-2e6", r"imu/00\.csv:2: p_x -2e\+06 is not a finite number within \+-1e\+06 m"),
     ("quaternion-component-3", 6, "q_w", "3", r"imu/00\.csv:6: q_w 3 is not a finite number within \+-1"),
-    ("quaternion-not-unit", 9, "q_w", "0.5", r"imu/00\.csv:9: q_w,q_x,q_y,q_z is not a unit quaternion \(norm [\d.]+\)"),
+    ("quaternion-not-unit", 9, "q_w", "0.5",
+     r"imu/00\.csv:9: q_w,q_x,q_y,q_z is not a unit quaternion \(norm [\d.]+\)"),
     ("time-backwards", 7, "timestamp_ns", "0", r"imu/00\.csv:7: timestamp_ns 0 is not after the previous line's"),
     ("time-fraction", 8, "timestamp_ns", "60000000.5", r"imu/00\.csv:8: timestamp_ns 60000000.5 is not whole"),
 ])
