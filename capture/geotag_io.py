@@ -26,7 +26,7 @@ from cliutil.atomic import write_bytes_atomic, write_text_atomic
 from .exif_tiff import ASCII, BYTE, EXIF_HEADER, GPS_IFD, RATIONAL, Entry, sub_ifd, tiff_bytes, with_gps_ifd
 from .geotag import HEIGHT_UNKNOWN, PHOTO_ACCURACY, PHOTO_SOURCE, Geotag, GeotagResult
 from .jpeg_segments import replace_metadata
-from .logs.photos import DRONE_DJI_NS
+from .logs.photos import DRONE_DJI_NS, FIELD_RANGES
 from .track import csv_errors, csv_rows, format_number, format_utc, parse_utc
 from .xmp_update import with_dji_fields
 
@@ -40,6 +40,18 @@ GEOTAG_COLUMNS = (
     "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,time_offset_s,"
     "east_m,north_m,up_m,qw,qx,qy,qz"
 ).split(",")
+
+#: Farthest a geotag's ENU position may lie from the origin on each axis (m): DJI's longest links reach 20 km, and
+#: 100 km out the tangent plane is already 785 m off the ellipsoid (d^2 / 2R): beyond, ENU is no local frame.
+MAX_ENU_M = 100_000.0
+#: Range of each number a geotags.csv row may hold (column -> [low, high]): a photo's (capture/logs/photos.py),
+#: longitudes as the geotagger writes them and GPX reads them ([-180, 180]), ENU within :data:`MAX_ENU_M`,
+#: quaternion components within a unit quaternion's.
+GEOTAG_RANGES: dict[str, tuple[float, float]] = {
+    **{name: FIELD_RANGES[name] for name in GEOTAG_COLUMNS if name in FIELD_RANGES}, "lon_deg": (-180.0, 180.0),
+    **{name: (-MAX_ENU_M, MAX_ENU_M) for name in ("east_m", "north_m", "up_m")},
+    **{name: (-1.0, 1.0) for name in ("qw", "qx", "qy", "qz")},
+}
 
 
 @dataclass(frozen=True)
@@ -126,7 +138,8 @@ def optional_number(text: str) -> float:
 
 
 def load_geotags(csv_path) -> list[PosePrior]:
-    """Read ``geotags.csv`` (+ sidecar origin) into pose priors; raises ValueError naming file:line."""
+    """Read ``geotags.csv`` (+ sidecar origin) into pose priors; raises ValueError naming file:line (and the column
+    of a number outside :data:`GEOTAG_RANGES`: no place on Earth, or beyond a local ENU frame)."""
     csv_path = Path(csv_path)
     origin = read_sidecar(csv_path)[0]
     with csv_path.open(encoding="utf-8", newline="") as handle:
@@ -138,6 +151,8 @@ def load_geotags(csv_path) -> list[PosePrior]:
                              f"got {','.join(reader.fieldnames or [])}")
         priors = []
         for line, row in csv_rows(reader, csv_path):
+            if problem := range_problem(row):
+                raise ValueError(f"{csv_path}:{line}: {problem}")
             try:
                 position = np.array([float(row[k]) for k in ("east_m", "north_m", "up_m")])
                 q = [row[k] for k in ("qw", "qx", "qy", "qz")]
@@ -150,6 +165,20 @@ def load_geotags(csv_path) -> list[PosePrior]:
                                  f"absolute_height_m numbers or empty, qw,qx,qy,qz numbers or all empty, utc_time "
                                  f"ISO 8601 ({error})") from None
     return priors
+
+
+def range_problem(row: dict[str, str]) -> str | None:
+    """Why a geotags.csv row's numbers are impossible (a given one not a finite number within
+    :data:`GEOTAG_RANGES`: ``column: ...``), or None; text that is no number at all is left to the parser."""
+    for name, (low, high) in GEOTAG_RANGES.items():
+        text = row.get(name) or ""
+        try:
+            value = float(text)
+        except ValueError:
+            continue
+        if not low <= value <= high:  # also refuses NaN
+            return f"{name} {value:g} is not a finite number within [{low:g}, {high:g}]"
+    return None
 
 
 def dji_xmp_fields(tag: Geotag) -> dict[str, str]:

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import math
+from collections.abc import Callable
 
 
 def finite_number(text: str) -> float:
@@ -25,6 +26,16 @@ def positive_number(text: str) -> float:
     if not (math.isfinite(value) and value > 0.0):
         raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
     return value
+
+
+def number_within(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """A ``type=`` function: a float in ``[low, high]`` (``unit`` names what it counts in the message)."""
+    def within(text: str) -> float:
+        value = _float_or_nan(text)
+        if not low <= value <= high:  # also refuses NaN
+            raise argparse.ArgumentTypeError(f"expected {unit} in [{low:g}, {high:g}], got {text!r}")
+        return value
+    return within
 
 
 def _float_or_nan(text: str) -> float:

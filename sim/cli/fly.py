@@ -8,12 +8,12 @@ import datetime as dt
 from pathlib import Path
 
 from capture.track import parse_utc
-from cliutil.argtypes import finite_number
+from cliutil.argtypes import finite_number, number_within
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
-from sim.drone.session import (BATTERY_SWAP_S, LINKS, NOISE, FlyOptions, FlyReport, flight_folder,
-                               refuse_earlier_flight, run_flights, run_session)
+from sim.drone.session import (BATTERY_SWAP_S, LINKS, MAX_GEOID_UNDULATION_M, NOISE, FlyOptions, FlyReport,
+                               flight_folder, refuse_earlier_flight, run_flights, run_session)
 from sim.render.scene import load_scene
 from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
 
@@ -70,8 +70,10 @@ def add_fly_parser(subparsers) -> None:
                              "waypoint); an area plan's take_off (area.json) for its flights")
     parser.add_argument("--photos", type=int, dest="photo_limit", help="render only the first N photos")
     parser.add_argument("--logs", action="store_true", help="also write flight_log.csv (Litchi) and flight.srt")
-    parser.add_argument("--geoid-undulation", type=finite_number, default=0.0, metavar="N",
-                        help="geoid height above the WGS84 ellipsoid at the scene (m): photos and logs carry "
+    parser.add_argument("--geoid-undulation", type=number_within(-MAX_GEOID_UNDULATION_M, MAX_GEOID_UNDULATION_M,
+                                                                 "metres"), default=0.0, metavar="N",
+                        help="geoid height above the WGS84 ellipsoid at the scene (m, within "
+                             f"+-{MAX_GEOID_UNDULATION_M:g}: Earth's is -107..+86): photos and logs carry "
                              "ellipsoidal height - N as height above sea level (default 0: the ellipsoid)")
     parser.set_defaults(handler=run_fly)
 

@@ -209,14 +209,13 @@ def options_from_args(args: argparse.Namespace) -> RenderOptions:
 
 
 def effects_from_args(args: argparse.Namespace) -> CameraEffects:
-    """:class:`CameraEffects` of parsed arguments; :class:`BadInput` naming the options when they are invalid."""
+    """:class:`CameraEffects` of parsed arguments; :class:`BadInput` naming the option when one is invalid."""
     try:
         return CameraEffects(line_delay_s=args.line_delay, exposure_s=args.exposure, blur_samples=args.blur_samples,
                              full_well_e=args.full_well, read_noise_e=args.read_noise, vignetting=args.vignetting,
                              auto_exposure=args.auto_exposure)
     except ValueError as error:
-        options = "--line-delay/--exposure/--blur-samples/--full-well/--read-noise/--vignetting"
-        raise BadInput(f"{options}: {error}") from None
+        raise BadInput(str(error)) from None
 
 
 def refuse_clobbering_render(args: argparse.Namespace) -> None:

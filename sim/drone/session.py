@@ -20,7 +20,6 @@ code path); ``tcp`` streams to ``socket://host:port`` (someone must listen there
 from __future__ import annotations
 
 import datetime as dt
-import math
 import os
 import re
 import shutil
@@ -62,6 +61,9 @@ FLIGHT_OUTPUTS = ("photos", CAPTURE_NAME, index_path(CAPTURE_NAME).name, "truth.
 FLIGHT_FOLDER = re.compile(r"flight_\d{2,}")
 #: JPEG stores a photo's width and height in 16 bits.
 MAX_PHOTO_SIDE_PX = 65535
+#: Largest geoid undulation N accepted (metres, either sign): Earth's geoid lies -107 m (Indian Ocean) to +86 m (New
+#: Guinea) from the WGS84 ellipsoid (EGM2008); beyond it a height above sea level is no height on Earth.
+MAX_GEOID_UNDULATION_M = 150.0
 #: How far past the flight's end its time stamps may reach (the camera clock's offset is seconds at most).
 TIME_LINE_SLACK_S = 86400.0
 #: Time on the ground between two flights of an area plan (land, swap the battery, re-acquire the fix, take off).
@@ -96,8 +98,9 @@ class FlyOptions:
         if self.sun is not None and self.sun.form == "random":
             raise ValueError("a flight's photos take a fixed, real (time:), overcast or unlit sun, not the random "
                              "one drawn per dataset frame")
-        if not math.isfinite(self.geoid_undulation_m):
-            raise ValueError(f"geoid undulation must be a finite number of metres, got {self.geoid_undulation_m}")
+        if not abs(self.geoid_undulation_m) <= MAX_GEOID_UNDULATION_M:
+            raise ValueError(f"geoid undulation must be a finite number of metres within +-{MAX_GEOID_UNDULATION_M:g} "
+                             f"(Earth's: -107..+86 m), got {self.geoid_undulation_m}")
         if self.link not in LINKS:
             raise ValueError(f"link {self.link!r}: expected one of {', '.join(LINKS)}")
         if self.link == "tcp" and not (self.port or "").startswith("socket://"):

@@ -23,6 +23,10 @@ from sim.motion.trajectory import Kinematics
 from sim.sampling.seeds import IMU_STREAM
 
 DEFAULT_RATE_HZ = 200.0
+#: Fastest IMU rate synthesized (Hz): no IMU of a visual-inertial dataset samples faster (EuRoC and TUM-VI: 200
+#: Hz) nor any flight controller's gyroscope loop (PX4: at most 8 kHz); each sample costs ~0.7 kB on disk and
+#: ~2.5 kB of memory while the record is written (sim/dataset/imu_file.py), so 10 kHz is ~7 MB per second flown.
+MAX_RATE_HZ = 10_000.0
 #: The IMU sits this far behind the stereo pair (along -z of the left camera), metres.
 IMU_BEHIND_M = 0.02
 #: Camera axes in the body frame: camera x (right) = body -y, camera y (down) = body -z, camera z = body x.
@@ -47,6 +51,12 @@ class ImuNoise:
 #: micro aerial vehicle datasets", IJRR 2016; the file of every sequence, e.g. MH_01_easy).
 EUROC_ADIS16448 = ImuNoise(1.6968e-04, 1.9393e-05, 2.0000e-3, 3.0000e-3)
 NOISE_MODEL_NAME = "ADIS16448 (EuRoC mav0/imu0/sensor.yaml)"
+
+
+def sample_count(frame_count: int, frame_rate_hz: float, rate_hz: float) -> int:
+    """IMU samples from frame 0 to the last of ``frame_count`` frames at ``rate_hz``, a whole multiple of the frame
+    rate (every frame's time is a sample's)."""
+    return (frame_count - 1) * round(rate_hz / frame_rate_hz) + 1
 
 
 def T_body_cam0(baseline_m: float) -> np.ndarray:

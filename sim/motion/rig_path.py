@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sim.motion.imu import EUROC_ADIS16448, ImuNoise, ImuSamples, synthesize_imu, T_world_cam0
+from sim.motion.imu import EUROC_ADIS16448, ImuNoise, ImuSamples, T_world_cam0, sample_count, synthesize_imu
 from sim.motion.trajectory import CircleOrbit, SplinePath
 from sim.sampling.pose import GroundModel, PoseSample
 
@@ -50,6 +50,5 @@ class RigPath:
     def imu(self, frame_count: int, rate_hz: float, seed: int, noise: ImuNoise = EUROC_ADIS16448) -> ImuSamples:
         """The IMU record from frame 0 to the last frame: ``rate_hz`` must be a whole multiple of the frame
         rate, so that every frame's time is an IMU sample's."""
-        per_frame = round(rate_hz / self.frame_rate_hz)
-        t = np.arange((frame_count - 1) * per_frame + 1) / rate_hz
+        t = np.arange(sample_count(frame_count, self.frame_rate_hz, rate_hz)) / rate_hz
         return synthesize_imu(self.trajectory, t, rate_hz, noise, seed)

@@ -26,6 +26,7 @@ from pathlib import Path
 
 from sim.dataset import DEFAULT_FORMATS, needs_disparity
 from sim.drone.exposure import AUTO_EXPOSURE
+from sim.motion.imu import MAX_RATE_HZ as MAX_IMU_RATE_HZ
 from sim.render.camera import MAX_SAMPLES_PER_PIXEL
 from sim.sampling.light import RANDOM_SUN, UNLIT_SUN, SunSetting
 from sim.sampling.random_poses import RandomPoseSettings
@@ -34,6 +35,10 @@ MODES = ("random", "trajectory", "replay")
 TRAJECTORIES = ("orbit", "lawnmower", "loop", "flight")
 #: Image size (pixels) where none is given and none comes from a replayed photo.
 DEFAULT_SIZE = (1280, 720)
+#: Widest and tallest image rendered (pixels): above the largest photogrammetry sensors (Phase One iXM-RS150F,
+#: 14204 x 10652) and the 8K video of any drone; a 16384 x 16384 stereo frame already needs about 29.5 GiB
+#: of memory, and OpenCV, which reads the dataset back, refuses images over 2^30 pixels unless told otherwise.
+MAX_IMAGE_SIDE_PX = 16384
 #: Outputs of a replay at the scene's cameras unless asked otherwise: photos are not rectified (no disparity).
 SCENE_REPLAY_FORMATS = ("depth_exr",)
 
@@ -140,6 +145,18 @@ class RunOptions:
 
 
 VIGNETTING_MODELS = ("cos4",)
+#: Longest motion-blur exposure and longest rolling-shutter readout of a frame (s): a drone camera in flight
+#: exposes for milliseconds and reads a frame in 5-40 ms (and video cannot expose longer than its frame period);
+#: a second of a moving drone is a smear already, and every row and blur sample is posed along that much path.
+MAX_EXPOSURE_S = 1.0
+MAX_READOUT_S = 1.0
+#: Most motion-blur samples: each is one more render of the frame (of each row, with a rolling shutter), so the
+#: work grows with it; 1024 evenly spaced samples step the blur by under 0.1 % of the exposure, finer than a
+#: pixel for any blur streak up to 1024 px long.
+MAX_BLUR_SAMPLES = 1024
+#: The command-line option of each camera effect (messages name both).
+EFFECT_OPTIONS = {"line_delay_s": "--line-delay", "exposure_s": "--exposure", "blur_samples": "--blur-samples",
+                  "full_well_e": "--full-well", "read_noise_e": "--read-noise", "vignetting": "--vignetting"}
 
 
 @dataclass(frozen=True)
@@ -165,19 +182,31 @@ class CameraEffects:
         for name in ("line_delay_s", "exposure_s", "full_well_e", "read_noise_e"):
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"camera effect {name} must be a finite number >= 0, got {value}")
-        if self.blur_samples < 1:
-            raise ValueError(f"camera effect blur_samples must be at least 1, got {self.blur_samples}")
+                raise ValueError(f"{_effect(name)} must be a finite number >= 0, got {value}")
+        for name, most, what in (("line_delay_s", MAX_READOUT_S, "a whole frame's readout"),
+                                 ("exposure_s", MAX_EXPOSURE_S, "a frame's exposure")):
+            if getattr(self, name) > most:
+                raise ValueError(f"{_effect(name)} must be at most {most:g} s ({what} may take at most that), "
+                                 f"got {getattr(self, name):g}")
+        if not 1 <= self.blur_samples <= MAX_BLUR_SAMPLES:
+            raise ValueError(f"{_effect('blur_samples')} must be 1..{MAX_BLUR_SAMPLES} (each sample renders the "
+                             f"frame once more), got {self.blur_samples}")
         if self.read_noise_e and not self.full_well_e:
-            raise ValueError("camera effect read_noise_e needs full_well_e (the electrons of a full-scale pixel)")
+            raise ValueError(f"{_effect('read_noise_e')} needs {_effect('full_well_e')} (the electrons of a "
+                             "full-scale pixel)")
         if isinstance(self.vignetting, str) and self.vignetting not in VIGNETTING_MODELS:
-            raise ValueError(f"vignetting must be one of {VIGNETTING_MODELS} or three numbers k1,k2,k3, "
+            raise ValueError(f"{_effect('vignetting')} must be one of {VIGNETTING_MODELS} or three numbers k1,k2,k3, "
                              f"got {self.vignetting!r}")
         if self.vignetting is not None and not isinstance(self.vignetting, str):
             coefficients = tuple(float(k) for k in self.vignetting)
             if len(coefficients) != 3 or not all(map(math.isfinite, coefficients)):
-                raise ValueError(f"vignetting polynomial needs three finite numbers k1,k2,k3, got {self.vignetting}")
+                raise ValueError(f"{_effect('vignetting')} polynomial needs three finite numbers k1,k2,k3, "
+                                 f"got {self.vignetting}")
             object.__setattr__(self, "vignetting", coefficients)
+
+    def readout_s(self, height: int) -> float:
+        """Seconds between the exposures of the first and the last of ``height`` rows (rolling shutter)."""
+        return (height - 1) * self.line_delay_s
 
     @property
     def in_time(self) -> bool:
@@ -207,6 +236,11 @@ class CameraEffects:
             described["sensor_noise"] = {"full_well_e": self.full_well_e, "read_noise_e": self.read_noise_e,
                                          "model": "Poisson shot noise + Gaussian read noise, electrons"}
         return described
+
+
+def _effect(name: str) -> str:
+    """``--line-delay (line_delay_s)``: a camera effect's option and field, as its messages name it."""
+    return f"{EFFECT_OPTIONS[name]} ({name})"
 
 
 @dataclass(frozen=True)
@@ -239,9 +273,13 @@ def check_options(options: RenderOptions) -> None:
         problems.append(f"a stereo dataset needs at least 2 cameras, got {rig.cameras}")
     if poses.frames is not None and poses.frames < 1:
         problems.append(f"frames must be >= 1, got {poses.frames}")
-    for name, value in (("width", rig.width), ("height", rig.height), ("spp", rig.spp), ("workers", run.workers)):
-        if value is not None and value < 1:
+    for name, value in (("spp", rig.spp), ("workers", run.workers)):
+        if value < 1:
             problems.append(f"{name} must be >= 1, got {value}")
+    for name, value in (("width", rig.width), ("height", rig.height)):
+        if value is not None and not 1 <= value <= MAX_IMAGE_SIDE_PX:
+            problems.append(f"--{name} must be 1..{MAX_IMAGE_SIDE_PX} pixels (beyond the largest photogrammetry "
+                            f"sensors), got {value}")
     if rig.spp > MAX_SAMPLES_PER_PIXEL:
         problems.append(f"spp must be at most {MAX_SAMPLES_PER_PIXEL} (the sampler numbers a pixel's strata in "
                         f"16 bits), got {rig.spp}")
@@ -259,6 +297,7 @@ def check_options(options: RenderOptions) -> None:
     if not 0 < rig.fov_deg < 180:
         problems.append(f"field of view must be in (0, 180) degrees, got {rig.fov_deg}")
     problems += _imu_problems(poses)
+    problems += _readout_problems(options.effects, rig)
     if poses.mode == "trajectory" and (poses.trajectory == "flight") != (poses.mission is not None):
         problems.append("--trajectory flight needs --mission (a Litchi CSV), and --mission needs --trajectory flight")
     if run.scheduler is not None and run.workers != 1:
@@ -277,10 +316,21 @@ def _imu_problems(poses: PoseOptions) -> list[str]:
         return []
     if poses.mode != "trajectory":
         return [f"--imu needs --mode trajectory (a continuous path to differentiate), got --mode {poses.mode}"]
-    if not 0 < rate < math.inf:
-        return [f"the IMU rate must be a positive finite number, got {rate}"]
+    if not 0 < rate <= MAX_IMU_RATE_HZ:
+        return [f"--imu-rate must be in (0, {MAX_IMU_RATE_HZ:g}] Hz (no IMU of a VIO dataset or flight controller "
+                f"samples faster), got {rate:g}"]
     per_frame = rate / poses.frame_rate_hz
     if abs(per_frame - round(per_frame)) > 1e-9 or round(per_frame) < 1:
         return [f"the IMU rate ({rate} Hz) must be a whole multiple of the frame rate ({poses.frame_rate_hz} Hz), "
                 "so that every frame's timestamp is an IMU sample's"]
     return []
+
+
+def _readout_problems(effects: CameraEffects, rig: RigOptions) -> list[str]:
+    """Why the rolling shutter's readout of a frame is too long (empty when it is not)."""
+    height = rig.height or DEFAULT_SIZE[1]
+    if effects.readout_s(height) <= MAX_READOUT_S:
+        return []
+    return [f"{_effect('line_delay_s')} {effects.line_delay_s:g} s reads {height} rows in "
+            f"{effects.readout_s(height):g} s; a frame's readout must be at most {MAX_READOUT_S:g} s: "
+            f"--line-delay at most {MAX_READOUT_S / max(1, height - 1):.3g}"]

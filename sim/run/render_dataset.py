@@ -28,6 +28,7 @@ log, ``OUT/logs/render-<UTC start>-<pid>.jsonl`` (:func:`write_run_log`).
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 import math
@@ -44,7 +45,7 @@ from tqdm import tqdm
 from cliutil.atomic import write_text_atomic
 from cliutil.errors import BadInput
 from cliutil.paths import path_problem
-from cliutil.resources import require_disk, require_memory
+from cliutil.resources import format_bytes, require_disk, require_memory
 from sim.dataset import (
     AsyncFrameWriter,
     DatasetError,
@@ -55,11 +56,12 @@ from sim.dataset import (
 )
 from sim.run.description import sampling_description
 from sim.run.frame_renderer import FrameRenderer, FrameStats
-from sim.run.options import RenderInputError, RenderOptions, RunOptions, check_options
+from sim.run.options import PoseOptions, RenderInputError, RenderOptions, RunOptions, check_options
 from sim.run.processes import Job, render_in_processes
-from sim.dataset.imu_file import write_imu_csv
+from sim.dataset.imu_file import DISK_BYTES_PER_SAMPLE, MEMORY_BYTES_PER_SAMPLE, write_imu_csv
 from sim.dataset.kitti import KittiLayout
 from sim.dataset.writer import frame_disk_bytes, recorded_frames
+from sim.motion.imu import sample_count
 from sim.render.raycast import default_workers
 from sim.render.scene import read_scene_json
 
@@ -154,21 +156,53 @@ def _cluster_scheduler(run: RunOptions):
     return scheduler
 
 
+@dataclass(frozen=True)
+class RunNeeds:
+    """What a run will take: render ``processes`` started here (at most one per missing frame), memory (the
+    renderers', or the IMU record's if more: it is written after them) and disk (bytes)."""
+
+    processes: int
+    memory_bytes: float
+    disk_bytes: float
+
+    def text(self) -> str:
+        processes = f"{self.processes} render process{'' if self.processes == 1 else 'es'} here"
+        return (f"needs about {format_bytes(self.memory_bytes)} of memory ({processes}) and "
+                f"{format_bytes(self.disk_bytes)} on disk")
+
+
 def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, shard: range, run: RunOptions,
-                     processes: int) -> None:
-    """Refuse (:class:`RenderInputError`) a run whose ``processes`` renderers would not fit in this machine's
-    memory or whose missing frames of ``shard`` would not fit on the disk of ``out_dir``, before any file is
-    written."""
+                     workers: int) -> RunNeeds:
+    """Refuse (:class:`RenderInputError`) a run whose render processes (``workers``, no more than the missing
+    frames of ``shard``) would not fit in this machine's memory, whose IMU record would not, or whose missing
+    frames and IMU record would not fit on the disk of ``out_dir``, before any file is written."""
     camera = renderer.rig.cameras[0]
     options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
     missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
+    processes = min(workers, max(1, missing))
+    poses = renderer.options.poses
+    imu_samples = imu_sample_count(poses, spec.frame_count)
+    imu_memory, imu_disk = imu_samples * MEMORY_BYTES_PER_SAMPLE, imu_samples * DISK_BYTES_PER_SAMPLE
+    record = f"the IMU record of {imu_samples} samples (--imu-rate {poses.imu_rate_hz})" if imu_samples else ""
+    disk = missing * frame_disk_bytes(spec) + imu_disk
     try:
         how = f"--scheduler {run.scheduler}" if run.scheduler else f"--workers {run.workers}"
-        require_memory(processes * renderer.memory_bytes(),
-                       f"rendering {options_size} at --spp {renderer.options.rig.spp} with {how}")
-        require_disk(out_dir, missing * frame_disk_bytes(spec), f"{missing} frames of {options_size}")
+        require_memory(renderer.memory_bytes(), f"rendering {options_size} at --spp {renderer.options.rig.spp} with "
+                                                f"{how}", processes)
+        if imu_samples:
+            require_memory(imu_memory, f"writing {record}")
+        require_disk(out_dir, disk, f"{missing} frames of {options_size}" + (f" and {record}" if imu_samples else ""))
     except BadInput as error:
         raise RenderInputError(str(error)) from None
+    memory = max(processes * renderer.memory_bytes(), imu_memory)
+    return RunNeeds(processes, memory, disk)
+
+
+def imu_sample_count(poses: PoseOptions, frame_count: int) -> int:
+    """Samples of the IMU record the run writes (0 without ``--imu``)."""
+    if poses.imu_rate_hz is None:
+        return 0
+    return sample_count(frame_count, poses.frame_rate_hz, poses.imu_rate_hz)
 
 
 def _open_writer(out_dir: Path, spec: DatasetSpec, overwrite: bool) -> KittiDatasetWriter:
@@ -205,11 +239,15 @@ def render_dataset(scene: str | os.PathLike | None, out_dir: str | os.PathLike, 
         if check_spec is not None:
             check_spec(spec)
         shard = shard_frames(spec.frame_count, *options.run.shard)
-        _check_resources(renderer, spec, out_dir, shard, options.run, workers)
+        needs = _check_resources(renderer, spec, out_dir, shard, options.run, workers)
         writer = _open_writer(out_dir, spec, overwrite)
         if renderer.poses.fitted:  # said once every check has passed: a refusal stays one line
             print(f"{scene_dir}: {renderer.poses.fitted}", file=sys.stderr)
         pending = writer.pending(shard)
+        if progress and pending:
+            print(f"{out_dir}: {len(pending)} frames to render: {needs.text()}", file=sys.stderr)
+        if scheduler is not None and scheduler.local_workers:
+            scheduler = dataclasses.replace(scheduler, local_workers=needs.processes)
         shard_size = len(shard)
         bar = tqdm(total=len(pending), unit="frame", disable=not progress or not pending, file=sys.stderr,
                    desc=f"rendering {out_dir.name}")

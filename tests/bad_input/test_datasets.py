@@ -146,3 +146,49 @@ def test_a_layout_the_render_cannot_feed_is_refused_before_the_first_frame(tmp_p
                  *options, "--export", layout, "--export-out", "{tmp}/e", "--quiet"], message)
     assert_refused(run_case(case, tmp_path), case, tmp_path)
     assert not (tmp_path / "d").exists() and not (tmp_path / "e").exists()
+
+
+@pytest.fixture(scope="module")
+def imu_dataset(tmp_path_factory) -> Path:
+    """A 2-frame trajectory of the demo world rendered with --imu at 100 Hz: an IMU record of 11 samples."""
+    out = tmp_path_factory.mktemp("imu") / "d"
+    assert render_main(["--scene", "demo:small", "--out", str(out), "--mode", "trajectory", "--imu", "--imu-rate",
+                        "100", "--frames", "2", "--width", "32", "--height", "16", "--formats", "depth_exr",
+                        "--quiet"]) == 0
+    return out
+
+
+@pytest.mark.parametrize("name, line, column, value, message", [
+    ("gyro-nan", 3, "w_x", "nan", r"imu/00\.csv:3: w_x nan is not a finite number within \+-100 rad/s"),
+    ("accel-inf", 5, "a_true_z", "inf", r"imu/00\.csv:5: a_true_z inf is not a finite number within \+-1000 m/s\^2"),
+    ("accel-1e308", 4, "a_y", "1e308", r"imu/00\.csv:4: a_y 1e\+308 is not a finite number within \+-1000"),
+    ("position-far", 2, "p_x", "-2e6", r"imu/00\.csv:2: p_x -2e\+06 is not a finite number within \+-1e\+06 m"),
+    ("quaternion-component-3", 6, "q_w", "3", r"imu/00\.csv:6: q_w 3 is not a finite number within \+-1"),
+    ("quaternion-not-unit", 9, "q_w", "0.5",
+     r"imu/00\.csv:9: q_w,q_x,q_y,q_z is not a unit quaternion \(norm [\d.]+\)"),
+    ("time-backwards", 7, "timestamp_ns", "0", r"imu/00\.csv:7: timestamp_ns 0 is not after the previous line's"),
+    ("time-fraction", 8, "timestamp_ns", "60000000.5", r"imu/00\.csv:8: timestamp_ns 60000000.5 is not whole"),
+])
+def test_an_implausible_imu_sample_is_named_by_the_euroc_export(imu_dataset, tmp_path, name, line, column, value,
+                                                                message):
+    """An IMU record whose sample is not finite or beyond what a flying rig can measure is refused with its file,
+    line and column before anything is written, never copied into EuRoC's imu0/data.csv."""
+    record = _copy(imu_dataset, tmp_path) / "imu" / "00.csv"
+    lines = record.read_text().splitlines()
+    header = lines[0].split(",")
+    cells = lines[line - 1].split(",")
+    cells[header.index(column)] = value
+    lines[line - 1] = ",".join(cells)
+    record.write_text("\n".join(lines) + "\n")
+    case = Case(f"export-euroc-imu-{name}", "aerostereo-render",
+                ["export", "{tmp}/d", "--layout", "euroc", "--out", "{tmp}/e"], message)
+    assert_refused(run_case(case, tmp_path), case, tmp_path)
+
+
+def test_the_untouched_imu_record_exports(imu_dataset, tmp_path):
+    """The bounds refuse only what no rig measures: the record as rendered exports, sample for sample."""
+    _copy(imu_dataset, tmp_path)
+    case = Case("export-euroc-imu", "aerostereo-render", ["export", "{tmp}/d", "--layout", "euroc", "--out",
+                                                          "{tmp}/e"], "")
+    assert run_case(case, tmp_path).code == 0
+    assert len((tmp_path / "e/mav0/imu0/data.csv").read_text().splitlines()) == 1 + 11

@@ -163,6 +163,23 @@ def geotags(tmp: Path, sidecar: str, field: str = "DJI_0018.JPG") -> None:
     (tmp / "geotags.json").write_text(sidecar)
 
 
+#: A geotags.csv row that loads: a photo 30 m above the demo origin, looking down.
+GEOTAG_ROW = {"image_name": "DJI_0001.JPG", "utc_time": "2024-05-01T10:00:00Z", "lat_deg": "40.1792",
+              "lon_deg": "44.4991", "height_above_takeoff_m": "30", "absolute_height_m": "1020", "source": "log",
+              "time_offset_s": "0", "east_m": "0", "north_m": "0", "up_m": "30", "qw": "1"}
+NUMBER_309_DIGITS = "1" + "0" * 308  # 1e308: finite, and 309 digits once printed in full
+
+
+def geotags_with(**values: str):
+    """``geotags.csv`` (+ sidecar) whose first row loads and whose second (file line 3) has ``values`` instead."""
+    def setup(tmp: Path) -> None:
+        rows = [{**GEOTAG_ROW}, {**GEOTAG_ROW, "image_name": "DJI_0002.JPG", **values}]
+        lines = [",".join(GEOTAG_COLUMNS)] + [",".join(row.get(name, "0") for name in GEOTAG_COLUMNS) for row in rows]
+        (tmp / "geotags.csv").write_text("\n".join(lines) + "\n")
+        (tmp / "geotags.json").write_text(json.dumps({"origin": ORIGIN, "origin_height_datum": "mean_sea_level"}))
+    return setup
+
+
 def huge_log_field(tmp: Path) -> None:
     write_flight_log(tmp)
     lines = (tmp / "flight_log.csv").read_text().splitlines()
@@ -183,6 +200,7 @@ def merge_inputs(tmp: Path) -> None:
 
 
 RENDER = ["--scene", "demo:small", "--out", "{tmp}/d", "--quiet"]
+TRAJECTORY = [*RENDER, "--mode", "trajectory"]
 FLY = ["fly", "--scene", "demo:small", "--out", "{tmp}/f", "--mission", "{tmp}/m.csv"]
 RECON = ["--photos", "{data}/brighton_beach/images", "--out", "{tmp}/s"]
 SCENE = ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--quiet", "--frames", "1"]
@@ -202,12 +220,36 @@ CASES = [
     # aerostereo-render: sizes checked against the machine before the first frame
     Case("render-frames-1e9", "aerostereo-render", [*RENDER, "--frames", "1000000000"],
          r"1000000000 frames of 1280x720 .* needs about .* on disk; .* free"),
-    Case("render-width-1e6", "aerostereo-render", [*RENDER, "--width", "1000000", "--height", "100000"],
-         r"rendering 1000000x100000 pixels x 2 cameras .* needs about .* of memory; this machine has"),
+    Case("render-cameras-1000", "aerostereo-render", [*RENDER, "--width", "16384", "--height", "16384", "--cameras",
+                                                      "1000"],
+         r"rendering 16384x16384 pixels x 1000 cameras .* needs about 14\.4 TiB of memory; this machine has"),
     Case("render-spp-1e6", "aerostereo-render", [*RENDER, "--spp", "1000000"], r"spp must be at most 65535"),
     Case("render-baseline-inf", "aerostereo-render", [*RENDER, "--baseline", "inf"],
          r"baseline must be a positive finite number, got inf"),
+    # sizes no sensible run needs (issue 31): refused with the allowed range before any work
+    Case("render-width-1e6", "aerostereo-render", [*RENDER, "--width", "1000000"],
+         r"--width must be 1\.\.16384 pixels .*, got 1000000"),
+    Case("render-height-1e6", "aerostereo-render", [*RENDER, "--height", "1000000"],
+         r"--height must be 1\.\.16384 pixels .*, got 1000000"),
+    Case("render-imu-rate-1e9", "aerostereo-render", [*TRAJECTORY, "--imu", "--imu-rate", "1e9"],
+         r"--imu-rate must be in \(0, 10000\] Hz .*, got 1e\+09"),
+    Case("render-imu-record-beyond-memory", "aerostereo-render",
+         [*TRAJECTORY, "--imu", "--imu-rate", "10000", "--rate", "0.1", "--frames", "1000000", "--width", "8",
+          "--height", "8"],
+         r"writing the IMU record of 99999900001 samples \(--imu-rate 10000\.0\) needs about .* TiB of memory"),
+    Case("render-blur-samples-1e8", "aerostereo-render", [*TRAJECTORY, "--exposure", "0.01", "--blur-samples",
+                                                          "100000000"],
+         r"--blur-samples \(blur_samples\) must be 1\.\.1024 .*, got 100000000"),
+    Case("render-exposure-1e308", "aerostereo-render", [*TRAJECTORY, "--exposure", "1e308"],
+         r"--exposure \(exposure_s\) must be at most 1 s .*, got 1e\+308"),
+    Case("render-line-delay-1e308", "aerostereo-render", [*TRAJECTORY, "--line-delay", "1e308"],
+         r"--line-delay \(line_delay_s\) must be at most 1 s .*, got 1e\+308"),
+    Case("render-readout-7-s", "aerostereo-render", [*TRAJECTORY, "--line-delay", "0.01"],
+         r"--line-delay \(line_delay_s\) 0\.01 s reads 720 rows in 7\.19 s; a frame's readout must be at most 1 s: "
+         r"--line-delay at most 0\.00139"),
     # aerostereo-render fly
+    Case("fly-geoid-undulation-1e308", "aerostereo-render", [*FLY, "--geoid-undulation", "1e308"],
+         r"argument --geoid-undulation: expected metres in \[-150, 150\], got '1e308'", setup=write_mission),
     Case("fly-photo-size-1e6", "aerostereo-render", [*FLY, "--photo-size", "1000000", "1000000"],
          r"photo size must be 1\.\.65535 pixels a side", setup=write_mission),
     Case("fly-log-as-mission", "aerostereo-render", [*FLY[:-1], "{tmp}/flight_log.csv"],
@@ -272,6 +314,23 @@ CASES = [
          setup=lambda tmp: geotags(tmp, json.dumps({"origin": ORIGIN}), HUGE_FIELD)),
     Case("flight-log-20mb-field", "aerostereo-ingest", ["track", "{tmp}/flight_log.csv", "--out", "{tmp}/t.csv"],
          r"flight_log\.csv:4: field larger than field limit", setup=huge_log_field),
+    # impossible geotags (issue 31): ranges checked where geotags.csv is read, naming file, line and column
+    *(Case(f"export-geotag-{name}", "aerostereo-ingest", ["export", "{tmp}/geotags.csv", "--gpx", "{tmp}/g.gpx"],
+           rf"geotags\.csv:3: {expect}", setup=geotags_with(**values))
+      for name, values, expect in [
+          ("latitude-91.5", {"lat_deg": "91.5"}, r"lat_deg 91\.5 is not a finite number within \[-90, 90\]"),
+          ("latitude-309-digits", {"lat_deg": NUMBER_309_DIGITS}, r"lat_deg 1e\+308 is not .* within \[-90, 90\]"),
+          ("longitude-200", {"lon_deg": "200"}, r"lon_deg 200 is not a finite number within \[-180, 180\]"),
+          ("elevation-309-digits", {"absolute_height_m": NUMBER_309_DIGITS},
+           r"absolute_height_m 1e\+308 is not a finite number within \[-1000, 12000\]"),
+          ("height-nan", {"height_above_takeoff_m": "nan"}, r"height_above_takeoff_m nan is not a finite number"),
+          ("east-inf", {"east_m": "inf"}, r"east_m inf is not a finite number within \[-100000, 100000\]"),
+          ("quaternion-1e308", {"qw": "1e308"}, r"qw 1e\+308 is not a finite number within \[-1, 1\]"),
+      ]),
+    Case("replay-geotag-latitude-91.5", "aerostereo-render",
+         ["--scene", "demo:small", "--mode", "replay", "--geotags", "{tmp}/geotags.csv", "--out", "{tmp}/d"],
+         r"geotags\.csv:3: lat_deg 91\.5 is not a finite number within \[-90, 90\]",
+         setup=geotags_with(lat_deg="91.5")),
     # aerostereo-ingest record
     Case("record-baud-negative", "aerostereo-ingest", ["record", "--port", "loop://", "--baud", "-1", "--out",
                                                        "{tmp}/c.duml"], r"baud rate must be a positive .*got -1"),

@@ -3,14 +3,20 @@
 from __future__ import annotations
 
 import errno
+import math
 import os
+import re
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 import pytest
 
 from cliutil.program import EXIT_BAD_INPUT, EXIT_INTERRUPTED, Parser, add_version, run_cli, stdout_to_stderr
 from cliutil.errors import BadInput
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
-from cliutil.resources import format_bytes, require_disk, require_memory
+from cliutil.resources import cgroup_room_bytes, format_bytes, require_disk, require_memory
 
 
 def test_parser_errors_are_one_line_with_exit_2(capsys):
@@ -143,3 +149,53 @@ def test_folder_holds_itself_and_what_lies_below_through_links_and_dots(tmp_path
     assert folder_holds(tmp_path / "data" / "sub" / "..", tmp_path / "data")  # the same folder, spelled with ..
     assert not folder_holds(tmp_path / "data" / "sub", tmp_path / "data")  # the parent is not inside
     assert not folder_holds(tmp_path / "data", tmp_path / "database")  # a shared name prefix is not nesting
+
+
+def _cgroup(folder, version: int, limit: str, usage: int, **stat: int) -> None:
+    """A cgroup ``version`` memory controller folder as the kernel shows it: limit, usage and ``memory.stat``."""
+    folder.mkdir(parents=True, exist_ok=True)
+    names = ("memory.max", "memory.current") if version == 2 else ("memory.limit_in_bytes", "memory.usage_in_bytes")
+    (folder / names[0]).write_text(limit + "\n")
+    (folder / names[1]).write_text(f"{usage}\n")
+    (folder / "memory.stat").write_text("".join(f"{key} {value}\n" for key, value in stat.items()))
+
+
+def test_the_cgroup_memory_limit_caps_the_memory_there_is(tmp_path):
+    """A container's or unit's cgroup limit is what a run may take (its page cache counted as free, as the kernel
+    reclaims it before it kills), the tightest level above the process included; no limit: infinite."""
+    gib = 2 ** 30
+    v2 = tmp_path / "v2"
+    _cgroup(v2 / "user", 2, str(8 * gib), 7 * gib, active_file=gib // 2, inactive_file=gib // 2, anon=6 * gib)
+    _cgroup(v2 / "user" / "job", 2, str(4 * gib), gib, active_file=0, inactive_file=0)
+    proc = tmp_path / "cgroup"
+    proc.write_text("0::/user/job\n")
+    assert cgroup_room_bytes(proc, (v2,), tmp_path / "none") == 2 * gib  # the parent's 8 - 7 + 1
+    v1 = tmp_path / "v1"  # a container sees its own cgroup as the mount's root: the host's path is not there
+    _cgroup(v1, 1, str(3 * gib), 2 * gib, total_active_file=0, total_inactive_file=gib)
+    proc.write_text("4:memory:/docker/0123abcd\n0::/\n")
+    assert cgroup_room_bytes(proc, (tmp_path / "none",), v1) == 2 * gib
+    _cgroup(v1, 1, "9223372036854771712", 2 * gib, total_inactive_file=0)  # v1's "no limit"
+    _cgroup(v2, 2, "max", gib, active_file=0)
+    assert cgroup_room_bytes(proc, (v2,), v1) == math.inf
+    assert cgroup_room_bytes(tmp_path / "no-such-file") == math.inf
+
+
+def test_a_run_beyond_the_address_space_limit_is_refused_before_it_starts(tmp_path):
+    """Under ``ulimit -v 4 GiB`` a render whose frames need more per process is refused in one line naming the
+    limit (whatever memory the machine has: the machine's is taken as endless here), not killed mid-run."""
+    script = textwrap.dedent(f"""
+        import resource, sys
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, resource.RLIM_INFINITY))
+        import cliutil.resources
+        cliutil.resources.available_memory_bytes = lambda: float("inf")
+        from sim.cli import main
+        sys.exit(main(["--scene", "demo:small", "--out", {str(tmp_path / "d")!r}, "--frames", "1", "--width", "9000",
+                       "--height", "6000", "--quiet"]))
+    """)
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                          cwd=Path(__file__).resolve().parents[2])
+    assert done.returncode == EXIT_BAD_INPUT, done.stderr[-2000:]
+    assert re.fullmatch(r"aerostereo-render: error: rendering 9000x6000 pixels x 2 cameras at --spp 1 with --workers 1 "
+                        r"needs about 5\.\d+ GiB of memory; the address-space limit \(ulimit -v\) leaves a process "
+                        r"here [\d.]+ GiB\n", done.stderr), done.stderr
+    assert not (tmp_path / "d").exists()

@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import importlib.abc
 import os
+import re
 import signal
 import socket
 import sys
@@ -228,3 +229,16 @@ def test_the_remote_worker_config_in_the_docs_is_the_one_local_n_uses():
     section = text[text.index("**Memory allocator and background CPU.**"):]
     block = section[section.index("```yaml\n") + len("```yaml\n"):section.index("```\n", section.index("```yaml"))]
     assert _flattened(yaml.safe_load(block)) == WORKER_CONFIG
+
+
+def test_local_n_starts_no_more_workers_than_frames_and_says_what_it_needs(scene_dir, tmp_path, monkeypatch,
+                                                                          capsys):
+    """--scheduler local:64 for 2 frames starts 2 worker processes (and is sized for 2), saying before it starts
+    what the run needs."""
+    started = []
+    monkeypatch.setattr(sim.run.cluster, "render_on_cluster",
+                        lambda scheduler, job, pending, frame_done: started.append((scheduler, list(pending))))
+    render_dataset(scene_dir, tmp_path / "out", _options(dict(SMALL, frames=2), "local:64"), progress=True)
+    assert started == [(Scheduler(local_workers=2), [0, 1])]
+    assert re.search(r"out: 2 frames to render: needs about [\d.]+ MiB of memory \(2 render processes here\) and "
+                     r"[\d.]+ KiB on disk", capsys.readouterr().err)

@@ -15,7 +15,7 @@ from capture.logs.photos import read_photo
 from sim.drone import Imperfections
 from sim.drone.exif import NOT_WRITTEN
 from sim.drone.photos import photo_camera, render_photos, write_dji_jpeg
-from sim.drone.session import fly_litchi_mission
+from sim.drone.session import FlyOptions, fly_litchi_mission
 from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
 from tests.exiftool_helpers import exiftool, needs_exiftool, serious_warnings
@@ -145,3 +145,16 @@ def test_heights_above_sea_level_follow_the_stated_geoid_undulation(tmp_path):
     assert values["absolute_height_m"] == pytest.approx(expected, abs=1e-6)
     assert values["height_above_takeoff_m"] == pytest.approx(relative, abs=1e-6)
     assert mission.photos.height_ellipsoid_m[index] - undulation == pytest.approx(expected, abs=1e-6)
+
+
+@pytest.mark.parametrize("undulation", [-150.0, 0.0, 86.0, 150.0])
+def test_every_geoid_undulation_on_earth_is_accepted(undulation):
+    """Earth's geoid lies -107..+86 m from the ellipsoid (EGM2008): the whole +-150 m range is a flight's to state."""
+    assert FlyOptions(geoid_undulation_m=undulation).geoid_undulation_m == undulation
+
+
+@pytest.mark.parametrize("undulation", [150.5, -1e308, float("inf"), float("nan")])
+def test_a_geoid_undulation_no_place_has_is_refused(undulation):
+    """1e308 used to give every photo a NaN GPSAltitude; beyond +-150 m no height above sea level is one on Earth."""
+    with pytest.raises(ValueError, match=r"geoid undulation must be a finite number of metres within \+-150"):
+        FlyOptions(geoid_undulation_m=undulation)

@@ -29,9 +29,12 @@ from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
 from sim.dataset.images import read_exr, read_png
 from sim.run.frame_renderer import FrameRenderer
-from sim.run.options import PoseOptions, RenderOptions, RigOptions, RunOptions
+from cliutil.errors import BadInput
+from sim.dataset.imu_file import DISK_BYTES_PER_SAMPLE
+from sim.run.options import PoseOptions, RenderInputError, RenderOptions, RigOptions, RunOptions
 from sim.cli import main as cli_main
 from sim.cli.render import build_parser, options_from_args
+from sim.run import render_dataset as render_dataset_module
 from sim.run.render_dataset import render_dataset
 from sim.sampling.pose import R_WORLD_NADIR, camera_rotation
 
@@ -177,6 +180,37 @@ def test_same_bytes_with_two_workers_and_from_merged_shards(reference, scene_dir
     merged = render_dataset(scene_dir, tmp_path / "merged", small_options(), progress=False)
     assert merged.rendered == 0 and merged.finalized
     assert dataset_bytes(tmp_path / "merged") == expected
+
+
+def test_workers_beyond_the_frames_start_one_process_per_frame_and_are_sized_so(scene_dir, tmp_path, monkeypatch):
+    """--workers 100000 for 2 frames starts 2 processes: its memory is sized for those 2 (not refused for 100000)."""
+    started = []
+    monkeypatch.setattr(render_dataset_module, "render_in_processes",
+                        lambda job, pending, processes, frame_done: started.append((list(pending), processes)))
+    options = RenderOptions(rig=RigOptions(width=SMALL["width"], height=SMALL["height"]), poses=PoseOptions(frames=2),
+                            run=RunOptions(workers=100_000))
+    render_dataset(scene_dir, tmp_path / "out", options, progress=False)
+    assert started == [([0, 1], 2)]
+
+
+def test_the_imu_record_is_in_the_disk_estimate(tmp_path, monkeypatch):
+    """With --imu the disk check counts the record (0.7 kB a sample) beside the frames, before anything is written."""
+    asked = []
+
+    def require_disk(folder, bytes_needed, what):
+        asked.append((bytes_needed, what))
+        raise BadInput("stopped after the disk check")
+
+    monkeypatch.setattr(render_dataset_module, "require_disk", require_disk)
+    for rate in (None, 100.0):
+        options = RenderOptions(rig=RigOptions(width=32, height=16),
+                                poses=PoseOptions(frames=2, mode="trajectory", imu_rate_hz=rate))
+        with pytest.raises(RenderInputError, match="stopped after the disk check"):
+            render_dataset("demo:small", tmp_path / "out", options, progress=False)
+    (frames_only, plain), (with_imu, described) = asked
+    assert with_imu - frames_only == 11 * DISK_BYTES_PER_SAMPLE  # 2 frames at 10 Hz, sampled at 100 Hz
+    assert described == plain + " and the IMU record of 11 samples (--imu-rate 100.0)"
+    assert not (tmp_path / "out").exists()
 
 
 KILL_OPTIONS = dict(width=640, height=400, frames=6, seed=5)
