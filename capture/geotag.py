@@ -31,7 +31,8 @@ from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
 from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
-from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, MAX_AUTO_CLOCK_OFFSET_S
+from .flyable import DEFAULT_LIMITS, unflyable_stretches
+from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, MAX_AUTO_CLOCK_OFFSET_S, PHOTO_MISFIT_M
 from .logs.photos import PhotoInfo
 from .track import ReadReport, Track, format_utc, name_list
 
@@ -102,6 +103,9 @@ class TrackInterpolator:
         self.enu = frame.enu_points(track["lat_deg"][rows][keep], track["lon_deg"][rows][keep],
                                     frame.h0_m + relative[rows][keep])
         self.relative = relative[rows][keep]
+        self.unflyable = unflyable_stretches(self.pos_t, self.enu)
+        if self.unflyable:
+            self.notes.append(unflyable_note(self.unflyable))
         absolute = track["absolute_height_m"]
         self.abs_t, abs_keep = unique_times(track.time_s[np.isfinite(absolute)])
         self.absolute = absolute[np.isfinite(absolute)][abs_keep]
@@ -146,6 +150,8 @@ class TrackInterpolator:
         reason = self.bracket(self.pos_t, t)
         if reason:
             return reason
+        if stretch := next((s for s in self.unflyable if s.contains(t)), None):
+            return f"in a stretch of the track no aircraft can fly ({stretch.text()})"
         enu = np.array([np.interp(t, self.pos_t, self.enu[:, k]) for k in range(3)])
         relative = float(np.interp(t, self.pos_t, self.relative))
         absolute = self.frame.h0_m + relative if self.origin_height_known else math.nan
@@ -167,6 +173,15 @@ class TrackInterpolator:
         if series is None or self.bracket(series.times_s, t):
             return None
         return series(t)
+
+
+def unflyable_note(stretches) -> str:
+    """The note naming the stretches of the track no aircraft can fly (:mod:`capture.flyable`)."""
+    seconds = sum(stretch.end_s - stretch.start_s for stretch in stretches)
+    shown = "; ".join(stretch.text() for stretch in stretches[:5]) + (" ..." if len(stretches) > 5 else "")
+    return (f"{len(stretches)} stretches of the track ({seconds:.1f} s in all) no aircraft can fly "
+            f"({DEFAULT_LIMITS.text()}): not interpolated across, photos in them are tagged from their own GPS: "
+            f"{shown}")
 
 
 def gimbal_angles(track: Track):
@@ -244,13 +259,15 @@ def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
 
 
 def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset="auto",
-                  max_gap_s: float = DEFAULT_MAX_GAP_S, max_misfit_m: float = DEFAULT_MAX_MISFIT_M) -> GeotagResult:
+                  max_gap_s: float = DEFAULT_MAX_GAP_S, max_misfit_m: float = DEFAULT_MAX_MISFIT_M,
+                  photo_misfit_m: tuple[float, float] = PHOTO_MISFIT_M) -> GeotagResult:
     """Geotag ``photos`` from ``tracks`` (merged by time). ``clock_offset``: ``"auto"`` (within
     +-:data:`MAX_AUTO_CLOCK_OFFSET_S`) or seconds (telemetry UTC - camera clock). A photo the logs cannot tag
-    (gap, outside the track) is tagged from its own EXIF GPS and XMP attitude (``source`` :data:`PHOTO_SOURCE`)
-    where it has them. Where the logs give no absolute height, the take-off's comes from the photos' own
-    (:func:`photos_take_off_height`). :class:`BadInput` when the photos' own GPS is a median of more than
-    ``max_misfit_m`` metres from their geotags."""
+    (gap, outside the track, a stretch no aircraft can fly), or whose own GPS is further from its geotag than
+    ``photo_misfit_m`` (horizontal, height above take-off; metres), is tagged from its own EXIF GPS and XMP
+    attitude (``source`` :data:`PHOTO_SOURCE`) where it has them. Where the logs give no absolute height, the
+    take-off's comes from the photos' own (:func:`photos_take_off_height`). :class:`BadInput` when the photos' own
+    GPS is a median of more than ``max_misfit_m`` metres from their geotags."""
     relative = [t.report.source for t in tracks if t.clock == "relative"]
     if relative:
         raise ValueError(f"{relative[0]}: log has no wall-clock time (SRT without a date); give its start time (start_time_s, CLI --start-time)")
@@ -271,11 +288,15 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
         frame, height_datum = LocalFrame(frame.lat0_deg, frame.lon0_deg, h0), MEAN_SEA_LEVEL
         interpolator = TrackInterpolator(track, frame, max_gap_s, origin_height_known=True)
     kind = track.report.kind if len(tracks) == 1 else "+".join(sorted({t.report.kind for t in tracks}))
+    log_tags = [make_tag(photo.name, t, interpolator, f"{kind}/{time_source}", time_source)
+                for photo, (t, time_source) in zip(timed, times)]
+    own_gps = own_gps_misfits(log_tags, timed)
+    set_misfit = check_misfit(own_gps, max_misfit_m)
+    misfits, misfit_note = photo_misfits(own_gps, photo_misfit_m)
     tags, from_photos = [], []
-    for photo, (t, time_source) in zip(timed, times):
-        tag = make_tag(photo.name, t, interpolator, f"{kind}/{time_source}", time_source)
-        if isinstance(tag, str):
-            reason, tag = tag, photo_tag(photo, t, frame, height_datum, time_source, reason=tag)
+    for photo, (t, time_source), tag in zip(timed, times, log_tags):
+        if reason := tag if isinstance(tag, str) else misfits.get(photo.name):
+            tag = photo_tag(photo, t, frame, height_datum, time_source, reason=reason)
             if not isinstance(tag, str):
                 from_photos.append((photo.name, reason))
         if isinstance(tag, str):
@@ -283,8 +304,7 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
         else:
             tags.append(tag)
     notes = list(interpolator.notes)
-    notes += [note for note in (check_misfit(tags, timed, max_misfit_m), fallback_note(from_photos), origin_note)
-              if note]
+    notes += [note for note in (set_misfit, misfit_note, fallback_note(from_photos), origin_note) if note]
     return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes, from_photos)
 
 
@@ -352,13 +372,26 @@ def photo_tag(photo: PhotoInfo, t: float, frame: LocalFrame, height_datum: str, 
     return f"{reason}; {tag}" if isinstance(tag, str) else tag
 
 
-def check_misfit(tags: list[Geotag], photos: list[PhotoInfo], max_misfit_m: float) -> str | None:
-    """A note on how far (m, geodesic) the photos' own GPS lies from their geotags from the logs; None without
-    GPS. :class:`BadInput` when the median is beyond ``max_misfit_m``: photos and logs from different places."""
-    own = {p.name: (p.values["lat_deg"], p.values["lon_deg"])
-           for p in photos if {"lat_deg", "lon_deg"} <= set(p.values)}
-    distances = np.array([geodesic_inverse(tag.lat_deg, tag.lon_deg, *own[tag.image_name]).distance_m
-                          for tag in tags if tag.source != PHOTO_SOURCE and tag.image_name in own])
+def own_gps_misfits(tags: list[Geotag | str], photos: list[PhotoInfo]) -> dict[str, tuple[float, float]]:
+    """By photo name: how far (m) its own GPS lies from its geotag from the logs (``tags``, in ``photos`` order; a
+    string where the logs gave none): the geodesic horizontal distance, and the difference of heights above
+    take-off where the photo has one (NaN where not)."""
+    misfits = {}
+    for photo, tag in zip(photos, tags):
+        if isinstance(tag, str) or not {"lat_deg", "lon_deg"} <= set(photo.values):
+            continue
+        horizontal = geodesic_inverse(tag.lat_deg, tag.lon_deg, photo.values["lat_deg"],
+                                      photo.values["lon_deg"]).distance_m
+        height = abs(photo.values.get("height_above_takeoff_m", math.nan) - tag.height_above_takeoff_m)
+        misfits[photo.name] = (horizontal, height)
+    return misfits
+
+
+def check_misfit(misfits: dict[str, tuple[float, float]], max_misfit_m: float) -> str | None:
+    """A note on how far (m, geodesic) the photos' own GPS lies from their geotags from the logs
+    (:func:`own_gps_misfits`); None without GPS. :class:`BadInput` when the median is beyond ``max_misfit_m``:
+    photos and logs from different places."""
+    distances = np.array([horizontal for horizontal, _ in misfits.values()])
     if len(distances) == 0:
         return None
     median, worst = float(np.median(distances)), float(distances.max())
@@ -368,6 +401,29 @@ def check_misfit(tags: list[Geotag], photos: list[PhotoInfo], max_misfit_m: floa
                        f"{max_misfit_m:g} m a consumer GPS can be off: the photos are probably not from these logs; "
                        f"give --max-misfit {math.ceil(1.01 * worst)} to accept the match anyway")
     return f"photo GPS vs geotags from the logs: median {median:.2f} m, max {worst:.2f} m ({len(distances)} photos)"
+
+
+def photo_misfits(misfits: dict[str, tuple[float, float]],
+                  limit_m: tuple[float, float]) -> tuple[dict[str, str], str | None]:
+    """The photos whose own GPS disagrees with their geotag from the logs by more than ``limit_m`` (horizontal,
+    height above take-off; metres), with the reason, by name; and the note saying so. None of them when the photos'
+    GPS is off the logs as a whole (a median beyond the horizontal limit, accepted with ``--max-misfit``): their own
+    positions would not fit the others'; the note says so then."""
+    if not misfits:
+        return {}, None
+    median = float(np.median([horizontal for horizontal, _ in misfits.values()]))
+    if median > limit_m[0]:
+        return {}, (f"the photos' own GPS is a median {median:.1f} m off the logs (more than {limit_m[0]:g} m): each "
+                    "photo keeps its geotag from the logs, none is checked against its own GPS")
+    reasons = {name: (f"its own GPS is {horizontal:.1f} m horizontally and {height:.1f} m in height from the logs' "
+                      f"position at its time, beyond the {limit_m[0]:g} m / {limit_m[1]:g} m a consumer GPS can be off")
+               for name, (horizontal, height) in misfits.items() if horizontal > limit_m[0] or height > limit_m[1]}
+    if not reasons:
+        return {}, None
+    return reasons, (f"{len(reasons)} photos' own GPS disagrees with the logs' position at their time by more than "
+                     f"{limit_m[0]:g} m horizontally or {limit_m[1]:g} m in height (3 sigma of a consumer GPS, the "
+                     f"receiver of both): the logs are wrong there, those photos are tagged from their own GPS: "
+                     f"{name_list(list(reasons))}")
 
 
 def format_distance(metres: float) -> str:

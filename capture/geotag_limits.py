@@ -12,3 +12,11 @@ MAX_AUTO_CLOCK_OFFSET_S = 14.5 * 3600.0
 #: its flight log come from the same receiver; 100 m is beyond any of that and far below a wrong place
 #: (``--max-misfit``).
 DEFAULT_MAX_MISFIT_M = 100.0
+#: A consumer GPS's 1-sigma position error (m) east, north, up: a few metres horizontally, more vertically. Recon
+#: weights a photo's pose prior by it (``recon.priors``); the geotagger allows it between two fixes of a track
+#: (``capture.flyable``) and between a photo's own GPS and its geotag.
+CONSUMER_GPS_SIGMA_M = (3.0, 3.0, 5.0)
+#: Largest distance (m) between a photo's own GPS and its geotag from the logs, horizontally and in height above
+#: take-off: 3 sigma of a consumer GPS. The photo's GPS and a DJI log come from the same receiver at the same moment,
+#: so a geotag beyond it is the logs' error (a track timed wrong, a bad row): the photo is tagged from its own GPS.
+PHOTO_MISFIT_M = (3.0 * CONSUMER_GPS_SIGMA_M[0], 3.0 * CONSUMER_GPS_SIGMA_M[2])

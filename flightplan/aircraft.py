@@ -77,11 +77,16 @@ class CameraProfile:
 
 @dataclass(frozen=True)
 class AircraftProfile:
-    """What a mission must respect for one aircraft: speed, camera cadence, gimbal range and endurance."""
+    """What a mission must respect for one aircraft: speed, camera cadence, gimbal range and endurance; and what
+    it can fly at all (horizontal speed, climb and descent rates, the strongest wind it resists, which adds to its
+    ground speed), by which a flight log's track is checked (:mod:`capture.flyable`)."""
 
     name: str
     camera: CameraProfile
     max_speed_m_s: float
+    max_ascent_m_s: float
+    max_descent_m_s: float
+    max_wind_m_s: float
     min_timed_shot_interval_s: float
     rated_flight_time_s: float
     usable_battery_fraction: float
@@ -114,15 +119,21 @@ MINI_SE_CAMERA = CameraProfile(
 #: DJI Mini SE (2021). Max speed 13 m/s (S mode), the 2 s minimum interval of DJI's timed shots, the -90..0 deg
 #: controllable gimbal tilt: UNVERIFIED (research/litchi.md section 4). 30 min rated flight time: Wikipedia
 #: and an owner's write-up (rated at 17 km/h without wind). The 80 % usable fraction is our own reserve policy.
+#: Max ascent 5 m/s and descent 3.5 m/s (S mode) and wind resistance 8 m/s (level 4): from memory of DJI's spec
+#: sheet for the Mini series, UNVERIFIED.
 DJI_MINI_SE = AircraftProfile(
     name="DJI Mini SE",
     camera=MINI_SE_CAMERA,
     max_speed_m_s=13.0,
+    max_ascent_m_s=5.0,
+    max_descent_m_s=3.5,
+    max_wind_m_s=8.0,
     min_timed_shot_interval_s=2.0,
     rated_flight_time_s=30 * 60.0,
     usable_battery_fraction=0.8,
     gimbal_pitch_range_deg=(-90.0, 0.0),
-    unverified=("max_speed_m_s", "min_timed_shot_interval_s", "gimbal_pitch_range_deg"),
+    unverified=("max_speed_m_s", "min_timed_shot_interval_s", "gimbal_pitch_range_deg", "max_ascent_m_s",
+                "max_descent_m_s", "max_wind_m_s"),
 )
 
 #: Maximum height above take-off allowed without special permission: EU open category 120 m (Regulation

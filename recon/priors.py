@@ -21,6 +21,7 @@ import pycolmap
 from PIL import ExifTags, Image, UnidentifiedImageError
 
 from capture.geotag_io import load_geotags, sidecar_path
+from capture.geotag_limits import CONSUMER_GPS_SIGMA_M
 from capture.logs.photos import (FactoryCalibration, PhotoInfo, parse_dji_xmp, read_camera_xmp, read_exif_gps,
                                  read_photo)
 from capture.track import LogFormatError
@@ -29,7 +30,7 @@ from cliutil.paths import path_problem
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import read_json
 
-DEFAULT_SIGMA_M = (3.0, 3.0, 5.0)  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
+DEFAULT_SIGMA_M = CONSUMER_GPS_SIGMA_M  # consumer GPS: horizontal 3 m, vertical 5 m (1 sigma)
 #: Least prior sigma (m) of an RTK fixed position, whatever the receiver claims: the photo's exposure is not
 #: exactly the fix's epoch, and the antenna-to-camera lever arm is a factory constant of a few cm.
 RTK_SIGMA_FLOOR_M = 0.02

@@ -14,7 +14,9 @@ peak memory (the child's own max RSS from ``os.wait4``) are measured per stage:
 3. ``aerostereo-ingest geotag`` geotags the photos from the recorded capture.
 4. ``aerostereo-recon`` reconstructs the scene from photos + geotags.
 5. ``aerostereo-render --mode replay --geotags`` renders the photos' stereo poses twice: from the
-   reconstruction (the twin) and from the true world.
+   reconstruction (the twin) and from the true world; and ``aerostereo-render --mode replay`` renders the twin at
+   its own cameras (what a user renders from it), beside the true world at the true cameras: the twin apart
+   from its georeference error.
 6. The evaluation (in this process) writes ``report.json``, ``report.md`` and plots into ``--out``.
 
 A stage that fails or whose inputs are missing is reported as failed/skipped with the reason, and the metrics
@@ -55,6 +57,7 @@ from flightplan.geodesy import LocalFrame  # noqa: E402
 from sim.render.scene import SceneError, read_scene_json  # noqa: E402
 from sim.sampling.light import parse_sun  # noqa: E402
 from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
+from tools.geotag_csv import geotag_row, write_geotags  # noqa: E402
 
 
 def capture_sun_option(sun: str) -> list[str]:
@@ -364,25 +367,52 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
                                                    "--out", str(recon_dir), *options], log_dir))
     else:
         add(skipped("recon", "geotag"))
-    for label, scene in (("twin", recon_dir), ("true", world)):
-        needs = {"geotag", "recon"} if label == "twin" else {"geotag"}
-        if needs <= ok:
-            width, height = config.render_size or config.photo_size
-            add(run(f"render_{label}", cli("aerostereo-render") + [
-                "--scene", str(scene), "--out", str(out / "render" / label), "--mode", "replay", "--geotags",
-                str(geotags), "--width", str(width), "--height", str(height),
-                "--fov", f"{photo_hfov_deg(fly_dir / 'truth.json'):.6f}", *photo_lens_options(fly_dir / "truth.json"),
-                "--spp", str(config.spp), "--seed", str(config.seed), "--workers", "1", "--quiet"], log_dir))
-        else:
+    # the twin and the true world at the geotags; the twin at its own cameras and the true world (its depth: unlit)
+    # at the true ones
+    true_cameras = out / "render" / "true_cameras" / "geotags.csv"
+    renders = {"twin": (recon_dir, geotags, {"geotag", "recon"}, []), "true": (world, geotags, {"geotag"}, []),
+               "twin_own": (recon_dir, None, {"recon"}, []),
+               "true_own": (world, true_cameras, {"fly"}, ["--sun", "unlit"])}
+    for label, (scene, poses, needs, extra) in renders.items():
+        if not needs <= ok:
             add(skipped(f"render_{label}", " and ".join(sorted(needs - ok))))
+            continue
+        if poses == true_cameras:
+            write_true_cameras(fly_dir / "truth.json", true_cameras.parent)
+        add(run(f"render_{label}", cli("aerostereo-render") + [
+            "--scene", str(scene), "--out", str(out / "render" / label), "--mode", "replay",
+            *render_camera_options(config, poses, fly_dir / "truth.json"), *extra,
+            "--spp", str(config.spp), "--seed", str(config.seed), "--workers", "1", "--quiet"], log_dir))
     return evaluate_run(dataclasses.asdict(config), [dataclasses.asdict(s) for s in stages], world, out)
+
+
+def render_camera_options(config: LoopConfig, poses: Path | None, truth_json: Path) -> list[str]:
+    """``aerostereo-render --mode replay`` options for the cameras of one render: at ``poses`` (a geotags.csv) with
+    the drone camera's field of view and lens (from ``truth.json``), or, with None, at the reconstructed scene's own
+    cameras, each with the lens SfM found for it (what a user renders from the twin), scaled to the render width."""
+    width, height = config.render_size or config.photo_size
+    if poses is None:
+        return ["--width", str(width)]
+    return ["--geotags", str(poses), "--width", str(width), "--height", str(height),
+            "--fov", f"{photo_hfov_deg(truth_json):.6f}", *photo_lens_options(truth_json)]
+
+
+def write_true_cameras(truth_json: Path, folder: Path) -> Path:
+    """The true camera poses of the photos taken (``truth.json``, its ENU frame) as ``folder/geotags.csv`` +
+    ``geotags.json``, for a render of the true world where the photos were really taken."""
+    truth = json.loads(truth_json.read_text(encoding="utf-8"))
+    folder.mkdir(parents=True, exist_ok=True)
+    rows = [geotag_row(row["image_name"], (row["east_m"], row["north_m"], row["up_m"]),
+                       (row["qw"], row["qx"], row["qy"], row["qz"]))
+            for row in truth["photos"] if row["taken"] and row["image_name"]]
+    return write_geotags(folder, rows, origin=LocalFrame.from_dict(truth["origin"]))
 
 
 def evaluate_run(config: dict, stages: list[dict], world: Path, out: Path) -> dict:
     """Evaluate the stage outputs in ``out`` (layout of :func:`run_loop`) and write the report."""
     report = evaluate(config=config, stages=stages, ok={s["name"] for s in stages if s["status"] == "ok"},
                       world=world, out=out, geotags=out / "geotag" / "geotags.csv", recon_dir=out / "recon",
-                      render_dirs={"twin": out / "render" / "twin", "true": out / "render" / "true"},
+                      render_dirs={label: out / "render" / label for label in ("twin", "true", "twin_own", "true_own")},
                       truth_json=out / "fly" / "truth.json", photos=out / "fly" / "photos",
                       mission_summary=out / "mission" / "mission_summary.json")
     write_report(report, out)

@@ -17,15 +17,20 @@ from pathlib import Path
 import numpy as np
 
 from capture.geotag_io import load_geotags
+from capture.geotag_limits import PHOTO_MISFIT_M
+from capture.logs.photos import read_photos
 from cliutil.atomic import atomic_path, write_text_atomic
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import depth_coverage, pose_errors, scene_mesh_enu, surface_errors, transform_poses
+from recon.accuracy import (depth_coverage, pose_alignment, pose_errors, scene_mesh_enu, surface_errors,
+                           transform_poses)
 from recon.scene_cameras import registered_poses, shape_alignment, truth_poses
 from sim.dataset.images import read_exr, read_png
 from sim.evaluation.realism import compare_images, depth_errors, photorealism_error_masked, read_rgb
 from sim.render.scene import read_scene_json
 
 COMPLETENESS_THRESHOLD_M = 0.25
+#: How many of the worst frames (photos) the report names per measure.
+WORST_COUNT = 3
 
 
 def _read_json(path: Path) -> dict:
@@ -54,11 +59,13 @@ def paired_errors(estimated: dict, truth: dict, T_truth_estimate: np.ndarray) ->
     tru = np.array([truth[n] for n in names]).reshape(-1, 4, 4)
     errors = pose_errors(est, tru).to_dict()
     errors["per_photo_m"] = {n: float(d) for n, d in zip(names, np.linalg.norm(est[:, :3, 3] - tru[:, :3, 3], axis=1))}
+    errors["worst_position_m"] = worst(errors["per_photo_m"])
     return errors
 
 
-def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
-    """Geotag position/attitude errors and the clock-offset error against the flight truth."""
+def geotag_metrics(geotags_csv: Path, truth: dict, photos: Path | None = None) -> dict:
+    """Geotag position/attitude errors, the worst photos and the clock-offset error against the flight truth; with
+    the ``photos`` folder, each geotag against the photo's own GPS (:func:`own_gps_metrics`)."""
     sidecar = _read_json(Path(geotags_csv).with_suffix(".json"))
     to_truth = LocalFrame.from_dict(sidecar["origin"]).transform_to(LocalFrame.from_dict(truth["origin"]))
     true = truth_poses(truth)
@@ -69,7 +76,34 @@ def geotag_metrics(geotags_csv: Path, truth: dict) -> dict:
                                 "error": sidecar["clock_offset_s"] + truth["clock_offset_s"]}
     errors["photos"] = {"taken": len(true), "tagged": errors["count"] + len(without_attitude),
                         "untagged": len(sidecar.get("untagged", [])), "without_attitude": len(without_attitude)}
+    if photos is not None:
+        tagged = {prior.image_name: to_truth[:3, :3] @ prior.position_enu_m + to_truth[:3, 3]
+                  for prior in load_geotags(geotags_csv)}
+        errors["own_gps"] = own_gps_metrics(tagged, truth, photos)
+        errors["own_gps"]["tagged_from_own_gps"] = len(sidecar.get("from_photos", {}).get("images", []))
     return errors
+
+
+def own_gps_metrics(tagged: dict[str, np.ndarray], truth: dict, photos: Path) -> dict:
+    """Each geotag's horizontal error (``tagged``: ENU positions in the truth's frame, by name) beside its photo's own
+    EXIF GPS error, both against the truth (m): medians and maxima, the photos whose geotag is furthest off beyond
+    their own GPS's error, and those beyond it by more than a consumer GPS can be off
+    (:data:`capture.geotag_limits.PHOTO_MISFIT_M`, which the geotagger checks each photo against)."""
+    frame = LocalFrame.from_dict(truth["origin"])
+    true = {row["image_name"]: np.array([row["east_m"], row["north_m"]]) for row in truth["photos"] if row["taken"]}
+    own, tag = {}, {}
+    for photo in read_photos(photos)[0]:
+        if photo.name in tagged and photo.name in true and {"lat_deg", "lon_deg"} <= set(photo.values):
+            east, north, _ = frame.to_enu(photo.values["lat_deg"], photo.values["lon_deg"], 0.0)
+            own[photo.name] = float(np.hypot(east - true[photo.name][0], north - true[photo.name][1]))
+            tag[photo.name] = float(np.linalg.norm(tagged[photo.name][:2] - true[photo.name]))
+    excess = {name: tag[name] - own[name] for name in own}
+    beyond = {name: value for name, value in excess.items() if value > PHOTO_MISFIT_M[0]}
+    return {"photos": len(own), "own_gps_horizontal_m": {"median": _median(own.values()),
+                                                          "max": max(own.values(), default=math.nan)},
+            "geotag_horizontal_m": {"median": _median(tag.values()), "max": max(tag.values(), default=math.nan)},
+            "worst_excess_m": worst(excess), "limit_m": PHOTO_MISFIT_M[0],
+            "beyond_own_gps": worst(beyond, count=len(beyond))}
 
 
 def sfm_metrics(recon_dir: Path, truth: dict) -> dict:
@@ -103,48 +137,107 @@ def _frames(dataset: Path) -> list[dict]:
     return [json.loads(line) for line in lines if line.strip()]
 
 
+def _finite(values) -> list[float]:
+    return [v for v in values if math.isfinite(v)]
+
+
 def _mean(values) -> float:
-    values = [v for v in values if math.isfinite(v)]
+    values = _finite(values)
     return float(np.mean(values)) if values else float("nan")
 
 
+def _median(values) -> float:
+    values = _finite(values)
+    return float(np.median(values)) if values else float("nan")
+
+
+def worst(values: dict[str, float], count: int = WORST_COUNT) -> list[dict]:
+    """The ``count`` largest finite values by name, largest first: ``[{"name": ..., "value": ...}]``."""
+    ranked = sorted(((name, value) for name, value in values.items() if math.isfinite(value)), key=lambda x: -x[1])
+    return [{"name": name, "value": value} for name, value in ranked[:count]]
+
+
 def _image_summary(comparisons, covered_errors) -> dict:
-    return {"photorealism_error_percent": _mean(c.error_percent for c in comparisons),
+    """Formula 3 (whole image and where the render has surface), PSNR and SSIM over frames: mean and median, the
+    per-frame errors, and the worst frames (by the compared name: the photo's, or the frame number)."""
+    errors = [c.error_percent for c in comparisons]
+    return {"photorealism_error_percent": _mean(errors), "photorealism_error_median_percent": _median(errors),
             "photorealism_error_covered_percent": _mean(covered_errors),
-            "psnr_db": _mean(c.psnr_db for c in comparisons), "ssim": _mean(c.ssim for c in comparisons),
-            "per_frame_error_percent": [c.error_percent for c in comparisons], "frames": len(comparisons)}
+            "photorealism_error_covered_median_percent": _median(covered_errors),
+            "psnr_db": _mean(c.psnr_db for c in comparisons), "psnr_median_db": _median(c.psnr_db for c in comparisons),
+            "ssim": _mean(c.ssim for c in comparisons), "ssim_median": _median(c.ssim for c in comparisons),
+            "per_frame_error_percent": errors, "frames": len(comparisons),
+            "worst_photorealism_percent": worst({c.name: c.error_percent for c in comparisons})}
 
 
-def twin_vs_true_metrics(twin: Path, true: Path) -> dict:
-    """Left images and depth of the twin against the true world, frame by frame (same poses, same sun)."""
-    sequence = Path("sequences") / "00"
-    comparisons, covered_errors, depths, coverages = [], [], [], []
-    for frame in range(len(_frames(true))):
-        name = f"{frame:06d}"
-        true_rgb, twin_rgb = (read_png(folder / sequence / "image_2" / f"{name}.png") for folder in (true, twin))
-        true_depth, twin_depth = (read_exr(folder / sequence / "depth_2" / f"{name}.exr") for folder in (true, twin))
-        comparisons.append(compare_images(true_rgb, twin_rgb, name))
-        covered = np.isfinite(twin_depth) & np.isfinite(true_depth)
-        covered_errors.append(photorealism_error_masked(true_rgb, twin_rgb, covered))
+def _depth_summary(names: list[str], depths, coverages) -> dict:
+    """Depth errors over frames (``names``: each frame's photo): mean and median, per frame, the worst frames."""
+    return {"abs_rel": _mean(d.abs_rel for d in depths), "abs_rel_median": _median(d.abs_rel for d in depths),
+            "rmse_m": _mean(d.rmse_m for d in depths), "rmse_median_m": _median(d.rmse_m for d in depths),
+            "delta_1_25": _mean(d.delta_1_25 for d in depths),
+            "delta_1_25_median": _median(d.delta_1_25 for d in depths),
+            "coverage": _mean(coverages), "coverage_median": _median(coverages),
+            "per_frame_abs_rel": [d.abs_rel for d in depths],
+            "worst_abs_rel": worst({name: d.abs_rel for name, d in zip(names, depths)})}
+
+
+def _frame_files(dataset: Path) -> dict[str, tuple[Path, Path]]:
+    """By the photo each frame replays: its left image and depth map."""
+    sequence = dataset / "sequences" / "00"
+    return {frame["sampler"]["image_name"]: (sequence / "image_2" / f"{frame['frame']:06d}.png",
+                                             sequence / "depth_2" / f"{frame['frame']:06d}.exr")
+            for frame in _frames(dataset)}
+
+
+def twin_vs_true_metrics(twin: Path, true: Path, images: bool = True) -> dict:
+    """Left images (``images``) and depth of the twin against the true world, frame by frame, paired by the photo
+    each frame replays (the twin's frames: those the twin has)."""
+    true_files = _frame_files(true)
+    names, comparisons, covered_errors, depths, coverages = [], [], [], [], []
+    for image_name, (twin_png, twin_exr) in _frame_files(twin).items():
+        if image_name not in true_files:
+            continue
+        true_png, true_exr = true_files[image_name]
+        true_depth, twin_depth = read_exr(true_exr), read_exr(twin_exr)
+        names.append(image_name)
+        if images:
+            true_rgb, twin_rgb = read_png(true_png), read_png(twin_png)
+            comparisons.append(compare_images(true_rgb, twin_rgb, image_name))
+            covered = np.isfinite(twin_depth) & np.isfinite(true_depth)
+            covered_errors.append(photorealism_error_masked(true_rgb, twin_rgb, covered))
         depths.append(depth_errors(twin_depth, true_depth))
         coverages.append(depth_coverage(twin_depth, true_depth))
-    return {**_image_summary(comparisons, covered_errors),
-            "depth": {"abs_rel": _mean(d.abs_rel for d in depths), "rmse_m": _mean(d.rmse_m for d in depths),
-                      "delta_1_25": _mean(d.delta_1_25 for d in depths), "coverage": _mean(coverages),
-                      "per_frame_abs_rel": [d.abs_rel for d in depths]}}
+    depth = {"depth": _depth_summary(names, depths, coverages), "frames": len(names)}
+    return {**_image_summary(comparisons, covered_errors), **depth} if images else depth
 
 
 def twin_vs_photos_metrics(twin: Path, photos: Path) -> dict:
-    """The paper's measurement: twin renders at the geotagged poses against the drone's photos."""
+    """The paper's measurement: twin renders (at the geotagged poses, or at the twin's own cameras) against the
+    drone's photos."""
     comparisons, covered_errors = [], []
-    for frame in _frames(twin):
-        image_name, name = frame["sampler"]["image_name"], f"{frame['frame']:06d}"
-        render = read_png(twin / "sequences" / "00" / "image_2" / f"{name}.png")
-        photo = read_rgb(photos / image_name)
+    for image_name, (png, exr) in _frame_files(twin).items():
+        render, photo = read_png(png), read_rgb(photos / image_name)
         comparisons.append(compare_images(photo, render, image_name))
-        covered = np.isfinite(read_exr(twin / "sequences" / "00" / "depth_2" / f"{name}.exr"))
-        covered_errors.append(photorealism_error_masked(photo, render, covered))
+        covered_errors.append(photorealism_error_masked(photo, render, np.isfinite(read_exr(exr))))
     return _image_summary(comparisons, covered_errors)
+
+
+def georeference_metrics(recon_dir: Path, truth: dict) -> dict:
+    """The reconstruction's georeference error apart from its shape: the similarity that takes its registered
+    cameras (moved into the truth's frame by the geodetic origins) onto the true ones -- how far it moves them
+    (m; mean and max over the cameras), its rotation (deg) and its scale."""
+    poses, to_truth = registered_poses(recon_dir, truth)
+    true = truth_poses(truth)
+    names = sorted(set(poses) & set(true))
+    estimated = transform_poses(to_truth, np.array([poses[n] for n in names]).reshape(-1, 4, 4))
+    similarity = pose_alignment(estimated, np.array([true[n] for n in names]).reshape(-1, 4, 4))
+    centres = estimated[:, :3, 3]
+    moved = np.linalg.norm(centres @ similarity[:3, :3].T + similarity[:3, 3] - centres, axis=1)
+    scale = float(np.cbrt(np.linalg.det(similarity[:3, :3])))
+    rotation = similarity[:3, :3] / scale
+    angle = math.degrees(math.acos(float(np.clip((np.trace(rotation) - 1.0) / 2.0, -1.0, 1.0))))
+    return {"cameras": len(names), "shift_m": {"mean": float(moved.mean()), "max": float(moved.max())},
+            "rotation_deg": angle, "scale": scale}
 
 
 def orbit_centre(mission_summary: Path, world: Path) -> tuple[tuple[float, float], float]:
@@ -164,7 +257,7 @@ def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Pat
 
     def measure(name: str, needs: set, compute: Callable[[], dict]) -> None:
         missing = sorted(needs - ok)
-        if missing or (truth is None and name != "twin_vs_true"):
+        if missing or (truth is None and name not in ("twin_vs_true", "twin_own_vs_true")):
             report["not_measured"][name] = f"stage(s) {', '.join(missing) or 'fly'} did not succeed"
             return
         try:
@@ -172,8 +265,9 @@ def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Pat
         except (OSError, ValueError, KeyError, RuntimeError) as error:  # pycolmap raises RuntimeError
             report["not_measured"][name] = f"{type(error).__name__}: {error}"
 
-    measure("geotag", {"geotag"}, lambda: geotag_metrics(geotags, truth))
+    measure("geotag", {"geotag"}, lambda: geotag_metrics(geotags, truth, photos))
     measure("sfm", {"recon"}, lambda: sfm_metrics(recon_dir, truth))
+    measure("georeference", {"recon"}, lambda: georeference_metrics(recon_dir, truth))
 
     def surface(fraction: float, aligned: bool) -> Callable[[], dict]:
         def compute() -> dict:
@@ -190,6 +284,11 @@ def evaluate(*, config: dict, stages: list[dict], ok: set, world: Path, out: Pat
     measure("twin_vs_true", {"render_twin", "render_true"},
             lambda: twin_vs_true_metrics(render_dirs["twin"], render_dirs["true"]))
     measure("twin_vs_photos", {"render_twin", "fly"}, lambda: twin_vs_photos_metrics(render_dirs["twin"], photos))
+    # what a user renders: the twin at its own cameras, apart from its georeference error
+    measure("twin_own_vs_true", {"render_twin_own", "render_true_own"},
+            lambda: twin_vs_true_metrics(render_dirs["twin_own"], render_dirs["true_own"], images=False))
+    measure("twin_own_vs_photos", {"render_twin_own", "fly"},
+            lambda: twin_vs_photos_metrics(render_dirs["twin_own"], photos))
     report["evaluation_s"] = time.perf_counter() - t0
     report["complete"] = all(s["status"] == "ok" for s in stages) and not report["not_measured"]
     return report
@@ -215,17 +314,23 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
     section("geotag", lambda g: [
         ("geotag photos tagged / taken", f"{g['photos']['tagged']} / {g['photos']['taken']}"),
         ("geotag position error median / max (m)", f"{_f(g['position_m']['median'])} / {_f(g['position_m']['max'])}"),
+        ("geotag worst photos by position error (m)", worst_text(g.get("worst_position_m", []))),
         ("geotag horizontal / vertical RMS (m)", f"{_f(g['horizontal_m']['rms'])} / {_f(g['vertical_m']['rms'])}"),
         ("geotag attitude error median / max (deg)",
          f"{_f(g['rotation_deg']['median'])} / {_f(g['rotation_deg']['max'])}"),
         ("clock offset estimated / true / error (s)", f"{_f(g['clock_offset_s']['estimated'])} / "
                                                       f"{_f(g['clock_offset_s']['true'])} / "
-                                                      f"{_f(g['clock_offset_s']['error'])}")])
+                                                      f"{_f(g['clock_offset_s']['error'])}"),
+        *own_gps_rows(g.get("own_gps"))])
     section("sfm", lambda s: [
         ("SfM registered", s["registered"]),
         ("SfM position error median / max (m)", f"{_f(s['position_m']['median'])} / {_f(s['position_m']['max'])}"),
+        ("SfM worst photos by position error (m)", worst_text(s.get("worst_position_m", []))),
         ("SfM rotation error median / max (deg)",
          f"{_f(s['rotation_deg']['median'])} / {_f(s['rotation_deg']['max'])}")])
+    section("georeference", lambda r: [
+        ("georeference error: cameras moved mean / max (m), rotation (deg), scale",
+         f"{_f(r['shift_m']['mean'])} / {_f(r['shift_m']['max'])}, {_f(r['rotation_deg'])}, {_f(r['scale'], 5)}")])
     section("surface", lambda s: [
         ("surface error median / p90 (m)", f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
         (f"completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
@@ -237,19 +342,61 @@ def summary_rows(report: dict) -> list[tuple[str, str]]:
          f"{_f(s['accuracy_median_m'])} / {_f(s['accuracy_p90_m'])}"),
         (f"shape completeness at {s['threshold_m']} m ({s['area']})", f"{100 * s['completeness']:.1f} %")])
     section("twin_vs_true", lambda t: [
-        ("twin vs true depth abs rel / RMSE (m) / delta<1.25",
-         f"{_f(t['depth']['abs_rel'])} / {_f(t['depth']['rmse_m'])} / {_f(t['depth']['delta_1_25'])}"),
-        ("twin depth coverage of true pixels", f"{100 * t['depth']['coverage']:.1f} %"),
+        *depth_rows("twin vs true", t["depth"]),
         ("twin vs true photorealism error / PSNR / SSIM",
          f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
-        ("twin vs true photorealism error where the twin has surface",
-         f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
+        *image_rows("twin vs true", t)])
     section("twin_vs_photos", lambda t: [
         ("twin vs photos photorealism error / PSNR / SSIM (paper: 12.49 %)",
          f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
-        ("twin vs photos photorealism error where the twin has surface",
-         f"{_f(t['photorealism_error_covered_percent'], 2)} %")])
+        *image_rows("twin vs photos", t)])
+    section("twin_own_vs_true", lambda t: depth_rows("twin at its own cameras vs true at the true ones", t["depth"]))
+    section("twin_own_vs_photos", lambda t: [
+        ("twin at its own cameras vs photos photorealism error / PSNR / SSIM",
+         f"{_f(t['photorealism_error_percent'], 2)} % / {_f(t['psnr_db'], 2)} dB / {_f(t['ssim'])}"),
+        *image_rows("twin at its own cameras vs photos", t)])
     return rows
+
+
+def worst_text(entries: list[dict], digits: int = 3) -> str:
+    """``DJI_0024.JPG 33.1, ...``: the worst frames as :func:`worst` lists them."""
+    return ", ".join(f"{entry['name']} {_f(entry['value'], digits)}" for entry in entries) or "none"
+
+
+def depth_rows(label: str, depth: dict) -> list[tuple[str, str]]:
+    """Report rows of a depth summary: means, medians, coverage, the worst frames."""
+    return [(f"{label} depth abs rel / RMSE (m) / delta<1.25",
+             f"{_f(depth['abs_rel'])} / {_f(depth['rmse_m'])} / {_f(depth['delta_1_25'])}"),
+            (f"{label} depth abs rel / RMSE (m) / delta<1.25, median over frames",
+             f"{_f(depth.get('abs_rel_median'))} / {_f(depth.get('rmse_median_m'))} / "
+             f"{_f(depth.get('delta_1_25_median'))}"),
+            (f"{label} worst frames by depth abs rel", worst_text(depth.get("worst_abs_rel", []))),
+            (f"{label} depth coverage of true pixels", f"{100 * depth['coverage']:.1f} %")]
+
+
+def image_rows(label: str, images: dict) -> list[tuple[str, str]]:
+    """Report rows of an image summary beyond the means: medians, where the twin has surface, the worst frames."""
+    return [(f"{label} photorealism error / PSNR / SSIM, median over frames",
+             f"{_f(images.get('photorealism_error_median_percent'), 2)} % / {_f(images.get('psnr_median_db'), 2)} dB"
+             f" / {_f(images.get('ssim_median'))}"),
+            (f"{label} photorealism error where the twin has surface",
+             f"{_f(images['photorealism_error_covered_percent'], 2)} %"),
+            (f"{label} worst frames by photorealism error (%)",
+             worst_text(images.get("worst_photorealism_percent", []), 2))]
+
+
+def own_gps_rows(own: dict | None) -> list[tuple[str, str]]:
+    """Report rows comparing each geotag with its photo's own GPS (none without them)."""
+    if own is None:
+        return []
+    beyond = own["beyond_own_gps"]
+    return [("geotag vs the photo's own GPS: horizontal error median / max, geotag vs own GPS (m)",
+             f"{_f(own['geotag_horizontal_m']['median'])} / {_f(own['geotag_horizontal_m']['max'])} vs "
+             f"{_f(own['own_gps_horizontal_m']['median'])} / {_f(own['own_gps_horizontal_m']['max'])}"),
+            ("geotag photos furthest beyond their own GPS's error (m)", worst_text(own["worst_excess_m"])),
+            (f"geotag photos tagged from their own GPS / beyond their own GPS's error by more than "
+             f"{own['limit_m']:g} m", f"{own['tagged_from_own_gps']} / {len(beyond)}"
+             + (f" ({worst_text(beyond)})" if beyond else ""))]
 
 
 def total_wall_s(report: dict) -> float:
@@ -293,7 +440,8 @@ def plot(report: dict, path: Path) -> None:
             axes[0].plot(range(len(errors)), list(errors.values()), marker=".", label=label)
     axes[0].set(title="camera position error vs truth", xlabel="photo (name order)", ylabel="m")
     axes[0].legend()
-    for name, label in (("twin_vs_true", "twin vs true render"), ("twin_vs_photos", "twin vs photo")):
+    for name, label in (("twin_vs_true", "twin vs true render"), ("twin_vs_photos", "twin vs photo"),
+                        ("twin_own_vs_photos", "twin at its own cameras vs photo")):
         if name in m:
             axes[1].plot(m[name]["per_frame_error_percent"], marker=".", label=label)
     axes[1].axhline(12.49, color="grey", linestyle=":", label="paper 12.49 %")

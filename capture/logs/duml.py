@@ -16,9 +16,11 @@ Packets are deframed and time-stamped by :func:`capture.decode.timed_packets` an
 Time: the arrival UTC of the packet's LAST byte -- from the ``.duml.idx`` sidecar for a raw capture, from the
 record timestamps for a pcap. A raw capture without its index has no times at all (the frames carry none),
 so it is an error (a start time would not help: nothing says when each packet came); packets no index line
-covers (a kill between a data flush and its index line) are rejected (``no arrival time``). The shutter
+covers (a kill between a data flush and its index line) are rejected (``no arrival time``). Packets that
+arrived as a backlog (a burst of packets held back by the link) are timed from their DUML sequence numbers at
+their stream's own rate instead (:mod:`capture.logs.backlog`), counted in a note. The shutter
 fell between the camera state that shows it and the one before, so a photo event is placed midway between
-their arrivals: within half a camera-state push interval of the shutter (``Track.event_time_error_s``), with
+their times: within half a camera-state push interval of the shutter (``Track.event_time_error_s``), with
 no lag on average.
 
 Counting: ``rows_read`` = telemetry messages (the four kinds above, plus malformed ones of any registered
@@ -44,6 +46,7 @@ from ..messages import (CameraState, GimbalParams, HomePoint, MalformedMessage, 
 from ..raw import CaptureIndexError, index_path
 from ..track import Home, LogFormatError, ReadReport, Track, position_problem
 from ..transports import TransportError, is_pcap, replay_file
+from .backlog import backlog_note, send_times
 
 TELEMETRY = (OsdGeneral, GimbalParams, HomePoint, CameraState)
 
@@ -62,7 +65,7 @@ def read_duml_track(path, *, shutter_signal: str = "photo_state") -> Track:
         raise LogFormatError(f"{path}: no {index_path(path).name} beside it; a raw capture's packet times come "
                              "only from that index (write captures with 'aerostereo-ingest record', or read a pcap)")
     registry, deframer = default_registry(), Deframer()
-    builder = TrackBuilder(ReadReport(str(path), "duml"), shutter_signal)
+    builder = TrackBuilder(ReadReport(str(path), "duml"), shutter_signal, registry)
     truncation: list[str] = []
     try:
         for timed in timed_packets(replay_file(path, truncation), deframer):
@@ -96,16 +99,24 @@ def counts_text(counts: dict[str, int]) -> str:
 
 
 class TrackBuilder:
-    """Collects rows, home points and shutter edges from decoded packets, in arrival order."""
+    """Collects rows, home points and shutter edges from decoded packets, in arrival order; every telemetry packet
+    with an arrival time is a timing sample of its stream (sender and command) for :func:`send_times`."""
 
-    def __init__(self, report: ReadReport, shutter_signal: str) -> None:
+    def __init__(self, report: ReadReport, shutter_signal: str, registry: MessageRegistry) -> None:
         self.report = report
         self.shutter_signal = shutter_signal
-        self.times: list[float] = []
+        self.registry = registry
+        self.arrivals: list[float] = []  # per timing sample: arrival UTC s, stream id, DUML seq, stream offset
+        self.streams: list[int] = []
+        self.seqs: list[int] = []
+        self.offsets: list[int] = []
+        self.stream_ids: dict[tuple, int] = {}
+        self.stream_names: dict[int, str] = {}
+        self.row_samples: list[int] = []  # the timing sample of each row
         self.rows: list[dict[str, float]] = []
         self.homes: list[Home] = []
-        self.camera_times: list[float] = []
-        self.photo_times: list[float] = []
+        self.camera_samples: list[int] = []
+        self.shutter_edges: list[bool] = []  # per camera-state push: the shutter fell since the push before
         self.previous_camera: CameraState | None = None
 
     def add(self, timed: TimedPacket, record) -> None:
@@ -122,30 +133,42 @@ class TrackBuilder:
         if timed.receive_time_utc is None:
             return self.reject(f"no arrival time: {kind} {where} has no index line (cut off by a kill) or pcap "
                                "record time (a corrupt record)")
-        time_s = timed.receive_time_utc.timestamp()
+        sample = self.add_sample(timed, self.registry.spec_for(record).kind)
         if isinstance(record, OsdGeneral):
-            self.add_osd(time_s, record, where)
+            self.add_osd(sample, record, where)
         elif isinstance(record, GimbalParams):
-            self.add_row(time_s, gimbal_row(record))
+            self.add_row(sample, gimbal_row(record))
         elif isinstance(record, HomePoint):
             self.add_home(record, where)
         else:
-            self.add_camera_state(time_s, record)
+            self.add_camera_state(sample, record)
+
+    def add_sample(self, timed: TimedPacket, kind: str) -> int:
+        """Record the packet's arrival, stream and sequence number; returns its sample index."""
+        packet = timed.packet
+        key = (packet.sender, packet.cmd_set, packet.cmd_id)
+        stream = self.stream_ids.setdefault(key, len(self.stream_ids))
+        self.stream_names[stream] = kind
+        self.arrivals.append(timed.receive_time_utc.timestamp())
+        self.streams.append(stream)
+        self.seqs.append(packet.seq)
+        self.offsets.append(timed.offset)
+        return len(self.arrivals) - 1
 
     def reject(self, reason: str) -> None:
         self.report.reject(None, reason)
 
-    def add_row(self, time_s: float, row: dict[str, float]) -> None:
-        self.times.append(time_s)
+    def add_row(self, sample: int, row: dict[str, float]) -> None:
+        self.row_samples.append(sample)
         self.rows.append(row)
         self.report.rows_used += 1
 
-    def add_osd(self, time_s: float, osd: OsdGeneral, where: str) -> None:
+    def add_osd(self, sample: int, osd: OsdGeneral, where: str) -> None:
         if not osd.has_fix:
             return self.reject(f"no GPS fix: OSD {where} has lat/lon exactly 0 ({osd.gps_satellites} satellites)")
         if problem := position_problem(osd.latitude_deg, osd.longitude_deg):
             return self.reject(f"{problem} (OSD {where})")
-        self.add_row(time_s, osd_row(osd))
+        self.add_row(sample, osd_row(osd))
 
     def add_home(self, home: HomePoint, where: str) -> None:
         if not home.is_set:
@@ -153,11 +176,10 @@ class TrackBuilder:
         self.homes.append(Home(home.home_latitude_deg, home.home_longitude_deg, home.home_altitude_m))
         self.report.rows_used += 1
 
-    def add_camera_state(self, time_s: float, state: CameraState) -> None:
-        if is_shutter_edge(self.previous_camera, state, self.shutter_signal):
-            self.photo_times.append(0.5 * (self.camera_times[-1] + time_s))  # between the state before and this
+    def add_camera_state(self, sample: int, state: CameraState) -> None:
+        self.shutter_edges.append(is_shutter_edge(self.previous_camera, state, self.shutter_signal))
         self.previous_camera = state
-        self.camera_times.append(time_s)
+        self.camera_samples.append(sample)
         self.report.rows_used += 1
 
     def track(self, frames: int) -> Track:
@@ -166,23 +188,27 @@ class TrackBuilder:
             reasons = ", ".join(f"{n} {reason}" for reason, n in self.report.reasons().most_common()) or "none"
             raise LogFormatError(f"{self.report.source}: no usable OSD or gimbal telemetry in {frames} frames "
                                  f"(rejected: {reasons})")
-        self.report.notes.extend(self.notes())
+        times, bursts = send_times(self.arrivals, self.streams, self.seqs, self.offsets, self.stream_names)
+        camera_times = times[self.camera_samples]
+        self.report.notes.extend(self.notes(camera_times, backlog_note(bursts)))
         names = sorted({name for row in self.rows for name in row})
         columns = {name: np.array([row.get(name, math.nan) for row in self.rows]) for name in names}
-        return Track.from_rows(self.times, columns, self.report, photo_times_s=self.photo_times,
+        return Track.from_rows(times[self.row_samples], columns, self.report,
+                               photo_times_s=self.photo_times(camera_times),
                                home=self.homes[0] if self.homes else None,
-                               event_time_error_s=0.5 * self.camera_interval_s())
+                               event_time_error_s=0.5 * camera_interval_s(camera_times))
 
-    def camera_interval_s(self) -> float:
-        """Median interval between camera-state pushes (0 if unknown): a shutter falls within one of them."""
-        return float(np.median(np.diff(self.camera_times))) if len(self.camera_times) > 1 else 0.0
+    def photo_times(self, camera_times: np.ndarray) -> np.ndarray:
+        """A photo event midway between the camera state that shows a shutter edge and the one before it."""
+        edges = np.flatnonzero(self.shutter_edges)
+        return 0.5 * (camera_times[edges - 1] + camera_times[edges])
 
-    def notes(self) -> list[str]:
-        notes = ["times: arrival UTC of each packet's last byte"]
-        if self.camera_times:
-            notes.append(f"{len(self.photo_times)} photo events from {len(self.camera_times)} camera-state pushes "
-                         f"(shutter signal {self.shutter_signal}; events midway between two pushes, within "
-                         f"{0.5 * self.camera_interval_s():.3f} s of the shutter)")
+    def notes(self, camera_times: np.ndarray, backlog: str | None) -> list[str]:
+        notes = ["times: arrival UTC of each packet's last byte"] + ([backlog] if backlog else [])
+        if len(camera_times):
+            notes.append(f"{len(self.photo_times(camera_times))} photo events from {len(camera_times)} camera-state "
+                         f"pushes (shutter signal {self.shutter_signal}; events midway between two pushes, within "
+                         f"{0.5 * camera_interval_s(camera_times):.3f} s of the shutter)")
         else:
             notes.append("no camera-state pushes: no photo events")
         no_fix = self.report.reasons()["no GPS fix"]
@@ -193,6 +219,11 @@ class TrackBuilder:
         elif len(set(self.homes)) > 1:
             notes.append(f"home point moved ({len(set(self.homes))} different ones); the first is the take-off point")
         return notes
+
+
+def camera_interval_s(camera_times: np.ndarray) -> float:
+    """Median interval between camera-state pushes (0 if unknown): a shutter falls within one of them."""
+    return float(np.median(np.diff(np.sort(camera_times)))) if len(camera_times) > 1 else 0.0
 
 
 def osd_row(osd: OsdGeneral) -> dict[str, float]:

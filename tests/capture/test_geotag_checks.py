@@ -10,7 +10,6 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
-import datetime as dt
 import io
 import json
 import re
@@ -19,7 +18,6 @@ import shutil
 import numpy as np
 import pytest
 from PIL import ExifTags, Image
-from scipy.spatial.transform import Rotation
 
 from capture.cli import main
 from capture.geotag import MAX_AUTO_CLOCK_OFFSET_S, PHOTO_SOURCE, geotag_photos
@@ -34,13 +32,9 @@ from cliutil.errors import BadInput
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.geodesy import geodesic_inverse
 from flightplan.orbit import OrbitRequest, plan_orbit
-from sim.drone import Imperfections, fly
-from sim.drone.link import duml_frames, write_raw_capture
-from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
-from sim.drone.photos import photo_camera, photo_geotag, write_dji_jpeg
+from tests.capture.virtual_flights import START, assert_within_the_noise_model, virtual_flight
 from tests.sim.drone_helpers import short_orbit_csv
 
-START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)  # the synthetic logs' and virtual flights' start
 YEREVAN_2024 = START.timestamp()
 GPS_ALTITUDE_ENTRY = b"\x06\x00\x05\x00\x01\x00\x00\x00"  # little-endian GPS IFD entry: GPSAltitude, RATIONAL, 1
 
@@ -238,40 +232,6 @@ def run_cli(argv):
 
 
 # --- falling back to the photo's own metadata ------------------------------------------------------------------
-
-def virtual_flight(mission_csv, folder, seed):
-    """Fly a Litchi mission with realistic noise; write its DUML capture (``folder/flight.duml``) and tiny photos
-    with the metadata the drone's camera writes (``folder/photos``). Returns the mission (truth) and the track."""
-    waypoints = waypoints_from_litchi(litchi.read_mission_csv(mission_csv))
-    mission = fly(waypoints, home_below_first_waypoint(waypoints, 1000.0), Imperfections.realistic(), seed=seed)
-    write_raw_capture(duml_frames(mission), folder / "flight.duml", START)
-    (folder / "photos").mkdir()
-    truth, home_h = mission.photos, mission.sensors.measured_home()[2]
-    rgb = np.full((30, 40, 3), 128, np.uint8)
-    for index in np.flatnonzero(truth.taken):
-        camera_time = START.replace(tzinfo=None) + dt.timedelta(seconds=float(truth.camera_time_s[index]))
-        write_dji_jpeg(folder / "photos" / truth.names[index], rgb,
-                       photo_geotag(truth, index, home_h, truth.names[index]), camera_time, photo_camera(40, 30))
-    return mission, read_track(folder / "flight.duml")
-
-
-def assert_within_the_noise_model(tags, mission):
-    """Each tag's position within 4 sigma of the GPS (horizontal) and barometer (vertical) models of its true
-    position, its camera rotation within 0.5 deg of the true one, its latitude the photo's own GPS."""
-    truth, imperfections, frame = mission.photos, mission.flight.imperfections, mission.flight.frame
-    index = {name: i for i, name in enumerate(truth.names)}
-    gps_axis = np.hypot(imperfections.gps_noise_std_m, imperfections.gps_bias_std_m)
-    baro = np.hypot(imperfections.baro_bias_std_m, imperfections.baro_noise_std_m)
-    for tag in tags:
-        i = index[tag.image_name]
-        error = frame.enu_points(tag.lat_deg, tag.lon_deg, frame.h0_m + tag.height_above_takeoff_m) \
-            - truth.position_enu_m[i]
-        assert np.all(np.abs(error[:2]) < 4 * gps_axis) and abs(error[2]) < 4 * baro
-        angle = np.degrees((Rotation.from_matrix(tag.R_world_cam)
-                            * Rotation.from_matrix(truth.R_world_cam[i]).inv()).magnitude())
-        assert angle < 0.5
-        assert tag.lat_deg == pytest.approx(truth.measured_latitude_deg[i], abs=1e-8)
-
 
 def test_virtual_drone_photos_in_a_telemetry_gap_fall_back_to_their_own_exif_and_xmp(tmp_path):
     """A short virtual flight (realistic noise): its DUML capture loses 10 s of telemetry. The photos taken in the
