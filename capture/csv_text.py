@@ -17,8 +17,9 @@ _FOUR_PLACES = 10 ** np.arange(3, -1, -1)
 _PADDED_LIMBS = (np.arange(_LIMB)[:, None] // _FOUR_PLACES % 10 + _ZERO).astype(np.uint8)  # i < 10000 as "%04d"
 _LIMBS = np.where((np.arange(_LIMB)[:, None] >= _FOUR_PLACES) | (_FOUR_PLACES == 1), _PADDED_LIMBS,
                   0).astype(np.uint8)  # i < 10000 as "%d", NUL-padded on the left
-_TENTHS_LIMBS = np.hstack([_LIMBS[np.arange(_LIMB) // 10, 1:], np.full((_LIMB, 1), _POINT),
-                           _PADDED_LIMBS[:, 3:]]).astype(np.uint8)  # i < 10000 as i / 10 with one decimal
+_LIMB_TEXTS = np.concatenate([_PADDED_LIMBS, _LIMBS, np.zeros_like(_LIMBS)])  # the three ways a limb is written
+_TENTHS_LIMBS = np.hstack([np.zeros((_LIMB, 3), np.uint8), _LIMBS[np.arange(_LIMB) // 10, 1:],
+                           np.full((_LIMB, 1), _POINT, np.uint8), _PADDED_LIMBS[:, 3:]])  # i / 10, 8 bytes a row
 
 
 def number_text(values: np.ndarray) -> np.ndarray:
@@ -54,32 +55,39 @@ def join_cells(cells: list, rows: int) -> tuple[bytes, np.ndarray]:
     return matrix.tobytes().translate(None, b"\0"), np.count_nonzero(matrix, axis=1)
 
 
-_POWERS_OF_TEN = 10 ** np.arange(1, 19, dtype=np.int64)
-
-
-def _digits(magnitudes: np.ndarray, minimum: int = 1) -> np.ndarray:
-    """Decimal digits of non-negative int64 ``magnitudes`` (at least ``minimum``, zero-padded), NUL-padded on
-    the left to a common width."""
+def _digits(magnitudes: np.ndarray) -> np.ndarray:
+    """Decimal digits of non-negative int64 ``magnitudes``, NUL-padded on the left to a common width: four digits
+    at a time from a table, zero-padded after the first digit, NUL-padded or empty before it."""
     largest = int(magnitudes.max()) if len(magnitudes) else 0
-    width = max(len(str(largest)), minimum)
-    if largest < _LIMB and minimum == 1:
-        return _LIMBS[:, _LIMBS.shape[1] - width:][magnitudes]
-    text = np.hstack([_PADDED_LIMBS[magnitudes // _LIMB ** i % _LIMB] for i in range((width - 1) // 4, -1, -1)])
-    text = text[:, -width:]
-    count = np.maximum(np.searchsorted(_POWERS_OF_TEN, magnitudes, side="right") + 1, minimum)
-    text[np.arange(width) < (width - count)[:, None]] = 0
-    return text
+    width = len(str(largest))
+    if largest < _LIMB:
+        return _gathered(_LIMBS, magnitudes, width)
+    count = -(-width // 4)
+    rows = np.empty((len(magnitudes), count), dtype=np.int64)  # limbs, most significant first, as table rows
+    started = np.zeros(len(magnitudes), dtype=bool)  # a digit was written in an earlier limb
+    for position, power in enumerate(range(count - 1, -1, -1)):
+        limb = magnitudes // _LIMB ** power % _LIMB
+        digits_here = (limb != 0) | (power == 0)
+        rows[:, position] = limb + _LIMB * np.where(started, 0, np.where(digits_here, 1, 2))
+        started |= digits_here
+    return _gathered(_LIMB_TEXTS, rows, width)
 
 
 def _tenths_digits(magnitudes: np.ndarray) -> np.ndarray:
     """``magnitudes / 10`` with one decimal (``0.5``, ``12.0``), NUL-padded on the left to a common width."""
     largest = int(magnitudes.max()) if len(magnitudes) else 0
     if largest < _LIMB:
-        width = len(str(largest // 10)) + 2
-        return _TENTHS_LIMBS[:, _TENTHS_LIMBS.shape[1] - width:][magnitudes]
-    digits = _digits(magnitudes, minimum=2)
-    point = np.full((len(digits), 1), _POINT, np.uint8)
-    return np.hstack([digits[:, :-1], point, digits[:, -1:]])
+        return _gathered(_TENTHS_LIMBS, magnitudes, len(str(largest // 10)) + 2)
+    point = np.full((len(magnitudes), 1), _POINT, np.uint8)
+    return np.hstack([_digits(magnitudes // 10), point, (magnitudes % 10 + _ZERO).astype(np.uint8)[:, None]])
+
+
+def _gathered(table: np.ndarray, rows: np.ndarray, width: int) -> np.ndarray:
+    """The last ``width`` bytes of ``table``'s rows ``rows`` ((n,) or (n, k) of them, side by side): gathered as
+    one 4- or 8-byte word per row, much faster than rows of bytes."""
+    words = table.view(np.uint32 if table.shape[1] == 4 else np.uint64)[:, 0][rows]
+    text = words.view(np.uint8).reshape(len(rows), table.shape[1] * int(np.prod(rows.shape[1:])))
+    return text[:, text.shape[1] - width:]
 
 
 def _signed(negative: np.ndarray, text: np.ndarray) -> np.ndarray:

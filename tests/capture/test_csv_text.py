@@ -7,6 +7,8 @@ import pytest
 
 from capture.csv_text import join_cells, number_text, strings_text
 
+pytestmark = pytest.mark.filterwarnings("error")  # NaN, inf and overflow pass silently (decode's stderr stays clean)
+
 
 def _texts(values: np.ndarray) -> list[str]:
     data, lengths = join_cells([b"<", number_text(values), b">\n"], len(values))
