@@ -1,7 +1,7 @@
 """Benchmark: DUML deframing (with both CRCs), telemetry decoding and the whole ``decode`` CLI on synthetic dumps.
 
-Two message mixes (``--mixes``), each a 1 MB block of traffic repeated up to the requested size with 1 % of all
-bytes then corrupted:
+Message mixes (``--mixes``, the first two by default), each a 1 MB block of traffic repeated up to the requested
+size with 1 % of all bytes then corrupted:
 
 - ``sparse``, per simulated second like a P3X FC/OFDM link: OSD General 10 Hz, Gimbal Params 50 Hz, Home Point
   1 Hz, plus ~100 Hz of other chatter (random cmd ids, 1-60 byte payloads): 40 % of the intact frames decoded;
