@@ -42,6 +42,7 @@ CRC8_SEED = 0x77
 CRC16_SEED = 0x3692  # P3/P4/Mavic; OGS also lists 0x1012 Naza-M, 0x1013 Phantom 2, 0x7000 Naza-M V2
 
 _CRC8_POLY_REFLECTED = 0x8C
+_CRC16_POLY_REFLECTED = 0x8408
 
 
 def _reverse_bits(value: int, width: int) -> int:
@@ -58,10 +59,30 @@ def _crc8_table() -> np.ndarray:
     return table
 
 
+def _crc16_table() -> np.ndarray:
+    crc = np.arange(256, dtype=np.uint16)
+    for _ in range(8):
+        crc = np.where(crc & 1, (crc >> 1) ^ _CRC16_POLY_REFLECTED, crc >> 1).astype(np.uint16)
+    return crc
+
+
 _CRC8_TABLE = _crc8_table()
+_CRC16_TABLE = _crc16_table()
+# a frame length shared by at least this many candidates per byte is CRC-checked by columns (fewer: crc_hqx per
+# frame is faster; one numpy step per byte costs about what 20-40 crc_hqx calls do)
+_COLUMN_CRC_FRAMES_PER_BYTE = 100
 _CRC8_TABLE_BYTES = _CRC8_TABLE.tobytes()
 _BIT_REVERSED_BYTES = bytes(_reverse_bits(b, 8) for b in range(256))
-_BIT_REVERSED_U16 = np.array([_reverse_bits(v, 16) for v in range(1 << 16)], dtype=np.uint16)
+
+
+def _bit_reversed_u16() -> np.ndarray:
+    """Every u16 bit-reversed (each byte reversed, the two swapped); numpy, as a Python loop took 40 ms to import."""
+    reversed_bytes = np.frombuffer(_BIT_REVERSED_BYTES, np.uint8).astype(np.uint16)
+    values = np.arange(1 << 16)
+    return reversed_bytes[values & 0xFF] << 8 | reversed_bytes[values >> 8]
+
+
+_BIT_REVERSED_U16 = _bit_reversed_u16()
 
 
 def crc8(data: bytes, seed: int = CRC8_SEED) -> int:
@@ -187,6 +208,14 @@ class FrameBatch(NamedTuple):
     lengths: np.ndarray
 
 
+class FramePiece(NamedTuple):
+    """Accepted frames of one scanned buffer; ``buffer[0]`` is at stream offset ``offset``."""
+
+    buffer: bytes
+    offset: int
+    frames: FrameBatch
+
+
 class Deframer:
     """Incremental DUML v1 deframer: feed arbitrary chunks, get ``(stream_offset, Packet)`` pairs.
 
@@ -209,31 +238,37 @@ class Deframer:
 
     def feed(self, data: bytes) -> list[tuple[int, Packet]]:
         """Append ``data`` to the stream; return the frames completed by it, in stream order."""
-        packets = []
-        for start in range(0, len(data), _MAX_SCAN_BYTES):  # bounds the per-byte scratch arrays
-            piece = bytes(data[start:start + _MAX_SCAN_BYTES])
-            self.stats.bytes_fed += len(piece)
-            packets += self._process(self._pending + piece, final=False)
-        return packets
+        return _offsets_and_packets(self.feed_pieces(data))
 
     def flush(self) -> list[tuple[int, Packet]]:
         """End of stream: resolve held-back bytes (frames cut short are counted as truncated)."""
-        return self._process(self._pending, final=True)
+        return _offsets_and_packets([self.flush_piece()])
+
+    def feed_pieces(self, data: bytes) -> list[FramePiece]:
+        """:meth:`feed` without Packets: the frames completed by ``data`` (of the commands asked for), per
+        scanned buffer (at most 4 MiB of new data each). Used by bulk decoders."""
+        pieces = []
+        for start in range(0, len(data), _MAX_SCAN_BYTES):  # bounds the per-byte scratch arrays
+            piece = bytes(data[start:start + _MAX_SCAN_BYTES])
+            self.stats.bytes_fed += len(piece)
+            pieces.append(self._piece(self._pending + piece, final=False))
+        return pieces
+
+    def flush_piece(self) -> FramePiece:
+        """:meth:`flush` without Packets."""
+        return self._piece(self._pending, final=True)
 
     def feed_frames(self, data: bytes, final: bool = False) -> tuple[bytes, int, FrameBatch]:
-        """Lower-level :meth:`feed`: return ``(buffer, buffer_stream_offset, FrameBatch)`` without Packets.
-
-        The frames' bytes are ``buffer[start:start + length]``. Used by bulk decoders and the benchmark.
-        """
+        """Lower-level :meth:`feed`: return ``(buffer, buffer_stream_offset, FrameBatch)`` without Packets, for
+        every command and with no bound on the buffer. The frames' bytes are ``buffer[start:start + length]``.
+        Used by the benchmark."""
         self.stats.bytes_fed += len(data)
         buffer = self._pending + bytes(data)
         return buffer, self._pending_offset, self._scan_and_consume(buffer, final)
 
-    def _process(self, buffer: bytes, final: bool) -> list[tuple[int, Packet]]:
-        base = self._pending_offset
-        batch = self._wanted(buffer, self._scan_and_consume(buffer, final))
-        offsets = (batch.starts + base).tolist()
-        return list(zip(offsets, packets_from_frames(buffer, batch)))
+    def _piece(self, buffer: bytes, final: bool) -> FramePiece:
+        offset = self._pending_offset
+        return FramePiece(buffer, offset, self._wanted(buffer, self._scan_and_consume(buffer, final)))
 
     def _wanted(self, buffer: bytes, batch: FrameBatch) -> FrameBatch:
         """The frames of ``batch`` whose command was asked for; the others are counted as unbuilt."""
@@ -265,6 +300,14 @@ def deframe(chunks: Iterable[bytes], deframer: Deframer | None = None) -> Iterat
     for chunk in chunks:
         yield from deframer.feed(chunk)
     yield from deframer.flush()
+
+
+def _offsets_and_packets(pieces: list[FramePiece]) -> list[tuple[int, Packet]]:
+    """``(stream_offset, Packet)`` for every frame of ``pieces``."""
+    pairs = []
+    for buffer, offset, frames in pieces:
+        pairs += zip((frames.starts + offset).tolist(), packets_from_frames(buffer, frames))
+    return pairs
 
 
 def packets_from_frames(buffer: bytes, frames: FrameBatch) -> list[Packet]:
@@ -342,16 +385,32 @@ def _classify_candidates(buffer: bytes, array: np.ndarray, starts: np.ndarray, f
 
 
 def _crc16_ok(buffer: bytes, array: np.ndarray, starts: np.ndarray, lengths: np.ndarray, seed: int) -> np.ndarray:
-    if len(starts) == 0:
-        return np.zeros(0, dtype=bool)
-    reversed_view = memoryview(buffer.translate(_BIT_REVERSED_BYTES))
+    """Whether each candidate frame's stored CRC16 matches: frames of a length that many candidates share are
+    checked a byte position at a time over all of them (numpy), the others one by one with ``crc_hqx``."""
+    computed = np.empty(len(starts), dtype=np.uint16)
+    common, counts = np.unique(lengths, return_counts=True)
+    for length in common[counts >= _COLUMN_CRC_FRAMES_PER_BYTE * common].tolist():
+        group = np.flatnonzero(lengths == length)
+        computed[group] = _crc16_by_columns(array, starts[group], length - CRC16_LENGTH, seed)
+    rest = np.flatnonzero(~np.isin(lengths, common[counts >= _COLUMN_CRC_FRAMES_PER_BYTE * common]))
+    if len(rest):
+        reversed_view = memoryview(buffer.translate(_BIT_REVERSED_BYTES))
+        seed_reversed = _reverse_bits(seed, 16)
+        crc_hqx = binascii.crc_hqx
+        computed[rest] = _BIT_REVERSED_U16[np.fromiter(
+            (crc_hqx(reversed_view[s:s + n], seed_reversed) for s, n in
+             zip(starts[rest].tolist(), (lengths[rest] - CRC16_LENGTH).tolist())), dtype=np.uint16, count=len(rest))]
     ends = starts + lengths - CRC16_LENGTH
-    seed_reversed = _reverse_bits(seed, 16)
-    crc_hqx = binascii.crc_hqx
-    computed = np.fromiter((crc_hqx(reversed_view[s:e], seed_reversed) for s, e in zip(starts.tolist(), ends.tolist())),
-                           dtype=np.uint16, count=len(starts))
-    stored = array[ends].astype(np.uint16) | array[ends + 1].astype(np.uint16) << 8
-    return computed == _BIT_REVERSED_U16[stored]
+    return computed == (array[ends].astype(np.uint16) | array[ends + 1].astype(np.uint16) << 8)
+
+
+def _crc16_by_columns(array: np.ndarray, starts: np.ndarray, size: int, seed: int) -> np.ndarray:
+    """CRC16 of ``array[start:start + size]`` for every start (table-driven, one byte position at a time)."""
+    columns = array[starts[None, :] + np.arange(size)[:, None]]
+    crc = np.full(len(starts), seed, dtype=np.uint16)
+    for column in columns:
+        crc = (crc >> 8) ^ _CRC16_TABLE[(crc ^ column) & 0xFF]
+    return crc
 
 
 def _greedy_non_overlapping(starts: np.ndarray, ends: np.ndarray) -> np.ndarray:

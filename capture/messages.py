@@ -8,15 +8,22 @@ Round trip: ``decode(encode(record)) == record`` for every record that a decode 
 wire as radians are converted with :func:`radians_for_degrees`, which picks the f64 radian value whose
 ``math.degrees`` is exactly the record's value when one exists). Bytes a layout does not name are kept in
 ``extension`` so that the wire payload survives too.
+
+Bulk decoding: a :class:`ColumnLayout` gives the same field values for many payloads of one message at once
+(numpy arrays, element for element equal to what the record decoder gives); record properties are written with
+operators that work on such arrays as on single values, so they can be evaluated on the columns too.
 """
 
 from __future__ import annotations
 
 import datetime as dt
 import math
+import re
 import struct
-from dataclasses import astuple, dataclass
+from dataclasses import astuple, dataclass, fields
 from typing import Any, Callable, NamedTuple
+
+import numpy as np
 
 from capture.duml import Packet, device_address, make_cmd_type
 
@@ -47,6 +54,49 @@ def _tenths(raw: int) -> float:
 
 def _to_tenths(value: float) -> int:
     return round(value * 10)
+
+
+_NUMPY_CODES = {"b": "i1", "B": "u1", "h": "<i2", "H": "<u2", "i": "<i4", "I": "<u4", "f": "<f4", "d": "<f8"}
+
+
+class ColumnLayout(NamedTuple):
+    """A message's fixed payload bytes as a numpy structured dtype (fields named as the record's) and the
+    fields sent as radians (given in degrees) or as tenths: :meth:`decode` turns many payloads into the record's
+    field values, as :class:`MessageSpec` ``decode`` would one by one."""
+
+    dtype: np.dtype
+    degrees: tuple[str, ...] = ()
+    tenths: tuple[str, ...] = ()
+
+    @classmethod
+    def of(cls, layout: struct.Struct, record_type: type, wire_order: tuple[str, ...] = (),
+           degrees: tuple[str, ...] = (), tenths: tuple[str, ...] = ()) -> ColumnLayout:
+        """The layout of ``struct`` (little-endian, standard sizes) whose values are ``record_type``'s fields in
+        order (``wire_order`` when they are sent in another order)."""
+        codes = [code for count, code in re.findall(r"(\d*)([a-zA-Z])", layout.format.lstrip("<"))
+                 for _ in range(int(count or 1))]
+        names = wire_order or [f.name for f in fields(record_type)][:len(codes)]
+        if set(names) != {f.name for f in fields(record_type)} - {"extension"}:
+            raise ValueError(f"{layout.format}: sends {names}, not the fields of {record_type.__name__}")
+        dtype = np.dtype([(name, _NUMPY_CODES[code]) for name, code in zip(names, codes, strict=True)])
+        if dtype.itemsize != layout.size:
+            raise ValueError(f"{layout.format}: not a packed little-endian layout")
+        return cls(dtype, degrees, tenths)
+
+    def decode(self, payloads: np.ndarray) -> dict[str, np.ndarray]:
+        """Field values by name for ``payloads``, an (n, ``dtype.itemsize``) uint8 array of payload prefixes:
+        integers as sent, radians as float64 degrees, tenths as float64 units."""
+        raw = np.ascontiguousarray(payloads).view(self.dtype)[:, 0]
+        columns = {}
+        with np.errstate(invalid="ignore", over="ignore"):  # NaN and inf as sent, silently, as math.degrees does
+            for name in self.dtype.names:
+                if name in self.degrees:
+                    columns[name] = np.degrees(raw[name])
+                elif name in self.tenths:
+                    columns[name] = raw[name].astype(np.float64) / 10
+                else:
+                    columns[name] = raw[name]
+        return columns
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,7 +136,7 @@ class OsdGeneral:
 
     @property
     def has_fix(self) -> bool:
-        return not (self.latitude_deg == 0.0 and self.longitude_deg == 0.0)
+        return (self.latitude_deg != 0.0) | (self.longitude_deg != 0.0)
 
     @property
     def flight_mode(self) -> int:
@@ -98,6 +148,9 @@ class OsdGeneral:
 
 
 _OSD = struct.Struct("<2d7h2BI6BH5Bb")
+_OSD_COLUMNS = ColumnLayout.of(_OSD, OsdGeneral, degrees=("longitude_deg", "latitude_deg"), tenths=(
+    "height_above_takeoff_m", "velocity_x_mps", "velocity_y_mps", "velocity_z_mps", "pitch_deg", "roll_deg",
+    "yaw_deg", "ultrasonic_height_m", "fly_time_s"))
 
 
 def _decode_osd(payload: bytes) -> OsdGeneral:
@@ -140,10 +193,12 @@ class HomePoint:
 
     @property
     def is_set(self) -> bool:
-        return bool(self.home_state & 1) and abs(self.home_latitude_deg) <= 90.0
+        return ((self.home_state & 1) == 1) & (abs(self.home_latitude_deg) <= 90.0)
 
 
 _HOME = struct.Struct("<2df3H2B2H")
+_HOME_COLUMNS = ColumnLayout.of(_HOME, HomePoint, degrees=("home_longitude_deg", "home_latitude_deg"),
+                                tenths=("home_altitude_m",))
 
 
 def _decode_home(payload: bytes) -> HomePoint:
@@ -178,6 +233,8 @@ class GimbalParams:
 
 
 _GIMBAL = struct.Struct("<3hBbh2B")
+_GIMBAL_COLUMNS = ColumnLayout.of(_GIMBAL, GimbalParams, tenths=("pitch_deg", "roll_deg", "yaw_deg",
+                                                                  "roll_adjust_deg", "joystick_yaw_deg"))
 
 
 def _decode_gimbal(payload: bytes) -> GimbalParams:
@@ -282,6 +339,7 @@ class MessageSpec(NamedTuple):
     encode: Callable[[Any], bytes]
     default_sender: int
     default_receiver: int
+    columns: ColumnLayout | None = None  # bulk decoding (None: records are decoded one by one)
 
 
 class UndecodedMessage(NamedTuple):
@@ -327,10 +385,10 @@ class MessageRegistry:
         """The packet's record, an :class:`UndecodedMessage` or a :class:`MalformedMessage` (all counted)."""
         spec = self._by_command.get((packet.cmd_set, packet.cmd_id))
         if spec is None:
-            self._count("undecoded")
+            self.count("undecoded")
             return UndecodedMessage(packet)
         if not spec.min_payload <= len(packet.payload) <= spec.max_payload:
-            self._count(f"malformed_{spec.kind}")
+            self.count(f"malformed_{spec.kind}")
             return MalformedMessage(packet, f"{spec.kind} payload of {len(packet.payload)} bytes, expected "
                                             f"{spec.min_payload}..{spec.max_payload}")
         self.counts[spec.kind] += 1
@@ -343,9 +401,10 @@ class MessageRegistry:
 
     def count_undecoded(self, packets: int) -> None:
         """Count ``packets`` that were never built because their command has no decoder (see ``commands``)."""
-        self._count("undecoded", packets)
+        self.count("undecoded", packets)
 
-    def _count(self, key: str, packets: int = 1) -> None:
+    def count(self, key: str, packets: int = 1) -> None:
+        """Add ``packets`` to the counter ``key`` (a kind, ``malformed_KIND`` or ``undecoded``)."""
         self.counts[key] = self.counts.get(key, 0) + packets
 
 
@@ -354,12 +413,15 @@ def default_specs() -> list[MessageSpec]:
     fc, gimbal, camera, app, pc = (device_address(t) for t in
                                    (DEVICE_FLIGHT_CONTROLLER, DEVICE_GIMBAL, DEVICE_CAMERA, DEVICE_APP, DEVICE_PC))
     return [
-        MessageSpec(0x03, 0x43, "osd_general", OsdGeneral, 50, 55, _decode_osd, _encode_osd, fc, app),
-        MessageSpec(0x03, 0x44, "home_point", HomePoint, _HOME.size, 1010, _decode_home, _encode_home, fc, app),
-        MessageSpec(0x04, 0x05, "gimbal_params", GimbalParams, 12, 24, _decode_gimbal, _encode_gimbal, gimbal, fc),
+        MessageSpec(0x03, 0x43, "osd_general", OsdGeneral, 50, 55, _decode_osd, _encode_osd, fc, app, _OSD_COLUMNS),
+        MessageSpec(0x03, 0x44, "home_point", HomePoint, _HOME.size, 1010, _decode_home, _encode_home, fc, app,
+                    _HOME_COLUMNS),
+        MessageSpec(0x04, 0x05, "gimbal_params", GimbalParams, 12, 24, _decode_gimbal, _encode_gimbal, gimbal, fc,
+                    _GIMBAL_COLUMNS),
         MessageSpec(0x02, 0x80, "camera_state", CameraState, _CAMERA.size, 1010, _decode_camera, _encode_camera,
-                    camera, app),
-        MessageSpec(0x03, 0x1C, "date_time_set", DateTimeSet, 7, 7, _decode_datetime, _encode_datetime, app, fc),
+                    camera, app, ColumnLayout.of(_CAMERA, CameraState)),
+        MessageSpec(0x03, 0x1C, "date_time_set", DateTimeSet, 7, 7, _decode_datetime, _encode_datetime, app, fc,
+                    ColumnLayout.of(_DATETIME, DateTimeSet, ("hour", "minute", "second", "year", "month", "day"))),
     ]
 
 

@@ -127,3 +127,22 @@ def test_skipped_bytes_are_counted_per_reason_as_defined_byte_by_byte(stream_seg
     finally:
         duml._skipped_counts = counting
     assert scan.skipped_counts == _per_byte_reasons(*captured[0])
+
+
+def test_frames_of_a_common_length_checked_by_columns_are_exactly_the_intact_ones():
+    """Thousands of gimbal-sized frames (their CRC16 checked a byte position at a time over all of them) among
+    frames of other lengths (checked one by one), with bit flips and cuts: exactly the intact frames come out."""
+    rng = np.random.default_rng(4)
+    segments = []
+    for i in range(5000):
+        payload = rng.integers(0, 256, 12 if i % 10 else int(rng.integers(0, 40)), dtype=np.uint8).tobytes()
+        packet, damage = Packet(4, 3, i, 0, 4, 5, payload), rng.random()
+        segments.append(("intact", packet) if damage < 0.8 else
+                        ("bitflip", packet, rng.random(), int(rng.integers(8))) if damage < 0.9 else
+                        ("truncated", packet, rng.random()))
+    stream, intact = _build(segments)
+    gimbal_sized = sum(packet.frame_length == 25 for packet in intact.values())
+    assert gimbal_sized >= duml._COLUMN_CRC_FRAMES_PER_BYTE * 25  # so the column check is the one tested
+    deframer = Deframer()
+    assert dict(deframer.feed(stream) + deframer.flush()) == intact
+    assert deframer.stats.rejected_frames["bad_packet_crc"] + deframer.stats.rejected_frames["truncated"] > 500
