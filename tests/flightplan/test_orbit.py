@@ -30,7 +30,7 @@ def assert_orbit_geometry(plan, ring_index=0):
         assert back["s12"] == pytest.approx(ring.radius_m, abs=1e-3)
         assert w.altitude_m == ring.height_m
         heading_error = (w.heading_deg - back["azi1"] + 180.0) % 360.0 - 180.0
-        assert abs(heading_error) <= 0.5 + 1e-9
+        assert abs(heading_error) <= 0.5 + 1e-6  # a half-degree tie rounds either way, to float noise
         assert 0.0 <= w.heading_deg < 360.0 and w.heading_deg == int(w.heading_deg)
         assert w.speed_m_s == request.speed_m_s > 0.0
         assert w.photo_time_interval_s == request.photo_interval_s
