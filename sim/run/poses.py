@@ -75,11 +75,10 @@ class PoseSource:
 
     def __init__(self, scene: Scene, poses: PoseOptions, rig: RigOptions, left_camera: PinholeCamera, seed: int):
         self.options, self.seed, self.baseline_m = poses, seed, rig.baseline_m
-        self._rig = build_rig(rig, left_camera)
         self.ground = SceneGround(scene)
         self.replayed: list[PoseSample] | None = None
         self.path = None
-        self.frustum = ViewFrustum.of_rig(self._rig) if poses.margin_m is None else None
+        self.frustum = ViewFrustum.of_rig(build_rig(rig, left_camera)) if poses.margin_m is None else None
         self.fitted: str | None = None
         if poses.mode == "random":
             self._probe = functools.partial(miss_fraction, scene, left_camera)
@@ -127,7 +126,8 @@ class PoseSource:
         return [replace(given, height_range_m=h, margin_m=m) for h in heights for m in margins]
 
     def _fit_rate(self, candidate: PoseOptions) -> float:
-        frustum = ViewFrustum.of_rig(self._rig) if candidate.margin_m is None else None
+        """The share of trial draws that fit under ``candidate`` (the rig's frustum where its margin is None)."""
+        frustum = self.frustum if candidate.margin_m is None else None
         return fit_rate(self.ground, self.seed, candidate.random_settings(), self._probe, frustum)
 
     def _nothing_fits(self, candidates: list[PoseOptions], rates: list[float]) -> str:
@@ -141,7 +141,8 @@ class PoseSource:
                 looser = replace(candidate, max_sky_fraction=max_sky)
                 if max_sky > candidate.max_sky_fraction and self._fit_rate(looser) >= MIN_FIT_RATE:
                     return f"{text}; --max-sky {max_sky:g} would fit at {_poses_text(looser)}"
-        return f"{text}, nor with --max-sky {RELAXED_MAX_SKY[-1]:g}: the scene's surface is too small or has too many holes"
+        return (f"{text}, nor with --max-sky {RELAXED_MAX_SKY[-1]:g}: the scene's surface is too small or has too "
+                "many holes")
 
     def _trajectory(self) -> Trajectory | RigPath:
         """The trajectory of the options: the polyline, or with an IMU its smooth version (sim/motion); a virtual
