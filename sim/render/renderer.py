@@ -1,4 +1,5 @@
-"""Render a rig's views of a scene: RGB, planar depth, ray distance, normals and a valid mask per camera.
+"""Render a rig's views of a scene: RGB, planar depth, ray distance, normals, the triangle hit and a valid mask per
+camera.
 
 Pipeline, run on contiguous image-order blocks of pixels, each block through every stage on one thread of a
 pool: camera rays -> closest hits -> one shadow ray towards the sun per sun-facing hit -> texture + Lambert
@@ -37,15 +38,24 @@ SHADOW_BIAS_RELATIVE = 4e-6
 class View:
     """One camera's image: ``rgb`` (H, W, 3) uint8 sRGB; ``depth`` planar z and ``distance`` ray length
     (H, W) float32 metres, +inf on miss; ``normal`` (H, W, 3) float32 ENU unit normals facing the camera
-    (0 on miss); ``valid`` (H, W) bool (something was hit); the camera and its pose ``T_world_cam``."""
+    (0 on miss); ``triangle`` (H, W) int32 the index into ``scene.faces`` of the face hit (-1 on miss: what class
+    and instance images look up, :class:`sim.render.labels.SceneLabels`); ``valid`` (H, W) bool (something was hit);
+    the camera and its pose ``T_world_cam``."""
 
     rgb: np.ndarray
     depth: np.ndarray
     distance: np.ndarray
     normal: np.ndarray
+    triangle: np.ndarray
     valid: np.ndarray
     camera: PinholeCamera
     T_world_cam: np.ndarray
+
+    def camera_normal(self) -> np.ndarray:
+        """``normal`` in the camera frame (OpenCV axes: x right, y down, z forward), (H, W, 3) float32 unit vectors
+        facing the camera (negative z), 0 on miss."""
+        rotation = np.asarray(self.T_world_cam, dtype=np.float64)[:3, :3]
+        return (self.normal.reshape(-1, 3) @ rotation.astype(np.float32)).reshape(self.normal.shape)
 
 
 @dataclass(frozen=True)
@@ -61,8 +71,9 @@ class Frame:
 #: goes through every stage (rays, hits, shadow rays, shading, film) on one thread while its arrays are still in
 #: cache, with no barrier between stages. Fixed, so supersampled images do not depend on the number of CPUs.
 BLOCK_PIXELS = 131072
-#: Bytes per pixel of one view's output arrays (rgb 3, depth 4, distance 4, normal 12, valid 1); see ``_ViewImages``.
-VIEW_BYTES_PER_PIXEL = 24
+#: Bytes per pixel of one view's output arrays (rgb 3, depth 4, distance 4, normal 12, triangle 4, valid 1); see
+#: ``_ViewImages``.
+VIEW_BYTES_PER_PIXEL = 28
 
 
 def render_memory_bytes(pixels_per_view: Sequence[int], samples_per_pixel: int, threads: int) -> int:
@@ -146,6 +157,7 @@ class _ViewImages:
         self.depth = np.empty(n, np.float32)
         self.distance = np.empty(n, np.float32)
         self.normal = np.empty((n, 3), np.float32)
+        self.triangle = np.empty(n, np.int32)
         self.valid = np.empty(n, bool)
 
     def blocks(self) -> list[slice]:
@@ -155,18 +167,21 @@ class _ViewImages:
         return [slice(start, stop) for start, stop in zip(edges[:-1], edges[1:])]
 
     def store(self, pixels: slice, radiance: np.ndarray, centre: Rays, centre_hits: Hits) -> None:
-        """Film: 8-bit sRGB of the averaged radiance, and depth, distance, normals, validity of the centre rays."""
+        """Film: 8-bit sRGB of the averaged radiance, and depth, distance, normals, triangles, validity of the centre
+        rays."""
         self.rgb[pixels] = to_srgb8(radiance)
         self.depth[pixels] = np.where(centre_hits.hit, centre_hits.t * centre.depth_scale, np.float32(np.inf))
         self.distance[pixels] = centre_hits.t
         self.normal[pixels] = centre_hits.normal
+        self.triangle[pixels] = centre_hits.tri
         self.valid[pixels] = centre_hits.hit
 
     def view(self) -> View:
         shape = self.camera.shape
         return View(
             rgb=self.rgb.reshape(*shape, 3), depth=self.depth.reshape(shape), distance=self.distance.reshape(shape),
-            normal=self.normal.reshape(*shape, 3), valid=self.valid.reshape(shape), camera=self.camera,
+            normal=self.normal.reshape(*shape, 3), triangle=self.triangle.reshape(shape), valid=self.valid.reshape(shape),
+            camera=self.camera,
             T_world_cam=self.T_world_cam,
         )
 

@@ -24,9 +24,10 @@ from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
 from sim.render.capture_light import read_capture_light
+from sim.render.labels import SceneLabels, read_labels
 from sim.render.mesh_file import check_mesh_file
 from sim.render.scene_cameras import CamerasError, SceneCamera, read_cameras
-from sim.render.sky_file import SkyVisibility, StoredSky, read_sky_visibility
+from sim.render.sky_file import SkyVisibility, StoredSky, mesh_sha256, read_sky_visibility
 from sim.render.texture import MAX_TEXTURE_SIDE, linear_texture
 from sim.render.glb import GEOREF_FORMAT, GEOREF_KEY, enu_from_gltf
 
@@ -78,7 +79,9 @@ class Scene:
     float64 ENU point subtracted before the float32 cast, ``bounds`` the ``(2, 3)`` ENU box
     ``[min, max]`` of the triangles; ``embree`` is the committed embree scene
     in those recentred float32 coordinates. ``origin`` is the geodetic origin of the ENU frame. ``cameras``:
-    a reconstruction's registered photos (``cameras.json``; empty for other scenes).
+    a reconstruction's registered photos (``cameras.json``; empty for other scenes). ``labels``: the class, object and
+    confidence of every face (:mod:`sim.render.labels`; given for the faces as passed in, kept for those left), or
+    None for a scene without labels.
     """
 
     vertices: np.ndarray
@@ -100,6 +103,7 @@ class Scene:
     stored_sky: StoredSky | None = field(default=None, repr=False)
     #: ``(F, 3)`` float32 unit normals of the faces' winding (which side of a face is its front).
     face_normals: np.ndarray = field(init=False, repr=False)
+    labels: SceneLabels | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.vertices = np.asarray(self.vertices, dtype=np.float64)
@@ -118,6 +122,10 @@ class Scene:
         used = self.vertices[np.unique(self.faces)]
         self.bounds = np.stack([used.min(axis=0), used.max(axis=0)])
         self.surface = _checked_surface(self.surface, len(self.vertices), kept, self.source)
+        if self.labels is not None:
+            if len(self.labels) != len(kept):
+                raise SceneError(f"{self.source}: labels for {len(self.labels)} faces, the mesh has {len(kept)}")
+            self.labels = self.labels.subset(kept)
         self.face_normals = unit_face_normals(local32, self.faces).astype(np.float32)
         self.device = self.device or shared_device()
         self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
@@ -255,7 +263,7 @@ def read_scene_json(scene_dir: Path) -> dict:
     if not isinstance(meta.get("cameras", ""), str):
         raise SceneError(f"{path}: \"cameras\" must name the cameras file (cameras.json)")
     named = [("mesh", meta["mesh"]), ("cameras", meta.get("cameras"))]
-    for key in ("capture_light", "sky_visibility"):
+    for key in ("capture_light", "sky_visibility", "labels"):
         entry = meta.get(key)
         if entry is not None and not (isinstance(entry, dict) and isinstance(entry.get("file"), str)):
             raise SceneError(f"{path}: \"{key}\" must be {{\"file\": NAME, ...}}, got {entry!r}")
@@ -305,7 +313,27 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
         surface = replace(surface, capture_light=read_scene_capture_light(scene_dir, meta))
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
                  str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
-                 observed_area_m=meta.get("observed_area_m"), stored_sky=read_scene_sky_visibility(scene_dir, meta))
+                 observed_area_m=meta.get("observed_area_m"), stored_sky=read_scene_sky_visibility(scene_dir, meta),
+                 labels=read_scene_labels(scene_dir, meta, vertices, faces))
+
+
+def read_scene_labels(scene_dir: Path, meta: dict, vertices: np.ndarray, faces: np.ndarray) -> SceneLabels | None:
+    """The face labels ``scene.json`` (``meta``) names, for the mesh ``vertices`` and ``faces`` as read
+    (:func:`read_scene_mesh_enu`); None where it names none. A file that is missing, unreadable or made for another
+    mesh is a :class:`SceneError`."""
+    if "labels" not in meta:
+        return None
+    path = Path(scene_dir) / meta["labels"]["file"]
+    if not path.is_file():
+        raise SceneError(f"{path}: labels file not found (scene.json names it)")
+    try:
+        labels, labelled_mesh = read_labels(path)
+    except ValueError as error:
+        raise SceneError(str(error)) from None
+    if labelled_mesh != mesh_sha256(vertices, faces):
+        raise SceneError(f"{path}: labels of another mesh than {meta['mesh']} (its SHA-256 differs); label the scene "
+                         f"again (aerostereo-recon labels {scene_dir})")
+    return labels
 
 
 def read_scene_sky_visibility(scene_dir: Path, meta: dict) -> StoredSky | None:
