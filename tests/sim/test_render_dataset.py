@@ -521,8 +521,8 @@ def test_the_memory_estimate_counts_every_array_a_view_keeps(scene_dir):
     T = renderer.poses.pose(0).T_world_cam
     views = render(renderer.scene, rig, T, Sun(0.0, 45.0, 1.0), pool=renderer.pool).views
     renderer.close()
-    kept = sum(view.rgb.nbytes + view.depth.nbytes + view.distance.nbytes + view.normal.nbytes + view.valid.nbytes
-               for view in views)
+    kept = sum(view.rgb.nbytes + view.depth.nbytes + view.distance.nbytes + view.normal.nbytes + view.triangle.nbytes
+               + view.valid.nbytes for view in views)
     assert kept == render_memory_bytes([40 * 30] * len(views), 1, 1) == VIEW_BYTES_PER_PIXEL * 40 * 30 * len(views)
     # Supersampling adds each thread's sample pattern: 2 bytes per sample and pixel, twice while permuted.
     assert render_memory_bytes([40 * 30] * 2, 16, 3) - kept == 3 * 4 * 16 * 40 * 30
