@@ -113,6 +113,15 @@ class KittiLayout:
     def disparity_dir(self, view: int) -> Path:
         return self.sequence_dir / f"disp_{colour_camera_number(view)}"
 
+    def normal_dir(self, view: int) -> Path:
+        return self.sequence_dir / f"normal_{colour_camera_number(view)}"
+
+    def semantic_dir(self, view: int) -> Path:
+        return self.sequence_dir / f"semantic_{colour_camera_number(view)}"
+
+    def instance_dir(self, view: int) -> Path:
+        return self.sequence_dir / f"instance_{colour_camera_number(view)}"
+
     def replay_dir(self, view: int) -> Path:
         """Replayed photos' renders under the photos' names (links to the colour images)."""
         return self.sequence_dir / f"replay_{colour_camera_number(view)}"
