@@ -3,7 +3,8 @@
 The world is generated around ``flightplan.demo_location.DEMO_ORIGIN``: ENU metres, z up, the ground at z = 0
 under the origin. The folder holds ``world.glb`` (binary glTF, +Y up as the spec says: ENU metres stored as
 ``x = E, y = U, z = -N`` with the georeference in ``scenes[0].extras``, sim/render/glb.py; one JPEG texture atlas
-with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see docs/interfaces.md) and nothing else.
+with UVs embedded), ``scene.json`` (``aerostereo-scene/1``, see docs/interfaces.md) and ``labels.npz``, every face's
+exact class and object (sim/render/labels.py; how each is decided: sim/worlds/ground_cover.py, docs/demo-world.md).
 """
 
 from __future__ import annotations
@@ -20,6 +21,10 @@ from PIL import Image
 
 from cliutil.atomic import write_bytes_atomic, write_text_atomic
 from flightplan.demo_location import DEMO_ORIGIN
+from sim.render.classes import class_table
+from sim.render.labels import FORMAT as LABELS_FORMAT
+from sim.render.labels import LABELS_FILE, SceneLabels, write_labels
+from sim.render.sky_file import mesh_sha256
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
 from sim.worlds.geometry import Part, world_part
@@ -27,11 +32,15 @@ from sim.render.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
 
-GENERATOR_VERSION = 7
-"""Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused."""
+GENERATOR_VERSION = 8
+"""Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused. 8: the folder
+gained labels.npz and scene.json its "labels" and "classes" (world.glb unchanged)."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
 JPEG_QUALITY = 95
+LABELS_METHOD = ("exact: the generator's own parts (walls, roofs, trees: one object per building and per tree); "
+                 "terrain faces by the orthophoto's ground cover at their centroid (road, yard or village lawn: "
+                 "ground, else field)")
 
 
 def _spec(variant: str) -> WorldSpec:
@@ -48,17 +57,18 @@ def _generators(seed: int, variant: str) -> tuple[np.random.Generator, ...]:
     return tuple(np.random.default_rng(s) for s in np.random.SeedSequence(entropy).spawn(3))
 
 
-def generate_world(variant: str = "default", seed: int = 0) -> tuple[Layout, Part, np.ndarray]:
-    """The layout, the textured mesh (ENU metres) and the (texture_px, texture_px, 3) uint8 RGB atlas of a world."""
+def generate_world(variant: str = "default", seed: int = 0) -> tuple[Layout, Part, np.ndarray, SceneLabels]:
+    """The layout, the textured mesh (ENU metres), the (texture_px, texture_px, 3) uint8 RGB atlas and the labels
+    of the mesh's faces of a world."""
     spec = _spec(variant)
     layout_rng, paint_rng, mesh_rng = _generators(seed, variant)
     layout = generate_layout(spec, layout_rng)
     facades = allocate_facades(layout.buildings, spec)
     atlas = np.zeros((spec.texture_px, spec.texture_px, 3), np.float32)
-    atlas[: spec.ortho_rows] = paint_orthophoto(paint_rng, layout)
+    atlas[: spec.ortho_rows], cover = paint_orthophoto(paint_rng, layout)
     paint_facades(paint_rng, facades, layout.buildings, atlas)
-    mesh = world_part(layout, facades, mesh_rng)
-    return layout, mesh, np.clip(atlas, 0, 255).astype(np.uint8)
+    mesh, labels = world_part(layout, facades, mesh_rng, cover)
+    return layout, mesh, np.clip(atlas, 0, 255).astype(np.uint8), labels
 
 
 def encode_glb(mesh: Part, atlas: np.ndarray) -> bytes:
@@ -68,6 +78,13 @@ def encode_glb(mesh: Part, atlas: np.ndarray) -> bytes:
     Image.fromarray(atlas).save(buffer, format="JPEG", quality=JPEG_QUALITY, subsampling=0)
     return encode_textured_glb(mesh.vertices, mesh.faces, mesh.uv, buffer.getvalue(), generator="sim.worlds.demo",
                                origin=DEMO_ORIGIN)
+
+
+def stored_mesh_sha256(mesh: Part) -> str:
+    """:func:`~sim.render.sky_file.mesh_sha256` of ``mesh`` as a scene reads it back from its ``world.glb``: the GLB
+    holds float32 positions, which turn back into the very same ENU values (sim/render/glb.py), and every face in
+    order."""
+    return mesh_sha256(mesh.vertices.astype(np.float32).astype(np.float64), mesh.faces)
 
 
 def ground_height_range(layout: Layout, mesh: Part) -> tuple[float, float]:
@@ -111,17 +128,20 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
             "trees": len(layout.trees),
             "roads": len(layout.roads),
         },
+        "labels": {"file": LABELS_FILE, "format": LABELS_FORMAT, "method": LABELS_METHOD},
+        "classes": class_table(),
     }
 
 
 def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed: int = 0) -> Path:
     """Generate the demo world ``variant`` ("default", "small" or "large") for ``seed`` into the scene folder ``out_dir``
-    (created if missing; ``world.glb`` and ``scene.json`` are replaced atomically). Same arguments, same bytes.
-    Returns the folder."""
+    (created if missing; ``world.glb``, ``labels.npz`` and ``scene.json`` are replaced atomically). Same arguments,
+    same bytes. Returns the folder."""
     _spec(variant)
-    layout, mesh, atlas = generate_world(variant, seed)
+    layout, mesh, atlas, labels = generate_world(variant, seed)
     out = Path(out_dir)
     write_bytes_atomic(out / MESH_NAME, encode_glb(mesh, atlas))
+    write_labels(out / LABELS_FILE, labels, stored_mesh_sha256(mesh))
     text = json.dumps(scene_description(layout, mesh, variant, seed), indent=2) + "\n"
     write_text_atomic(out / SCENE_JSON, text)
     return out

@@ -11,7 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from sim.render.classes import ROOF, TREE, WALL
+from sim.render.labels import SceneLabels
 from sim.worlds.atlas import FacadeAtlas, ortho_uv
+from sim.worlds.ground_cover import GroundCover
 from sim.worlds.layout import Building, Layout, Tree, WorldSpec
 
 
@@ -112,10 +115,22 @@ def tree_part(tree: Tree, rng: np.random.Generator, spec: WorldSpec, sides: int 
     return Part(xyz, np.concatenate(faces), ortho_uv(xyz[:, :2], spec))
 
 
-def world_part(layout: Layout, facades: FacadeAtlas, rng: np.random.Generator) -> Part:
-    """The whole world: terrain, then buildings (walls and roofs), then trees."""
-    parts = [terrain_part(layout)]
-    parts += [wall_part(facades, i) for i in range(len(facades.walls))]
-    parts += [roof_part(b, layout.spec) for b in layout.buildings]
-    parts += [tree_part(t, rng, layout.spec) for t in layout.trees]
-    return concatenate(parts)
+def world_part(layout: Layout, facades: FacadeAtlas, rng: np.random.Generator,
+               cover: GroundCover) -> tuple[Part, SceneLabels]:
+    """The whole world: terrain, then buildings (walls and roofs), then trees; and every face's exact label.
+
+    Terrain faces take the class of the ``cover`` at their centroid; walls and roofs are building ``i``'s object
+    ``i + 1``, trees object ``B + 1 + j`` (``B`` buildings); confidence 1 everywhere.
+    """
+    terrain = terrain_part(layout)
+    labelled = [(terrain, cover.classify(terrain.vertices[terrain.faces, :2].mean(axis=1)), 0)]
+    labelled += [(wall_part(facades, i), WALL, wall.building_index + 1) for i, wall in enumerate(facades.walls)]
+    labelled += [(roof_part(b, layout.spec), ROOF, i + 1) for i, b in enumerate(layout.buildings)]
+    first_tree = len(layout.buildings) + 1
+    labelled += [(tree_part(t, rng, layout.spec), TREE, first_tree + j) for j, t in enumerate(layout.trees)]
+    counts = [len(part.faces) for part, _, _ in labelled]
+    face_class = np.concatenate([np.broadcast_to(np.asarray(c, np.uint8), (n,)) for (_, c, _), n in
+                                 zip(labelled, counts, strict=True)])
+    face_instance = np.repeat([instance for _, _, instance in labelled], counts).astype(np.uint32)
+    labels = SceneLabels(face_class, face_instance, np.ones(len(face_class), np.float32))
+    return concatenate([part for part, _, _ in labelled]), labels

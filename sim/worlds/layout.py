@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from scipy.spatial import cKDTree
+
 from sim.worlds.noise import HeightField
 
 
@@ -68,6 +70,11 @@ class Road:
     width_m: float
     surface: str
 
+    def covers(self, xy: np.ndarray) -> np.ndarray:
+        """Whether each ENU point of ``xy`` (M, 2) lies on the road: within ``width_m / 2`` of its centreline, the
+        band the orthophoto paints it in (sim/worlds/orthophoto.py)."""
+        return near_polyline(xy, self.points, self.width_m / 2)
+
 
 @dataclass(frozen=True)
 class Building:
@@ -114,6 +121,18 @@ class Building:
         return (self.center + signs[:, :1] * (self.length_m / 2) * along
                 + signs[:, 1:] * (self.width_m / 2) * across)
 
+    def local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Building-local coordinates (metres from the centre along the ridge, and across it) of the ENU points
+        ``x``, ``y`` (arrays that broadcast)."""
+        along, across = self.axes
+        x, y = x - self.center[0], y - self.center[1]
+        return x * along[0] + y * along[1], x * across[0] + y * across[1]
+
+    def covers_local(self, along_m: np.ndarray, across_m: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+        """Whether building-local points (see :meth:`local`) lie on the footprint grown by ``margin_m`` on every
+        side."""
+        return (np.abs(along_m) < self.length_m / 2 + margin_m) & (np.abs(across_m) < self.width_m / 2 + margin_m)
+
     @property
     def radius_m(self) -> float:
         """Radius of the footprint's bounding circle."""
@@ -151,6 +170,19 @@ def distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray
     t = np.clip((rel * seg).sum(-1) / np.maximum((seg * seg).sum(-1), 1e-12), 0.0, 1.0)
     closest = starts[None] + t[..., None] * seg[None]
     return np.linalg.norm(points[:, None, :] - closest, axis=-1).min(axis=1)
+
+
+def near_polyline(points: np.ndarray, polyline: np.ndarray, radius_m: float) -> np.ndarray:
+    """Whether each of ``points`` (M, 2) lies within ``radius_m`` metres of the polyline (N, 2); for many points
+    (a k-d tree finds each segment's candidates, :func:`distance_to_polyline` decides)."""
+    near = np.zeros(len(points), bool)
+    starts, ends = polyline[:-1], polyline[1:]
+    reach = np.linalg.norm(ends - starts, axis=1) / 2 + radius_m
+    for start, end, candidates in zip(starts, ends, cKDTree(points).query_ball_point((starts + ends) / 2, reach),
+                                      strict=True):
+        candidates = np.asarray(candidates, dtype=np.int64)
+        near[candidates] |= distance_to_polyline(points[candidates], np.array([start, end])) <= radius_m
+    return near
 
 
 def _curved_road(rng: np.random.Generator, spec: WorldSpec, north_south: bool, offset_m: float,

@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from sim.worlds.atlas import ortho_pixels
+from sim.worlds.ground_cover import LAWN_MIN_WEIGHT, GroundCover, Yard
 from sim.worlds.layout import Building, Layout, Road, Tree, WorldSpec
 from sim.worlds.noise import fractal_noise, value_noise
 
@@ -80,8 +81,9 @@ def paint_fields(rng: np.random.Generator, spec: WorldSpec) -> np.ndarray:
     return image
 
 
-def paint_village_lawn(rng: np.random.Generator, image: np.ndarray, layout: Layout) -> None:
-    """Replace the fields by lawn within a ragged disc around the village centre, in place."""
+def paint_village_lawn(rng: np.random.Generator, image: np.ndarray, layout: Layout) -> np.ndarray:
+    """Replace the fields by lawn within a ragged disc around the village centre, in place (blended over 6 m at its
+    rim); returns the lawn's weight in the blend, (H, W) float32 in [0, 1]."""
     spec = layout.spec
     x, y = _pixel_centres(spec)
     radius = 0.5 * min(spec.half_extent_m)
@@ -92,6 +94,7 @@ def paint_village_lawn(rng: np.random.Generator, image: np.ndarray, layout: Layo
     lawn = np.array([86, 124, 54], np.float32) * lawn_noise[..., None]
     image *= 1 - weight
     image += weight * lawn
+    return weight[..., 0]
 
 
 def paint_shapes(rng: np.random.Generator, image: np.ndarray, spec: WorldSpec, per_m2: float = 0.08) -> None:
@@ -159,22 +162,21 @@ def _local_frame(building: Building, spec: WorldSpec, margin_m: float):
     c1, r1 = np.ceil(corners.max(0) + pad).astype(int)
     c1, r1 = min(c1, spec.texture_px), min(r1, spec.ortho_rows)
     half_x, half_y = spec.half_extent_m
-    x = -half_x + (np.arange(c0, c1) + 0.5) * spec.texel_m - building.center[0]
-    y = half_y - (np.arange(r0, r1) + 0.5) * spec.texel_m - building.center[1]
-    along, across = building.axes
-    a = x[None, :] * along[0] + y[:, None] * along[1]
-    c = x[None, :] * across[0] + y[:, None] * across[1]
+    x = -half_x + (np.arange(c0, c1) + 0.5) * spec.texel_m
+    y = half_y - (np.arange(r0, r1) + 0.5) * spec.texel_m
+    a, c = building.local(x[None, :], y[:, None])
     return (slice(r0, r1), slice(c0, c1)), a, c
 
 
-def paint_yard(rng: np.random.Generator, image: np.ndarray, building: Building, spec: WorldSpec) -> None:
-    """A paved or gravel apron a few metres around the building, in place."""
-    margin = rng.uniform(1.5, 4.0)
-    region, a, c = _local_frame(building, spec, margin)
-    inside = (np.abs(a) < building.length_m / 2 + margin) & (np.abs(c) < building.width_m / 2 + margin)
+def paint_yard(rng: np.random.Generator, image: np.ndarray, building: Building, spec: WorldSpec) -> Yard:
+    """A paved or gravel apron a few metres around the building, in place; returns it."""
+    yard = Yard(building, rng.uniform(1.5, 4.0))
+    region, a, c = _local_frame(building, spec, yard.margin_m)
+    inside = building.covers_local(a, c, yard.margin_m)
     paving = rng.uniform(0.9, 1.1) * np.array([168, 160, 148])
     slabs = ((np.floor(a / 0.6) + np.floor(c / 0.6)) % 2)[..., None] * 10.0
     image[region][inside] = (paving + slabs)[inside]
+    return yard
 
 
 def paint_roof(rng: np.random.Generator, image: np.ndarray, building: Building, spec: WorldSpec) -> None:
@@ -182,7 +184,7 @@ def paint_roof(rng: np.random.Generator, image: np.ndarray, building: Building, 
     roof boxes for flat roofs."""
     region, a, c = _local_frame(building, spec, 0.0)
     half_l, half_w = building.length_m / 2, building.width_m / 2
-    inside = (np.abs(a) < half_l) & (np.abs(c) < half_w)
+    inside = building.covers_local(a, c)
     base = np.array(building.roof_rgb, np.float64)
     if building.gable:
         tile_row = np.floor(np.abs(c) / 0.35)
@@ -218,14 +220,13 @@ def paint_crown(rng: np.random.Generator, image: np.ndarray, clumps: np.ndarray,
     image[r0:r1, c0:c1][inside] = (green * light[..., None])[inside]
 
 
-def paint_orthophoto(rng: np.random.Generator, layout: Layout) -> np.ndarray:
-    """The whole orthophoto, (ortho_rows, texture_px, 3) uint8 RGB."""
+def paint_orthophoto(rng: np.random.Generator, layout: Layout) -> tuple[np.ndarray, GroundCover]:
+    """The whole orthophoto, (ortho_rows, texture_px, 3) uint8 RGB, and the ground cover it shows."""
     spec = layout.spec
     image = paint_fields(rng, spec)
-    paint_village_lawn(rng, image, layout)
+    lawn = paint_village_lawn(rng, image, layout) >= LAWN_MIN_WEIGHT
     paint_shapes(rng, image, spec)
-    for building in layout.buildings:
-        paint_yard(rng, image, building, spec)
+    yards = tuple(paint_yard(rng, image, building, spec) for building in layout.buildings)
     for road in layout.roads:
         paint_road(image, road, spec)
     for building in layout.buildings:
@@ -241,4 +242,4 @@ def paint_orthophoto(rng: np.random.Generator, layout: Layout) -> np.ndarray:
     hue_drift = 8.0 * value_noise(rng, shape, _px(90.0, spec))  # large colour zones: warmer or cooler
     image[..., 0] += hue_drift
     image[..., 2] -= hue_drift
-    return np.clip(image, 0, 255).astype(np.uint8)
+    return np.clip(image, 0, 255).astype(np.uint8), GroundCover(spec, lawn, yards, tuple(layout.roads))

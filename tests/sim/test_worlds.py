@@ -42,7 +42,7 @@ def _atlas_gray(mesh):
 
 def test_scene_json_follows_the_interface(small_scene, small_world):
     meta, _ = small_scene
-    assert sorted(p.name for p in small_world.iterdir()) == ["scene.json", "world.glb"]
+    assert sorted(p.name for p in small_world.iterdir()) == ["labels.npz", "scene.json", "world.glb"]
     assert meta["format"] == "aerostereo-scene/1"
     assert (meta["units"], meta["up_axis"], meta["frame"]) == ("m", "y", "enu")
     assert meta["vertex_offset_m"] == [0.0, 0.0, 0.0]
@@ -77,7 +77,7 @@ def test_glb_holds_the_generated_mesh_and_a_sharp_texture(small_scene):
     """What trimesh reads back is the generated geometry (float32 positions) and the atlas up to mild JPEG loss
     (trimesh's own exporter would re-encode at quality 75: mean error ~4.5 levels)."""
     _, mesh = small_scene
-    _, generated, atlas = demo.generate_world("small", 0)
+    _, generated, atlas, _ = demo.generate_world("small", 0)
     np.testing.assert_array_equal(mesh.faces, generated.faces)
     np.testing.assert_allclose(mesh.vertices, generated.vertices, atol=1e-4)
     np.testing.assert_allclose(mesh.visual.uv, generated.uv, atol=1e-6)
