@@ -1,6 +1,6 @@
 """A scene's face labels (class, instance, confidence per face) and their file, ``labels.npz``, beside the mesh.
 
-The file is an uncompressed NumPy ``.npz`` (no pickles; its bytes depend on the labels alone) holding
+The file is an uncompressed NumPy ``.npz`` (no pickles) holding
 
 - ``format``: the string :data:`FORMAT`;
 - ``face_class``: uint8 ``(F,)``, each face's class id (:mod:`sim.render.classes`; never ``sky``);
@@ -87,18 +87,8 @@ def write_labels(path: Path, labels: SceneLabels, mesh_sha256: str) -> None:
     arrays = {"format": np.str_(FORMAT), "face_class": labels.face_class, "face_instance": labels.face_instance,
               "face_confidence": labels.face_confidence, "mesh_sha256": np.str_(mesh_sha256)}
     with atomic_path(path) as temporary:
-        _write_npz(temporary, arrays)
-
-
-def _write_npz(path: Path, arrays: dict[str, np.ndarray]) -> None:
-    """Write ``arrays`` as an uncompressed ``.npz`` (what ``np.savez`` writes) whose bytes depend on the arrays alone:
-    every member is dated 1980-01-01, where ``np.savez`` dates them with the clock, so the same labels make the
-    same file."""
-    with zipfile.ZipFile(path, "w", zipfile.ZIP_STORED) as archive:
-        for name, value in arrays.items():
-            member = zipfile.ZipInfo(f"{name}.npy", date_time=(1980, 1, 1, 0, 0, 0))
-            with archive.open(member, "w", force_zip64=True) as stream:
-                np.lib.format.write_array(stream, np.asanyarray(value), allow_pickle=False)
+        with open(temporary, "wb") as stream:
+            np.savez(stream, **arrays)
 
 
 def read_labels(path: Path) -> tuple[SceneLabels, str]:

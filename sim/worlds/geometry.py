@@ -123,6 +123,7 @@ def world_part(layout: Layout, facades: FacadeAtlas, rng: np.random.Generator,
     ``i + 1``, trees object ``B + 1 + j`` (``B`` buildings); confidence 1 everywhere.
     """
     terrain = terrain_part(layout)
+    # (part, its faces' class: one id for all or one per face, its object)
     labelled = [(terrain, cover.classify(terrain.vertices[terrain.faces, :2].mean(axis=1)), 0)]
     labelled += [(wall_part(facades, i), WALL, wall.building_index + 1) for i, wall in enumerate(facades.walls)]
     labelled += [(roof_part(b, layout.spec), ROOF, i + 1) for i, b in enumerate(layout.buildings)]
