@@ -163,8 +163,11 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--formats", type=_formats, default=None,
         help=f"comma-separated extra outputs (default {','.join(defaults.outputs.formats)}; replay of the scene's "
              "cameras: "
-             f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")
-    effects = parser.add_argument_group("camera effects (colour images only; depth and poses stay exact)")
+             f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)}; normal_exr: camera-frame normals, "
+             "semantic_png/instance_png: class and object ids of the scene's face labels (scene.json 'labels'), "
+             "for every camera)")
+    effects = parser.add_argument_group("camera effects (colour images only; depth, normals, classes, objects and "
+                                        "poses stay exact)")
     effects.add_argument("--line-delay", type=float, default=0.0,
                          help="rolling shutter: seconds between the exposures of neighbouring rows (0: global "
                               "shutter; needs --mode trajectory)")
