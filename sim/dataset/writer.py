@@ -72,6 +72,12 @@ RAW_BYTES_PER_PIXEL = {"rgb": 3, "grey": 1, "depth_exr": 4, "depth_cm_png": 2, "
 #: What PNG and EXR files of rendered frames take of their raw size: 0.51 for a whole frame of the demo world
 #: (colour PNG 0.51, grey 0.52, depth EXR 0.65, disparity EXR 0.59, disparity PNG 0.09).
 COMPRESSED_FRACTION = 0.5
+#: The same share of the files where it is far from that. Normal EXRs: 0.11 for frames of the demo world (flat
+#: facets, many pixels share a normal), 0.28 for a height-field terrain of 4 m triangles; a twin's dense mesh changes
+#: its normal every few pixels, like depth (0.65), so the estimate keeps 0.5. Class and object PNGs: 0.013 and 0.015
+#: for the demo world labelled by its geometry (roofs, walls, ground; its buildings as objects), 0.05 kept for a
+#: twin's more fragmented labels (all measured on 1280x720 frames).
+COMPRESSED_FRACTIONS = {"normal_exr": 0.5, "semantic_png": 0.05, "instance_png": 0.05}
 #: Smallest space a file takes on disk (one block of ext4, XFS, tmpfs).
 FILE_BLOCK_BYTES = 4096
 
@@ -298,13 +304,15 @@ def view_files(layout: KittiLayout, formats: Sequence[str], view: int, index: in
 
 def frame_disk_bytes(spec: DatasetSpec) -> float:
     """About how many bytes one frame of ``spec`` takes on disk: its files at :data:`COMPRESSED_FRACTION` of their raw
-    size, each at least one :data:`FILE_BLOCK_BYTES` block, plus its record."""
+    size (:data:`COMPRESSED_FRACTIONS` for the kinds that compress otherwise), each at least one
+    :data:`FILE_BLOCK_BYTES` block, plus its record."""
     layout = KittiLayout(Path(), spec.sequence)
     total = FILE_BLOCK_BYTES  # frame_meta/NNNNNN.json
     for view, camera in enumerate(spec.cameras):
         pixels = int(camera.width) * int(camera.height)
         for kind in view_files(layout, spec.formats, view, 0).values():
-            total += max(FILE_BLOCK_BYTES, COMPRESSED_FRACTION * RAW_BYTES_PER_PIXEL[kind] * pixels)
+            fraction = COMPRESSED_FRACTIONS.get(kind, COMPRESSED_FRACTION)
+            total += max(FILE_BLOCK_BYTES, fraction * RAW_BYTES_PER_PIXEL[kind] * pixels)
     return total
 
 
