@@ -73,8 +73,8 @@ def refuse_unlabelled(scene: Scene, scene_dir: Path, formats: Sequence[str]) -> 
     object images and the scene has no face labels."""
     if needs_labels(formats) and scene.labels is None:
         asked = ",".join(name for name in formats if name in LABEL_FORMATS)
-        raise RenderInputError(f"{scene_dir}: --formats {asked} need face labels and its scene.json names none; "
-                               f"label a reconstruction with 'aerostereo-recon labels {scene_dir}'")
+        raise RenderInputError(f"{scene_dir}: --formats {asked} needs the scene's face labels and its scene.json "
+                               f"names none; label a reconstruction with 'aerostereo-recon labels {scene_dir}'")
 
 
 class FrameRenderer:
