@@ -104,7 +104,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
                                                 "is resumed)")
     add("--overwrite", action="store_true",
         help="if --out holds a dataset with other settings, delete that dataset and render anew (its image, depth, "
-             "frame_meta and replay folders, whole, and its own files; anything else in --out is kept)")
+             "normal, class, object, frame_meta and replay folders, whole, and its own files; anything else in --out "
+             "is kept)")
     add("--frames", type=int, default=pose_defaults.frames, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default=pose_defaults.mode,
         help="random poses (the paper), a trajectory, or replay: the reconstructed scene's own cameras "
