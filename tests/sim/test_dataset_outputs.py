@@ -22,7 +22,8 @@ from sim.run.options import OutputOptions, PoseOptions, RenderOptions, RigOption
 from sim.run.render_dataset import render_dataset
 
 from dataset_helpers import dataset_bytes
-from render_scene_helpers import BOX_INSTANCE, BOX_TOP_M, BOX_X_M, BOX_Y_M, label_box_scene, write_scene
+from render_scene_helpers import (BOX_INSTANCE, BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, label_box_scene, write_geotags,
+                                  write_scene)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from tools.bench_normals import depth_normals  # noqa: E402
@@ -45,13 +46,17 @@ def _argv(scene: Path, out: Path, **options) -> list[str]:
     return ["--scene", str(scene), "--out", str(out), "--quiet", *[f"--{k}={v}" for k, v in options.items()]]
 
 
-@pytest.fixture(scope="module", params=["random", "trajectory"])
+@pytest.fixture(scope="module", params=["random", "trajectory", "replay"])
 def dataset(request, scene_dir, tmp_path_factory) -> Path:
-    """A 3-camera dataset with the new formats, of random poses or of an orbit around the box."""
-    out = tmp_path_factory.mktemp(request.param) / "d"
+    """A 3-camera dataset of 3 frames with the new formats: random poses, an orbit around the box, or replayed nadir
+    photos beside it."""
+    folder = tmp_path_factory.mktemp(request.param)
+    out = folder / "d"
     options = dict(mode=request.param, frames=3, width=96, height=64, cameras=3, formats=NEW_FORMATS, seed=5)
     if request.param == "trajectory":
         options.update(altitude=25, speed=6.0, rate=1.0)
+    if request.param == "replay":
+        options["geotags"] = write_geotags(folder, ORIGIN, [(0.0, -25.0, 30.0), (20.0, 0.0, 35.0), (-5.0, 20.0, 30.0)])
     assert cli_main(_argv(scene_dir, out, **options)) == 0
     return out
 
