@@ -55,8 +55,9 @@ PLANE_LABELS = {"file": "labels.npz", "method": "analytic: the plane is ground"}
 
 
 def spec(frame_count: int, camera_count: int = 2, **kwargs) -> DatasetSpec:
+    kwargs.setdefault("labels", PLANE_LABELS)
     return DatasetSpec(cameras=[CAMERA] * camera_count, T_rig_cams=rig_transforms(camera_count), origin=ORIGIN,
-                       frame_count=frame_count, command_line=["test"], labels=PLANE_LABELS, **kwargs)
+                       frame_count=frame_count, command_line=["test"], **kwargs)
 
 
 def looking_down_pose(index: int) -> np.ndarray:

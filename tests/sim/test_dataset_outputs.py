@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from sim.cli import main as cli_main
+from sim.dataset import DatasetError, KittiDatasetWriter
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
 from sim.dataset.images import EXR_RGB, read_exr, read_png
 from sim.render.camera import PinholeCamera
@@ -21,7 +22,7 @@ from sim.run.frame_renderer import FrameRenderer, queued_bytes_per_pixel
 from sim.run.options import OutputOptions, PoseOptions, RenderOptions, RigOptions
 from sim.run.render_dataset import render_dataset
 
-from dataset_helpers import dataset_bytes
+from dataset_helpers import dataset_bytes, frame_record, spec
 from render_scene_helpers import (BOX_INSTANCE, BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, label_box_scene, write_geotags,
                                   write_scene)
 
@@ -189,3 +190,19 @@ def test_queued_frames_keep_only_what_the_formats_write_and_the_estimates_count_
     finally:
         plain.close()
         full.close()
+
+
+def test_the_writer_refuses_class_images_without_labels_and_records_without_the_arrays_asked_for(tmp_path):
+    with pytest.raises(DatasetError, match=r"formats \['semantic_png'\] need the scene's face labels"):
+        KittiDatasetWriter(tmp_path / "a", spec(1, formats=("semantic_png",), labels=None))
+    writer = KittiDatasetWriter(tmp_path / "b", spec(1, formats=("normal_exr", "instance_png")))
+    record = frame_record(0)
+    record.views[1].instance = None
+    with pytest.raises(DatasetError, match=r"frame 0 view 1: instance must be uint16 \(48, 64\) .*got nothing"):
+        writer.write_frame(record)
+    record = frame_record(0)
+    record.views[0].normal = record.views[0].normal[..., :2]
+    with pytest.raises(DatasetError, match=r"frame 0 view 0: normal must be float32 \(48, 64, 3\) .*got float32 "
+                                           r"\(48, 64, 2\)"):
+        writer.write_frame(record)
+    assert not writer.is_complete(0)
