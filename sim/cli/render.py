@@ -104,7 +104,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
                                                 "is resumed)")
     add("--overwrite", action="store_true",
         help="if --out holds a dataset with other settings, delete that dataset and render anew (its image, depth, "
-             "frame_meta and replay folders, whole, and its own files; anything else in --out is kept)")
+             "normal, class, object, frame_meta and replay folders, whole, and its own files; anything else in --out "
+             "is kept)")
     add("--frames", type=int, default=pose_defaults.frames, help="number of frames (default 100; replay: every photo)")
     add("--mode", choices=MODES, default=pose_defaults.mode,
         help="random poses (the paper), a trajectory, or replay: the reconstructed scene's own cameras "
@@ -163,8 +164,11 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
     add("--formats", type=_formats, default=None,
         help=f"comma-separated extra outputs (default {','.join(defaults.outputs.formats)}; replay of the scene's "
              "cameras: "
-             f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)})")
-    effects = parser.add_argument_group("camera effects (colour images only; depth and poses stay exact)")
+             f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)}; normal_exr: camera-frame normals, "
+             "semantic_png/instance_png: class and object ids of the scene's face labels (scene.json 'labels'), "
+             "for every camera)")
+    effects = parser.add_argument_group("camera effects (colour images only; depth, normals, classes, objects and "
+                                        "poses stay exact)")
     effects.add_argument("--line-delay", type=float, default=0.0,
                          help="rolling shutter: seconds between the exposures of neighbouring rows (0: global "
                               "shutter; needs --mode trajectory)")

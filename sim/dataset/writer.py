@@ -40,6 +40,7 @@ from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.replay import write_photo_names
+from sim.render.classes import class_table
 from cliutil.atomic import remove_stale_temps, write_text_atomic
 from sim.dataset.kitti import (
     KittiLayout,
@@ -55,14 +56,28 @@ from sim.dataset.kitti import (
 DATASET_FORMAT = "aerostereo-dataset/1"
 #: What readers of ``dataset.json`` (finalize, resume, --overwrite, export) rely on.
 REQUIRED_KEYS = ("sequence", "frame_count", "cameras", "formats", "kitti_projections")
-FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png")
+FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png", "normal_exr", "semantic_png",
+           "instance_png")
 DEFAULT_FORMATS = ("depth_exr", "disparity_png", "disparity_exr")
+#: The formats looked up in the scene's face labels (sim/render/labels.py): class and object images.
+LABEL_FORMATS = ("semantic_png", "instance_png")
+#: What a view of a :class:`FrameRecord` holds for a format beyond ``rgb`` and ``depth``: its attribute, dtype and
+#: channels per pixel.
+VIEW_ARRAYS = {"normal_exr": ("normal", np.float32, 3), "semantic_png": ("semantic", np.uint8, 1),
+               "instance_png": ("instance", np.uint16, 1)}
 STEREO_VIEWS = (0, 1)
 #: Uncompressed bytes per pixel of each file kind of :func:`view_files`.
-RAW_BYTES_PER_PIXEL = {"rgb": 3, "grey": 1, "depth_exr": 4, "depth_cm_png": 2, "disparity_png": 2, "disparity_exr": 4}
+RAW_BYTES_PER_PIXEL = {"rgb": 3, "grey": 1, "depth_exr": 4, "depth_cm_png": 2, "disparity_png": 2, "disparity_exr": 4,
+                       "normal_exr": 12, "semantic_png": 1, "instance_png": 2}
 #: What PNG and EXR files of rendered frames take of their raw size: 0.51 for a whole frame of the demo world
 #: (colour PNG 0.51, grey 0.52, depth EXR 0.65, disparity EXR 0.59, disparity PNG 0.09).
 COMPRESSED_FRACTION = 0.5
+#: The same share of the files where it is far from that. Normal EXRs: 0.11 for frames of the demo world (flat
+#: facets, many pixels share a normal), 0.28 for a height-field terrain of 4 m triangles; a twin's dense mesh changes
+#: its normal every few pixels, like depth (0.65), so the estimate keeps 0.5. Class and object PNGs: 0.013 and 0.015
+#: for the demo world labelled by its geometry (roofs, walls, ground; its buildings as objects), 0.05 kept for a
+#: twin's more fragmented labels (all measured on 1280x720 frames).
+COMPRESSED_FRACTIONS = {"normal_exr": 0.5, "semantic_png": 0.05, "instance_png": 0.05}
 #: Smallest space a file takes on disk (one block of ext4, XFS, tmpfs).
 FILE_BLOCK_BYTES = 4096
 
@@ -86,7 +101,8 @@ class DatasetSpec:
     ``cameras``: objects with ``fx, fy, cx, cy`` (pixels) and ``width, height``; camera 0 is the
     left camera, 1 the right. ``T_rig_cams``: 4x4 rig-from-camera transforms (OpenCV camera axes).
     ``origin``: the scene's geodetic origin (world = ENU metres there). ``scene`` and ``sampling``
-    are free JSON-ready provenance dicts.
+    are free JSON-ready provenance dicts. ``labels``: the ``labels`` entry of the scene's ``scene.json`` (how its
+    face labels were found), which :data:`LABEL_FORMATS` need.
     """
 
     cameras: Sequence
@@ -98,6 +114,7 @@ class DatasetSpec:
     scene: Mapping = field(default_factory=dict)
     sampling: Mapping = field(default_factory=dict)
     command_line: Sequence[str] = field(default_factory=lambda: list(sys.argv))
+    labels: Mapping | None = None
 
     @classmethod
     def from_rig(cls, rig, origin: LocalFrame, frame_count: int, **kwargs) -> "DatasetSpec":
@@ -111,7 +128,9 @@ class FrameRecord:
     """One rendered frame to write.
 
     ``views[v]`` has ``rgb`` (H, W, 3) uint8 and ``depth`` (H, W) float32 planar z metres (+inf on
-    miss) for rig camera ``v``. ``T_world_cam`` is the **left** camera's camera-to-world pose (4x4,
+    miss) for rig camera ``v``, and what the formats ask for: ``normal`` (H, W, 3) float32 camera-frame unit normals
+    (``normal_exr``), ``semantic`` (H, W) uint8 class ids (``semantic_png``), ``instance`` (H, W) uint16 object ids
+    (``instance_png``). ``T_world_cam`` is the **left** camera's camera-to-world pose (4x4,
     ENU world, OpenCV camera axes). ``sun``: an object with ``azimuth_deg, elevation_deg,
     intensity`` (or a dataclass with more fields), a mapping written as it is, or None.
     """
@@ -143,6 +162,9 @@ def dataset_description(spec: DatasetSpec) -> dict:
         raise DatasetError(f"unknown output formats {unknown}; known: {list(FORMATS)}")
     if spec.frame_count < 1:
         raise DatasetError(f"frame_count must be >= 1, got {spec.frame_count}")
+    if needs_labels(spec.formats) and spec.labels is None:
+        raise DatasetError(f"formats {[name for name in LABEL_FORMATS if name in spec.formats]} need the scene's face "
+                           "labels (scene.json 'labels'), and none are given")
     projections = projection_matrices(spec.cameras, spec.T_rig_cams)
     baseline = stereo_baseline_m(spec.T_rig_cams[0], spec.T_rig_cams[1]) if needs_disparity(spec.formats) else None
     return {
@@ -164,7 +186,27 @@ def dataset_description(spec: DatasetSpec) -> dict:
         "scene": dict(spec.scene),
         "sampling": dict(spec.sampling),
         "command_line": list(spec.command_line),
+        **label_description(spec),
     }
+
+
+def label_description(spec: DatasetSpec) -> dict:
+    """What ``dataset.json`` says of class and object images: the class table and the scene's ``labels`` entry (how
+    the labels were found), when the formats ask for them (nothing otherwise)."""
+    if not needs_labels(spec.formats):
+        return {}
+    return {"classes": class_table(), "labels": dict(spec.labels)}
+
+
+def view_arrays(formats: Iterable[str]) -> list[tuple[str, type, int]]:
+    """``(attribute, dtype, channels)`` of each array beyond rgb and depth that a view holds for ``formats``."""
+    formats = set(formats)
+    return [array for name, array in VIEW_ARRAYS.items() if name in formats]
+
+
+def needs_labels(formats: Iterable[str]) -> bool:
+    """Whether ``formats`` ask for class or object images (which need the scene's face labels)."""
+    return any(name in LABEL_FORMATS for name in formats)
 
 
 def needs_disparity(formats: Iterable[str]) -> bool:
@@ -251,18 +293,26 @@ def view_files(layout: KittiLayout, formats: Sequence[str], view: int, index: in
         files[layout.disparity_dir(view) / frame_file_name(index, ".png")] = "disparity_png"
     if view in STEREO_VIEWS and "disparity_exr" in formats:
         files[layout.disparity_dir(view) / frame_file_name(index, ".exr")] = "disparity_exr"
+    if "normal_exr" in formats:
+        files[layout.normal_dir(view) / frame_file_name(index, ".exr")] = "normal_exr"
+    if "semantic_png" in formats:
+        files[layout.semantic_dir(view) / frame_file_name(index, ".png")] = "semantic_png"
+    if "instance_png" in formats:
+        files[layout.instance_dir(view) / frame_file_name(index, ".png")] = "instance_png"
     return files
 
 
 def frame_disk_bytes(spec: DatasetSpec) -> float:
     """About how many bytes one frame of ``spec`` takes on disk: its files at :data:`COMPRESSED_FRACTION` of their raw
-    size, each at least one :data:`FILE_BLOCK_BYTES` block, plus its record."""
+    size (:data:`COMPRESSED_FRACTIONS` for the kinds that compress otherwise), each at least one
+    :data:`FILE_BLOCK_BYTES` block, plus its record."""
     layout = KittiLayout(Path(), spec.sequence)
     total = FILE_BLOCK_BYTES  # frame_meta/NNNNNN.json
     for view, camera in enumerate(spec.cameras):
         pixels = int(camera.width) * int(camera.height)
         for kind in view_files(layout, spec.formats, view, 0).values():
-            total += max(FILE_BLOCK_BYTES, COMPRESSED_FRACTION * RAW_BYTES_PER_PIXEL[kind] * pixels)
+            fraction = COMPRESSED_FRACTIONS.get(kind, COMPRESSED_FRACTION)
+            total += max(FILE_BLOCK_BYTES, fraction * RAW_BYTES_PER_PIXEL[kind] * pixels)
     return total
 
 
@@ -353,6 +403,9 @@ class KittiDatasetWriter:
             "depth_cm_png": lambda path: images.write_png(path, images.vkitti_depth_png(data.depth)),
             "disparity_png": lambda path: images.write_png(path, images.kitti_disparity_png(disparity())),
             "disparity_exr": lambda path: images.write_exr(path, disparity()),
+            "normal_exr": lambda path: images.write_exr(path, data.normal),
+            "semantic_png": lambda path: images.write_png(path, data.semantic),
+            "instance_png": lambda path: images.write_png(path, data.instance),
         }
 
     def _check_record(self, record: FrameRecord) -> None:
@@ -370,6 +423,13 @@ class KittiDatasetWriter:
             if depth.shape != size or not np.issubdtype(depth.dtype, np.floating):
                 raise DatasetError(f"frame {record.index} view {view}: depth must be float {size}, "
                                    f"got {depth.dtype} {depth.shape}")
+            for name, dtype, channels in view_arrays(self.spec.formats):
+                shape = size if channels == 1 else (*size, channels)
+                array = getattr(data, name, None)
+                if array is None or array.dtype != dtype or array.shape != shape:
+                    got = "nothing" if array is None else f"{array.dtype} {array.shape}"
+                    raise DatasetError(f"frame {record.index} view {view}: {name} must be {np.dtype(dtype)} {shape} "
+                                       f"for the formats {list(self.spec.formats)}, got {got}")
 
     def frame_line(self, record: FrameRecord) -> dict:
         """The frame's record (a line of ``frames.jsonl``): pose in ENU and geodetic, sun, seed (no timing)."""

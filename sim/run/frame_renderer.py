@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 import time
 from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -18,15 +19,15 @@ import numpy as np
 
 from sim.dataset import FrameRecord
 from sim.dataset.async_writer import MAX_PENDING_FRAMES
-from sim.dataset.writer import camera_description
+from sim.dataset.writer import LABEL_FORMATS, camera_description, needs_labels, view_arrays
 from sim.drone.exposure import AUTO_EXPOSURE_WINDOW_S, auto_exposure_gain, metered_luminance
 from sim.motion.shutter import render_in_time
 from sim.render.camera import Rig
 from sim.render.color import SRGB8_TO_LINEAR
 from sim.render.film import apply_photometric, effects_memory_bytes
 from sim.render.raycast import default_workers
-from sim.render.renderer import render, render_memory_bytes
-from sim.render.scene import SceneError, load_scene
+from sim.render.renderer import View, render, render_memory_bytes
+from sim.render.scene import Scene, SceneError, load_scene
 from sim.run.options import RenderInputError, RenderOptions
 from sim.run.poses import PoseSource
 from sim.run.rig import build_rig, replay_lenses
@@ -40,11 +41,16 @@ METERING_WIDTH = 64
 
 @dataclass(frozen=True)
 class ViewImages:
-    """What the dataset keeps of a rendered view: ``rgb`` (H, W, 3) uint8 and planar ``depth`` (H, W) float32 m.
-    (Queued frames then hold no normals or ray lengths, a third of the memory.)"""
+    """What the dataset keeps of a rendered view: ``rgb`` (H, W, 3) uint8, planar ``depth`` (H, W) float32 m, and
+    only when the formats ask for them (None otherwise, so queued frames stay small): ``normal`` (H, W, 3) float32
+    camera-frame unit normals, ``semantic`` (H, W) uint8 class ids, ``instance`` (H, W) uint16 object ids
+    (:data:`sim.dataset.writer.VIEW_ARRAYS`). Queued frames hold no ray lengths or triangle indices."""
 
     rgb: np.ndarray
     depth: np.ndarray
+    normal: np.ndarray | None = None
+    semantic: np.ndarray | None = None
+    instance: np.ndarray | None = None
 
 
 @dataclass
@@ -55,6 +61,20 @@ class FrameStats:
     rejected: int
     render_s: float
     done_s: float = math.nan  # seconds from the start of the run until the parent heard of it
+
+
+def queued_bytes_per_pixel(formats: Sequence[str]) -> int:
+    """Bytes per pixel of a view's :class:`ViewImages` for ``formats``: rgb and depth, and each array they add."""
+    return 3 + 4 + sum(np.dtype(dtype).itemsize * channels for _, dtype, channels in view_arrays(formats))
+
+
+def refuse_unlabelled(scene: Scene, scene_dir: Path, formats: Sequence[str]) -> None:
+    """:class:`RenderInputError` (one line naming the scene and how to label it) when ``formats`` ask for class or
+    object images and the scene has no face labels."""
+    if needs_labels(formats) and scene.labels is None:
+        asked = ",".join(name for name in formats if name in LABEL_FORMATS)
+        raise RenderInputError(f"{scene_dir}: --formats {asked} needs the scene's face labels and its scene.json "
+                               f"names none; label a reconstruction with 'aerostereo-recon labels {scene_dir}'")
 
 
 class FrameRenderer:
@@ -69,6 +89,7 @@ class FrameRenderer:
             self.scene = load_scene(scene_dir)
         except SceneError as error:
             raise RenderInputError(str(error)) from None
+        refuse_unlabelled(self.scene, scene_dir, options.outputs.formats)
         self.lenses = (replay_lenses(self.scene, options.rig, options.outputs.formats)
                        if options.poses.replays_scene_cameras else None)
         self.rig = build_rig(options.rig, self.lenses[0] if self.lenses else None)
@@ -92,11 +113,12 @@ class FrameRenderer:
 
     def memory_bytes(self) -> int:
         """Peak memory (bytes) of rendering and writing frames in this process: the render of the largest frame
-        plus the frames queued for writing (each view's rgb and depth: 7 bytes per pixel), plus the camera effects'
-        images when any is on."""
+        plus the frames queued for writing (each view's :class:`ViewImages`: rgb and depth, 7 bytes per pixel, plus
+        12 for normals, 1 for classes, 2 for objects when the formats ask for them), plus the camera effects' images
+        when any is on."""
         largest = max(camera.width * camera.height for camera in self.lenses or self.rig.cameras)
         pixels = [largest] * len(self.rig.cameras)
-        queued = (MAX_PENDING_FRAMES + 1) * (3 + 4) * sum(pixels)
+        queued = (MAX_PENDING_FRAMES + 1) * queued_bytes_per_pixel(self.options.outputs.formats) * sum(pixels)
         effects = effects_memory_bytes(pixels) if self.options.effects.enabled else 0
         return render_memory_bytes(pixels, self.options.rig.spp, self.threads) + queued + effects
 
@@ -118,10 +140,20 @@ class FrameRenderer:
                 extra["auto_exposure_gain"] = gain.tolist()
             colours = self._with_effects(index, sample, frame, rig, lighting, gain)
         elapsed = time.perf_counter() - start
-        views = [ViewImages(rgb, view.depth) for rgb, view in zip(colours, frame.views)]
+        views = [self._kept(rgb, view) for rgb, view in zip(colours, frame.views)]
         record = FrameRecord(index=index, views=views, T_world_cam=frame.views[0].T_world_cam,
                              time_s=sample.time_s, seed=self.options.seed, sun=sun, extra=extra)
         return record, FrameStats(index, sample.rejected, elapsed)
+
+    def _kept(self, rgb: np.ndarray, view: View) -> ViewImages:
+        """What the dataset keeps of ``view`` (its colour ``rgb`` after any camera effect): the arrays its formats
+        write. Normals, classes and objects come from the pixel-centre rays of the frame's pose, like depth."""
+        formats = self.options.outputs.formats
+        labels = self.scene.labels
+        return ViewImages(rgb, view.depth,
+                          normal=view.camera_normal() if "normal_exr" in formats else None,
+                          semantic=labels.class_image(view.triangle) if "semantic_png" in formats else None,
+                          instance=labels.instance_image(view.triangle) if "instance_png" in formats else None)
 
     def light(self, index: int) -> FrameLight:
         """Frame ``index``'s light (:func:`~sim.sampling.light.frame_light`): a trajectory is one flight under one sky,

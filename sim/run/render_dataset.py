@@ -133,12 +133,14 @@ def write_imu_record(renderer: FrameRenderer, out_dir: Path, spec: DatasetSpec) 
 
 def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOptions,
                  command_line: Sequence[str]) -> DatasetSpec:
-    """The dataset's constant part: rig, origin, frame count, formats, scene provenance, sampling, command line."""
+    """The dataset's constant part: rig, origin, frame count, formats, scene provenance, sampling, command line, and
+    the scene's ``labels`` entry (how its face labels were found, if it has any)."""
     meta = read_scene_json(scene_dir)
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
                                 formats=tuple(options.outputs.formats), scene=scene,
-                                sampling=sampling_description(options, renderer.scene.origin), command_line=list(command_line))
+                                sampling=sampling_description(options, renderer.scene.origin),
+                                command_line=list(command_line), labels=meta.get("labels"))
 
 
 def _cluster_scheduler(run: RunOptions):

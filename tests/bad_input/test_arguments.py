@@ -251,6 +251,14 @@ CASES = [
          r"--frames: invalid int value: 'many'", SCENE),
     Case("render-bad-formats", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--formats", "jpeg"],
          r"--formats: unknown formats \['jpeg'\]", SCENE),
+    Case("render-formats-misspelt-normals", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--formats",
+                                                     "depth_exr,normals_exr"],
+         r"--formats: unknown formats \['normals_exr'\]; choose from .*normal_exr", SCENE),
+    *[Case(f"render-{formats.replace(',', '-')}-of-an-unlabelled-scene", RENDER,
+           ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--formats", f"depth_exr,{formats}"],
+           rf"scene: --formats {formats} needs the scene's face labels and its scene\.json names none; label a "
+           r"reconstruction with 'aerostereo-recon labels .*scene'", real_scene)
+      for formats in ("semantic_png", "instance_png", "semantic_png,instance_png")],
     Case("render-bad-scheduler", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--scheduler", "head:8786"],
          r"--scheduler must be local:N .* got 'head:8786'", SCENE),
     Case("render-scheduler-not-listening", RENDER, ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--scheduler",

@@ -1,6 +1,6 @@
 """Known truth for the dataset tests: a pinhole rig looking at the textured ground plane z = 0.
 
-The "renderer" here is first-principles ray/plane intersection in numpy, so depth, disparity
+The "renderer" here is first-principles ray/plane intersection in numpy, so depth, disparity, normals
 and the pixel of any ground point are known exactly.
 """
 
@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
 from sim.dataset import DatasetSpec, FrameRecord
+from sim.render.classes import GROUND, SKY
 from sim.render.shade import Sun
 
 ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
@@ -25,10 +26,14 @@ WIDTH, HEIGHT = 64, 48
 
 @dataclass
 class View:
-    """What the dataset writer reads of a rendered view (sim.render.renderer.View has more)."""
+    """What the dataset writer reads of a rendered view (sim.run.frame_renderer.ViewImages): colour, depth, and the
+    plane's camera-frame normal, class (ground; sky on a miss) and object (1 + the checker square's colour)."""
 
     rgb: np.ndarray
     depth: np.ndarray
+    normal: np.ndarray
+    semantic: np.ndarray
+    instance: np.ndarray
 
 
 CAMERA = PinholeCamera(fx=50.0, fy=52.0, cx=31.5, cy=23.25, width=WIDTH, height=HEIGHT)
@@ -45,7 +50,12 @@ def rig_transforms(camera_count: int = 2) -> list[np.ndarray]:
     return [translation(k * BASELINE_M) for k in range(camera_count)]
 
 
+#: The scene.json ``labels`` entry of the analytic plane (what class and object images need).
+PLANE_LABELS = {"file": "labels.npz", "method": "analytic: the plane is ground"}
+
+
 def spec(frame_count: int, camera_count: int = 2, **kwargs) -> DatasetSpec:
+    kwargs.setdefault("labels", PLANE_LABELS)
     return DatasetSpec(cameras=[CAMERA] * camera_count, T_rig_cams=rig_transforms(camera_count), origin=ORIGIN,
                        frame_count=frame_count, command_line=["test"], **kwargs)
 
@@ -62,7 +72,8 @@ def looking_down_pose(index: int) -> np.ndarray:
 
 
 def render_plane_view(camera: PinholeCamera, T_world_cam: np.ndarray) -> View:
-    """Planar depth (+inf above the horizon) and a checkerboard colour of the ground plane z = 0."""
+    """Planar depth (+inf above the horizon), a checkerboard colour, the normal, class and object of the ground
+    plane z = 0."""
     u, v = np.meshgrid(np.arange(camera.width, dtype=float), np.arange(camera.height, dtype=float))
     rays_cam = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u)], axis=-1)
     rays_world = rays_cam @ T_world_cam[:3, :3].T
@@ -73,7 +84,12 @@ def render_plane_view(camera: PinholeCamera, T_world_cam: np.ndarray) -> View:
     checker = (np.floor(hit[..., 0]) + np.floor(hit[..., 1])) % 2
     rgb = np.stack([100 + 100 * checker, 50 + 30 * checker, 200 - 50 * checker], axis=-1).astype(np.uint8)
     rgb[~np.isfinite(depth)] = (135, 206, 235)
-    return View(rgb=rgb, depth=depth.astype(np.float32))
+    hit_mask = np.isfinite(depth)
+    up_in_camera = T_world_cam[:3, :3].T @ [0.0, 0.0, 1.0]
+    normal = np.where(hit_mask[..., None], up_in_camera, 0.0).astype(np.float32)
+    semantic = np.where(hit_mask, GROUND, SKY).astype(np.uint8)
+    instance = np.where(hit_mask, 1 + checker, 0).astype(np.uint16)
+    return View(rgb=rgb, depth=depth.astype(np.float32), normal=normal, semantic=semantic, instance=instance)
 
 
 def frame_record(index: int, camera_count: int = 2) -> FrameRecord:

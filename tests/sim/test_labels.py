@@ -12,7 +12,7 @@ from sim.render.labels import LABELS_FILE, SceneLabels, read_labels, unlabelled,
 from sim.render.renderer import Sun, render
 from sim.render.scene import Scene, SceneError, Surface, load_scene, read_scene_json, read_scene_mesh_enu
 from sim.render.sky_file import mesh_sha256
-from tests.sim.render_scene_helpers import BOX_TOP_M, write_scene
+from tests.sim.render_scene_helpers import BOX_INSTANCE, label_box_scene, write_scene
 
 CAMERA = PinholeCamera(100.0, 100.0, 79.5, 59.5, 160, 120)
 
@@ -32,23 +32,6 @@ def test_labels_refuse_sky_on_a_face_bad_lengths_and_confidence_out_of_range():
         SceneLabels(np.zeros(2, np.uint8), np.zeros(1), np.ones(2))
     with pytest.raises(ValueError, match=r"\[0, 1\]"):
         SceneLabels(np.zeros(1, np.uint8), np.zeros(1), np.array([1.5]))
-
-
-def label_box_scene(folder):
-    """Label the test scene by its known geometry: the ground plane, the box's top (roof) and sides (walls)."""
-    meta = read_scene_json(folder)
-    vertices, faces, _ = read_scene_mesh_enu(folder, meta)
-    corners = vertices[faces]
-    normal = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    vertical = np.abs(normal[:, 2]) < 1e-9 * np.linalg.norm(normal, axis=1)
-    top = np.all(np.isclose(corners[:, :, 2], BOX_TOP_M), axis=1)
-    face_class = np.where(top, ROOF, np.where(vertical, WALL, GROUND)).astype(np.uint8)
-    labels = SceneLabels(face_class, (top | vertical).astype(np.uint32) * 7, np.ones(len(faces)))
-    write_labels(folder / LABELS_FILE, labels, mesh_sha256(vertices, faces))
-    meta = json.loads((folder / "scene.json").read_text())
-    meta["labels"] = {"file": LABELS_FILE}
-    (folder / "scene.json").write_text(json.dumps(meta))
-    return labels
 
 
 def test_labels_file_round_trips_and_a_scene_loads_its_labels(tmp_path):
@@ -96,7 +79,7 @@ def test_rendered_class_instance_and_camera_normal_images_match_the_geometry(tmp
     instances = scene.labels.instance_image(view.triangle)
     np.testing.assert_array_equal(classes == SKY, ~view.valid)
     assert {GROUND, ROOF, WALL, SKY} <= set(np.unique(classes))
-    np.testing.assert_array_equal(instances == 7, (classes == ROOF) | (classes == WALL))
+    np.testing.assert_array_equal(instances == BOX_INSTANCE, (classes == ROOF) | (classes == WALL))
     normal = view.camera_normal()
     np.testing.assert_allclose(np.linalg.norm(normal[view.valid], axis=1), 1.0, atol=1e-5)
     assert np.all(normal[~view.valid] == 0)

@@ -18,7 +18,8 @@ import pytest
 
 from dataset_helpers import BASELINE_M, CAMERA, frame_record, spec
 from sim.dataset import FORMATS, KittiDatasetWriter, finalize_dataset
-from sim.dataset.images import disparity_from_depth, kitti_disparity_png, vkitti_depth_png
+from sim.dataset.images import EXR_RGB, disparity_from_depth, kitti_disparity_png, read_exr, vkitti_depth_png
+from sim.render.classes import GROUND, SKY
 
 FRAMES = 2
 
@@ -84,13 +85,26 @@ def test_depth_and_disparity_exr_read_through_opencv_as_float32_truth(sequence):
         np.testing.assert_array_equal(image, truth)  # bit for bit, +inf where the ray hit nothing
 
 
+def test_normal_exr_reads_through_opencv_and_openexr_as_float32_camera_normals(sequence):
+    """The normal EXR's channels R, G, B hold camera x, y, z: OpenEXR gives them in that order, OpenCV in its B, G, R
+    order; both (H, W, 3) float32, bit for bit, 0 where the ray hit nothing."""
+    paths = [sequence / f"normal_{view}" / f"{index:06d}.exr" for index in range(FRAMES) for view in (2, 3)]
+    for path, image in zip(paths, opencv_reads(paths, enable_exr=True)):
+        truth = frame_record(int(path.stem)).views[int(path.parent.name[-1]) - 2].normal
+        assert isinstance(image, np.ndarray), f"cv2.imread of {path}: {image}"
+        assert image.dtype == np.float32 and image.shape == (CAMERA.height, CAMERA.width, 3)
+        assert (truth == 0).all(axis=-1).any() and (truth[..., 2] < 0).any()  # misses and camera-facing normals
+        np.testing.assert_array_equal(image[..., ::-1], truth)
+        np.testing.assert_array_equal(read_exr(path, EXR_RGB), truth)
+
+
 def test_without_the_environment_variable_opencv_refuses_exr(sequence):
     """Why the docs tell users to set OPENCV_IO_ENABLE_OPENEXR=1: OpenCV 4.x raises without it."""
     [answer] = opencv_reads([sequence / "depth_2" / "000000.exr"], enable_exr=False)
     assert isinstance(answer, str) and "OpenEXR codec is disabled" in answer and "OPENCV_IO_ENABLE_OPENEXR" in answer
 
 
-def test_16_bit_pngs_and_colour_images_read_back_exactly(sequence):
+def test_16_bit_pngs_colour_class_and_object_images_read_back_exactly(sequence):
     for index in range(FRAMES):
         for view in (2, 3):
             truth = frame_record(index).views[view - 2]
@@ -104,3 +118,9 @@ def test_16_bit_pngs_and_colour_images_read_back_exactly(sequence):
             np.testing.assert_array_equal(depth_cm, vkitti_depth_png(truth.depth))
             colour = cv2.imread(str(sequence / f"image_{view}" / name), cv2.IMREAD_UNCHANGED)
             np.testing.assert_array_equal(colour, truth.rgb[..., ::-1])  # OpenCV's BGR order
+            semantic = cv2.imread(str(sequence / f"semantic_{view}" / name), cv2.IMREAD_UNCHANGED)
+            assert semantic.dtype == np.uint8 and {GROUND, SKY} <= set(np.unique(semantic))
+            np.testing.assert_array_equal(semantic, truth.semantic)
+            instance = cv2.imread(str(sequence / f"instance_{view}" / name), cv2.IMREAD_UNCHANGED)
+            assert instance.dtype == np.uint16 and {0, 1, 2} <= set(np.unique(instance))
+            np.testing.assert_array_equal(instance, truth.instance)

@@ -8,7 +8,6 @@ on worker count, shards or a kill in the middle of a frame; bad input exits with
 from __future__ import annotations
 
 import contextlib
-import csv
 import json
 import math
 import os
@@ -23,7 +22,6 @@ import cv2
 import numpy as np
 import pykitti
 import pytest
-from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
@@ -39,7 +37,7 @@ from sim.run.render_dataset import render_dataset
 from sim.sampling.pose import R_WORLD_NADIR, camera_rotation
 
 from dataset_helpers import dataset_bytes
-from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_scene
+from render_scene_helpers import BOX_TOP_M, BOX_X_M, BOX_Y_M, ORIGIN, box_top_corners, write_geotags, write_scene
 
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SMALL = dict(width=160, height=100, frames=8, seed=3)
@@ -330,31 +328,9 @@ def test_terrain_following_trajectories_keep_speed_and_height(scene_dir, tmp_pat
     np.testing.assert_allclose([r["sampler"]["height_above_ground_m"] for r in records], 40.0, atol=1e-6)
 
 
-def _write_geotags(folder: Path, origin: LocalFrame, positions: list[tuple[float, float, float]],
-                   R_world_cam: np.ndarray = R_WORLD_NADIR) -> Path:
-    header = ("image_name,utc_time,lat_deg,lon_deg,height_above_takeoff_m,absolute_height_m,aircraft_yaw_deg,"
-              "aircraft_pitch_deg,aircraft_roll_deg,gimbal_yaw_deg,gimbal_pitch_deg,gimbal_roll_deg,source,"
-              "time_offset_s,east_m,north_m,up_m,qw,qx,qy,qz").split(",")
-    qx, qy, qz, qw = Rotation.from_matrix(R_world_cam).as_quat()
-    path = folder / "geotags.csv"
-    with path.open("w", newline="", encoding="utf-8") as handle:
-        writer = csv.DictWriter(handle, header)
-        writer.writeheader()
-        for k, (east, north, up) in enumerate(positions):
-            lat, lon, height = origin.to_geodetic(east, north, up)
-            writer.writerow({"image_name": f"DJI_{k:04d}.JPG", "utc_time": f"2026-05-01T10:00:{2 * k:02d}.000000Z",
-                             "lat_deg": lat, "lon_deg": lon, "height_above_takeoff_m": up, "absolute_height_m": "",
-                             "aircraft_yaw_deg": 0, "aircraft_pitch_deg": 0, "aircraft_roll_deg": 0,
-                             "gimbal_yaw_deg": 0, "gimbal_pitch_deg": -90, "gimbal_roll_deg": 0, "source": "test",
-                             "time_offset_s": 0, "east_m": east, "north_m": north, "up_m": up,
-                             "qw": qw, "qx": qx, "qy": qy, "qz": qz})
-    (folder / "geotags.json").write_text(json.dumps({"origin": origin.to_dict()}), encoding="utf-8")
-    return path
-
-
 def test_replay_renders_exactly_where_the_photos_were_taken(scene_dir, tmp_path):
     positions = [(0.0, -5.0, 60.0), (3.0, -5.0, 61.0), (6.0, -4.0, 62.0)]
-    geotags = _write_geotags(tmp_path, ORIGIN, positions)
+    geotags = write_geotags(tmp_path, ORIGIN, positions)
     out = tmp_path / "replay"
     assert cli_main(_argv(scene_dir, out, mode="replay", geotags=geotags, width=48, height=32)) == 0
     records = frame_records(out)
@@ -398,7 +374,7 @@ def test_cli_bad_input_is_one_line_and_exit_code_2(scene_dir, tmp_path, capsys):
     assert str(missing) in _error_of(capsys, _argv(missing, tmp_path / "a"))
     untextured = write_scene(tmp_path / "untextured", textured=False)
     assert "texture" in _error_of(capsys, _argv(untextured, tmp_path / "b"))
-    far_away = _write_geotags(tmp_path, LocalFrame(47.0, 8.0, 400.0), [(0.0, 0.0, 50.0)])
+    far_away = write_geotags(tmp_path, LocalFrame(47.0, 8.0, 400.0), [(0.0, 0.0, 50.0)])
     assert "another area" in _error_of(capsys, _argv(scene_dir, tmp_path / "c", mode="replay", geotags=far_away))
     blocker = tmp_path / "a-file"
     blocker.write_text("not a folder")
@@ -473,7 +449,7 @@ def test_a_three_camera_rig_writes_a_third_colour_camera(scene_dir, tmp_path):
 def test_lens_distortion_renders_through_the_distorted_lens(scene_dir, tmp_path, capsys):
     """Back-projected through the stated (k1, k2, p1, p2, k3), every ground pixel's depth lands on the ground."""
     R_world_cam = camera_rotation(0.0, tilt_x_deg=30.0)  # looking north, 30 deg from nadir
-    geotags = _write_geotags(tmp_path, ORIGIN, [(30.0, -30.0, 60.0)], R_world_cam)
+    geotags = write_geotags(tmp_path, ORIGIN, [(30.0, -30.0, 60.0)], R_world_cam)
     out = tmp_path / "distorted"
     distortion = "-0.25,0.05,0.001,-0.002,0"
     argv = _argv(scene_dir, out, mode="replay", geotags=geotags, width=64, height=48, distortion=distortion)
