@@ -10,11 +10,14 @@ Conventions (see docs/dataset-format.md):
 * KITTI depth PNG (depth completion/prediction): uint16 ``round(z * 256)``, 0 = invalid (a miss, or beyond
   65535 / 256 = 255.996 m, which it cannot store);
 * VKITTI-style depth PNG: uint16 centimetres ``round(z * 100)``, clipped to 65535 (655.35 m),
-  which is also the value of a miss (VKITTI2 stores the sky that way).
+  which is also the value of a miss (VKITTI2 stores the sky that way);
+* normal EXR: unit normals in the camera frame (OpenCV axes), camera x, y, z in the channels ``R``, ``G``, ``B``
+  (0, 0, 0 where nothing was hit); class and instance images are grey uint8 / uint16 PNGs.
 
-PNGs are encoded by OpenCV with its default parameters (fast, deterministic); EXRs hold one
-lossless float32 channel named ``Y`` with ZIP compression, the layout OpenCV 4.x reads as a
-2-D float32 image.
+PNGs are encoded by OpenCV with its default parameters (fast, deterministic); EXRs hold lossless float32 with ZIP
+compression: one channel named ``Y`` (depth, disparity), the layout OpenCV 4.x reads as a 2-D float32 image, or the
+three channels ``R, G, B`` (normals), which OpenEXR reads as an (H, W, 3) array in R, G, B order and OpenCV as an
+(H, W, 3) float32 image in its B, G, R order.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ import OpenEXR
 from cliutil.atomic import atomic_path, write_bytes_atomic, write_failed
 
 EXR_CHANNEL = "Y"
+#: What OpenEXR's Python package calls the R, G, B channels of a file, read or written as one (H, W, 3) array.
+EXR_RGB = "RGB"
 KITTI_DISPARITY_SCALE = 256.0
 KITTI_DEPTH_SCALE = 256.0
 #: JPEG quality of Virtual KITTI 2-style colour images (that layout names them ``.jpg``).
@@ -91,15 +96,20 @@ def rgb_to_grey(rgb: np.ndarray) -> np.ndarray:
 
 
 def write_exr(path: Path, values: np.ndarray) -> None:
-    """Write an (H, W) array as a lossless float32 EXR, single channel ``Y``, ZIP compression, atomically.
+    """Write an (H, W) array as a lossless float32 EXR, single channel ``Y``, or an (H, W, 3) array as the channels
+    ``R, G, B`` (in the order of its last axis); ZIP compression, atomically.
 
     OpenEXR reports a failed write (a full disk) as a ``RuntimeError``: it is raised as an ``OSError`` naming
     ``path``."""
     values = np.ascontiguousarray(values, dtype=np.float32)
-    if values.ndim != 2:
-        raise ValueError(f"{path}: EXR writer expects an (H, W) array, got shape {values.shape}")
+    if values.ndim == 2:
+        channels = {EXR_CHANNEL: values}
+    elif values.ndim == 3 and values.shape[2] == 3:
+        channels = {EXR_RGB: values}
+    else:
+        raise ValueError(f"{path}: EXR writer expects an (H, W) or (H, W, 3) array, got shape {values.shape}")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with atomic_path(path) as temporary, OpenEXR.File(header, {EXR_CHANNEL: values}) as exr:
+    with atomic_path(path) as temporary, OpenEXR.File(header, channels) as exr:
         try:
             exr.write(str(temporary))
         except RuntimeError as error:
@@ -122,14 +132,15 @@ def exr_size(path: Path) -> tuple[int, int]:
     return int(high[0] - low[0] + 1), int(high[1] - low[1] + 1)
 
 
-def read_exr(path: Path) -> np.ndarray:
-    """Read the ``Y`` channel of an EXR as a float32 (H, W) array; ``ValueError`` naming ``path`` if it is missing
-    or not a readable EXR."""
+def read_exr(path: Path, channel: str = EXR_CHANNEL) -> np.ndarray:
+    """Read the ``Y`` channel of an EXR as a float32 (H, W) array, or with ``channel=EXR_RGB`` its ``R, G, B``
+    channels as an (H, W, 3) array; ``ValueError`` naming ``path`` if it is missing, not a readable EXR, or without
+    that channel."""
     with _open_exr(path) as exr:
         channels = exr.channels()
-        if EXR_CHANNEL not in channels:
-            raise ValueError(f"{path}: EXR has channels {sorted(channels)}, expected {EXR_CHANNEL!r}")
-        return np.asarray(channels[EXR_CHANNEL].pixels, dtype=np.float32)
+        if channel not in channels:
+            raise ValueError(f"{path}: EXR has channels {sorted(channels)}, expected {channel!r}")
+        return np.asarray(channels[channel].pixels, dtype=np.float32)
 
 
 def disparity_from_depth(depth_m: np.ndarray, fx_px: float, baseline_m: float) -> np.ndarray:
