@@ -38,18 +38,18 @@ UNIX_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
 
 @dataclass(frozen=True)
 class LabelImages:
-    """What the per-frame PNGs of a label format hold: the ``format`` of ``dataset.json`` that writes them, what they
-    are, their dtype and the mode Pillow opens them in."""
+    """What the per-frame PNGs of a label format hold: the ``format`` of ``dataset.json`` that writes them, what one
+    is (``noun``), its encoding (``png``) and the mode Pillow opens it in."""
 
     format: str
-    what: str
-    dtype: type
+    noun: str
+    png: str
     pil_mode: str
 
 
 #: The label images a layout can need (:meth:`DatasetSource.require`), by need.
-LABEL_IMAGES = {"semantic": LabelImages("semantic_png", "class images (8-bit grey PNG)", np.uint8, "L"),
-                "instance": LabelImages("instance_png", "object images (16-bit grey PNG)", np.uint16, "I;16")}
+LABEL_IMAGES = {"semantic": LabelImages("semantic_png", "class image", "8-bit grey PNG", "L"),
+                "instance": LabelImages("instance_png", "object image", "16-bit grey PNG", "I;16")}
 
 
 class DatasetSource:
@@ -109,7 +109,7 @@ class DatasetSource:
         camera's image size (from the PNG headers, before any frame is used)."""
         images_of = LABEL_IMAGES[kind]
         if not self.has(images_of.format):
-            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs the {images_of.what}, but this "
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs the {images_of.noun}s, but this "
                                f"dataset has formats {self.description['formats']}; render it with --formats "
                                f"including {images_of.format}")
         for frame in self.frames():
@@ -247,10 +247,12 @@ class SourceFrame:
                 size, mode, file_format = image.size, image.mode, image.format
         except OSError as error:  # FileNotFoundError, PIL.UnidentifiedImageError
             raise DatasetError(f"{path}: not a readable PNG ({type(error).__name__}); expected the "
-                               f"{images_of.what} of dataset.json's format {images_of.format}") from None
+                               f"{images_of.noun} ({images_of.png}) of dataset.json's format {images_of.format}") \
+                from None
         if file_format != "PNG" or mode != images_of.pil_mode:
-            raise DatasetError(f"{path}: a {file_format} image of mode {mode}, expected {images_of.what}")
-        self.check_size(path, view, size, images_of.what.split(" (")[0])
+            raise DatasetError(f"{path}: a {file_format} image of mode {mode}, expected a {images_of.noun} "
+                               f"({images_of.png})")
+        self.check_size(path, view, size, images_of.noun)
 
     def label_image(self, kind: str, view: int) -> np.ndarray:
         """The (H, W) ``kind`` image of rig camera ``view``: "semantic" uint8 class ids of
