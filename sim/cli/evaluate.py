@@ -1,5 +1,6 @@
-"""``aerostereo-render evaluate DATASET --depth DIR | --disparity DIR | --trajectory FILE [--json F]``: score
-predictions against a rendered dataset's ground truth; a table on stdout, the full report (per frame) as JSON."""
+"""``aerostereo-render evaluate DATASET --depth DIR | --disparity DIR | --semantic DIR | --trajectory FILE [--json F]``:
+score predictions against a rendered dataset's ground truth; a table on stdout, the full report (per frame) as
+JSON."""
 
 from __future__ import annotations
 
@@ -30,16 +31,21 @@ def _lengths(text: str) -> tuple[float, ...]:
 def add_evaluate_parser(subparsers) -> argparse.ArgumentParser:
     """Add ``evaluate DATASET ...`` to an ``add_subparsers()`` object."""
     parser = subparsers.add_parser(
-        "evaluate", help="score predicted depth, disparity or a trajectory against a dataset's ground truth",
+        "evaluate", help="score predicted depth, disparity, classes or a trajectory against a dataset's ground truth",
         description="Score predictions of the left camera against a finalized dataset (as aerostereo-render wrote "
                     "it): depth maps (Eigen et al.'s metrics as monodepth2 computes them), disparities (EPE, KITTI's "
-                    "D1) or a trajectory (ATE and RPE by evo, KITTI's drift per segment length). Per-frame "
-                    "predictions are files named like the frames (000000.npy / .png as uint16 value*256 / .exr). "
+                    "D1), class images (IoU per class and group, mIoU, pixel accuracy) or a trajectory (ATE and RPE "
+                    "by evo, KITTI's drift per segment length). Per-frame predictions are files named like the frames "
+                    "(000000.npy / .png as uint16 value*256 / .exr; classes: 000000.png). "
                     "Refuses missing, extra or duplicate frames, maps of another size, unreadable files and "
                     "trajectory lines that are not TUM or KITTI poses of the dataset's frames.")
     parser.add_argument("dataset", type=Path, metavar="DATASET", help="dataset folder (dataset.json, sequences/NN/...)")
     parser.add_argument("--depth", type=Path, help="folder of predicted depth maps (metres)")
     parser.add_argument("--disparity", type=Path, help="folder of predicted left disparities (pixels)")
+    parser.add_argument("--semantic", type=Path, metavar="PRED_DIR",
+                        help="folder of predicted left class images: 8-bit grey PNGs of the class ids of "
+                             "sim/render/classes.py (dataset.json's classes), named like the dataset's semantic_2 "
+                             "files (000000.png ...); scored against semantic_2, its unknown pixels left out")
     parser.add_argument("--trajectory", type=Path,
                         help="TUM (t tx ty tz qx qy qz qw) or KITTI (3x4 per line) poses of the left camera")
     parser.add_argument("--median-scaling", action="store_true",
@@ -63,10 +69,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
     prediction folder, or the trajectory)."""
     dataset_files = [path for path in args.dataset.rglob("*") if path.is_file()] if args.dataset.is_dir() else []
     inputs = {"DATASET": [args.dataset, *dataset_files], "--depth": folder_inputs(args.depth),
-              "--disparity": folder_inputs(args.disparity), "--trajectory": args.trajectory}
+              "--disparity": folder_inputs(args.disparity), "--semantic": folder_inputs(args.semantic),
+              "--trajectory": args.trajectory}
     refuse_clobbering(inputs, {"--json": args.json})
     refuse_folders({"--json": args.json})
     options = EvaluateOptions(depth=args.depth, disparity=args.disparity, trajectory=args.trajectory,
+                              semantic=args.semantic,
                               median_scaling=args.median_scaling, min_depth_m=args.min_depth,
                               max_depth_m=math.inf if args.max_depth is None else args.max_depth,
                               alignment=args.align, drift_lengths_m=args.drift_lengths)

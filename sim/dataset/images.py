@@ -22,11 +22,13 @@ three channels ``R, G, B`` (normals), which OpenEXR reads as an (H, W, 3) array 
 
 from __future__ import annotations
 
+import io
 from pathlib import Path
 
 import cv2
 import numpy as np
 import OpenEXR
+from PIL import Image
 
 from cliutil.atomic import atomic_path, write_bytes_atomic, write_failed
 
@@ -176,3 +178,17 @@ def vkitti_depth_png(depth_m: np.ndarray) -> np.ndarray:
     depth_m = np.asarray(depth_m, dtype=np.float64)
     centimetres = np.where(np.isfinite(depth_m), depth_m * VKITTI_DEPTH_SCALE, UINT16_MAX)
     return np.clip(np.rint(centimetres), 0, UINT16_MAX).astype(np.uint16)
+
+
+def write_palette_png(path: Path, indices: np.ndarray, palette: np.ndarray) -> None:
+    """Write an (H, W) uint8 array of palette indices as an 8-bit indexed (palette) PNG, atomically; ``palette`` is
+    (N <= 256, 3) uint8 RGB, the colour of each index. Pillow writes it (OpenCV writes no palette PNGs); PIL reads
+    the indices back (``np.asarray(Image.open(path))``), OpenCV the colours."""
+    indices = np.ascontiguousarray(indices)
+    if indices.dtype != np.uint8 or indices.ndim != 2:
+        raise ValueError(f"{path}: palette PNG expects an (H, W) uint8 array, got {indices.dtype} {indices.shape}")
+    image = Image.frombytes("P", (indices.shape[1], indices.shape[0]), indices.tobytes())
+    image.putpalette(np.asarray(palette, dtype=np.uint8).ravel().tolist())
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG")
+    write_bytes_atomic(path, buffer.getvalue())

@@ -8,6 +8,14 @@ Layout written under ``OUT/training/`` (frame ``i`` is KITTI "scene" ``i``; its 
     disp_noc_0/NNNNNN_10.png           the same, but 0 also where the point is not visible in the right view
     calib_cam_to_cam/NNNNNN.txt        S_rect_02/03 (image size) and P_rect_02/03 (rectified projections)
 
+and, from a dataset rendered with class images (``semantic_png``; object images, ``instance_png``, for
+``instance``), KITTI's semantic and instance segmentation benchmark layout of the left image::
+
+    semantic/NNNNNN_10.png             uint8 grey, Cityscapes labelIds (:mod:`sim.dataset.class_maps`)
+    semantic_rgb/NNNNNN_10.png         8-bit RGB, the Cityscapes colour of each label
+    instance/NNNNNN_10.png             uint16 grey, labelId * 256 + instance: instances 1, 2 ... per label in the
+                                       image, 0 = no instance (our object 0, or past the 255th of that label)
+
 ``d = fx * B / z`` from the left depth map. A left pixel is **non-occluded** when its point is visible in the
 right view (:func:`visible_in_right`).
 """
@@ -21,6 +29,7 @@ import numpy as np
 
 from cliutil.atomic import write_text_atomic
 from sim.dataset import images
+from sim.dataset.class_maps import CITYSCAPES_ID, CITYSCAPES_RGB
 from sim.dataset.kitti import format_numbers, projection_matrices
 from sim.dataset.source import LEFT, RIGHT, DatasetSource, SourceFrame
 from sim.motion.flow import visible_at
@@ -35,6 +44,10 @@ from sim.motion.flow import visible_at
 #: tools/bench_export.py: the occluded share is flat from 0.2 % to 2 % on the demo world.
 NOC_RELATIVE_TOLERANCE = 0.005
 PAIR_SUFFIX = "_10"
+#: KITTI's instance images keep the instance in the low byte: 1 .. 255 per label and image.
+MAX_INSTANCES_PER_LABEL = 255
+#: The folders the class images (``semantic``) and object images (``instance``) of the source become.
+LABEL_FOLDERS = {"semantic": ("semantic", "semantic_rgb"), "instance": ("instance",)}
 
 
 def visible_in_right(depth_left: np.ndarray, depth_right: np.ndarray, disparity_left: np.ndarray,
@@ -63,17 +76,39 @@ def cam_to_cam_text(frame: SourceFrame) -> str:
     return "\n".join(lines) + "\n"
 
 
+def kitti_instance_image(label_ids: np.ndarray, objects: np.ndarray) -> tuple[np.ndarray, int]:
+    """KITTI's uint16 instance image ``labelId * 256 + instance`` of an image's (H, W) uint8 Cityscapes ``label_ids``
+    and uint16 ``objects`` (our object ids, 0: none), and how many objects were left without an instance.
+
+    Instances are numbered 1, 2 ... within each label in the order of our object ids (an object seen under two
+    labels is an instance of each); a label's objects beyond :data:`MAX_INSTANCES_PER_LABEL` get instance 0 (no
+    instance), as do pixels of no object."""
+    pairs = label_ids.astype(np.int64) << 16 | objects.astype(np.int64)
+    unique, inverse = np.unique(np.where(objects > 0, pairs, -1), return_inverse=True)
+    labelled = unique >= 0
+    labels = unique >> 16
+    rank = np.arange(len(unique)) - np.searchsorted(labels, labels) + 1  # 1.. within each label
+    instance = np.where(labelled & (rank <= MAX_INSTANCES_PER_LABEL), rank, 0)
+    dropped = int(np.count_nonzero(labelled & (rank > MAX_INSTANCES_PER_LABEL)))
+    image = label_ids.astype(np.uint16) * 256 + instance[inverse.reshape(objects.shape)].astype(np.uint16)
+    return image, dropped
+
+
 class Kitti2015Writer:
-    """Writes the KITTI 2015 stereo layout of a :class:`DatasetSource` (needs depth and a rectified pinhole pair)."""
+    """Writes the KITTI 2015 stereo layout of a :class:`DatasetSource` (needs depth and a rectified pinhole pair);
+    the semantic and instance benchmark's images too where the source has class (and object) images."""
 
     name = "kitti2015"
     needs = ("depth", "pinhole", "rectified")
 
     def __init__(self, source: DatasetSource, out: Path):
-        source.require(self.needs, f"the {self.name} layout")
+        self.labels = [kind for kind in ("semantic", "instance") if source.has(f"{kind}_png")]
+        if "semantic" not in self.labels:
+            self.labels = []  # KITTI's instance images hold the label too
+        source.require((*self.needs, *self.labels), f"the {self.name} layout")
         self.baseline_m = source.baseline_m(f"the {self.name} layout")
         self.root = Path(out) / "training"
-        self.frames = self.valid = self.occluded = 0
+        self.frames = self.valid = self.occluded = self.without_instance = 0
 
     def write_frame(self, frame: SourceFrame) -> None:
         name = f"{frame.index:06d}{PAIR_SUFFIX}.png"
@@ -86,11 +121,28 @@ class Kitti2015Writer:
         images.write_png(self.root / "disp_occ_0" / name, occ)
         images.write_png(self.root / "disp_noc_0" / name, noc)
         write_text_atomic(self.root / "calib_cam_to_cam" / f"{frame.index:06d}.txt", cam_to_cam_text(frame))
+        if self.labels:
+            self.write_labels(frame, name)
         self.frames += 1
         self.valid += int(np.count_nonzero(occ))
         self.occluded += int(np.count_nonzero(occ) - np.count_nonzero(noc))
 
+    def write_labels(self, frame: SourceFrame, name: str) -> None:
+        """The left camera's Cityscapes class images and (with object images) KITTI's instance image."""
+        classes = frame.semantic(LEFT)
+        label_ids = CITYSCAPES_ID[classes]
+        images.write_png(self.root / "semantic" / name, label_ids)
+        images.write_png(self.root / "semantic_rgb" / name, CITYSCAPES_RGB[classes])
+        if "instance" in self.labels:
+            instance, dropped = kitti_instance_image(label_ids, frame.instance(LEFT))
+            images.write_png(self.root / "instance" / name, instance)
+            self.without_instance += dropped
+
     def finish(self) -> str:
         share = 100.0 * self.occluded / self.valid if self.valid else 0.0
-        return (f"kitti2015: {self.frames} stereo pairs -> {self.root} (image_2, image_3, disp_occ_0, disp_noc_0, "
-                f"calib_cam_to_cam); {share:.2f} % of valid left pixels are not visible in the right view")
+        folders = ["image_2", "image_3", "disp_occ_0", "disp_noc_0", "calib_cam_to_cam"]
+        folders += [folder for kind in self.labels for folder in LABEL_FOLDERS[kind]]
+        dropped = (f"; {self.without_instance} objects past the {MAX_INSTANCES_PER_LABEL}th of their label in an "
+                   "image have no instance" if self.without_instance else "")
+        return (f"kitti2015: {self.frames} stereo pairs -> {self.root} ({', '.join(folders)}); {share:.2f} % of "
+                f"valid left pixels are not visible in the right view{dropped}")

@@ -1,8 +1,9 @@
 """Read a finished (finalized) dataset folder for export into other layouts; the folder is only ever read.
 
 :class:`DatasetSource` opens ``dataset.json`` and ``frames.jsonl`` and checks what a layout needs (depth maps,
-pinhole cameras, a rectified pair); :class:`SourceFrame` hands each frame's record, colour PNGs, depth maps
-(planar z in metres, float32, +inf on miss, read once) and camera poses to the layout writers;
+pinhole cameras, a rectified pair, class or object images); :class:`SourceFrame` hands each frame's record, colour
+PNGs, depth maps (planar z in metres, float32, +inf on miss, read once), class and object images, camera-frame
+normals and camera poses to the layout writers;
 :meth:`DatasetSource.start_unix_ns` puts frame 0 on the Unix clock for the layouts whose timestamps are Unix time.
 :func:`replay_frames` reads a replay's photo-named folder back (each photo's exposure gain and depth map).
 """
@@ -16,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from cliutil.atomic import write_bytes_atomic
 from cliutil.jsonfile import loads_json
@@ -23,6 +25,7 @@ from sim.dataset import images
 from sim.dataset.kitti import KittiLayout, frame_file_name, stereo_baseline_m
 from sim.dataset.replay import image_name
 from sim.dataset.writer import DatasetError, read_dataset_json
+from sim.render.classes import CLASSES
 
 LEFT, RIGHT = 0, 1
 #: Frame 0's Unix time (ns) in a dataset that records no real time: 10**18 ns = 2001-09-09T01:46:40Z, the first
@@ -31,6 +34,22 @@ FIXED_START_UNIX_NS = 10**18
 #: A start after this (2255-03-14T16:00:00Z) is refused: it leaves 7 years before int64 nanoseconds end (2262).
 LATEST_START_UNIX_NS = 9 * 10**18
 UNIX_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
+
+
+@dataclass(frozen=True)
+class LabelImages:
+    """What the per-frame PNGs of a label format hold: the ``format`` of ``dataset.json`` that writes them, what one
+    is (``noun``), its encoding (``png``) and the mode Pillow opens it in."""
+
+    format: str
+    noun: str
+    png: str
+    pil_mode: str
+
+
+#: The label images a layout can need (:meth:`DatasetSource.require`), by need.
+LABEL_IMAGES = {"semantic": LabelImages("semantic_png", "class image", "8-bit grey PNG", "L"),
+                "instance": LabelImages("instance_png", "object image", "16-bit grey PNG", "I;16")}
 
 
 class DatasetSource:
@@ -70,11 +89,32 @@ class DatasetSource:
     def require(self, needs: Sequence[str], needed_by: str) -> None:
         """Refuse (:class:`DatasetError` naming ``needed_by``) a dataset without what a layout ``needs``: "depth"
         (:meth:`require_depth`), "pinhole" (:meth:`require_pinhole`), "rectified" (:meth:`baseline_m`), "imu"
-        (:meth:`require_imu`), "radtan" (:meth:`radtan`), "unix_start" (:meth:`start_unix_ns`)."""
+        (:meth:`require_imu`), "radtan" (:meth:`radtan`), "unix_start" (:meth:`start_unix_ns`), "semantic" or
+        "instance" (:meth:`require_labels`)."""
         checks = {"depth": self.require_depth, "pinhole": self.require_pinhole, "rectified": self.baseline_m,
                   "imu": self.require_imu, "radtan": self.radtan, "unix_start": self.start_unix_ns}
         for need in needs:
-            checks[need](needed_by)
+            if need in LABEL_IMAGES:
+                self.require_labels(need, needed_by)
+            else:
+                checks[need](needed_by)
+
+    def has(self, dataset_format: str) -> bool:
+        """Whether the dataset was rendered with ``dataset_format`` (a name of ``dataset.json``'s ``formats``)."""
+        return dataset_format in self.description["formats"]
+
+    def require_labels(self, kind: str, needed_by: str) -> None:
+        """Refuse what needs the ``kind`` images ("semantic": class ids, "instance": object ids) when the dataset was
+        rendered without them, or when any frame's image is missing, not a grey PNG of the right bit depth or not its
+        camera's image size (from the PNG headers, before any frame is used)."""
+        images_of = LABEL_IMAGES[kind]
+        if not self.has(images_of.format):
+            raise DatasetError(f"{self.layout.dataset_json}: {needed_by} needs the {images_of.noun}s, but this "
+                               f"dataset has formats {self.description['formats']}; render it with --formats "
+                               f"including {images_of.format}")
+        for frame in self.frames():
+            for view in range(self.view_count):
+                frame.check_label_header(kind, view)
 
     def require_imu(self, needed_by: str) -> dict:
         """The dataset's IMU settings (``sampling.imu``); refused when it was rendered without ``--imu``."""
@@ -119,7 +159,7 @@ class DatasetSource:
                                "including depth_exr")
         for frame in self.frames():
             for view in range(self.view_count):
-                frame.check_depth_size(view, images.exr_size(frame.depth_path(view)))
+                frame.check_size(frame.depth_path(view), view, images.exr_size(frame.depth_path(view)), "depth map")
 
     def require_pinhole(self, needed_by: str) -> None:
         """Refuse what assumes undistorted pinhole images (``needed_by``) when a camera has lens distortion."""
@@ -180,18 +220,73 @@ class SourceFrame:
         """Planar depth of rig camera ``view`` (H, W) float32 metres, +inf on miss (read once per frame)."""
         if view not in self._depth:
             depth = images.read_exr(self.depth_path(view))
-            self.check_depth_size(view, (depth.shape[1], depth.shape[0]))
+            self.check_size(self.depth_path(view), view, (depth.shape[1], depth.shape[0]), "depth map")
             self._depth[view] = depth
         return self._depth[view]
 
-    def check_depth_size(self, view: int, size: tuple[int, int]) -> None:
-        """Refuse (:class:`DatasetError` naming the file) a depth map of rig camera ``view`` whose ``size``
-        (width, height pixels) is not the camera's image size."""
+    def check_size(self, path: Path, view: int, size: tuple[int, int], what: str) -> None:
+        """Refuse (:class:`DatasetError` naming ``path``) an image of rig camera ``view`` (``what``: "depth map"...)
+        whose ``size`` (width, height pixels) is not the camera's image size."""
         camera = self.camera(view)
         expected = (int(camera["width"]), int(camera["height"]))
         if tuple(size) != expected:
-            raise DatasetError(f"{self.depth_path(view)}: a {size[0]}x{size[1]} depth map, expected "
-                               f"{expected[0]}x{expected[1]} (camera {view}'s image size)")
+            raise DatasetError(f"{path}: a {size[0]}x{size[1]} {what}, expected {expected[0]}x{expected[1]} "
+                               f"(camera {view}'s image size)")
+
+    def label_path(self, kind: str, view: int) -> Path:
+        """The PNG of rig camera ``view`` holding its class ids (``kind`` "semantic") or object ids ("instance")."""
+        folder = {"semantic": self.source.layout.semantic_dir, "instance": self.source.layout.instance_dir}[kind]
+        return folder(view) / frame_file_name(self.index, ".png")
+
+    def check_label_header(self, kind: str, view: int) -> None:
+        """Refuse (:class:`DatasetError` naming the file) a ``kind`` image (:data:`LABEL_IMAGES`) of rig camera
+        ``view`` that is missing, unreadable, of another bit depth or size, from its PNG header."""
+        path, images_of = self.label_path(kind, view), LABEL_IMAGES[kind]
+        try:
+            with Image.open(path) as image:
+                size, mode, file_format = image.size, image.mode, image.format
+        except OSError as error:  # FileNotFoundError, PIL.UnidentifiedImageError
+            raise DatasetError(f"{path}: not a readable PNG ({type(error).__name__}); expected the "
+                               f"{images_of.noun} ({images_of.png}) of dataset.json's format {images_of.format}") \
+                from None
+        if file_format != "PNG" or mode != images_of.pil_mode:
+            raise DatasetError(f"{path}: a {file_format} image of mode {mode}, expected a {images_of.noun} "
+                               f"({images_of.png})")
+        self.check_size(path, view, size, images_of.noun)
+
+    def label_image(self, kind: str, view: int) -> np.ndarray:
+        """The (H, W) ``kind`` image of rig camera ``view``: "semantic" uint8 class ids of
+        :mod:`sim.render.classes` (ids outside the table refused), "instance" uint16 object ids (0: none)."""
+        self.check_label_header(kind, view)
+        path = self.label_path(kind, view)
+        image = images.read_png(path)
+        if kind == "semantic" and image.max(initial=0) >= len(CLASSES):
+            raise DatasetError(f"{path}: holds class id {int(image.max())}; expected the ids 0..{len(CLASSES) - 1} "
+                               "of the class table (dataset.json's classes)")
+        return image
+
+    def semantic(self, view: int) -> np.ndarray:
+        """Class ids of rig camera ``view``: (H, W) uint8 (:mod:`sim.render.classes`; sky where nothing was hit)."""
+        return self.label_image("semantic", view)
+
+    def instance(self, view: int) -> np.ndarray:
+        """Object ids of rig camera ``view``: (H, W) uint16, 0 for no object."""
+        return self.label_image("instance", view)
+
+    def normal_path(self, view: int) -> Path:
+        """The normal EXR of rig camera ``view``."""
+        return self.source.layout.normal_dir(view) / frame_file_name(self.index, ".exr")
+
+    def normal(self, view: int) -> np.ndarray:
+        """Unit normals of rig camera ``view`` in its camera frame (OpenCV axes): (H, W, 3) float32 x, y, z; 0, 0, 0
+        where nothing was hit."""
+        path = self.normal_path(view)
+        try:
+            normal = images.read_exr(path, images.EXR_RGB)
+        except ValueError as error:
+            raise DatasetError(str(error)) from None
+        self.check_size(path, view, (normal.shape[1], normal.shape[0]), "normal map")
+        return normal
 
     def camera(self, view: int) -> dict:
         """Intrinsics (``fx, fy, cx, cy`` pixels, ``width, height``) of rig camera ``view`` in this frame: the

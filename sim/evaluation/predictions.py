@@ -7,6 +7,8 @@ naming the file (and line) and what was expected.
   prediction: KITTI's disparity and depth PNGs) or ``.exr`` (float32 channel ``Y``, as OpenCV and our dataset
   write it). Files with other extensions are ignored; every frame needs exactly one prediction of the dataset's
   image size.
+* **Class images** (the left camera's classes): one 8-bit grey PNG per frame, named like the frames (and like the
+  dataset's ``semantic_2`` files: ``000042.png``), each pixel a class id of :mod:`sim.render.classes`.
 * **Trajectories** (the left camera's camera-to-world poses): TUM (``t tx ty tz qx qy qz qw`` a line, times in
   seconds on the dataset's clock, ``times.txt``; a subset of the frames is fine) or KITTI (12 numbers a line,
   3x4 row-major, one line per frame in order). ``#`` lines and blank lines are skipped.
@@ -26,6 +28,7 @@ from cliutil.errors import BadInput
 from cliutil.paths import path_problem
 from sim.dataset.images import KITTI_DISPARITY_SCALE, read_exr
 from sim.dataset.kitti import frame_file_name
+from sim.render.classes import CLASSES
 
 MAP_SUFFIXES = (".npy", ".png", ".exr")
 FRAME_STEM = re.compile(r"(\d{6})(_10)?")
@@ -36,14 +39,16 @@ ROTATION_TOLERANCE = 1e-3
 TUM_COLUMNS, KITTI_COLUMNS = 8, 12
 
 
-def map_files(folder: Path, frame_count: int, option: str) -> list[Path]:
-    """The prediction file of each frame ``0 .. frame_count - 1`` in ``folder`` (the argument ``option``)."""
+def map_files(folder: Path, frame_count: int, option: str, suffixes: tuple[str, ...] = MAP_SUFFIXES) -> list[Path]:
+    """The prediction file of each frame ``0 .. frame_count - 1`` in ``folder`` (the argument ``option``): the one
+    file per frame with one of the ``suffixes``."""
+    kinds = "/".join(suffixes)
     if problem := path_problem(folder, folder=True):
         raise BadInput(f"{option} {folder}: {problem}; expected a folder of per-frame predictions named like the "
-                       f"dataset's frames ({frame_file_name(0, '.npy')}, .png or .exr)")
+                       f"dataset's frames ({frame_file_name(0, suffixes[0])}, {kinds})")
     by_frame: dict[int, Path] = {}
     for path in sorted(Path(folder).iterdir()):
-        if path.name.startswith(".") or path.suffix.lower() not in MAP_SUFFIXES or path.is_dir():
+        if path.name.startswith(".") or path.suffix.lower() not in suffixes or path.is_dir():
             continue
         match = FRAME_STEM.fullmatch(path.stem)
         if match is None:
@@ -59,7 +64,7 @@ def map_files(folder: Path, frame_count: int, option: str) -> list[Path]:
     if missing:
         shown = ", ".join(frame_file_name(index, "") for index in missing[:5])
         raise BadInput(f"{option} {folder}: no prediction of {len(missing)} of the dataset's {frame_count} frames "
-                       f"({shown}{' ...' if len(missing) > 5 else ''}); expected one .npy/.png/.exr per frame")
+                       f"({shown}{' ...' if len(missing) > 5 else ''}); expected one {kinds} per frame")
     return [by_frame[index] for index in range(frame_count)]
 
 
@@ -73,6 +78,24 @@ def read_map(path: Path, shape: tuple[int, int]) -> np.ndarray:
         raise BadInput(f"{path}: {values.shape[1]}x{values.shape[0]} pixels, but the dataset's frames are "
                        f"{shape[1]}x{shape[0]}")
     return values.astype(np.float64)
+
+
+def read_class_image(path: Path, shape: tuple[int, int]) -> np.ndarray:
+    """A predicted class image: (H, W) uint8 class ids of :mod:`sim.render.classes`; refuses a file that is not an
+    8-bit single-channel image of ``shape`` (H, W) or holds ids outside the class table."""
+    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if image is None or image.dtype != np.uint8 or image.ndim != 2:
+        what = "unreadable" if image is None else f"{image.dtype} with shape {image.shape}"
+        raise BadInput(f"{path}: expected an 8-bit single-channel PNG of class ids, got {what}")
+    if image.shape != tuple(shape):
+        raise BadInput(f"{path}: {image.shape[1]}x{image.shape[0]} pixels, but the dataset's frames are "
+                       f"{shape[1]}x{shape[0]}")
+    outside = np.argwhere(image >= len(CLASSES))
+    if len(outside):
+        row, column = outside[0]
+        raise BadInput(f"{path}: class id {image[row, column]} at pixel x={column} y={row}; expected the ids "
+                       f"0..{len(CLASSES) - 1} of the class table (sim/render/classes.py)")
+    return image
 
 
 def _load_map(path: Path) -> np.ndarray:

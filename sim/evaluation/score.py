@@ -1,5 +1,5 @@
-"""Score predictions against a finalized dataset folder: depth maps, disparities and/or a trajectory of the left
-camera. :func:`evaluate` returns the report (a JSON-ready dict), :func:`report_table` its text table."""
+"""Score predictions against a finalized dataset folder: depth maps, disparities, class images and/or a trajectory
+of the left camera. :func:`evaluate` returns the report (a JSON-ready dict), :func:`report_table` its text table."""
 
 from __future__ import annotations
 
@@ -15,8 +15,16 @@ from sim.dataset.kitti2015 import visible_in_right
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
 from sim.evaluation import depth as depth_metrics
 from sim.evaluation import disparity as disparity_metrics
+from sim.evaluation import semantic as semantic_metrics
 from sim.evaluation import trajectory as trajectory_metrics
-from sim.evaluation.predictions import TrajectoryFile, map_files, match_times, read_map, read_trajectory
+from sim.evaluation.predictions import (
+    TrajectoryFile,
+    map_files,
+    match_times,
+    read_class_image,
+    read_map,
+    read_trajectory,
+)
 
 #: Fewest matched poses a trajectory is scored with (Umeyama alignment needs three).
 MIN_POSES = 3
@@ -29,6 +37,7 @@ class EvaluateOptions:
     depth: Path | None = None
     disparity: Path | None = None
     trajectory: Path | None = None
+    semantic: Path | None = None
     median_scaling: bool = False
     min_depth_m: float = depth_metrics.MIN_DEPTH_M
     max_depth_m: float = float("inf")
@@ -39,11 +48,12 @@ class EvaluateOptions:
 def evaluate(dataset: Path, options: EvaluateOptions) -> dict:
     """The report of every prediction named in ``options`` against the dataset in ``dataset``; every input is
     checked (files present, named and matched) before the first is scored."""
-    if options.depth is None and options.disparity is None and options.trajectory is None:
-        raise BadInput("nothing to score: give --depth, --disparity and/or --trajectory")
+    if all(path is None for path in (options.depth, options.disparity, options.trajectory, options.semantic)):
+        raise BadInput("nothing to score: give --depth, --disparity, --semantic and/or --trajectory")
     source = DatasetSource(Path(dataset))
     depth_files = _map_inputs(source, options.depth, "--depth")
     disparity_files = _map_inputs(source, options.disparity, "--disparity")
+    semantic_files = _semantic_inputs(source, options.semantic)
     baseline_m = source.baseline_m("--disparity") if disparity_files else None
     trajectory = _trajectory_input(source, options.trajectory) if options.trajectory is not None else None
     report = {"dataset": str(dataset), "frames": len(source.records)}
@@ -51,6 +61,8 @@ def evaluate(dataset: Path, options: EvaluateOptions) -> dict:
         report["depth"] = evaluate_depth(source, depth_files, options)
     if disparity_files:
         report["disparity"] = evaluate_disparity(source, disparity_files, baseline_m)
+    if semantic_files:
+        report["semantic"] = evaluate_semantic(source, semantic_files)
     if trajectory is not None:
         report["trajectory"] = evaluate_trajectory(source, *trajectory, options)
     return report
@@ -62,6 +74,15 @@ def _map_inputs(source: DatasetSource, folder: Path | None, option: str) -> list
         return []
     source.require_depth(option)
     return map_files(folder, len(source.records), option)
+
+
+def _semantic_inputs(source: DatasetSource, folder: Path | None) -> list[Path]:
+    """The predicted class image (PNG) of each frame in ``folder`` (none without it), scored against the dataset's
+    left class images, which are checked first."""
+    if folder is None:
+        return []
+    source.require(("semantic",), "--semantic")
+    return map_files(folder, len(source.records), "--semantic", (".png",))
 
 
 def _trajectory_input(source: DatasetSource, path: Path) -> tuple[Path, TrajectoryFile, list[int]]:
@@ -111,6 +132,22 @@ def evaluate_disparity(source: DatasetSource, files: list[Path], baseline_m: flo
             "pooled": disparity_metrics.pooled(scores), "per_frame": frames}
 
 
+def evaluate_semantic(source: DatasetSource, files: list[Path]) -> dict:
+    """IoU per class and group, mIoU and pixel accuracy of each frame's left class image prediction (``files``, one
+    per frame), pooled over frames (:mod:`sim.evaluation.semantic`), and per frame."""
+    pooled = np.zeros((semantic_metrics.CLASS_COUNT,) * 2, dtype=np.int64)
+    frames = []
+    for frame, path in zip(source.frames(), files):
+        truth = frame.semantic(LEFT)
+        matrix = semantic_metrics.confusion(truth, read_class_image(path, truth.shape))
+        pooled += matrix
+        score = semantic_metrics.scores(matrix)
+        frames.append({"frame": frame.index, **{key: score[key] for key in ("pixels", "pixel_accuracy", "miou")}})
+    if not pooled.any():
+        raise BadInput(f"{source.layout.semantic_dir(LEFT)}: every pixel of the truth is unknown; nothing to score")
+    return {"predictions": str(files[0].parent), **semantic_metrics.scores(pooled), "per_frame": frames}
+
+
 def evaluate_trajectory(source: DatasetSource, path: Path, estimate: TrajectoryFile, indices: list[int],
                         options: EvaluateOptions) -> dict:
     """ATE, RPE and KITTI drift of a TUM or KITTI trajectory of the left camera (pose ``i`` of frame
@@ -148,9 +185,26 @@ def report_table(report: dict) -> str:
                       "(holes filled as the KITTI devkit does)",
                   _row(("EPE px", "D1-all %", "EPE-noc px", "D1-noc %")),
                   _row((pooled["epe"], 100 * pooled["d1_all"], pooled["epe_noc"], 100 * pooled["d1_noc"]))]
+    if "semantic" in report:
+        lines += ["", *_semantic_lines(report["semantic"])]
     if "trajectory" in report:
         lines += ["", *_trajectory_lines(report["trajectory"])]
     return "\n".join(lines)
+
+
+def _semantic_lines(semantic: dict) -> list[str]:
+    """mIoU and pixel accuracy, then IoU and pixel counts of each class the truth or prediction has, then groups."""
+    lines = [f"semantic {semantic['predictions']}: {len(semantic['per_frame'])} frames pooled, "
+             f"{semantic['pixels']} pixels scored (the truth's unknown pixels are not)",
+             _row(("mIoU", "pixel acc")), _row((semantic["miou"], semantic["pixel_accuracy"])),
+             _row(("class", "IoU", "truth px", "predicted px"), 12)]
+    for name, values in semantic["classes"].items():
+        if values["truth_pixels"] or values["predicted_pixels"]:
+            lines.append(_row((name, values["iou"], str(values["truth_pixels"]), str(values["predicted_pixels"])), 12))
+    lines.append(_row(("group", "IoU"), 12) + "  classes")
+    for name, values in semantic["groups"].items():
+        lines.append(_row((name, values["iou"]), 12) + "  " + ", ".join(values["classes"]))
+    return lines
 
 
 def _trajectory_lines(trajectory: dict) -> list[str]:
