@@ -148,6 +148,8 @@ class OsdGeneral:
 
 
 _OSD = struct.Struct("<2d7h2BI6BH5Bb")
+#: The longest fly time OSD General holds (s): tenths of a second in an unsigned 16-bit field.
+MAX_FLY_TIME_S = 0xFFFF / 10
 _OSD_COLUMNS = ColumnLayout.of(_OSD, OsdGeneral, degrees=("longitude_deg", "latitude_deg"), tenths=(
     "height_above_takeoff_m", "velocity_x_mps", "velocity_y_mps", "velocity_z_mps", "pitch_deg", "roll_deg",
     "yaw_deg", "ultrasonic_height_m", "fly_time_s"))

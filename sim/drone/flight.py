@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from capture.attitude import wrap_deg
+from capture.messages import MAX_FLY_TIME_S
 from flightplan.geodesy import LocalFrame
 from sim.drone import path as pathlib
 from sim.drone.imperfections import Imperfections, PathDeviation, first_order_lag
@@ -111,6 +112,7 @@ class Flight:
         self.pieces, self.waypoint_s_m = self._build_pieces()
         self.profile = pathlib.speed_profile(self.pieces, config.accel_mps2)
         self.duration_s = self.profile.duration_s + 2.0 * config.ground_time_s
+        self._refuse_too_long()
         self.waypoint_heading_deg, self.waypoint_gimbal_pitch_deg = self._waypoint_commands()
         if imperfections.gust_offset_std_m > 0 and rng is None:
             raise ValueError("wind gusts need a numpy Generator (rng)")
@@ -119,6 +121,14 @@ class Flight:
         self._gimbal_grid = self._lagged_gimbal_grid()
 
     # --- construction -------------------------------------------------------------------------------------
+    def _refuse_too_long(self) -> None:
+        """``ValueError`` for a flight longer than its telemetry can say (a leg crawling at 1e-300 m/s), before
+        its samples fill the memory."""
+        if not self.duration_s <= MAX_FLY_TIME_S:
+            raise ValueError(f"the mission flies {self.duration_s:.6g} s ({self.duration_s / 3600:.3g} h); a flight "
+                             f"lasts at most {MAX_FLY_TIME_S:g} s ({MAX_FLY_TIME_S / 60:.0f} min, the longest fly time "
+                             "DJI's OSD telemetry holds): fly it faster, or as several missions")
+
     def _to_enu(self, lat_lon_alt) -> np.ndarray:
         lat, lon, alt = np.asarray(lat_lon_alt, float).T
         return self.frame.enu_points(lat, lon, self.home.height_ellipsoid_m + alt)

@@ -136,7 +136,10 @@ def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfect
             take_off = HomePoint(*home, ground_height_ellipsoid_m(scene, *home))
         except ValueError as error:
             raise ValueError(f"--home {home[0]} {home[1]}: {error}; expected a take-off point on the scene") from None
-    return fly(waypoints, take_off, imperfections, seed=seed)
+    try:
+        return fly(waypoints, take_off, imperfections, seed=seed)
+    except ValueError as error:
+        raise ValueError(f"{mission_csv}: {error}") from None
 
 
 def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True) -> int:

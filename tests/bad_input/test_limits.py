@@ -35,6 +35,16 @@ def write_mission(tmp: Path) -> None:
                       tmp / "m.csv")
 
 
+def write_slow_mission(speed_kmh: float):
+    """A writer of the small orbit of :func:`write_mission` flown at ``speed_kmh`` (the planner warns how many
+    batteries it needs and writes it)."""
+    def setup(tmp: Path) -> None:
+        request = OrbitRequest(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg, (Ring(5.0, 20.0),),
+                               speed_m_s=speed_kmh / 3.6)
+        write_mission_csv(plan_orbit(request).mission, tmp / "m.csv")
+    return setup
+
+
 def write_flight_log(tmp: Path) -> None:
     """A Litchi flight log of 150 rows (a log, not a mission: it has more rows than a mission may)."""
     header = "latitude,longitude,altitude(m),speed(mps),time(millisecond),datetime(utc),isflying,istakingphoto"
@@ -222,7 +232,7 @@ CASES = [
          r"1000000000 frames of 1280x720 .* needs about .* on disk; .* free"),
     Case("render-cameras-1000", "aerostereo-render", [*RENDER, "--width", "16384", "--height", "16384", "--cameras",
                                                       "1000"],
-         r"rendering 16384x16384 pixels x 1000 cameras .* needs about 14\.4 TiB of memory; this machine has"),
+         r"rendering 16384x16384 pixels x 1000 cameras .* needs about 15\.4 TiB of memory; this machine has"),
     Case("render-spp-1e6", "aerostereo-render", [*RENDER, "--spp", "1000000"], r"spp must be at most 65535"),
     Case("render-baseline-inf", "aerostereo-render", [*RENDER, "--baseline", "inf"],
          r"baseline must be a positive finite number, got inf"),
@@ -254,6 +264,15 @@ CASES = [
          r"photo size must be 1\.\.65535 pixels a side", setup=write_mission),
     Case("fly-log-as-mission", "aerostereo-render", [*FLY[:-1], "{tmp}/flight_log.csv"],
          r"flight_log\.csv:101: more than 99 waypoints", setup=write_flight_log),
+    # a mission slower than any battery (issue 31 re-run): its OSD fly time overflowed DJI's 16-bit field in a
+    # traceback (0.01 km/h, 3 h), or its samples no memory holds (1e-300 km/h)
+    Case("fly-mission-3-hours", "aerostereo-render", [*FLY, "--start-utc", "2024-06-01T08:00:00Z"],
+         r"m\.csv: the mission flies 10968\.\d s \(3\.05 h\); a flight lasts at most 6553\.5 s \(109 min, the "
+         r"longest fly time DJI's OSD telemetry holds\): fly it faster, or as several missions",
+         setup=write_slow_mission(0.01)),
+    Case("fly-mission-speed-1e-300", "aerostereo-render", [*FLY, "--start-utc", "2024-06-01T08:00:00Z"],
+         r"m\.csv: the mission flies \d\.\d+e\+30\d s .*; a flight lasts at most 6553\.5 s",
+         setup=write_slow_mission(1e-300)),
     Case("fly-year-9999", "aerostereo-render", [*FLY, "--start-utc", "9999-12-31T23:59:59Z"],
          r"start UTC 9999-12-31.* would end after year 9999", setup=write_mission),
     Case("fly-mission-20mb-field", "aerostereo-render", FLY, r"m\.csv: larger than 1024 KiB", setup=huge_mission_field),
