@@ -2,9 +2,9 @@
 
 A progressive morphological filter (Zhang et al. 2003, "A progressive morphological filter for removing nonground
 measurements from airborne LIDAR data"): the lowest mesh point of each grid cell is opened (grey erosion then
-dilation) with square windows doubling in size up to ``max_window_m``; a cell that an opening lowers by more than
-the terrain could rise over the window's growth (``slope`` x growth + ``tolerance_m``, at most ``max_step_m``) holds
-an object, not ground. The ground cells left are smoothed into the ground surface, which fills the object cells from
+dilation) with square windows (3 cells, then about doubling) up to ``max_window_m``; a cell that an opening lowers by more
+than the terrain could rise over the window's growth (``tolerance_m``, then ``slope`` x growth + ``tolerance_m``, at
+most ``max_step_m``) holds an object, not ground. The ground cells left are smoothed into the ground surface, which fills the object cells from
 the ground around them (normalized convolution: a Gaussian-weighted mean of the ground cells nearby, widened where
 none is near).
 """
@@ -68,7 +68,7 @@ def object_cells(lowest: np.ndarray, options: GroundFilter) -> np.ndarray:
     """``(rows, cols)`` True where the progressive opening of the (filled) lowest surface flags an object."""
     surface = lowest.copy()
     flagged = np.zeros(lowest.shape, bool)
-    previous, window = 1, 3
+    previous, window = 3, 3  # the first window lets through tolerance_m only
     while True:
         opened = ndimage.grey_opening(surface, size=(window, window))
         step = min(options.tolerance_m + options.slope * (window - previous) * options.cell_m, options.max_step_m)

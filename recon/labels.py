@@ -49,7 +49,7 @@ class LabelOptions:
     planar: tuple[float, float] = (0.85, 0.95)  # mean-normal length of a crown, of a roof plane
     colour_weight: float = 0.75
     crown_spacing_m: float = 3.0
-    min_object_m2: float = 4.0
+    min_object_m2: float = 5.0
     min_confidence: float = 0.3
     ground: GroundFilter = field(default_factory=GroundFilter)
 
@@ -139,8 +139,9 @@ def objects(occupied: np.ndarray, tree: np.ndarray, top_m: np.ndarray, cell_m: f
 def label_faces(vertices: np.ndarray, faces: np.ndarray, surface: Surface,
                 options: LabelOptions = LabelOptions()) -> SceneLabels:
     """:class:`SceneLabels` of every face of a mesh (ENU metres; module docstring)."""
-    ground = fit_ground(vertices, options.ground)
-    features = face_features(vertices, np.asarray(faces), surface, ground)
+    faces = np.asarray(faces)
+    ground = fit_ground(vertices[np.unique(faces)], options.ground)  # the faces' corners: no stray vertex
+    features = face_features(vertices, faces, surface, ground)
     grid = ground.grid
     row, col = grid.cell_of(features.centroid[:, :2])
     cells, shape = row * grid.cols + col, (grid.rows, grid.cols)

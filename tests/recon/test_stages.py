@@ -91,7 +91,7 @@ def test_first_run_runs_every_stage_and_reports_sfm_progress(flight):
     assert list(dict.fromkeys(tuple(name) for *name, _, _ in first.progress)) == list(expected)
     report = json.loads((flight["scene"] / "work" / "sfm_report.json").read_text())
     assert report["registered"] == [f"view_{i}.png" for i in range(6)]
-    assert "[depth] running (stage 3/7)" in first.logs
+    assert "[depth] running (stage 3/8)" in first.logs
 
 
 @pytest.mark.slow
@@ -107,9 +107,9 @@ def test_unchanged_rerun_does_nothing(flight, scene):
 def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
     before = snapshot(scene)
     rerun = Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
-    assert rerun.ran == ["mesh", "texture", "scene"]
-    assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 3
-    assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene" in rerun.logs
+    assert rerun.ran == ["mesh", "texture", "scene", "labels"]
+    assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 4
+    assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene, labels" in rerun.logs
     differ = changed(before, snapshot(scene))
     assert {"work/mesh.ply", "work/terrain.glb", "scene.json"} <= differ
     assert not {"work/sfm_report.json", "work/fused.ply", "work/dense/depth_report.json"} & differ
@@ -125,8 +125,8 @@ def test_other_sky_bake_settings_redo_the_scene_stage_only(flight, scene, monkey
     monkeypatch.setattr(sky, "BAKE_VERSION", sky.BAKE_VERSION + 1)
     before = snapshot(scene)
     rerun = Run(flight, scene)
-    assert rerun.ran == ["scene"]
-    assert "[scene] sky_visibility changed (1 modified: bake_version): redoing scene" in rerun.logs
+    assert rerun.ran == ["scene", "labels"]
+    assert "[scene] sky_visibility changed (1 modified: bake_version): redoing scene, labels" in rerun.logs
     assert {SKY_FILE, "scene.json"} <= changed(before, snapshot(scene))
     assert read_sky_visibility(scene / SKY_FILE).baked_from["bake_version"] == sky.BAKE_VERSION
     assert Run(flight, scene).ran == []
@@ -140,9 +140,9 @@ def test_changed_depth_option_recomputes_every_depth_map(flight, scene):
     before = snapshot(scene)
     options = dataclasses.replace(OPTIONS, dense=dataclasses.replace(OPTIONS.dense, consistency=0.05))
     rerun = Run(flight, scene, options)
-    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene"]
+    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene", "labels"]
     assert ("[depth] options changed (dense.consistency: 0.02 -> 0.05): redoing depth, fusion, mesh, texture, "
-            "scene") in rerun.logs
+            "scene, labels") in rerun.logs
     differ = changed(before, snapshot(scene))
     assert {str(p.relative_to(scene)) for p in maps} <= differ
     assert not {"work/sfm_report.json", "work/sparse/images.bin", "work/dense/sparse/images.bin"} & differ
@@ -159,8 +159,8 @@ def test_interrupted_depth_stage_resumes_its_finished_maps(flight, scene):
         path.unlink()
     before = snapshot(scene)
     rerun = Run(flight, scene)
-    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene"]
-    assert "[depth] interrupted before it finished: redoing depth, fusion, mesh, texture, scene" in rerun.logs
+    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene", "labels"]
+    assert "[depth] interrupted before it finished: redoing depth, fusion, mesh, texture, scene, labels" in rerun.logs
     assert {str(p.relative_to(scene)) for p in maps} & changed(before, snapshot(scene)) == {
         str(p.relative_to(scene)) for p in lost}
 
