@@ -27,7 +27,7 @@ class GroundFilter:
 
     cell_m: float = 1.0
     max_window_m: float = 48.0
-    slope: float = 0.3
+    slope: float = 1.0
     tolerance_m: float = 0.3
     max_step_m: float = 2.0
     smooth_m: float = 1.5

@@ -5,7 +5,7 @@ Frames and units: the scene's ENU metres (z up); colours are the texture's albed
 1. Ground: a height grid fitted to the mesh (:mod:`recon.ground`); each face's height above it (its centroid's).
 2. Faces lower than ``object_height_m`` are ground: ``road`` where they and most low faces of the 3 x 3 cells around
    are grey (chroma below ``grey_chroma``, not green), else ``ground`` (lawns and crops look alike; ``field`` is not
-   given). Confidence grows with the face's distance below the object height (and the road share).
+   given). Confidence grows with the face's distance below the object height (times the grey share for a road).
 3. Higher faces belong to objects. Per grid cell, over those faces (area-weighted, 3 x 3 cells): the share that is
    green (excess green ``2g - r - b`` of the chromatic coordinates above ``green_exg``) and the planarity of the
    upward faces (length of their mean normal: 1 on a roof plane, lower on a crown). A cell's tree score mixes the
@@ -161,7 +161,7 @@ def label_faces(vertices: np.ndarray, faces: np.ndarray, surface: Surface,
     low_class = np.where(grey & (road > 0.5), ROAD, GROUND)
     high_class = np.where(face_tree, TREE, np.where(features.normal[:, 2] > options.wall_max_up, ROOF, WALL))
     face_class = np.where(raised, high_class, low_class).astype(np.uint8)
-    low_confidence = margin * np.where(low_class == ROAD, road, np.where(grey, 1 - road, 1.0))
+    low_confidence = margin * np.where(low_class == ROAD, road, 1.0)  # not sure of the road: ground
     confidence = np.where(raised, margin * np.abs(2 * face_score - 1), low_confidence)
     face_class[confidence < options.min_confidence] = UNKNOWN
     instance = np.where(raised & (face_class != UNKNOWN), ids.ravel()[cells], 0)

@@ -16,6 +16,8 @@ from recon.progress import StepProgress
 from recon.sfm.options import SfmOptions
 from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
 from sim.render import sky
+from sim.render.labels import LABELS_FILE
+from sim.render.scene import load_scene
 from sim.render.sky_file import SKY_FILE, read_sky_visibility
 from tests.recon.synthetic import make_texture, write_nadir_photos
 from tools.geotag_csv import write_geotags
@@ -185,6 +187,31 @@ def test_outputs_from_before_stamps_are_redone(flight, scene):
             "redoing " + ", ".join(STAGES)) in rerun.logs
 
 
+@pytest.mark.slow
+def test_a_scene_labelled_before_the_labels_stage_existed_redoes_only_that_stage(flight, scene):
+    """A scene folder finished before the labels stage (no labels stamp, no labels.npz, scene.json naming none)."""
+    (scene / "work" / "stages" / "labels.json").unlink()
+    (scene / LABELS_FILE).unlink()
+    meta = json.loads((scene / "scene.json").read_text())
+    del meta["labels"], meta["classes"]
+    (scene / "scene.json").write_text(json.dumps(meta))
+    rerun = Run(flight, scene)
+    assert rerun.ran == ["labels"]
+    labels = load_scene(scene).labels
+    assert labels is not None and labels.face_class.any()  # the textured plane: ground (or unknown), labelled
+
+
+@pytest.mark.slow
+def test_changed_label_option_redoes_the_labels_stage_only(flight, scene):
+    before = snapshot(scene)
+    options = dataclasses.replace(OPTIONS, labels=dataclasses.replace(OPTIONS.labels, min_confidence=0.9))
+    rerun = Run(flight, scene, options)
+    assert rerun.ran == ["labels"]
+    assert "[labels] options changed (labels.min_confidence: 0.3 -> 0.9): redoing labels" in rerun.logs
+    assert changed(before, snapshot(scene)) == {LABELS_FILE, "scene.json"}
+    assert json.loads((scene / "scene.json").read_text())["labels"]["options"]["min_confidence"] == 0.9
+
+
 def test_every_option_field_is_claimed_by_a_stage():
     fields = option_fields(ReconOptions())
     assert unclaimed_options(ReconOptions()) == []
@@ -209,8 +236,11 @@ def test_fingerprints_chain_from_the_changed_stage_on():
     faster = stage_records(dataclasses.replace(OPTIONS, sfm=dataclasses.replace(OPTIONS.sfm, num_threads=8)),
                            {"sfm": {"photos": {"a.jpg": [1, 2]}}})
     mesh = stage_records(dataclasses.replace(OPTIONS, mesh="poisson"), {"sfm": {"photos": {"a.jpg": [1, 2]}}})
-    assert [base[s][1] == faster[s][1] for s in STAGES] == [True] * 7  # threads shape nothing
-    assert [base[s][1] == mesh[s][1] for s in STAGES] == [True] * 4 + [False] * 3
+    labels = stage_records(dataclasses.replace(OPTIONS, labels=dataclasses.replace(OPTIONS.labels, green_exg=0.1)),
+                           {"sfm": {"photos": {"a.jpg": [1, 2]}}})
+    assert [base[s][1] == faster[s][1] for s in STAGES] == [True] * 8  # threads shape nothing
+    assert [base[s][1] == mesh[s][1] for s in STAGES] == [True] * 4 + [False] * 4
+    assert [base[s][1] == labels[s][1] for s in STAGES] == [True] * 7 + [False]
 
 
 def test_progress_lines_when_stderr_is_not_a_terminal():
