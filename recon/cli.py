@@ -135,7 +135,8 @@ def run_recon(argv) -> int:
 
 
 def main(argv=None) -> int:
-    """``aerostereo-recon ...``, ``... merge ...``, ``... area ...`` or ``... labels ...`` -> exit code (0 ok, 2 bad input, 130 Ctrl-C)."""
+    """``aerostereo-recon ...``, ``... merge ...``, ``... area ...`` or ``... labels ...`` -> exit code (0 ok, 2 bad
+    input, 130 Ctrl-C)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["merge"]:
         return run_cli(f"{PROGRAM} merge", lambda: run_merge(argv[1:]))

@@ -2,11 +2,11 @@
 
 A progressive morphological filter (Zhang et al. 2003, "A progressive morphological filter for removing nonground
 measurements from airborne LIDAR data"): the lowest mesh point of each grid cell is opened (grey erosion then
-dilation) with square windows (3 cells, then about doubling) up to ``max_window_m``; a cell that an opening lowers by more
-than the terrain could rise over the window's growth (``tolerance_m``, then ``slope`` x growth + ``tolerance_m``, at
-most ``max_step_m``) holds an object, not ground. The ground cells left are smoothed into the ground surface, which fills the object cells from
-the ground around them (normalized convolution: a Gaussian-weighted mean of the ground cells nearby, widened where
-none is near).
+dilation) with square windows (3 cells, then about doubling) up to ``max_window_m``; a cell that an opening lowers by
+more than the terrain could rise over the window's growth (``tolerance_m``, then ``slope`` x growth + ``tolerance_m``,
+at most ``max_step_m``) holds an object, not ground. The ground cells left are smoothed into the ground surface, which
+fills the object cells from the ground around them (normalized convolution: a Gaussian-weighted mean of the ground
+cells nearby, widened where none is near).
 """
 
 from __future__ import annotations

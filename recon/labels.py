@@ -46,7 +46,8 @@ class LabelOptions:
     green_exg: float = 0.06
     grey_chroma: float = 0.06
     wall_max_up: float = 0.5
-    planar: tuple[float, float] = (0.85, 0.95)  # mean-normal length of a crown, of a roof plane
+    crown_planarity: float = 0.85  # mean upward normal length of a crown: fully rough
+    roof_planarity: float = 0.95  # of a roof plane: fully planar
     colour_weight: float = 0.75
     crown_spacing_m: float = 3.0
     min_object_m2: float = 5.0
@@ -60,9 +61,10 @@ class LabelOptions:
                 f"{self.ground.slope:g}); faces under {self.object_height_m:g} m above it ground (road where grey: "
                 f"chroma < {self.grey_chroma:g}); above it tree where a cell's green share (excess green > "
                 f"{self.green_exg:g}, weight {self.colour_weight:g}) and roughness (mean upward normal length "
-                f"{self.planar[0]:g}..{self.planar[1]:g}) say so, else roof (normal z > {self.wall_max_up:g}) or "
-                f"wall; instances: connected building cells, tree crowns by watershed ({self.crown_spacing_m:g} m "
-                f"apart), none under {self.min_object_m2:g} m2; unknown below confidence {self.min_confidence:g}")
+                f"{self.crown_planarity:g}..{self.roof_planarity:g}) say so, else roof (normal z > "
+                f"{self.wall_max_up:g}) or wall; instances: connected building cells, tree crowns by watershed "
+                f"({self.crown_spacing_m:g} m apart), none under {self.min_object_m2:g} m2; unknown below confidence "
+                f"{self.min_confidence:g}")
 
 
 @dataclass(frozen=True)
@@ -114,7 +116,7 @@ def tree_score(features: FaceFeatures, cells: np.ndarray, shape: tuple[int, int]
     upward = area * (features.normal[:, 2] > options.wall_max_up)
     mean_normal = np.stack([cell_sums(cells, shape, upward * features.normal[:, k]) for k in range(3)])
     planarity = np.linalg.norm(mean_normal, axis=0) / np.maximum(cell_sums(cells, shape, upward), 1e-9)
-    low, high = options.planar
+    low, high = options.crown_planarity, options.roof_planarity
     rough = np.clip((high - planarity) / (high - low), 0.0, 1.0)
     return options.colour_weight * green + (1 - options.colour_weight) * rough
 

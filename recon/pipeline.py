@@ -3,7 +3,7 @@
 Each stage records what made it in a stamp, ``work/stages/<stage>.json`` (see :mod:`recon.stages`): the options
 it reads, its inputs and the fingerprint of the stage before it. A rerun skips the stages whose stamp is finished
 with the same fingerprint, and redoes the first other one and every stage after it, saying why on stderr
-(``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene``):
+(``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene, labels``):
 
 | stage | options it reads (``ReconOptions``) | inputs | outputs |
 |---|---|---|---|
@@ -14,7 +14,7 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
 | texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture="none"``) |
 | scene | ``texture`` | the sky visibility's bake settings | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` |
-| labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (class, object, confidence per face: recon/labels.py), named in ``scene.json`` (rewritten) |
+| labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/labels.py), named in ``scene.json`` (rewritten) |
 
 The exact table is :data:`recon.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
 maps when rerun with the same fingerprint; redone for another one, it deletes them first (:data:`STALE_OUTPUTS`).

@@ -5,16 +5,16 @@
         [--views 20] [--size 640 360] [--fov 80] [--seed 0] [--json OUT.json]
         [--pictures OUT.jpg] [--picture-count 4]
 
-The twin (a reconstructed scene folder, read only) is labelled here, in memory, and timed. ``--views`` poses are
-drawn the paper's way (recon.oblique.sample_views: 20-100 m up, tilts up to 45 deg, sky-rejected; seeded) in the
-true world with the camera over the twin's observed area (its scene.json ``observed_area_m``, moved into the world's
-ENU frame through geodetic coordinates: flightplan.geodesy.LocalFrame). Each pose is rendered in both (the twin at
-the same geodetic pose, so its georeferencing error counts; with ``--truth``, the flight's truth.json, the twin is
-placed by its cameras instead, which removes that error: recon.oblique.twin_frame), and class images are looked up from the triangle hit
-(SceneLabels.class_image). Over the in-area pixels (the true surface point inside the observed area, both hit, the
-truth in a group) it prints per-group IoU (sim.render.classes.GROUPS), their mean (mIoU), the unknown share, the
-confusion matrix (rows: truth group; columns: the twin's group, or unknown/other), and the labelling time beside the
-recon run's stage times (``--recon-log``: its ``[stage] done (S s)`` lines).
+The twin (a reconstructed scene folder, read only) is labelled here, in memory, and timed. ``--views`` poses are drawn
+the paper's way (recon.oblique.sample_views: 20-100 m up, tilts up to 45 deg, sky-rejected; seeded) in the true world
+with the camera over the twin's observed area (its scene.json ``observed_area_m``, moved into the world's ENU frame
+through geodetic coordinates: flightplan.geodesy.LocalFrame). Each pose is rendered in both (the twin at the same
+geodetic pose, so its georeferencing error counts; with ``--truth``, the flight's truth.json, the twin is placed by
+its cameras instead, which removes that error: recon.oblique.twin_frame), and class images are looked up from the
+triangle hit (SceneLabels.class_image). Over the in-area pixels (the true surface point inside the observed area, both
+hit, the truth in a group) it prints per-group IoU (sim.render.classes.GROUPS), their mean (mIoU), the unknown share,
+the confusion matrix (rows: truth group; columns: the twin's group, or unknown/other), and the labelling time beside
+the recon run's stage times (``--recon-log``: its ``[stage] done (S s)`` lines).
 
 Without ``--world`` (a real twin with no truth) the poses are drawn in the twin and nothing is scored: only
 ``--pictures`` are drawn. ``--pictures OUT.jpg``: one row per view, the twin as captured | its class image (the
@@ -159,21 +159,30 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
-    camera = PinholeCamera.from_fov(*args.size, args.fov)
+def load(args, camera: PinholeCamera) -> tuple:
+    """The labelled twin and its labelling report, the world (None without ``--world``), the twin's placement in it,
+    the observed area (world ENU, or the twin's without a world) and the drawn poses."""
     labels, report = label_scene(args.twin)
     print(f"labelled {report['faces']} faces in {report['seconds']:.1f} s: {report['classes']}", file=sys.stderr)
     twin = load_scene(args.twin, labels=labels)
     world = load_scene(resolve_scene_dir(args.world)) if args.world else None
     if world is not None and world.labels is None:
-        print(f"bench_labels: {args.world}: the true world has no labels", file=sys.stderr)
-        return 2
+        raise ValueError(f"{args.world}: the true world has no labels (labels.npz named in its scene.json)")
     frame = twin_placement(twin, world, args.twin, args.truth) if world else None
     area = np.asarray(twin.observed_area_m, dtype=np.float64)
     if frame is not None:  # the twin's polygon in the world's ENU frame (heights ignored)
         area = area @ frame.T_world_twin[:2, :2].T + frame.T_world_twin[:2, 3]
-    poses = sample_views(world or twin, camera, area, args.views, args.seed)
+    return twin, report, world, frame, area, sample_views(world or twin, camera, area, args.views, args.seed)
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    camera = PinholeCamera.from_fov(*args.size, args.fov)
+    try:
+        twin, report, world, frame, area, poses = load(args, camera)
+    except (OSError, ValueError, KeyError, TypeError, RuntimeError) as error:  # SceneError is a ValueError
+        print(f"bench_labels: {type(error).__name__}: {error}", file=sys.stderr)
+        return 2
     matrix, rows = np.zeros((len(CLASSES), len(CLASSES)), np.int64), []
     with ThreadPoolExecutor(default_workers()) as pool:
         for index, pose in enumerate(poses):
@@ -186,8 +195,9 @@ def main(argv=None) -> int:
                 rows.append(picture_row(twin_view, true_view, twin, world))
             print(f"view {index + 1}/{len(poses)}", file=sys.stderr)
     stages = stage_seconds(args.recon_log) if args.recon_log else {}
-    result = {"twin": str(args.twin), "world": args.world, "truth": args.truth and str(args.truth), "views": args.views, "size": list(args.size),
-              "seed": args.seed, "labels": report, "recon_stage_seconds": stages}
+    result = {"twin": str(args.twin), "world": args.world, "truth": args.truth and str(args.truth),
+              "views": args.views, "size": list(args.size), "seed": args.seed, "labels": report,
+              "recon_stage_seconds": stages}
     if world is not None:
         scores = group_scores(matrix)
         print_scores(scores)
@@ -198,7 +208,6 @@ def main(argv=None) -> int:
     if args.json:
         write_text_atomic(args.json, json.dumps(result, indent=2))
     return 0
-
 
 if __name__ == "__main__":
     sys.exit(main())

@@ -63,7 +63,8 @@ def parts() -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     house, small, platform = (box(*footprint, height) for footprint, height in zip(FOOTPRINTS, (6.0, 1.2, 0.55)))
     house_colour = np.where(house[0][:, 2] >= house[0][:, 2].max() - 1e-6, "roof", "wall")
     return {"ground": (*ground, np.where(road, "road", "lawn")),
-            "house": (*house, house_colour), "crown": (crown.vertices, crown.faces, np.full(len(crown.vertices), "crown")),
+            "house": (*house, house_colour),
+            "crown": (crown.vertices, crown.faces, np.full(len(crown.vertices), "crown")),
             "small": (*small, np.full(len(small[0]), "box")), "platform": (*platform, np.full(len(platform[0]), "box"))}
 
 
