@@ -7,11 +7,14 @@
                      [--dense-size PX] [--depth-spacing DEG] [--mesh 3d|2.5d|poisson] [--grid M] [--decimate-error M]
                      [--texel M] [--texture atlas|ortho|none] [--hold-out K] [--workers J] [--verbose]
     aerostereo-recon merge A B --pairs pairs.txt --out C
+    aerostereo-recon labels SCENE_DIR
 
 The scene summary (JSON) is the only thing on stdout; stage lines, progress and COLMAP's own log go to stderr, so
 ``aerostereo-recon ... | jq`` works. Bad input, and an output that names an input (``--out`` inside ``--photos``, on
 ``--geotags``; ``merge --out`` on A, B or the pairs file) -> one line on stderr, exit code 2, before any work;
-so do a full or read-only disk and a truncated photo (docs/recon.md).
+so do a full or read-only disk and a truncated photo (docs/recon.md). ``labels`` labels the faces of an existing
+scene folder (recon/labels.py; what the recon's last stage does): ``labels.npz`` and scene.json's ``labels``; its
+report (JSON) on stdout; a folder that is not a scene -> one line, exit code 2.
 """
 
 from __future__ import annotations
@@ -33,8 +36,10 @@ from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from recon.area.cli import run_area
 from recon.cli_options import PROGRAM, add_recon_options, recon_options
 from recon.merge import estimate_merge, merge_meshes, read_pairs
-from recon.pipeline import Recon
+from recon.labels import LabelOptions
+from recon.pipeline import Recon, label_scene_dir
 from recon.sfm.options import SfmError
+from sim.render.labels import LABELS_FILE
 from sim.render.mesh_file import check_mesh_file
 
 
@@ -44,7 +49,9 @@ def build_parser() -> argparse.ArgumentParser:
                                               "'aerostereo-recon area FLIGHT... --out AREA' (each flight on its own, "
                                               "joined into one scene; 'aerostereo-recon area --help'), "
                                               "'aerostereo-recon merge A B --pairs P --out C' (control-point merge "
-                                              "of two meshes; 'aerostereo-recon merge --help').")
+                                              "of two meshes; 'aerostereo-recon merge --help'), "
+                                              "'aerostereo-recon labels SCENE_DIR' (label the faces of a scene "
+                                              "folder).")
     add_version(parser)
     parser.add_argument("--photos", type=Path, required=True, help="folder of photos")
     parser.add_argument("--geotags", type=Path, help="geotags.csv (with geotags.json beside it); default: EXIF GPS")
@@ -60,6 +67,23 @@ def build_merge_parser() -> argparse.ArgumentParser:
     parser.add_argument("--pairs", type=Path, required=True, help="text file: x y z x' y' z' per line (B then A)")
     parser.add_argument("--out", type=Path, required=True, help="merged mesh file (PLY/OBJ/GLB)")
     return parser
+
+
+def build_labels_parser() -> argparse.ArgumentParser:
+    return Parser(prog=f"{PROGRAM} labels", description="Label the faces of a scene folder's mesh (ground, road, "
+                                                         "roof, wall, tree, unknown; buildings and trees as objects) "
+                                                         "from its geometry and colour: writes labels.npz and names "
+                                                         "it in scene.json.")
+
+
+def run_labels(argv) -> int:
+    parser = build_labels_parser()
+    parser.add_argument("scene", type=Path, help="scene folder (scene.json + mesh), e.g. aerostereo-recon's --out")
+    args = parser.parse_args(argv)
+    report = label_scene_dir(args.scene, LabelOptions())
+    print(json.dumps({"scene": str(args.scene / "scene.json"), "labels": str(args.scene / LABELS_FILE), **report},
+                     indent=2))
+    return 0
 
 
 def load_mesh(path: Path) -> trimesh.Trimesh:
@@ -111,10 +135,13 @@ def run_recon(argv) -> int:
 
 
 def main(argv=None) -> int:
-    """``aerostereo-recon ...`` or ``aerostereo-recon merge ...`` -> exit code (0 ok, 2 bad input, 130 Ctrl-C)."""
+    """``aerostereo-recon ...``, ``... merge ...``, ``... area ...`` or ``... labels ...`` -> exit code (0 ok, 2 bad
+    input, 130 Ctrl-C)."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv[:1] == ["merge"]:
         return run_cli(f"{PROGRAM} merge", lambda: run_merge(argv[1:]))
+    if argv[:1] == ["labels"]:
+        return run_cli(f"{PROGRAM} labels", lambda: run_labels(argv[1:]))
     if argv[:1] == ["area"]:
         return run_cli(f"{PROGRAM} area", lambda: run_area(argv[1:]), bad_input=(SfmError, DenseError))
     return run_cli(PROGRAM, lambda: run_recon(argv), bad_input=(SfmError, DenseError))

@@ -3,7 +3,7 @@
 Each stage records what made it in a stamp, ``work/stages/<stage>.json`` (see :mod:`recon.stages`): the options
 it reads, its inputs and the fingerprint of the stage before it. A rerun skips the stages whose stamp is finished
 with the same fingerprint, and redoes the first other one and every stage after it, saying why on stderr
-(``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene``):
+(``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene, labels``):
 
 | stage | options it reads (``ReconOptions``) | inputs | outputs |
 |---|---|---|---|
@@ -14,6 +14,7 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
 | texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture="none"``) |
 | scene | ``texture`` | the sky visibility's bake settings | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` |
+| labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/labels.py), named in ``scene.json`` (rewritten) |
 
 The exact table is :data:`recon.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
 maps when rerun with the same fingerprint; redone for another one, it deletes them first (:data:`STALE_OUTPUTS`).
@@ -43,6 +44,7 @@ from recon.atlas import AtlasOptions, texture_atlas
 from recon.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
+from recon.labels import LabelOptions, store_labels
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.resources import require_disk
 from cliutil.jsonfile import read_json
@@ -57,6 +59,8 @@ from recon.sfm.pipeline import MIN_PHOTOS, check_inputs, run_sfm, sfm_disk_bytes
 from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
+from sim.render.labels import LABELS_FILE
+from sim.render.scene import read_scene_json
 from sim.render.sky import bake_settings
 
 MESHES = ("3d", "2.5d", "poisson")
@@ -65,7 +69,7 @@ TEXTURES = ("atlas", "ortho", "none")
 #: What each stage wrote before stages were stamped (relative to the scene folder): such a stage is redone.
 OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fusion.cfg",
                "depth": "work/dense/depth_report.json", "fusion": "work/fused.ply", "mesh": "work/mesh.ply",
-               "texture": "work/texture_report.json", "scene": "scene.json"}
+               "texture": "work/texture_report.json", "scene": "scene.json", "labels": LABELS_FILE}
 
 #: Partial outputs (relative to ``work``) that a stage reuses when it resumes its own interrupted run, and that are
 #: deleted before it is redone for another fingerprint.
@@ -91,7 +95,8 @@ class ReconOptions:
     the albedo and the capture light it divided out (recon/delight.py), so the twin can be lit by another sun;
     ``capture_sun``: (azimuth, elevation) degrees of the sun of every photo when it is known better than their times
     say (a virtual flight lit by a fixed sun), None: from each photo's UTC time; ``capture_utc_offset_h``: the zone of
-    the photos' EXIF clocks (hours east of UTC) where they did not write it, None: found from their shadows."""
+    the photos' EXIF clocks (hours east of UTC) where they did not write it, None: found from their shadows;
+    ``labels``: the thresholds the faces are labelled with (recon/labels.py)."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
@@ -108,6 +113,7 @@ class ReconOptions:
     delight: bool = True
     capture_sun: tuple[float, float] | None = None
     capture_utc_offset_h: float | None = None
+    labels: LabelOptions = field(default_factory=LabelOptions)
 
     def __post_init__(self) -> None:
         if self.mesh not in MESHES:
@@ -511,3 +517,18 @@ class Recon:
             light.is_file() else None
         write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras,
                     capture_light)
+
+    def stage_labels(self):
+        label_scene_dir(self.scene_dir, self.options.labels, self.log)
+
+
+def label_scene_dir(scene_dir: Path, options: LabelOptions, log=log_stderr) -> dict:
+    """Label the faces of the scene folder's mesh (:func:`recon.labels.store_labels`) and rewrite its scene.json
+    (atomically) naming the labels; the labeller's report."""
+    read_scene_json(scene_dir)  # a folder that is not a scene: SceneError naming the file and what is wrong
+    meta = read_json(scene_dir / "scene.json")
+    report = store_labels(scene_dir, meta, options)
+    write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
+    log(f"[labels] {report['faces']} faces in {report['seconds']} s: {report['classes']}, {report['objects']} "
+        f"objects, {100 * report['unknown_share']:.1f} % unknown")
+    return report

@@ -21,7 +21,7 @@ from pathlib import Path
 from cliutil.atomic import write_text_atomic
 from cliutil.jsonfile import read_json
 
-STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene")
+STAGES = ("sfm", "undistort", "depth", "fusion", "mesh", "texture", "scene", "labels")
 
 #: The option fields (dotted paths into ``ReconOptions``; a path to a nested options object claims all of its
 #: fields) each stage reads. A field is claimed by the first stage that reads it: later stages see it through the
@@ -37,6 +37,7 @@ STAGE_OPTIONS = {
     "mesh": ("mesh", "grid_m", "poisson_depth", "poisson_trim", "crop_margin", "decimate_error_m"),
     "texture": ("texture", "texture_options", "atlas_options", "delight", "capture_sun", "capture_utc_offset_h"),
     "scene": ("texture",),
+    "labels": ("labels",),
 }
 
 #: Option fields that change how fast a stage runs, not what it writes: changing them redoes nothing.

@@ -9,6 +9,7 @@ Layout of the output folder ``AREA``::
     AREA/ownership.png        16-bit: per ground cell the index of the piece that owns it (65535: none)
     AREA/area_report.json     pieces, corrections, pair offsets before/after (join_warnings: pairs the join left
                               farther apart, also in scene.json), seams, colour gains, timings
+    AREA/labels.npz           the merged mesh's face labels (recon/labels.py), named in scene.json
     AREA/scene.json           written last: the scene renders as one (aerostereo-render --scene AREA)
 
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
@@ -41,6 +42,7 @@ from recon.area.align import (AreaAlignment, AreaError, Link, PairReport, Piece,
                               load_pieces)
 from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
+from recon.labels import LabelOptions, store_labels
 from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions, load_priors
 from recon.priors import PosePriors
@@ -79,11 +81,13 @@ class Flight:
 
 @dataclass(frozen=True)
 class AreaOptions:
-    """How pieces are joined: ground cell (m), seam blend band (m), the largest seam step blended (m)."""
+    """How pieces are joined: ground cell (m), seam blend band (m), the largest seam step blended (m); how the joined
+    scene's faces are labelled (recon/labels.py)."""
 
     cell_m: float = 1.0
     blend_width_m: float = 4.0
     max_blend_step_m: float = 0.5
+    labels: LabelOptions = dataclasses.field(default_factory=LabelOptions)
 
     def __post_init__(self) -> None:
         for name in ("cell_m", "blend_width_m", "max_blend_step_m"):
@@ -357,7 +361,7 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report["control"] = control_report
     report["timings_s"] = timings
     write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
-               report)
+               report, options.labels)
     lap("write")
     report["timings_s"] = timings
     write_text_atomic(area_dir / REPORT, json.dumps(report, indent=2) + "\n")
@@ -430,8 +434,9 @@ def _shoelace(polygon: np.ndarray) -> float:
 
 
 def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merged: list[MergedPiece],
-               cameras: list[SceneCamera], owner: np.ndarray, polygon: np.ndarray, report: dict) -> None:
-    """The merged scene's files, each atomically, scene.json last."""
+               cameras: list[SceneCamera], owner: np.ndarray, polygon: np.ndarray, report: dict,
+               labels: LabelOptions) -> None:
+    """The merged scene's files, each atomically (its faces labelled with ``labels``), scene.json last."""
     with atomic_path(area_dir / mesh_name) as tmp:
         if isinstance(encoded, bytes):
             tmp.write_bytes(encoded)
@@ -449,4 +454,5 @@ def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merge
     meta["observed_area_m"] = polygon.round(3).tolist()
     meta["join_warnings"] = report["join_warnings"]
     store_sky_visibility(area_dir, meta)
+    report["labels"] = store_labels(area_dir, meta, labels)
     write_text_atomic(area_dir / "scene.json", json.dumps(meta, indent=2))

@@ -301,10 +301,11 @@ def _is_polygon(points) -> bool:
                     and all(np.isfinite(p)) for p in points))
 
 
-def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
+def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None, labels: SceneLabels | None = None) -> Scene:
     """Load a scene folder (``scene.json`` + mesh) into a ray-castable :class:`Scene`.
 
-    Scenes share :func:`shared_device` unless another ``device`` is given.
+    Scenes share :func:`shared_device` unless another ``device`` is given. ``labels``: labels of every face of the
+    mesh file to use instead of the ones scene.json names (a labeller's, not yet written).
     """
     scene_dir = Path(scene_dir)
     meta = read_scene_json(scene_dir)
@@ -314,7 +315,7 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None) -> Scene:
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
                  str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
                  observed_area_m=meta.get("observed_area_m"), stored_sky=read_scene_sky_visibility(scene_dir, meta),
-                 labels=read_scene_labels(scene_dir, meta, vertices, faces))
+                 labels=labels if labels is not None else read_scene_labels(scene_dir, meta, vertices, faces))
 
 
 def read_scene_labels(scene_dir: Path, meta: dict, vertices: np.ndarray, faces: np.ndarray) -> SceneLabels | None:

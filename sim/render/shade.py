@@ -21,7 +21,7 @@ import numpy as np
 
 from sim.render.camera import row_dots
 from sim.render.color import SRGB8_TO_LINEAR
-from sim.render.scene import Scene
+from sim.render.scene import Scene, Surface
 from sim.render.texture import sample_linear
 
 
@@ -90,9 +90,14 @@ def sky_radiance(directions: np.ndarray, lighting: Lighting) -> np.ndarray:
 def surface_albedo(scene: Scene, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Linear albedo ``(N, 3)`` at hits given by triangle index and barycentrics (a texture, each face's own texture
     of several, or vertex colours)."""
-    corners = scene.faces.take(tri, axis=0)  # take: ~2.5x faster than fancy indexing here
+    return mesh_albedo(scene.surface, scene.faces, tri, u, v)
+
+
+def mesh_albedo(surface: Surface, faces: np.ndarray, tri: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """:func:`surface_albedo` of a mesh's ``surface`` and ``faces`` (``(F, 3)`` vertex indices, the faces the
+    surface's ``face_texture`` is given for) that is not a :class:`Scene`."""
+    corners = faces.take(tri, axis=0)  # take: ~2.5x faster than fancy indexing here
     w0 = 1.0 - u - v
-    surface = scene.surface
     if surface.texture is not None:
         return sample_linear(surface.linear_texture, _hit_uv(surface.uv, corners, w0, u, v))
     if surface.textures:

@@ -167,6 +167,16 @@ def test_the_merged_scene_renders_each_piece_from_its_own_texture(merged):
     assert sum(p["faces"] for p in report["pieces"]) == len(scene.faces)
 
 
+def test_the_merged_scene_is_labelled_as_one_mesh(merged):
+    """The joined mesh is labelled as one (labels.npz tied to it, named in scene.json with the class table). Its
+    classes are not checked: these test hills rise up to 1.4 m a metre, steeper than the ground filter's terrain."""
+    root, report = merged
+    meta = read_scene_json(root)
+    assert meta["labels"]["file"] == "labels.npz" and meta["classes"][0]["name"] == "unknown"
+    scene = load_scene(root)
+    assert len(scene.labels) == len(scene.faces) == report["labels"]["faces"]
+
+
 def test_control_points_join_pieces_that_share_only_a_corner(tmp_path):
     """Two pieces sharing a 12 x 11 m corner, too little for ICP: refused as not joined; with 6 points picked on
     both in that corner (each in its piece's own scene ENU, as a user picks them in AREA/pieces/NAME/), the moved

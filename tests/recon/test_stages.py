@@ -16,6 +16,8 @@ from recon.progress import StepProgress
 from recon.sfm.options import SfmOptions
 from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
 from sim.render import sky
+from sim.render.labels import LABELS_FILE
+from sim.render.scene import load_scene
 from sim.render.sky_file import SKY_FILE, read_sky_visibility
 from tests.recon.synthetic import make_texture, write_nadir_photos
 from tools.geotag_csv import write_geotags
@@ -91,7 +93,7 @@ def test_first_run_runs_every_stage_and_reports_sfm_progress(flight):
     assert list(dict.fromkeys(tuple(name) for *name, _, _ in first.progress)) == list(expected)
     report = json.loads((flight["scene"] / "work" / "sfm_report.json").read_text())
     assert report["registered"] == [f"view_{i}.png" for i in range(6)]
-    assert "[depth] running (stage 3/7)" in first.logs
+    assert "[depth] running (stage 3/8)" in first.logs
 
 
 @pytest.mark.slow
@@ -107,9 +109,9 @@ def test_unchanged_rerun_does_nothing(flight, scene):
 def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
     before = snapshot(scene)
     rerun = Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
-    assert rerun.ran == ["mesh", "texture", "scene"]
-    assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 3
-    assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene" in rerun.logs
+    assert rerun.ran == ["mesh", "texture", "scene", "labels"]
+    assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 4
+    assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene, labels" in rerun.logs
     differ = changed(before, snapshot(scene))
     assert {"work/mesh.ply", "work/terrain.glb", "scene.json"} <= differ
     assert not {"work/sfm_report.json", "work/fused.ply", "work/dense/depth_report.json"} & differ
@@ -125,8 +127,8 @@ def test_other_sky_bake_settings_redo_the_scene_stage_only(flight, scene, monkey
     monkeypatch.setattr(sky, "BAKE_VERSION", sky.BAKE_VERSION + 1)
     before = snapshot(scene)
     rerun = Run(flight, scene)
-    assert rerun.ran == ["scene"]
-    assert "[scene] sky_visibility changed (1 modified: bake_version): redoing scene" in rerun.logs
+    assert rerun.ran == ["scene", "labels"]
+    assert "[scene] sky_visibility changed (1 modified: bake_version): redoing scene, labels" in rerun.logs
     assert {SKY_FILE, "scene.json"} <= changed(before, snapshot(scene))
     assert read_sky_visibility(scene / SKY_FILE).baked_from["bake_version"] == sky.BAKE_VERSION
     assert Run(flight, scene).ran == []
@@ -140,9 +142,9 @@ def test_changed_depth_option_recomputes_every_depth_map(flight, scene):
     before = snapshot(scene)
     options = dataclasses.replace(OPTIONS, dense=dataclasses.replace(OPTIONS.dense, consistency=0.05))
     rerun = Run(flight, scene, options)
-    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene"]
+    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene", "labels"]
     assert ("[depth] options changed (dense.consistency: 0.02 -> 0.05): redoing depth, fusion, mesh, texture, "
-            "scene") in rerun.logs
+            "scene, labels") in rerun.logs
     differ = changed(before, snapshot(scene))
     assert {str(p.relative_to(scene)) for p in maps} <= differ
     assert not {"work/sfm_report.json", "work/sparse/images.bin", "work/dense/sparse/images.bin"} & differ
@@ -159,8 +161,8 @@ def test_interrupted_depth_stage_resumes_its_finished_maps(flight, scene):
         path.unlink()
     before = snapshot(scene)
     rerun = Run(flight, scene)
-    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene"]
-    assert "[depth] interrupted before it finished: redoing depth, fusion, mesh, texture, scene" in rerun.logs
+    assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene", "labels"]
+    assert "[depth] interrupted before it finished: redoing depth, fusion, mesh, texture, scene, labels" in rerun.logs
     assert {str(p.relative_to(scene)) for p in maps} & changed(before, snapshot(scene)) == {
         str(p.relative_to(scene)) for p in lost}
 
@@ -183,6 +185,31 @@ def test_outputs_from_before_stamps_are_redone(flight, scene):
     assert rerun.ran == list(STAGES)
     assert ("[sfm] output without a fingerprint (written before stages recorded their options and inputs): "
             "redoing " + ", ".join(STAGES)) in rerun.logs
+
+
+@pytest.mark.slow
+def test_a_scene_labelled_before_the_labels_stage_existed_redoes_only_that_stage(flight, scene):
+    """A scene folder finished before the labels stage (no labels stamp, no labels.npz, scene.json naming none)."""
+    (scene / "work" / "stages" / "labels.json").unlink()
+    (scene / LABELS_FILE).unlink()
+    meta = json.loads((scene / "scene.json").read_text())
+    del meta["labels"], meta["classes"]
+    (scene / "scene.json").write_text(json.dumps(meta))
+    rerun = Run(flight, scene)
+    assert rerun.ran == ["labels"]
+    labels = load_scene(scene).labels
+    assert labels is not None and labels.face_class.any()  # the textured plane: ground (or unknown), labelled
+
+
+@pytest.mark.slow
+def test_changed_label_option_redoes_the_labels_stage_only(flight, scene):
+    before = snapshot(scene)
+    options = dataclasses.replace(OPTIONS, labels=dataclasses.replace(OPTIONS.labels, min_confidence=0.9))
+    rerun = Run(flight, scene, options)
+    assert rerun.ran == ["labels"]
+    assert "[labels] options changed (labels.min_confidence: 0.3 -> 0.9): redoing labels" in rerun.logs
+    assert changed(before, snapshot(scene)) == {LABELS_FILE, "scene.json"}
+    assert json.loads((scene / "scene.json").read_text())["labels"]["options"]["min_confidence"] == 0.9
 
 
 def test_every_option_field_is_claimed_by_a_stage():
@@ -209,8 +236,11 @@ def test_fingerprints_chain_from_the_changed_stage_on():
     faster = stage_records(dataclasses.replace(OPTIONS, sfm=dataclasses.replace(OPTIONS.sfm, num_threads=8)),
                            {"sfm": {"photos": {"a.jpg": [1, 2]}}})
     mesh = stage_records(dataclasses.replace(OPTIONS, mesh="poisson"), {"sfm": {"photos": {"a.jpg": [1, 2]}}})
-    assert [base[s][1] == faster[s][1] for s in STAGES] == [True] * 7  # threads shape nothing
-    assert [base[s][1] == mesh[s][1] for s in STAGES] == [True] * 4 + [False] * 3
+    labels = stage_records(dataclasses.replace(OPTIONS, labels=dataclasses.replace(OPTIONS.labels, green_exg=0.1)),
+                           {"sfm": {"photos": {"a.jpg": [1, 2]}}})
+    assert [base[s][1] == faster[s][1] for s in STAGES] == [True] * 8  # threads shape nothing
+    assert [base[s][1] == mesh[s][1] for s in STAGES] == [True] * 4 + [False] * 4
+    assert [base[s][1] == labels[s][1] for s in STAGES] == [True] * 7 + [False]
 
 
 def test_progress_lines_when_stderr_is_not_a_terminal():
