@@ -11,6 +11,7 @@ Layout of one dataset folder (one sequence)::
     OUT/sequences/NN/image_2, image_3     colour left/right      (KITTI cameras 2, 3)
     OUT/sequences/NN/image_4, image_5...  colour of rig cameras 2, 3... (KITTI cameras 4, 5...)
     OUT/sequences/NN/depth_C, disp_C, depth_cm_C   per colour camera number C (2, 3, 4...)
+    OUT/sequences/NN/normal_C, semantic_C, instance_C   normals, class and object images, when asked for
     OUT/sequences/NN/frame_meta/NNNNNN.json        per-frame record, written last (completion marker)
     OUT/sequences/NN/frames.jsonl         the per-frame records in frame order (written by finalize)
     OUT/sequences/NN/replay_2/STEM.png    replay datasets: image_2 frames under their photo's name (replay.py)
