@@ -196,6 +196,6 @@ def test_a_run_beyond_the_address_space_limit_is_refused_before_it_starts(tmp_pa
                           cwd=Path(__file__).resolve().parents[2])
     assert done.returncode == EXIT_BAD_INPUT, done.stderr[-2000:]
     assert re.fullmatch(r"aerostereo-render: error: rendering 9000x6000 pixels x 2 cameras at --spp 1 with --workers 1 "
-                        r"needs about 5\.\d+ GiB of memory; the address-space limit \(ulimit -v\) leaves a process "
+                        r"needs about 6\.\d+ GiB of memory; the address-space limit \(ulimit -v\) leaves a process "
                         r"here [\d.]+ GiB\n", done.stderr), done.stderr
     assert not (tmp_path / "d").exists()
