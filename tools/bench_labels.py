@@ -47,6 +47,7 @@ from sim.render.renderer import render  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.render.shade import UNLIT  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
+from tools.bench_twin_oblique import add_view_arguments  # noqa: E402
 
 GROUP_NAMES = tuple(GROUPS)
 #: The column of class ids in no group (unknown, other, sky) in the confusion matrix.
@@ -149,10 +150,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--truth", type=Path, help="the flight's truth.json: place the twin by its cameras "
                                                    "(georeferencing error removed) instead of its geodetic origin")
     parser.add_argument("--recon-log", type=Path, help="the recon run's log (stage times)")
-    parser.add_argument("--views", type=positive_int, default=20)
-    parser.add_argument("--size", type=positive_int, nargs=2, default=(640, 360), metavar=("W", "H"))
-    parser.add_argument("--fov", type=float, default=80.0, help="horizontal field of view, deg (default 80)")
-    parser.add_argument("--seed", type=int, default=0)
+    add_view_arguments(parser)
     parser.add_argument("--json", type=Path, help="write the scores, the class confusion and the times here")
     parser.add_argument("--pictures", type=Path, help="JPEG of the first views: as captured | classes | truth")
     parser.add_argument("--picture-count", type=positive_int, default=4)

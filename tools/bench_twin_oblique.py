@@ -112,6 +112,15 @@ def print_table(summaries: dict, truth_s: float, views: int) -> None:
     print(f"(true world: {truth_s / views:.2f} s/view)")
 
 
+def add_view_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the paper's random oblique views (recon.oblique.sample_views): how many, their size, field of
+    view and seed."""
+    parser.add_argument("--views", type=positive_int, default=20)
+    parser.add_argument("--size", type=positive_int, nargs=2, default=(640, 360), metavar=("W", "H"))
+    parser.add_argument("--fov", type=float, default=80.0, help="horizontal field of view, deg (default 80)")
+    parser.add_argument("--seed", type=int, default=0)
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--world", default="demo", help="the true world: demo, demo:small or a scene folder")
@@ -121,10 +130,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--capture-sun", type=sun_argument, metavar="AZ,EL,STRENGTH",
                         help="the sun of the flight's photos (default: truth.json's sun, when the flight had a "
                              "fixed one)")
-    parser.add_argument("--views", type=positive_int, default=20)
-    parser.add_argument("--size", type=positive_int, nargs=2, default=(640, 360), metavar=("W", "H"))
-    parser.add_argument("--fov", type=float, default=80.0, help="horizontal field of view, deg (default 80)")
-    parser.add_argument("--seed", type=int, default=0)
+    add_view_arguments(parser)
     parser.add_argument("--json", type=Path, help="write the summaries and every view's scores here")
     parser.add_argument("--pictures", type=Path, help="folder for side-by-side PNGs (truth | twin)")
     parser.add_argument("--picture-count", type=positive_int, default=4, help="views to draw (default 4)")

@@ -15,14 +15,13 @@ were found) and lists the class table. A scene loader refuses labels made for an
 
 from __future__ import annotations
 
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from cliutil.atomic import atomic_path
 from sim.render.classes import CLASSES, SKY, UNKNOWN
+from sim.render.npz_file import read_npz, write_npz
 
 FORMAT = "aerostereo-labels/1"
 #: The file's name in a scene folder (scene.json's ``labels.file``).
@@ -84,26 +83,14 @@ def unlabelled(face_count: int) -> SceneLabels:
 def write_labels(path: Path, labels: SceneLabels, mesh_sha256: str) -> None:
     """Write ``labels`` of the mesh whose :func:`~sim.render.sky_file.mesh_sha256` is ``mesh_sha256`` to ``path``,
     atomically."""
-    arrays = {"format": np.str_(FORMAT), "face_class": labels.face_class, "face_instance": labels.face_instance,
-              "face_confidence": labels.face_confidence, "mesh_sha256": np.str_(mesh_sha256)}
-    with atomic_path(path) as temporary:
-        with open(temporary, "wb") as stream:
-            np.savez(stream, **arrays)
+    write_npz(path, FORMAT, {"face_class": labels.face_class, "face_instance": labels.face_instance,
+                             "face_confidence": labels.face_confidence, "mesh_sha256": np.str_(mesh_sha256)})
 
 
 def read_labels(path: Path) -> tuple[SceneLabels, str]:
     """The labels stored at ``path`` and the SHA-256 of the mesh they are for; ``ValueError`` naming ``path`` when
     it is not a readable :data:`FORMAT` file with consistent arrays."""
-    try:
-        with np.load(path, allow_pickle=False) as stored:
-            arrays = {name: stored[name] for name in stored.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
-        raise ValueError(f"{path}: not a readable .npz of labels ({type(error).__name__}: {error})") from None
-    if arrays.get("format", np.str_("")).item() != FORMAT:
-        raise ValueError(f"{path}: not an {FORMAT} file (its format: {arrays.get('format')})")
-    missing = [key for key in ("face_class", "face_instance", "face_confidence", "mesh_sha256") if key not in arrays]
-    if missing:
-        raise ValueError(f"{path}: {FORMAT} file without {', '.join(missing)}")
+    arrays = read_npz(path, FORMAT, ("face_class", "face_instance", "face_confidence", "mesh_sha256"), "of labels")
     try:
         labels = SceneLabels(arrays["face_class"], arrays["face_instance"], arrays["face_confidence"])
     except ValueError as error:

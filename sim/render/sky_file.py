@@ -20,13 +20,12 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from cliutil.atomic import atomic_path
+from sim.render.npz_file import read_npz, write_npz
 
 FORMAT = "aerostereo-sky-visibility/1"
 #: The file's name in a scene folder written by recon (scene.json's ``sky_visibility.file``).
@@ -70,28 +69,16 @@ def write_sky_visibility(path: Path, sky: SkyVisibility, baked_from: dict) -> No
     """Write ``sky`` and what it was ``baked_from`` (every key of :data:`BAKED_FROM`) to ``path``, atomically."""
     if set(baked_from) != set(BAKED_FROM):
         raise ValueError(f"{path}: a sky visibility is stored with {', '.join(BAKED_FROM)}, got {sorted(baked_from)}")
-    arrays = {"format": np.str_(FORMAT), "corner": np.asarray(sky.corner, np.int32),
-              "values": np.asarray(sky.values, np.float32)}
+    arrays = {"corner": np.asarray(sky.corner, np.int32), "values": np.asarray(sky.values, np.float32)}
     arrays.update({key: np.asarray(value) for key, value in baked_from.items()})
-    with atomic_path(path) as temporary:
-        with open(temporary, "wb") as stream:
-            np.savez(stream, **arrays)
+    write_npz(path, FORMAT, arrays)
 
 
 def read_sky_visibility(path: Path) -> StoredSky:
     """The sky visibility stored at ``path`` and what it was baked from; ``ValueError`` naming ``path`` when it is
     not a readable file of :data:`FORMAT` with consistent arrays (truncated, another format, a value out of [0, 1]
     or a corner naming no point)."""
-    try:
-        with np.load(path, allow_pickle=False) as stored:
-            arrays = {name: stored[name] for name in stored.files}
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
-        raise ValueError(f"{path}: not a readable .npz sky visibility ({type(error).__name__}: {error})") from None
-    if arrays.get("format", np.str_("")).item() != FORMAT:
-        raise ValueError(f"{path}: not an {FORMAT} file (its format: {arrays.get('format')})")
-    missing = [key for key in ("corner", "values", *BAKED_FROM) if key not in arrays]
-    if missing:
-        raise ValueError(f"{path}: {FORMAT} file without {', '.join(missing)}")
+    arrays = read_npz(path, FORMAT, ("corner", "values", *BAKED_FROM), "sky visibility")
     corner, values = arrays["corner"], arrays["values"]
     if not (corner.dtype == np.int32 and corner.ndim == 2 and corner.shape[1] == 3 and values.dtype == np.float32
             and values.ndim == 2 and values.shape[1] == 2):
