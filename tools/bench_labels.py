@@ -41,6 +41,7 @@ from recon.labels import label_scene  # noqa: E402
 from recon.oblique import TwinFrame, sample_views, surface_points, twin_frame  # noqa: E402
 from recon.observed import inside  # noqa: E402
 from sim.render.camera import PinholeCamera, Rig  # noqa: E402
+from sim.evaluation import semantic  # noqa: E402
 from sim.render.classes import CLASSES, GROUPS  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.render.renderer import render  # noqa: E402
@@ -79,12 +80,11 @@ def view_pair(world, twin, frame: TwinFrame, camera, T_world_cam, pool):
 
 
 def confusion(true_view, twin_view, world, twin, area: np.ndarray) -> np.ndarray:
-    """``(classes, classes)`` pixel counts (rows: true class, columns: the twin's) over the in-area pixels both hit."""
+    """``(classes, classes)`` pixel counts (rows: true class, columns: the twin's) over the in-area pixels both hit
+    (:func:`sim.evaluation.semantic.confusion`)."""
     in_area = true_view.valid & twin_view.valid & inside(area, surface_points(true_view))
-    truth = world.labels.class_image(true_view.triangle)[in_area]
-    guess = twin.labels.class_image(twin_view.triangle)[in_area]
-    return np.bincount(truth.astype(np.int64) * len(CLASSES) + guess, minlength=len(CLASSES) ** 2).reshape(
-        len(CLASSES), len(CLASSES))
+    return semantic.confusion(world.labels.class_image(true_view.triangle)[in_area],
+                              twin.labels.class_image(twin_view.triangle)[in_area])
 
 
 def group_scores(matrix: np.ndarray) -> dict:

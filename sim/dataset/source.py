@@ -11,6 +11,7 @@ normals and camera poses to the layout writers;
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import json
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
@@ -92,12 +93,10 @@ class DatasetSource:
         (:meth:`require_imu`), "radtan" (:meth:`radtan`), "unix_start" (:meth:`start_unix_ns`), "semantic" or
         "instance" (:meth:`require_labels`)."""
         checks = {"depth": self.require_depth, "pinhole": self.require_pinhole, "rectified": self.baseline_m,
-                  "imu": self.require_imu, "radtan": self.radtan, "unix_start": self.start_unix_ns}
+                  "imu": self.require_imu, "radtan": self.radtan, "unix_start": self.start_unix_ns,
+                  **{kind: functools.partial(self.require_labels, kind) for kind in LABEL_IMAGES}}
         for need in needs:
-            if need in LABEL_IMAGES:
-                self.require_labels(need, needed_by)
-            else:
-                checks[need](needed_by)
+            checks[need](needed_by)
 
     def has(self, dataset_format: str) -> bool:
         """Whether the dataset was rendered with ``dataset_format`` (a name of ``dataset.json``'s ``formats``)."""
