@@ -20,6 +20,7 @@ Frames and units: the scene's ENU metres (z up); colours are the texture's albed
 
 from __future__ import annotations
 
+import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -29,7 +30,10 @@ from scipy import ndimage
 from skimage.feature import peak_local_max
 from skimage.segmentation import watershed
 
+from cliutil.atomic import write_text_atomic
+from cliutil.jsonfile import read_json
 from recon.ground import GroundFilter, GroundSurface, fit_ground
+from recon.progress import log_stderr
 from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL, class_table
 from sim.render.color import linear_to_srgb
 from sim.render.labels import FORMAT, LABELS_FILE, SceneLabels, write_labels
@@ -196,4 +200,16 @@ def store_labels(scene_dir: Path, meta: dict, options: LabelOptions = LabelOptio
     write_labels(Path(scene_dir) / LABELS_FILE, labels, report["mesh_sha256"])
     meta["labels"] = {"file": LABELS_FILE, "format": FORMAT, "method": options.method(), "options": asdict(options)}
     meta["classes"] = class_table()
+    return report
+
+
+def label_scene_dir(scene_dir: Path, options: LabelOptions, log=log_stderr) -> dict:
+    """Label the faces of the scene folder's mesh (:func:`store_labels`) and rewrite its scene.json
+    (atomically) naming the labels; the labeller's report."""
+    read_scene_json(scene_dir)  # a folder that is not a scene: SceneError naming the file and what is wrong
+    meta = read_json(scene_dir / "scene.json")
+    report = store_labels(scene_dir, meta, options)
+    write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
+    log(f"[labels] {report['faces']} faces in {report['seconds']} s: {report['classes']}, {report['objects']} "
+        f"objects, {100 * report['unknown_share']:.1f} % unknown")
     return report

@@ -44,7 +44,7 @@ from recon.atlas import AtlasOptions, texture_atlas
 from recon.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.observed import viewed_area
 from recon.dense import DenseOptions
-from recon.labels import LabelOptions, store_labels
+from recon.labels import LabelOptions, label_scene_dir
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.resources import require_disk
 from cliutil.jsonfile import read_json
@@ -60,7 +60,6 @@ from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_r
 from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
 from sim.render.labels import LABELS_FILE
-from sim.render.scene import read_scene_json
 from sim.render.sky import bake_settings
 
 MESHES = ("3d", "2.5d", "poisson")
@@ -521,14 +520,3 @@ class Recon:
     def stage_labels(self):
         label_scene_dir(self.scene_dir, self.options.labels, self.log)
 
-
-def label_scene_dir(scene_dir: Path, options: LabelOptions, log=log_stderr) -> dict:
-    """Label the faces of the scene folder's mesh (:func:`recon.labels.store_labels`) and rewrite its scene.json
-    (atomically) naming the labels; the labeller's report."""
-    read_scene_json(scene_dir)  # a folder that is not a scene: SceneError naming the file and what is wrong
-    meta = read_json(scene_dir / "scene.json")
-    report = store_labels(scene_dir, meta, options)
-    write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
-    log(f"[labels] {report['faces']} faces in {report['seconds']} s: {report['classes']}, {report['objects']} "
-        f"objects, {100 * report['unknown_share']:.1f} % unknown")
-    return report
