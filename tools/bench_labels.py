@@ -125,7 +125,7 @@ def print_times(label_s: float, stages: dict[str, float]) -> None:
     for stage, seconds in stages.items():
         print(f"| {stage} | {seconds:.1f} |")
     share = f" ({100 * label_s / total:.2f} % of the recon run's {total:.0f} s)" if total else ""
-    print(f"| labels | {label_s:.1f}{share} |")
+    print(f"| labels, timed here | {label_s:.1f}{share} |")
 
 
 def picture_row(twin_view, true_view, twin, world) -> np.ndarray:
