@@ -50,7 +50,7 @@ from cliutil.resources import require_disk
 from cliutil.jsonfile import read_json
 from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
-from recon.progress import StepProgress, counted, log_stderr
+from cliutil.progress import StepProgress, counted, log_stderr
 from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
 from recon.shadow_timing import fit_utc_offset, refine_capture_time, shadow_views, start_fit, untextured_scene
 from recon.sfm.cameras import camera_poses

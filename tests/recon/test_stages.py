@@ -12,7 +12,7 @@ import pytest
 
 from recon.dense import DenseOptions
 from recon.pipeline import Recon, ReconOptions
-from recon.progress import StepProgress
+from cliutil.progress import StepProgress
 from recon.sfm.options import SfmOptions
 from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
 from sim.render import sky

@@ -1,4 +1,4 @@
-"""Progress of the recon stages on stderr: tqdm bars on a terminal, log lines with counts when stderr is a file."""
+"""Progress of a program's stages on stderr: tqdm bars on a terminal, log lines with counts when stderr is a file."""
 
 from __future__ import annotations
 
