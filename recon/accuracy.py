@@ -16,7 +16,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.similarity import umeyama
+from recon.inputs.similarity import umeyama
 from sim.render.scene import read_scene_json, read_scene_mesh_enu
 
 

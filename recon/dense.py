@@ -28,7 +28,7 @@ import pycolmap
 
 from cliutil.atomic import atomic_path, remove_stale_temps, write_failed, write_text_atomic
 from recon.mesh import read_binary_ply_vertices
-from recon.priors import decode_problem
+from recon.inputs.priors import decode_problem
 
 
 #: Channels of COLMAP's map of each kind (folder under ``stereo``).

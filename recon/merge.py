@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from recon.similarity import Similarity, residuals, umeyama
+from recon.inputs.similarity import Similarity, residuals, umeyama
 
 MIN_PAIRS = 3
 

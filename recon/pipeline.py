@@ -48,7 +48,7 @@ from recon.labels import LabelOptions, label_scene_dir
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.resources import require_disk
 from cliutil.jsonfile import read_json
-from recon.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
+from recon.inputs.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                           read_geotags, with_receiver_sigmas)
 from cliutil.progress import StepProgress, counted, log_stderr
 from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene

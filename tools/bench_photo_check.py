@@ -28,7 +28,7 @@ from pathlib import Path
 import cv2
 from PIL import Image
 
-from recon.priors import decode_problem
+from recon.inputs.priors import decode_problem
 
 CUTS = (0.5, 0.9, 0.999)
 SHARED_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))

@@ -50,12 +50,12 @@ from recon.texture import TextureOptions  # noqa: E402
 
 from capture.attitude import camera_matrix_world  # noqa: E402
 from capture.logs.photos import read_camera_xmp, read_photo  # noqa: E402
-from recon.priors import (CameraSeed, camera_seed, focal_seed, list_photos, priors_from_exif,  # noqa: E402
+from recon.inputs.priors import (CameraSeed, camera_seed, focal_seed, list_photos, priors_from_exif,  # noqa: E402
                           read_geotags)
 from recon.sfm.cameras import camera_poses  # noqa: E402
 from recon.sfm.options import SfmError, SfmOptions  # noqa: E402
 from recon.sfm.pipeline import run_sfm  # noqa: E402
-from recon.similarity import umeyama  # noqa: E402
+from recon.inputs.similarity import umeyama  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reuse_stages  # noqa: E402

@@ -24,7 +24,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import pycolmap  # noqa: E402
 
-from recon.priors import focal_seed, list_photos, priors_from_exif  # noqa: E402
+from recon.inputs.priors import focal_seed, list_photos, priors_from_exif  # noqa: E402
 from recon.sfm.options import SfmOptions  # noqa: E402
 from recon.sfm.pipeline import run_sfm  # noqa: E402
 from recon.sfm.progress import POLL_S, images_with_keypoints, no_progress  # noqa: E402

@@ -45,7 +45,7 @@ from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered
 from recon.labels import LabelOptions, store_labels
 from recon.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions, load_priors
-from recon.priors import PosePriors
+from recon.inputs.priors import PosePriors
 from recon.scene_out import CAMERAS_FILE, scene_metadata, store_sky_visibility
 from sim.render.scene import Scene, read_scene_cameras, read_scene_json
 from sim.render.scene_cameras import SceneCamera, write_cameras

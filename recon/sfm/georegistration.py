@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pycolmap
 
-from recon.priors import PosePriors
-from recon.similarity import Similarity, umeyama
+from recon.inputs.priors import PosePriors
+from recon.inputs.similarity import Similarity, umeyama
 
 
 def compose(outer: Similarity, inner: Similarity) -> Similarity:

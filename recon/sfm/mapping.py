@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
-from recon.priors import PosePriors
+from recon.inputs.priors import PosePriors
 from recon.sfm.options import SfmError, SfmOptions
 from recon.sfm.progress import RegistrationCounter, no_progress
 

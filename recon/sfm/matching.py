@@ -10,7 +10,7 @@ import numpy as np
 import pycolmap
 from scipy.spatial import cKDTree
 
-from recon.priors import CameraSeed, PosePriors
+from recon.inputs.priors import CameraSeed, PosePriors
 from recon.sfm.options import SfmOptions
 from recon.sfm.progress import DatabaseProgress, images_with_keypoints, no_progress
 

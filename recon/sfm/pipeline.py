@@ -24,7 +24,7 @@ import numpy as np
 import pycolmap
 
 from cliutil.atomic import write_text_atomic
-from recon.priors import CameraSeed, PosePriors, PriorsError
+from recon.inputs.priors import CameraSeed, PosePriors, PriorsError
 from recon.sfm.cameras import camera_poses
 from recon.sfm.georegistration import apply_similarity, georegister, position_tilt_sigma_deg
 from recon.sfm.mapping import (REGISTER_NEIGHBOURS, map_photos, refine_focal, register_remaining, robust_prior_loss,
@@ -33,7 +33,7 @@ from recon.sfm.matching import (LOOP_MIN_INLIERS, create_database, ensure_loop_m
                                  match_photos, nearest_mapped_pairs, write_pose_priors)
 from recon.sfm.options import SfmError, SfmOptions
 from recon.sfm.progress import no_progress, renamed
-from recon.tag_offset import fit_tag_offset, travel_directions
+from recon.inputs.tag_offset import fit_tag_offset, travel_directions
 
 MIN_PHOTOS = 3
 #: Disk space SfM needs per feature of a photo (features, matches, SQLite's journal): 6 photos at 2048 features

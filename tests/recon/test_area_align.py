@@ -13,7 +13,7 @@ from recon.area.align import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlap
                               align_area, control_link, find_overlaps, icp_information, icp_pair, load_pieces,
                               tie_sigma_m, with_systematic_floor)
 from recon.merge import ControlPairs
-from recon.similarity import umeyama
+from recon.inputs.similarity import umeyama
 from recon.scene_out import write_scene
 from sim.render.scene import SceneError
 from sim.worlds.synthetic import grid_mesh

@@ -7,14 +7,14 @@ import pytest
 
 from capture.logs.photos import read_photo
 from flightplan.geodesy import LocalFrame
-from recon.priors import (DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, PosePriors, camera_seed, focal_seed, list_photos,
+from recon.inputs.priors import (DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, PosePriors, camera_seed, focal_seed, list_photos,
                           priors_from_exif, with_receiver_sigmas)
 from recon.sfm.cameras import camera_poses
 from recon.sfm.georegistration import georegister
 from recon.sfm.mapping import robust_prior_loss
 from recon.sfm.pipeline import run_sfm
-from recon.tag_offset import travel_directions
-from recon.similarity import Similarity, umeyama
+from recon.inputs.tag_offset import travel_directions
+from recon.inputs.similarity import Similarity, umeyama
 from tools.geotag_csv import ORIGIN
 
 #: DJI_0010.JPG's XMP: CalibratedOpticalCenterX/Y 800/650, DewarpData 2022-03-02;fx,fy,cx,cy,k1,k2,p1,p2,k3

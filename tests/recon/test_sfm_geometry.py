@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from recon.priors import PosePriors, PriorsError, read_geotags
+from recon.inputs.priors import PosePriors, PriorsError, read_geotags
 from recon.sfm.georegistration import georegister
 from recon.sfm.matching import loop_pair
 from recon.sfm.pipeline import auto_every_kth, check_inputs, select_core
-from recon.similarity import Similarity
+from recon.inputs.similarity import Similarity
 from tools.geotag_csv import ORIGIN, geotag_row, write_geotags
 
 

@@ -8,7 +8,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from recon.dense import View
-from recon.priors import CameraSeed, read_geotags
+from recon.inputs.priors import CameraSeed, read_geotags
 from recon.sfm.options import SfmOptions
 from recon.sfm.cameras import camera_poses
 from recon.sfm.pipeline import run_sfm

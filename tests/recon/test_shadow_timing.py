@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from recon.priors import exif_times
+from recon.inputs.priors import exif_times
 from recon.shadow_timing import (dark_mask, edge_contrast, fit_utc_offset, mean_contrast, predicted_shadow,
                                  refine_capture_time, shadow_views, start_fit, sun_direction, untextured_scene)
 from recon.texture import Photo

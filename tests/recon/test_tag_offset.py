@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from recon.similarity import Similarity
-from recon.tag_offset import MAX_OFFSET_SIGMA_M, fit_tag_offset, offset_sigma_m, travel_directions
+from recon.inputs.similarity import Similarity
+from recon.inputs.tag_offset import MAX_OFFSET_SIGMA_M, fit_tag_offset, offset_sigma_m, travel_directions
 
 RTK_SIGMA = np.array([0.02, 0.02, 0.03])
 GPS_SIGMA = np.array([3.0, 3.0, 5.0])

@@ -140,7 +140,7 @@ def test_an_rtk_flight_measures_centimetres_with_no_offset_and_its_photos_say_so
     """``--noise rtk``: each photo's measured position is the truth + 1.2 cm white noise per horizontal axis and
     2.4 cm in height (no drift, no fix offset), and its XMP marks an RTK fixed solution that the SfM priors take
     at the receiver's word (floored at 2 cm); a consumer flight's photo keeps the consumer sigma."""
-    from recon.priors import DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, receiver_sigma
+    from recon.inputs.priors import DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, receiver_sigma
     from sim.drone.photos import photo_camera, photo_geotag, write_dji_jpeg
 
     mission = flown(mission_csv, Imperfections.rtk(), seed=(5, 1))

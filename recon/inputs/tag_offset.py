@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from recon.similarity import Similarity, umeyama
+from recon.inputs.similarity import Similarity, umeyama
 
 #: Fit the offset only when its standard deviation (1 sigma, from the priors' sigmas) is at most this.
 MAX_OFFSET_SIGMA_M = 0.01
