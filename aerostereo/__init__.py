@@ -55,7 +55,7 @@ _EXPORTS = {
     "RenderOptions": "sim.run.options", "RigOptions": "sim.run.options", "PoseOptions": "sim.run.options",
     "LightOptions": "sim.run.options", "OutputOptions": "sim.run.options", "CameraEffects": "sim.run.options",
     "RunOptions": "sim.run.options", "SunSetting": "sim.sampling.light", "RenderSummary": "sim.run.render_dataset",
-    "ReconOptions": "recon.pipeline", "SfmOptions": "recon.sfm.options", "DenseOptions": "recon.dense",
+    "ReconOptions": "recon.pipeline", "SfmOptions": "recon.sfm.options", "DenseOptions": "recon.surface.dense",
 }
 
 __all__ = ["__version__", "BadInput", "plan_orbit", "fly", "geotag", "reconstruct", "render_dataset",

@@ -29,13 +29,13 @@ import pycolmap
 import trimesh
 
 from capture.geotag_io import sidecar_path
-from recon.dense import DenseError
+from recon.surface.dense import DenseError
 from cliutil.atomic import atomic_path
 from cliutil.program import Parser, add_version, run_cli, stdout_to_stderr
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from recon.area.cli import run_area
 from recon.cli_options import PROGRAM, add_recon_options, recon_options
-from recon.merge import estimate_merge, merge_meshes, read_pairs
+from recon.surface.merge import estimate_merge, merge_meshes, read_pairs
 from recon.labels import LabelOptions, label_scene_dir
 from recon.pipeline import Recon
 from recon.sfm.options import SfmError

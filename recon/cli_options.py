@@ -9,7 +9,7 @@ import argparse
 import math
 import re
 
-from recon.dense import DenseOptions
+from recon.surface.dense import DenseOptions
 from recon.pipeline import MESHES, TEXTURES, ReconOptions
 from recon.sfm.options import SfmOptions
 from recon.atlas import AtlasOptions

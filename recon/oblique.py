@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.observed import inside, observed_area
+from recon.surface.observed import inside, observed_area
 from recon.scene_cameras import shape_alignment, truth_poses
 from sim.render.camera import PinholeCamera, Rig, camera_rays
 from sim.run.poses import SceneGround

@@ -39,17 +39,18 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from capture.geotag_io import sidecar_path
-from recon import dense, mesh as meshing, texture as texturing
+from recon import texture as texturing
+from recon.surface import dense, mesh as meshing
 from recon.atlas import AtlasOptions, texture_atlas
 from recon.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
-from recon.observed import viewed_area
-from recon.dense import DenseOptions
+from recon.surface.observed import viewed_area
+from recon.surface.dense import DenseOptions
 from recon.labels import LabelOptions, label_scene_dir
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.resources import require_disk
 from cliutil.jsonfile import read_json
 from recon.inputs.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
-                          read_geotags, with_receiver_sigmas)
+                                 read_geotags, with_receiver_sigmas)
 from cliutil.progress import StepProgress, counted, log_stderr
 from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
 from recon.shadow_timing import fit_utc_offset, refine_capture_time, shadow_views, start_fit, untextured_scene

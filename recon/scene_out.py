@@ -20,7 +20,7 @@ import trimesh
 
 from flightplan.geodesy import LocalFrame
 from cliutil.atomic import atomic_path, write_text_atomic
-from recon.observed import viewed_area
+from recon.surface.observed import viewed_area
 from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.render.capture_light import ENCODING
 from sim.render.scene import Scene, read_scene_mesh_enu

@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
 
-from recon.dense import fuse_pair_depths, pair_depth  # noqa: E402
+from recon.surface.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402
 from sim.run.cluster import THREADS_PER_WORKER, WORKER_CONFIG, Scheduler, batch_size, connect, environment_kept  # noqa: E402,E501
 from sim.run.options import PoseOptions, RenderOptions, RigOptions, RunOptions  # noqa: E402
@@ -155,7 +155,7 @@ def depth_maps_here_and_on_cluster(count: int, workers: int) -> tuple[float, flo
     here_s = time.perf_counter() - start
     start = time.perf_counter()
     with connect(Scheduler(local_workers=workers)) as client:
-        client.run(importlib.import_module, "recon.dense")
+        client.run(importlib.import_module, "recon.surface.dense")
         shared = client.scatter([images, views], broadcast=True)
         startup_s = time.perf_counter() - start
         start = time.perf_counter()

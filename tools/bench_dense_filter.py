@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
-from recon.dense import View, pair_depth, sgbm_matcher  # noqa: E402
+from recon.surface.dense import View, pair_depth, sgbm_matcher  # noqa: E402
 from sim.render.camera import PinholeCamera, Rig, look_at  # noqa: E402
 from sim.render.renderer import Sun, render  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402

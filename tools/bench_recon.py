@@ -43,7 +43,7 @@ import pycolmap  # noqa: E402
 import trimesh  # noqa: E402
 from scipy.spatial import cKDTree  # noqa: E402
 
-from recon.dense import DenseOptions  # noqa: E402
+from recon.surface.dense import DenseOptions  # noqa: E402
 from recon.evaluate import scene_photorealism  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.texture import TextureOptions  # noqa: E402
@@ -51,7 +51,7 @@ from recon.texture import TextureOptions  # noqa: E402
 from capture.attitude import camera_matrix_world  # noqa: E402
 from capture.logs.photos import read_camera_xmp, read_photo  # noqa: E402
 from recon.inputs.priors import (CameraSeed, camera_seed, focal_seed, list_photos, priors_from_exif,  # noqa: E402
-                          read_geotags)
+                                 read_geotags)
 from recon.sfm.cameras import camera_poses  # noqa: E402
 from recon.sfm.options import SfmError, SfmOptions  # noqa: E402
 from recon.sfm.pipeline import run_sfm  # noqa: E402

@@ -34,7 +34,7 @@ from scipy.spatial.transform import Rotation
 
 from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
-from recon.merge import ControlPairs
+from recon.surface.merge import ControlPairs
 from recon.sfm.mapping import RTK_GRADE_SIGMA_M
 from sim.render.scene import Surface, read_scene_json, read_scene_mesh_enu
 

@@ -24,7 +24,7 @@ from cliutil.program import Parser, add_version, stdout_to_stderr
 from cliutil.paths import folder_holds, folder_inputs, refuse_clobbering
 from recon.area.pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, checked_flights, flight_inputs,
                                   flights_of, merge_area, reconstruct_pieces)
-from recon.merge import read_pairs
+from recon.surface.merge import read_pairs
 from recon.cli_options import PROGRAM, add_recon_options, recon_options
 
 

@@ -4,7 +4,7 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from recon.dense import View
+from recon.surface.dense import View
 from tools.geotag_csv import geotag_row
 
 WIDTH, HEIGHT, FOCAL = 640, 480, 600.0

@@ -12,7 +12,7 @@ from flightplan.geodesy import LocalFrame
 from recon.area.align import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlapError, Prior, SurfaceQuery,
                               align_area, control_link, find_overlaps, icp_information, icp_pair, load_pieces,
                               tie_sigma_m, with_systematic_floor)
-from recon.merge import ControlPairs
+from recon.surface.merge import ControlPairs
 from recon.inputs.similarity import umeyama
 from recon.scene_out import write_scene
 from sim.render.scene import SceneError

@@ -14,7 +14,7 @@ import pytest
 from recon.area.merge import NO_OWNER, Grid, distance_to_owner, look_at_points, ownership, seam_neighbours
 from recon.area.align import AreaError
 from recon.area.pipeline import AreaOptions, ControlTie, merge_area
-from recon.merge import ControlPairs
+from recon.surface.merge import ControlPairs
 from sim.render.camera import PinholeCamera, look_at
 from sim.render.scene import load_scene, read_scene_json
 from sim.render.scene_cameras import SceneCamera, write_cameras

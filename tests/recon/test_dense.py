@@ -6,8 +6,9 @@ import numpy as np
 import pycolmap
 import pytest
 
-from recon.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, map_bytes, map_path,
-                         maps_complete, normals_from_depth, pair_depth, spaced_views, textureless, write_colmap_maps)
+from recon.surface.dense import (DenseError, DenseOptions, compute_depth_maps, fuse_pair_depths, map_bytes, map_path,
+                                 maps_complete, normals_from_depth, pair_depth, spaced_views, textureless,
+                                 write_colmap_maps)
 from tests.bad_input.harness import grow_disk, small_disk
 from tests.recon.synthetic import look_down_view, make_texture, render_plane, true_plane_depth
 

@@ -6,7 +6,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from recon.cli import main
-from recon.merge import PairsFileError, estimate_merge, merge_meshes, parse_pairs
+from recon.surface.merge import PairsFileError, estimate_merge, merge_meshes, parse_pairs
 from recon.inputs.similarity import Similarity, umeyama
 
 TRUE = Similarity(1.7, Rotation.from_euler("zyx", [33.0, -12.0, 5.0], degrees=True).as_matrix(),

@@ -5,7 +5,7 @@ import pytest
 import trimesh
 from trimesh.ray.ray_pyembree import RayMeshIntersector
 
-from recon.mesh import decimate, height_field, height_field_mesh, per_cell_percentile, read_point_cloud
+from recon.surface.mesh import decimate, height_field, height_field_mesh, per_cell_percentile, read_point_cloud
 
 BOX = (10.0, 20.0, 5.0, 15.0, 6.0)  # xmin, xmax, ymin, ymax, height (m)
 
@@ -86,7 +86,7 @@ def test_empty_point_cloud_is_a_clear_error(tmp_path):
 def test_the_memory_per_cell_covers_what_gridding_and_triangulating_hold(cloud):
     import tracemalloc
 
-    from recon.mesh import HEIGHT_FIELD_BYTES_PER_CELL, HEIGHT_FIELD_BYTES_PER_POINT
+    from recon.surface.mesh import HEIGHT_FIELD_BYTES_PER_CELL, HEIGHT_FIELD_BYTES_PER_POINT
 
     points, colors = cloud
     tracemalloc.start()

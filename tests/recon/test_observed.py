@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from recon.observed import inside, observed_area, viewed_area
+from recon.surface.observed import inside, observed_area, viewed_area
 
 
 def test_a_circle_of_cameras_observes_its_disc():

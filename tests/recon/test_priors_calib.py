@@ -8,7 +8,7 @@ import pytest
 from capture.logs.photos import read_photo
 from flightplan.geodesy import LocalFrame
 from recon.inputs.priors import (DEFAULT_SIGMA_M, RTK_SIGMA_FLOOR_M, PosePriors, camera_seed, focal_seed, list_photos,
-                          priors_from_exif, with_receiver_sigmas)
+                                 priors_from_exif, with_receiver_sigmas)
 from recon.sfm.cameras import camera_poses
 from recon.sfm.georegistration import georegister
 from recon.sfm.mapping import robust_prior_loss

@@ -7,7 +7,7 @@ import pycolmap
 import pytest
 from scipy.spatial.transform import Rotation
 
-from recon.dense import View
+from recon.surface.dense import View
 from recon.inputs.priors import CameraSeed, read_geotags
 from recon.sfm.options import SfmOptions
 from recon.sfm.cameras import camera_poses

@@ -10,7 +10,7 @@ import shutil
 import pycolmap
 import pytest
 
-from recon.dense import DenseOptions
+from recon.surface.dense import DenseOptions
 from recon.pipeline import Recon, ReconOptions
 from cliutil.progress import StepProgress
 from recon.sfm.options import SfmOptions

@@ -27,7 +27,7 @@ from scipy import ndimage, sparse
 
 from cliutil.atomic import atomic_path, write_failed
 from cliutil.resources import require_memory
-from recon.observed import inside, observed_area
+from recon.surface.observed import inside, observed_area
 
 
 #: Peak bytes per cell of gridding a height field (127 measured with tracemalloc on a million cells with a point each:

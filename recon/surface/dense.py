@@ -27,7 +27,7 @@ import numpy as np
 import pycolmap
 
 from cliutil.atomic import atomic_path, remove_stale_temps, write_failed, write_text_atomic
-from recon.mesh import read_binary_ply_vertices
+from recon.surface.mesh import read_binary_ply_vertices
 from recon.inputs.priors import decode_problem
 
 
