@@ -12,8 +12,8 @@ import re
 from recon.surface.dense import DenseOptions
 from recon.pipeline import MESHES, TEXTURES, ReconOptions
 from recon.sfm.options import SfmOptions
-from recon.atlas import AtlasOptions
-from recon.texture import TextureOptions
+from recon.appearance.atlas import AtlasOptions
+from recon.appearance.texture import TextureOptions
 
 PROGRAM = "aerostereo-recon"
 

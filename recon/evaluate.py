@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pycolmap
 
-from recon.texture import Photo, load_photos
+from recon.appearance.texture import Photo, load_photos
 from sim.render.camera import Rig
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render

@@ -39,10 +39,10 @@ import trimesh
 from scipy.spatial import cKDTree
 
 from capture.geotag_io import sidecar_path
-from recon import texture as texturing
+from recon.appearance import texture as texturing
 from recon.surface import dense, mesh as meshing
-from recon.atlas import AtlasOptions, texture_atlas
-from recon.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
+from recon.appearance.atlas import AtlasOptions, texture_atlas
+from recon.appearance.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.surface.observed import viewed_area
 from recon.surface.dense import DenseOptions
 from recon.labels import LabelOptions, label_scene_dir
@@ -53,7 +53,8 @@ from recon.inputs.priors import (PosePriors, PriorsError, camera_seed, check_rea
                                  read_geotags, with_receiver_sigmas)
 from cliutil.progress import StepProgress, counted, log_stderr
 from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
-from recon.shadow_timing import fit_utc_offset, refine_capture_time, shadow_views, start_fit, untextured_scene
+from recon.appearance.shadow_timing import (fit_utc_offset, refine_capture_time, shadow_views, start_fit,
+                                            untextured_scene)
 from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
 from recon.sfm.pipeline import MIN_PHOTOS, check_inputs, run_sfm, sfm_disk_bytes

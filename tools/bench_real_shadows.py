@@ -38,12 +38,12 @@ import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
 from scipy import ndimage  # noqa: E402
 
-from recon.capture_sun import CaptureSuns  # noqa: E402
-from recon.delight import CAPTURE_SKY, EDGE_BAND_PX, BLOCK_PX, MIN_BLOCK_TEXELS  # noqa: E402
+from recon.appearance.capture_sun import CaptureSuns  # noqa: E402
+from recon.appearance.delight import CAPTURE_SKY, EDGE_BAND_PX, BLOCK_PX, MIN_BLOCK_TEXELS  # noqa: E402
 from recon.pipeline import read_rgb  # noqa: E402
-from recon.shadow_timing import (LUMA, ShadowFit, predicted_shadow, shadow_iou, shadow_views,  # noqa: E402
-                                 untextured_scene)
-from recon.texture import load_photos  # noqa: E402
+from recon.appearance.shadow_timing import (LUMA, ShadowFit, predicted_shadow, shadow_iou, shadow_views,  # noqa: E402
+                                            untextured_scene)
+from recon.appearance.texture import load_photos  # noqa: E402
 from sim.render.color import SRGB8_TO_LINEAR  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 

@@ -46,7 +46,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 from recon.surface.dense import DenseOptions  # noqa: E402
 from recon.evaluate import scene_photorealism  # noqa: E402
 from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
-from recon.texture import TextureOptions  # noqa: E402
+from recon.appearance.texture import TextureOptions  # noqa: E402
 
 from capture.attitude import camera_matrix_world  # noqa: E402
 from capture.logs.photos import read_camera_xmp, read_photo  # noqa: E402

@@ -6,10 +6,10 @@ import pytest
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from recon.atlas import AtlasOptions, FaceViews, face_neighbours, label_faces, texture_atlas
+from recon.appearance.atlas import AtlasOptions, FaceViews, face_neighbours, label_faces, texture_atlas
 from recon.evaluate import render_unlit
 from recon.scene_out import write_scene
-from recon.texture import Photo, orthophoto, textured_glb
+from recon.appearance.texture import Photo, orthophoto, textured_glb
 from sim.render.camera import Rig, look_at
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render

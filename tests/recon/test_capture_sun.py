@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from recon.capture_sun import capture_suns, is_timed
+from recon.appearance.capture_sun import capture_suns, is_timed
 from sim.sampling.sun import solar_position
 
 ZURICH = LocalFrame(47.3769, 8.5417, 400.0)

@@ -4,8 +4,8 @@ tower photographed by sim under a known sun; the true mesh and poses are the mod
 import numpy as np
 import pytest
 
-from recon.atlas import texture_atlas
-from recon.texture import Photo
+from recon.appearance.atlas import texture_atlas
+from recon.appearance.texture import Photo
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.camera import Rig
 from sim.render.color import SRGB8_TO_LINEAR

@@ -9,9 +9,10 @@ import pytest
 
 from flightplan.geodesy import LocalFrame
 from recon.inputs.priors import exif_times
-from recon.shadow_timing import (dark_mask, edge_contrast, fit_utc_offset, mean_contrast, predicted_shadow,
-                                 refine_capture_time, shadow_views, start_fit, sun_direction, untextured_scene)
-from recon.texture import Photo
+from recon.appearance.shadow_timing import (dark_mask, edge_contrast, fit_utc_offset, mean_contrast, predicted_shadow,
+                                            refine_capture_time, shadow_views, start_fit, sun_direction,
+                                            untextured_scene)
+from recon.appearance.texture import Photo
 from sim.render.camera import Rig
 from sim.render.renderer import render
 from sim.render.scene import Scene, Surface

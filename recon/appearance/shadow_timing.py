@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from recon.texture import Photo
+from recon.appearance.texture import Photo
 from sim.render.camera import camera_rays
 from sim.render.color import srgb_to_linear
 from sim.render.raycast import intersect, occluded

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from recon.shadow_timing import ShadowFit
+from recon.appearance.shadow_timing import ShadowFit
 from sim.render.shade import Sun
 from sim.sampling.sun import solar_position
 

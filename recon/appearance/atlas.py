@@ -34,8 +34,8 @@ from PIL import Image
 from scipy import ndimage, sparse
 
 from flightplan.geodesy import LocalFrame
-from recon.delight import CaptureSetup, Delighting, TexelLight, delight_atlas
-from recon.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
+from recon.appearance.delight import CaptureSetup, Delighting, TexelLight, delight_atlas
+from recon.appearance.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
 from sim.render.camera import project_world_points, row_dots
 from sim.render.raycast import occluded
 from sim.render.scene import Scene

@@ -27,7 +27,7 @@ from scipy import ndimage
 
 from sim.render.camera import row_dots
 from sim.render.raycast import occluded
-from recon.shadow_timing import untextured_scene
+from recon.appearance.shadow_timing import untextured_scene
 from sim.render.scene import Scene, unit_face_normals
 from sim.render.shade import Lighting
 from sim.render.sky import bake_corner_visibility
