@@ -45,7 +45,7 @@ from recon.appearance.atlas import AtlasOptions, texture_atlas
 from recon.appearance.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.surface.observed import viewed_area
 from recon.surface.dense import DenseOptions
-from recon.labels import LabelOptions, label_scene_dir
+from recon.semantics.labels import LabelOptions, label_scene_dir
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.resources import require_disk
 from cliutil.jsonfile import read_json

@@ -42,7 +42,7 @@ from recon.area.align import (AreaAlignment, AreaError, Link, PairReport, Piece,
                               load_pieces)
 from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
-from recon.labels import LabelOptions, store_labels
+from recon.semantics.labels import LabelOptions, store_labels
 from recon.surface.merge import ControlPairs
 from recon.pipeline import Recon, ReconOptions, load_priors
 from recon.inputs.priors import PosePriors

@@ -8,8 +8,8 @@ import pytest
 import trimesh
 
 from recon.cli import main
-from recon.ground import GroundFilter, fit_ground
-from recon.labels import LabelOptions, label_faces, label_scene
+from recon.semantics.ground import GroundFilter, fit_ground
+from recon.semantics.labels import LabelOptions, label_faces, label_scene
 from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL
 from sim.render.labels import LABELS_FILE
 from sim.render.scene import Surface, load_scene, read_scene_mesh_enu, read_scene_json

@@ -32,7 +32,7 @@ from skimage.segmentation import watershed
 
 from cliutil.atomic import write_text_atomic
 from cliutil.jsonfile import read_json
-from recon.ground import GroundFilter, GroundSurface, fit_ground
+from recon.semantics.ground import GroundFilter, GroundSurface, fit_ground
 from cliutil.progress import log_stderr
 from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL, class_table
 from sim.render.color import linear_to_srgb
