@@ -22,12 +22,12 @@ import trimesh
 
 from cliutil.atomic import write_text_atomic
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
+from recon.measure.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
 from recon.area.merge import distance_to_owner
 from recon.area.pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "no piece has surface here"
 from recon.surface.observed import inside
-from recon.oblique import TwinFrame, render_view, sample_views, score_view, summarise
-from recon.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
+from recon.measure.oblique import TwinFrame, render_view, sample_views, score_view, summarise
+from recon.measure.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
 from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.sampling.light import frame_sun

@@ -40,9 +40,9 @@ from scipy.spatial import ConvexHull  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from recon.cli_options import positive_int  # noqa: E402
-from recon.oblique import (render_view, sample_views, score_light, score_view, summarise,  # noqa: E402
-                           summarise_light, true_camera_area, twin_frame)
-from recon.scene_cameras import scene_camera_poses  # noqa: E402
+from recon.measure.oblique import (render_view, sample_views, score_light, score_view, summarise,  # noqa: E402
+                                   summarise_light, true_camera_area, twin_frame)
+from recon.measure.scene_cameras import scene_camera_poses  # noqa: E402
 from sim.render.camera import PinholeCamera  # noqa: E402
 from sim.dataset.images import write_png  # noqa: E402
 from sim.sampling.light import SunSetting, frame_light, frame_sun, parse_sun  # noqa: E402

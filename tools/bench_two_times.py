@@ -60,9 +60,9 @@ import numpy as np  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
-from recon.oblique import LightScores, TwinFrame, score_light, summarise_light, twin_frame  # noqa: E402
+from recon.measure.oblique import LightScores, TwinFrame, score_light, summarise_light, twin_frame  # noqa: E402
 from recon.surface.observed import viewed_area  # noqa: E402
-from recon.scene_cameras import truth_poses  # noqa: E402
+from recon.measure.scene_cameras import truth_poses  # noqa: E402
 from sim.evaluation.realism import (  # noqa: E402
     fit_channel_gains, photorealism_error_masked, photorealism_error_percent, read_rgb)
 from sim.render.camera import PinholeCamera, Rig  # noqa: E402

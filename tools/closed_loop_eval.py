@@ -21,9 +21,9 @@ from capture.geotag_limits import PHOTO_MISFIT_M
 from capture.logs.photos import read_photos
 from cliutil.atomic import atomic_path, write_text_atomic
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, pose_alignment, pose_errors, scene_mesh_enu, surface_errors,
-                           transform_poses)
-from recon.scene_cameras import registered_poses, shape_alignment, truth_poses
+from recon.measure.accuracy import (depth_coverage, pose_alignment, pose_errors, scene_mesh_enu, surface_errors,
+                                    transform_poses)
+from recon.measure.scene_cameras import registered_poses, shape_alignment, truth_poses
 from sim.dataset.images import read_exr, read_png
 from sim.evaluation.realism import compare_images, depth_errors, photorealism_error_masked, read_rgb
 from sim.render.scene import read_scene_json

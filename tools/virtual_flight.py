@@ -13,7 +13,7 @@ from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from flightplan.aircraft import FULL_FRAME_DIAGONAL_MM
-from recon.accuracy import PoseErrors, pose_errors
+from recon.measure.accuracy import PoseErrors, pose_errors
 from sim.render.camera import PinholeCamera, Rig, look_at
 from sim.render.renderer import render
 from sim.render.scene import Scene

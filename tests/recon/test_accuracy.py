@@ -8,8 +8,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import (depth_coverage, distances_to_surface, pose_alignment, pose_errors,
-                            pose_matrix, surface_errors, transform_poses)
+from recon.measure.accuracy import (depth_coverage, distances_to_surface, pose_alignment, pose_errors,
+                                    pose_matrix, surface_errors, transform_poses)
 
 
 def plane(size_m: float = 100.0, z: float = 0.0, cells: int = 4) -> trimesh.Trimesh:

@@ -10,7 +10,7 @@ from PIL import Image
 
 from recon.area.align import Prior
 from recon.cli import main
-from recon.evaluate import scene_photorealism
+from recon.measure.evaluate import scene_photorealism
 from recon.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm.options import SfmOptions
 from recon.stages import STAGES

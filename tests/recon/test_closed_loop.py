@@ -9,7 +9,7 @@ import pycolmap
 import pytest
 
 from recon.cli import main
-from recon.evaluate import scene_photorealism
+from recon.measure.evaluate import scene_photorealism
 from recon.pipeline import read_rgb
 from recon.sfm.cameras import camera_poses
 from sim.render.scene import load_scene

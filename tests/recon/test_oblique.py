@@ -15,8 +15,8 @@ import trimesh
 from PIL import Image
 from scipy.spatial.transform import Rotation
 
-from recon.oblique import (TwinFrame, render_view, sample_views, score_view, summarise, surface_points,
-                           true_camera_area, twin_frame, wall_mask)
+from recon.measure.oblique import (TwinFrame, render_view, sample_views, score_view, summarise, surface_points,
+                                   true_camera_area, twin_frame, wall_mask)
 from sim.render.camera import PinholeCamera, look_at
 from sim.render.scene import Scene, Surface, load_scene, read_scene_json, read_scene_mesh_enu
 from sim.render.scene_cameras import SceneCamera, write_cameras

@@ -6,7 +6,7 @@ import pytest
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from recon.evaluate import render_unlit
+from recon.measure.evaluate import render_unlit
 from recon.scene_out import write_scene
 from recon.appearance.texture import Photo, TextureOptions, Tiles, orthophoto, photo_samples, scene_from_mesh, \
     solve_log_gains, textured_glb, texel_grid

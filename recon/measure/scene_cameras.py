@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from flightplan.geodesy import LocalFrame
-from recon.accuracy import pose_alignment, pose_matrix, transform_poses
+from recon.measure.accuracy import pose_alignment, pose_matrix, transform_poses
 from sim.render.scene import read_scene_json
 from sim.render.scene_cameras import CamerasError, read_cameras
 

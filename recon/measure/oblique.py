@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.surface.observed import inside, observed_area
-from recon.scene_cameras import shape_alignment, truth_poses
+from recon.measure.scene_cameras import shape_alignment, truth_poses
 from sim.render.camera import PinholeCamera, Rig, camera_rays
 from sim.run.poses import SceneGround
 from sim.evaluation.realism import depth_errors, photorealism_error_masked, photorealism_error_percent
