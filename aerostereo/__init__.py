@@ -8,7 +8,7 @@ Each call delegates to the code its command line runs:
 - :func:`fly`: :func:`sim.drone.session.run_session` (``aerostereo-render fly``);
 - :func:`geotag`: :func:`capture.geotag_folder.geotag_folder` and :func:`capture.geotag_io.write_geotags`
   (``aerostereo-ingest geotag``);
-- :func:`reconstruct`: :class:`recon.pipeline.Recon` (``aerostereo-recon``);
+- :func:`reconstruct`: :class:`recon.run.pipeline.Recon` (``aerostereo-recon``);
 - :func:`render_dataset`: :func:`sim.run.render_dataset.render_dataset` (``aerostereo-render``).
 
 Frames and units throughout: WGS84 degrees for places on Earth; heights of a mission in metres above the take-off
@@ -37,7 +37,7 @@ from flightplan.aircraft import LEGAL_MAX_HEIGHT_M
 if TYPE_CHECKING:
     from capture.geotag import GeotagResult
     from flightplan.orbit import OrbitPlan, OrbitRequest
-    from recon.pipeline import ReconOptions
+    from recon.run.pipeline import ReconOptions
     from sim.drone.session import FlyOptions, FlyReport
     from sim.run.options import RenderOptions
     from sim.run.render_dataset import RenderSummary
@@ -55,7 +55,7 @@ _EXPORTS = {
     "RenderOptions": "sim.run.options", "RigOptions": "sim.run.options", "PoseOptions": "sim.run.options",
     "LightOptions": "sim.run.options", "OutputOptions": "sim.run.options", "CameraEffects": "sim.run.options",
     "RunOptions": "sim.run.options", "SunSetting": "sim.sampling.light", "RenderSummary": "sim.run.render_dataset",
-    "ReconOptions": "recon.pipeline", "SfmOptions": "recon.sfm.options", "DenseOptions": "recon.surface.dense",
+    "ReconOptions": "recon.run.pipeline", "SfmOptions": "recon.sfm.options", "DenseOptions": "recon.surface.dense",
 }
 
 __all__ = ["__version__", "BadInput", "plan_orbit", "fly", "geotag", "reconstruct", "render_dataset",
@@ -142,7 +142,7 @@ def reconstruct(photos_dir: _Path, geotags_csv: _Path | None, scene_dir: _Path,
     Returns ``scene.json`` as a dict: the mesh file, the ENU origin (WGS84), ``valid_area_m`` and
     ``ground_height_range_m`` (ENU metres); the folder is what :func:`render_dataset` and :func:`fly` take as a scene.
     """
-    from recon.pipeline import Recon, ReconOptions
+    from recon.run.pipeline import Recon, ReconOptions
 
     return Recon(photos_dir, geotags_csv, scene_dir, options or ReconOptions()).run()
 

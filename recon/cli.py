@@ -34,10 +34,10 @@ from cliutil.atomic import atomic_path
 from cliutil.program import Parser, add_version, run_cli, stdout_to_stderr
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
 from recon.area.cli import run_area
-from recon.cli_options import PROGRAM, add_recon_options, recon_options
+from recon.run.cli_options import PROGRAM, add_recon_options, recon_options
 from recon.surface.merge import estimate_merge, merge_meshes, read_pairs
 from recon.semantics.labels import LabelOptions, label_scene_dir
-from recon.pipeline import Recon
+from recon.run.pipeline import Recon
 from recon.sfm.options import SfmError
 from sim.render.labels import LABELS_FILE
 from sim.render.mesh_file import check_mesh_file

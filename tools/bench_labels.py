@@ -36,7 +36,7 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
-from recon.cli_options import positive_int  # noqa: E402
+from recon.run.cli_options import positive_int  # noqa: E402
 from recon.semantics.labels import label_scene  # noqa: E402
 from recon.measure.oblique import TwinFrame, sample_views, surface_points, twin_frame  # noqa: E402
 from recon.surface.observed import inside  # noqa: E402

@@ -40,7 +40,7 @@ from scipy import ndimage  # noqa: E402
 
 from recon.appearance.capture_sun import CaptureSuns  # noqa: E402
 from recon.appearance.delight import CAPTURE_SKY, EDGE_BAND_PX, BLOCK_PX, MIN_BLOCK_TEXELS  # noqa: E402
-from recon.pipeline import read_rgb  # noqa: E402
+from recon.run.pipeline import read_rgb  # noqa: E402
 from recon.appearance.shadow_timing import (LUMA, ShadowFit, predicted_shadow, shadow_iou, shadow_views,  # noqa: E402
                                             untextured_scene)
 from recon.appearance.texture import load_photos  # noqa: E402

@@ -45,7 +45,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 
 from recon.surface.dense import DenseOptions  # noqa: E402
 from recon.measure.evaluate import scene_photorealism  # noqa: E402
-from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
+from recon.run.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.appearance.texture import TextureOptions  # noqa: E402
 
 from capture.attitude import camera_matrix_world  # noqa: E402

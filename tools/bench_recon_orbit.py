@@ -35,9 +35,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
 
-from recon.cli_options import positive_int  # noqa: E402
+from recon.run.cli_options import positive_int  # noqa: E402
 from recon.surface.dense import DenseOptions  # noqa: E402
-from recon.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
+from recon.run.pipeline import Recon, ReconOptions, read_rgb  # noqa: E402
 from recon.sfm.cameras import camera_poses  # noqa: E402
 from recon.sfm.options import SfmOptions  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402

@@ -39,7 +39,7 @@ import numpy as np  # noqa: E402
 from scipy.spatial import ConvexHull  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
-from recon.cli_options import positive_int  # noqa: E402
+from recon.run.cli_options import positive_int  # noqa: E402
 from recon.measure.oblique import (render_view, sample_views, score_light, score_view, summarise,  # noqa: E402
                                    summarise_light, true_camera_area, twin_frame)
 from recon.measure.scene_cameras import scene_camera_poses  # noqa: E402

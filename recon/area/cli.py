@@ -25,7 +25,7 @@ from cliutil.paths import folder_holds, folder_inputs, refuse_clobbering
 from recon.area.pipeline import (MAX_PARTS, AreaOptions, ControlTie, Flight, checked_flights, flight_inputs,
                                   flights_of, merge_area, reconstruct_pieces)
 from recon.surface.merge import read_pairs
-from recon.cli_options import PROGRAM, add_recon_options, recon_options
+from recon.run.cli_options import PROGRAM, add_recon_options, recon_options
 
 
 def build_area_parser() -> Parser:

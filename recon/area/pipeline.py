@@ -44,9 +44,9 @@ from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.semantics.labels import LabelOptions, store_labels
 from recon.surface.merge import ControlPairs
-from recon.pipeline import Recon, ReconOptions, load_priors
+from recon.run.pipeline import Recon, ReconOptions, load_priors
 from recon.inputs.priors import PosePriors
-from recon.scene_out import CAMERAS_FILE, scene_metadata, store_sky_visibility
+from recon.run.scene_out import CAMERAS_FILE, scene_metadata, store_sky_visibility
 from sim.render.scene import Scene, read_scene_cameras, read_scene_json
 from sim.render.scene_cameras import SceneCamera, write_cameras
 from sim.render.color import SRGB8_TO_LINEAR, to_srgb8

@@ -14,7 +14,7 @@ from recon.area.align import (ADJUST_POINTS, TIE_POINT_M, AreaError, FlatOverlap
                               tie_sigma_m, with_systematic_floor)
 from recon.surface.merge import ControlPairs
 from recon.inputs.similarity import umeyama
-from recon.scene_out import write_scene
+from recon.run.scene_out import write_scene
 from sim.render.scene import SceneError
 from sim.worlds.synthetic import grid_mesh
 from tests.recon.area_pieces import (AREA, PIECE_M, centre_of, correction_error, frame_at, rigid, terrain_height,

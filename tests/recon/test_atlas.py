@@ -8,7 +8,7 @@ import trimesh
 from flightplan.geodesy import LocalFrame
 from recon.appearance.atlas import AtlasOptions, FaceViews, face_neighbours, label_faces, texture_atlas
 from recon.measure.evaluate import render_unlit
-from recon.scene_out import write_scene
+from recon.run.scene_out import write_scene
 from recon.appearance.texture import Photo, orthophoto, textured_glb
 from sim.render.camera import Rig, look_at
 from sim.evaluation.realism import photorealism_error_percent

@@ -11,9 +11,9 @@ from PIL import Image
 from recon.area.align import Prior
 from recon.cli import main
 from recon.measure.evaluate import scene_photorealism
-from recon.pipeline import Recon, ReconOptions, read_rgb
+from recon.run.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm.options import SfmOptions
-from recon.stages import STAGES
+from recon.run.stages import STAGES
 from sim.cli import main as render_main
 from sim.dataset.images import read_exr
 from sim.render.scene import read_scene_mesh_enu

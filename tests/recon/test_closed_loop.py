@@ -10,7 +10,7 @@ import pytest
 
 from recon.cli import main
 from recon.measure.evaluate import scene_photorealism
-from recon.pipeline import read_rgb
+from recon.run.pipeline import read_rgb
 from recon.sfm.cameras import camera_poses
 from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir

@@ -11,8 +11,8 @@ import trimesh
 
 from flightplan.geodesy import LocalFrame
 from recon.cli import main as recon_main
-from recon.pipeline import ReconOptions
-from recon.scene_out import scene_cameras, write_scene
+from recon.run.pipeline import ReconOptions
+from recon.run.scene_out import scene_cameras, write_scene
 from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.cli import main as render_main
 from sim.dataset.images import read_exr

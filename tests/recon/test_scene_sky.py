@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from recon.scene_out import write_scene
+from recon.run.scene_out import write_scene
 from sim.cli import main as render_main
 from sim.render import sky
 from sim.render.scene import SceneError, load_scene

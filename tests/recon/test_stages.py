@@ -11,10 +11,10 @@ import pycolmap
 import pytest
 
 from recon.surface.dense import DenseOptions
-from recon.pipeline import Recon, ReconOptions
+from recon.run.pipeline import Recon, ReconOptions
 from cliutil.progress import StepProgress
 from recon.sfm.options import SfmOptions
-from recon.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
+from recon.run.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
 from sim.render import sky
 from sim.render.labels import LABELS_FILE
 from sim.render.scene import load_scene

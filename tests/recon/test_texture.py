@@ -7,7 +7,7 @@ import trimesh
 
 from flightplan.geodesy import LocalFrame
 from recon.measure.evaluate import render_unlit
-from recon.scene_out import write_scene
+from recon.run.scene_out import write_scene
 from recon.appearance.texture import Photo, TextureOptions, Tiles, orthophoto, photo_samples, scene_from_mesh, \
     solve_log_gains, textured_glb, texel_grid
 from sim.render.camera import PinholeCamera, Rig, look_at

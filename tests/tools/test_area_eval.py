@@ -15,7 +15,7 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
-from recon.scene_out import write_scene
+from recon.run.scene_out import write_scene
 from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.run.options import PoseOptions, RenderOptions, RigOptions

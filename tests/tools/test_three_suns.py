@@ -6,7 +6,7 @@ import trimesh
 from PIL import Image
 
 from flightplan.geodesy import LocalFrame
-from recon.scene_out import write_scene
+from recon.run.scene_out import write_scene
 from sim.render.camera import PinholeCamera, look_at
 from sim.render.scene_cameras import SceneCamera
 from sim.worlds.synthetic import grid_mesh

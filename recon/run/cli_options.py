@@ -10,7 +10,7 @@ import math
 import re
 
 from recon.surface.dense import DenseOptions
-from recon.pipeline import MESHES, TEXTURES, ReconOptions
+from recon.run.pipeline import MESHES, TEXTURES, ReconOptions
 from recon.sfm.options import SfmOptions
 from recon.appearance.atlas import AtlasOptions
 from recon.appearance.texture import TextureOptions

@@ -52,13 +52,13 @@ from cliutil.jsonfile import read_json
 from recon.inputs.priors import (PosePriors, PriorsError, camera_seed, check_readable, list_photos, priors_from_exif,
                                  read_geotags, with_receiver_sigmas)
 from cliutil.progress import StepProgress, counted, log_stderr
-from recon.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
+from recon.run.scene_out import CAPTURE_LIGHT_FILE, scene_cameras, write_scene
 from recon.appearance.shadow_timing import (fit_utc_offset, refine_capture_time, shadow_views, start_fit,
                                             untextured_scene)
 from recon.sfm.cameras import camera_poses
 from recon.sfm.options import SfmOptions
 from recon.sfm.pipeline import MIN_PHOTOS, check_inputs, run_sfm, sfm_disk_bytes
-from recon.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
+from recon.run.stages import STAGES, StageStamps, file_sha256, photo_inputs, stage_records
 from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
 from sim.render.labels import LABELS_FILE
