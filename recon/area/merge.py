@@ -1,7 +1,7 @@
 """One scene from an area's aligned pieces: who owns each patch of ground, seams blended, colours matched.
 
 All in the area's ENU frame (metres, z up), after :func:`recon.area.align.align_area`'s corrections. The ground is a
-grid of ``cell_m`` cells (:class:`Grid`, row 0 north). Steps:
+grid of ``cell_m`` cells (:class:`~recon.surface.grid.Grid`, row 0 north). Steps:
 
 1. **Surface**: where each piece has any surface, by casting a ray down through every cell centre (embree).
 2. **Ownership**: each cell goes to the piece that sees it best, among the pieces with surface there: the piece whose
@@ -21,14 +21,13 @@ grid of ``cell_m`` cells (:class:`Grid`, row 0 north). Steps:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import cv2
 import numpy as np
 from matplotlib.path import Path as PolygonPath
 from scipy.spatial import cKDTree
 
 from recon.area.align import SurfaceQuery
+from recon.surface.grid import Grid
 from sim.render.scene import Scene, Surface
 from sim.render.shade import surface_albedo
 from sim.render.raycast import intersect
@@ -38,40 +37,6 @@ NO_OWNER = -1
 MAX_LOOK_AT_M = 1000.0
 #: Colours of neighbouring pieces are compared as means over blocks this wide (metres).
 COLOUR_BLOCK_M = 8.0
-
-
-@dataclass(frozen=True)
-class Grid:
-    """A north-up raster of the area's ground: cell (row, col) is centred at ENU x = ``x0_m + (col + 0.5) cell_m``,
-    y = ``y0_m - (row + 0.5) cell_m`` (``x0_m``, ``y0_m``: the north-west corner)."""
-
-    x0_m: float
-    y0_m: float
-    cell_m: float
-    rows: int
-    cols: int
-
-    @classmethod
-    def covering(cls, points_xy: np.ndarray, cell_m: float) -> "Grid":
-        """The grid whose cells cover every ``(N, 2)`` point, with one cell to spare on each side."""
-        lo, hi = points_xy.min(axis=0) - cell_m, points_xy.max(axis=0) + cell_m
-        cols, rows = (int(np.ceil((hi - lo)[k] / cell_m)) for k in (0, 1))
-        return cls(float(lo[0]), float(lo[1] + rows * cell_m), cell_m, rows, cols)
-
-    def centres(self) -> np.ndarray:
-        """``(rows * cols, 2)`` ENU x, y of the cell centres, row by row."""
-        cols, rows = np.meshgrid(np.arange(self.cols), np.arange(self.rows))
-        return np.column_stack([self.x0_m + (cols.ravel() + 0.5) * self.cell_m,
-                                self.y0_m - (rows.ravel() + 0.5) * self.cell_m])
-
-    def cell_of(self, points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Row and column of the cell holding each ``(N, 2)`` point (clipped to the grid)."""
-        col = np.clip(((points_xy[:, 0] - self.x0_m) / self.cell_m).astype(np.int64), 0, self.cols - 1)
-        row = np.clip(((self.y0_m - points_xy[:, 1]) / self.cell_m).astype(np.int64), 0, self.rows - 1)
-        return row, col
-
-    def to_dict(self) -> dict:
-        return {"x0_m": self.x0_m, "y0_m": self.y0_m, "cell_m": self.cell_m, "rows": self.rows, "cols": self.cols}
 
 
 def ray_scene(vertices: np.ndarray, faces: np.ndarray) -> Scene:

@@ -40,9 +40,10 @@ from flightplan.field import MAX_EXTENT_M
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 from recon.area.align import (AreaAlignment, AreaError, Link, PairReport, Piece, SurfaceQuery, align_area, control_link,
                               load_pieces)
-from recon.area.merge import (NO_OWNER, Grid, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
+from recon.area.merge import (NO_OWNER, blend_seams, colour_gains, covered_polygon, footprint_mask, kept_faces,
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.semantics.labels import LabelOptions, store_labels
+from recon.surface.grid import Grid
 from recon.surface.merge import ControlPairs
 from recon.run.pipeline import Recon, ReconOptions, load_priors
 from recon.inputs.priors import PosePriors

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from recon.area.merge import Grid
+from recon.surface.grid import Grid
 
 
 @dataclass(frozen=True)
@@ -35,7 +35,7 @@ class GroundFilter:
 
 @dataclass(frozen=True)
 class GroundSurface:
-    """The ground heights (ENU z, metres) of a :class:`~recon.area.merge.Grid`'s cells, and which cells hold ground
+    """The ground heights (ENU z, metres) of a :class:`~recon.surface.grid.Grid`'s cells, and which cells hold ground
     seen in the mesh (the others are filled from the ground around them)."""
 
     grid: Grid

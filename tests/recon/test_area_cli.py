@@ -14,9 +14,10 @@ from matplotlib.path import Path as PolygonPath
 
 from capture.cli import main as ingest
 from flightplan.cli import main as mission
-from recon.area.merge import NO_OWNER, Grid, distance_to_owner
+from recon.area.merge import NO_OWNER, distance_to_owner
 from recon.cli import main as recon
 from recon.measure.scene_cameras import area_shape_alignment
+from recon.surface.grid import Grid
 from sim.cli import main as render
 from sim.render.scene import Scene, load_scene
 from sim.run.render_dataset import resolve_scene_dir

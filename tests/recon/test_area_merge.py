@@ -11,9 +11,10 @@ import cv2
 import numpy as np
 import pytest
 
-from recon.area.merge import NO_OWNER, Grid, distance_to_owner, look_at_points, ownership, seam_neighbours
+from recon.area.merge import NO_OWNER, distance_to_owner, look_at_points, ownership, seam_neighbours
 from recon.area.align import AreaError
 from recon.area.pipeline import AreaOptions, ControlTie, merge_area
+from recon.surface.grid import Grid
 from recon.surface.merge import ControlPairs
 from sim.render.camera import PinholeCamera, look_at
 from sim.render.scene import load_scene, read_scene_json
