@@ -1,8 +1,9 @@
 """The project's layout, read from the source with ``ast`` (nothing is imported or run): no import circle between
 its modules, the packages layered ``cliutil ◄ flightplan ◄ capture ◄ sim ◄ recon ◄ aerostereo`` (each imports only
-those to its left; aerostereo is the Python entry point over them all), the render core ``sim/render/`` free of datasets, drones, command lines and run machinery, and no module
-longer than 600 lines. Each rule is checked on a small tree that breaks it too, so a rule that can no longer fail is
-caught."""
+those to its left; aerostereo is the Python entry point over them all), the render core ``sim/render/`` free of
+datasets, drones, command lines and run machinery, recon's rooms layered the same way (the surface below its
+appearance, nothing importing the measuring room) with only its face at its root, and no module longer than 600
+lines. Each rule is checked on a small tree that breaks it too, so a rule that can no longer fail is caught."""
 
 from __future__ import annotations
 
@@ -19,6 +20,13 @@ RENDER_CORE_MAY_IMPORT = ("sim.render", "flightplan.geodesy", "cliutil")
 #: Standard-library modules the render core never needs (command lines, processes).
 RENDER_CORE_NEVER = ("argparse", "multiprocessing", "tqdm")
 MAX_MODULE_LINES = 600
+#: recon's rooms (its folders), lowest first: each may import only the rooms before it (and itself). "" is the
+#: package's face, the modules at its root. The surface never imports its appearance; measuring (``measure``) imports
+#: what it measures, and no room imports it (:data:`RECON_UNIMPORTED`).
+RECON_ROOMS = ("inputs", "sfm", "surface", "appearance", "semantics", "run", "area", "measure", "")
+RECON_UNIMPORTED = ("measure",)
+#: The modules of recon's face: all its root may hold.
+RECON_FACE = ("recon", "recon.__main__", "recon.cli")
 
 
 def module_files(root: Path, packages=LAYERS) -> dict[str, Path]:
@@ -123,6 +131,34 @@ def render_core_breaks(root: Path) -> list[str]:
     return sorted(breaks)
 
 
+def recon_rooms(root: Path) -> dict[str, str]:
+    """recon module -> its room: the folder under ``recon/`` it lives in, "" for a module at recon's root."""
+    return {module: path.relative_to(root / "recon").parts[0] if path.parent != root / "recon" else ""
+            for module, path in module_files(root, ("recon",)).items()}
+
+
+def recon_room_breaks(graph: dict[str, set[str]], root: Path) -> list[str]:
+    """``A -> B (room -> room)`` for every import between recon's rooms that :data:`RECON_ROOMS` does not allow: into
+    a room at or to the right of its own, into a room of :data:`RECON_UNIMPORTED`, or from or into a room it does not
+    name."""
+    rooms, rank = recon_rooms(root), {room: k for k, room in enumerate(RECON_ROOMS)}
+    breaks = []
+    for module, room in rooms.items():
+        for other in sorted(graph[module] & rooms.keys()):
+            to = rooms[other]
+            if to == room:
+                continue
+            allowed = room in rank and to in rank and rank[to] < rank[room] and to not in RECON_UNIMPORTED
+            if not allowed:
+                breaks.append(f"{module} -> {other} ({room or 'face'} -> {to or 'face'})")
+    return sorted(breaks)
+
+
+def recon_root_extras(root: Path) -> list[str]:
+    """The modules at recon's root beyond its face (:data:`RECON_FACE`)."""
+    return sorted(module for module, room in recon_rooms(root).items() if room == "" and module not in RECON_FACE)
+
+
 def long_modules(root: Path) -> list[str]:
     """``path: lines`` of every Python file of the project (packages, tools, tests) over :data:`MAX_MODULE_LINES`."""
     files = [path for folder in (*LAYERS, "tools", "tests") for path in (root / folder).rglob("*.py")]
@@ -142,6 +178,14 @@ def test_the_render_core_imports_no_datasets_drones_command_lines_or_run_machine
     assert render_core_breaks(ROOT) == []
 
 
+def test_recon_rooms_import_only_the_rooms_below_them():
+    assert recon_room_breaks(import_graph(ROOT), ROOT) == []
+
+
+def test_recon_root_holds_only_its_face():
+    assert recon_root_extras(ROOT) == []
+
+
 def test_no_module_is_longer_than_600_lines():
     assert long_modules(ROOT) == []
 
@@ -156,7 +200,9 @@ def write_tree(root: Path, files: dict[str, str]) -> Path:
 @pytest.fixture
 def broken_tree(tmp_path):
     """A tree breaking every rule: a circle through a function-level import, two upward imports (one into the
-    entry point), a render core importing argparse and the run machinery, and a 601-line module."""
+    entry point), a render core importing argparse and the run machinery, a 601-line module at recon's root, and
+    recon rooms importing against their order: the surface its appearance, the run the measuring room, the measuring
+    room the face, and a room that has no place in the order."""
     return write_tree(tmp_path, {
         "cliutil/__init__.py": "",
         "flightplan/__init__.py": "",
@@ -170,6 +216,13 @@ def broken_tree(tmp_path):
         "sim/run/frames.py": "from sim.run import options\nrenderer = 1\n",
         "recon/__init__.py": "import aerostereo\n",
         "recon/long.py": "x = 1\n" * 601,
+        "recon/cli.py": "def main():\n    return 0\n",
+        "recon/surface/__init__.py": "",
+        "recon/surface/mesh.py": "from recon.appearance.texture import Photo\n",
+        "recon/appearance/texture.py": "Photo = 1\n",
+        "recon/run/pipeline.py": "from recon.surface import mesh\nfrom ..measure import accuracy\n",
+        "recon/measure/accuracy.py": "def f():\n    from recon.cli import main\n",
+        "recon/kitchen/sink.py": "from recon.surface.mesh import f\n",
         "aerostereo/__init__.py": "from recon import long\n",
         "tools/ok.py": "",
         "tests/ok.py": "",
@@ -182,3 +235,9 @@ def test_the_rules_catch_a_tree_that_breaks_them(broken_tree):
     assert layering_breaks(graph) == ["flightplan.geodesy -> sim.render.camera", "recon -> aerostereo"]
     assert render_core_breaks(broken_tree) == ["sim.render.camera: argparse", "sim.render.camera: sim.run.options"]
     assert long_modules(broken_tree) == ["recon/long.py: 601"]
+    assert recon_room_breaks(graph, broken_tree) == [
+        "recon.kitchen.sink -> recon.surface.mesh (kitchen -> surface)",
+        "recon.measure.accuracy -> recon.cli (measure -> face)",
+        "recon.run.pipeline -> recon.measure.accuracy (run -> measure)",
+        "recon.surface.mesh -> recon.appearance.texture (surface -> appearance)"]
+    assert recon_root_extras(broken_tree) == ["recon.long"]
