@@ -13,7 +13,7 @@ MAX_AUTO_CLOCK_OFFSET_S = 14.5 * 3600.0
 #: (``--max-misfit``).
 DEFAULT_MAX_MISFIT_M = 100.0
 #: A consumer GPS's 1-sigma position error (m) east, north, up: a few metres horizontally, more vertically. Recon
-#: weights a photo's pose prior by it (``recon.priors``); the geotagger allows it between two fixes of a track
+#: weights a photo's pose prior by it (``recon.inputs.priors``); the geotagger allows it between two fixes of a track
 #: (``capture.flyable``) and between a photo's own GPS and its geotag.
 CONSUMER_GPS_SIGMA_M = (3.0, 3.0, 5.0)
 #: Largest distance (m) between a photo's own GPS and its geotag from the logs, horizontally and in height above

@@ -1,8 +1,11 @@
 """recon: photos + geotags -> georeferenced mesh with pycolmap on the CPU.
 
-Stages (each a module or package, pure functions on numpy arrays where possible):
-``sfm`` (a package: features, matching, mapping, geo-registration, levelling), ``dense`` (rectified SGBM depth maps
-fused by pycolmap), ``mesh`` (2.5-D height field or Poisson), ``merge`` (control-point similarity),
-``scene_out`` (the scene folder of INTERFACES.md), ``cli`` (``aerostereo-recon``). ``area`` (a package) joins
-many flights, each reconstructed on its own, into one scene (``aerostereo-recon area``).
+Its rooms, one job each, lowest first (tests/test_project_layout.py keeps each importing only those before it):
+``inputs`` (pose priors and camera seed, the tags' along-track offset, similarity fits), ``sfm`` (a package:
+features, matching, mapping, geo-registration, levelling), ``surface`` (rectified SGBM depth maps fused by pycolmap,
+the mesh, the observed area, control-point merge), ``appearance`` (texture, atlas, capture sun, delighting),
+``semantics`` (the bare ground, face labels), ``run`` (the pipeline, the stages' fingerprints, the scene folder of
+INTERFACES.md, the command-line options), ``area`` (many flights, each reconstructed on its own, joined into one
+scene: ``aerostereo-recon area``), ``measure`` (a reconstruction against known truth; no room imports it). At the
+root, the face: ``cli`` (``aerostereo-recon``) and ``__main__``.
 """

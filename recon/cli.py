@@ -13,8 +13,8 @@ The scene summary (JSON) is the only thing on stdout; stage lines, progress and 
 ``aerostereo-recon ... | jq`` works. Bad input, and an output that names an input (``--out`` inside ``--photos``, on
 ``--geotags``; ``merge --out`` on A, B or the pairs file) -> one line on stderr, exit code 2, before any work;
 so do a full or read-only disk and a truncated photo (docs/recon.md). ``labels`` labels the faces of an existing
-scene folder (recon/labels.py; what the recon's last stage does): ``labels.npz`` and scene.json's ``labels``; its
-report (JSON) on stdout; a folder that is not a scene -> one line, exit code 2.
+scene folder (recon/semantics/labels.py; what the recon's last stage does): ``labels.npz`` and scene.json's ``labels``;
+its report (JSON) on stdout; a folder that is not a scene -> one line, exit code 2.
 """
 
 from __future__ import annotations

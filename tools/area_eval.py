@@ -246,9 +246,9 @@ def surface_seam_metrics(area_dir: Path, world_dir: Path, ownership: Ownership, 
                          seam_m: float = SEAM_DISTANCE_M, seed: int = 0, to_world: np.ndarray | None = None) -> dict:
     """The merged twin's surface against the true world: ``samples`` points drawn uniformly on the twin's mesh,
     those over its ``observed_area_m`` kept, each one's exact distance to the true surface (m,
-    :func:`recon.accuracy.distances_to_surface`), split into seams and inside (:func:`seam_split`). The twin is
-    moved into the world by ``to_world`` (4x4; e.g. :func:`recon.scene_cameras.area_shape_alignment`, the error of
-    its shape) or, when None, by its geodetic origin (the absolute error, the flights' mean GPS offset included)."""
+    :func:`recon.measure.accuracy.distances_to_surface`), split into seams and inside (:func:`seam_split`). The twin is
+    moved into the world by ``to_world`` (4x4; e.g. :func:`recon.measure.scene_cameras.area_shape_alignment`, the error
+    of its shape) or, when None, by its geodetic origin (the absolute error, the flights' mean GPS offset included)."""
     twin, twin_frame = scene_mesh_enu(area_dir)
     world, world_frame = scene_mesh_enu(world_dir)
     points = trimesh.sample.sample_surface(twin, samples, seed=np.random.default_rng(seed))[0]
@@ -270,10 +270,10 @@ def surface_seam_metrics(area_dir: Path, world_dir: Path, ownership: Ownership, 
 
 def oblique_metrics(area_dir: Path, world_dir: Path, views: int, size: tuple[int, int], fov_deg: float,
                     seed: int, to_world: np.ndarray | None = None) -> dict:
-    """The paper's random poses over the merged ``observed_area_m`` (:func:`recon.oblique.sample_views`),
+    """The paper's random poses over the merged ``observed_area_m`` (:func:`recon.measure.oblique.sample_views`),
     rendered in the true world and in the twin (placed by geodetic origins: the absolute error), scored by
-    :func:`recon.oblique.score_view` and :func:`recon.oblique.summarise`; the sun of frame ``i`` is the dataset
-    renderer's."""
+    :func:`recon.measure.oblique.score_view` and :func:`recon.measure.oblique.summarise`; the sun of frame ``i`` is the
+    dataset renderer's."""
     world, twin = load_scene(world_dir), load_scene(area_dir)
     frame = TwinFrame(twin.origin.transform_to(world.origin) if to_world is None else to_world)
     polygon = move_polygon(observed_polygon(area_dir), frame.T_world_twin)

@@ -10,7 +10,7 @@ Four parts, one run:
    (tasks/s, so per-task overhead = 1 / that); and what an idle ``local:J`` costs in the background (cores used by
    the scheduler, nannies and workers while no task runs), with Dask's defaults and with
    :data:`sim.run.cluster.WORKER_CONFIG`.
-3. Reconstruction, depth maps per view (recon/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
+3. Reconstruction, depth maps per view (recon/surface/dense.py ``pair_depth`` + ``fuse_pair_depths``, what the depth
    stage runs per view): ``--views`` synthetic 640x480 nadir photos of a textured plane, each view's depth from its
    two neighbours, in this process (OpenCV's threads) and as one task per view on local:J (start-up included).
 4. On paper: wall time for 10^4..10^6 frames on 1..100 machines of ``--cores`` cores each, from the measured
@@ -145,7 +145,7 @@ def view_depth(images: list[np.ndarray], views: list, k: int) -> float:
 
 def depth_maps_here_and_on_cluster(count: int, workers: int) -> tuple[float, float, float]:
     """Seconds for ``count`` depth maps in this process, on local:J once started, and local:J's start-up (worker
-    processes, importing recon.dense there, sending the images)."""
+    processes, importing recon.surface.dense there, sending the images)."""
     texture = make_texture()
     views = [look_down_view((k * VIEW_SPACING_M - count * VIEW_SPACING_M / 2, 0.0, VIEW_HEIGHT_M), 0.0)
              for k in range(count)]

@@ -2,7 +2,7 @@
 
     .venv/bin/python tools/bench_dense_filter.py [--pairs 5] [--noise 3]
 
-Each variant computes the reference view's planar depth from one stereo pair with :func:`recon.dense.pair_depth`
+Each variant computes the reference view's planar depth from one stereo pair with :func:`recon.surface.dense.pair_depth`
 (the stage's rectification, disparity range and SGBM) and is scored against the true depth:
 
 - ``SGBM`` (what the stage does), ``SGBM + WLS``: ximgproc's weighted-least-squares disparity filter

@@ -25,8 +25,8 @@ Table: one row per variant and group (held-out, used, all photos): mean formula 
 pixels, mean coverage; then, with several variants, formula 3 raw over the pixels EVERY variant covers (each variant
 covers a different part of a photo, the 3-D surface the harder far field too: only common pixels compare the
 surfaces' looks); then the seconds of each step. A held-out photo's "gain" is its own exposure measured
-against the finished texture (``recon.atlas.held_out_gains``: one number per photo, the way the texture's photos'
-gains are measured; atlas texture only); its colours never enter the texture. A rerun with the same ``--work``
+against the finished texture (``recon.appearance.atlas.held_out_gains``: one number per photo, the way the texture's
+photos' gains are measured; atlas texture only); its colours never enter the texture. A rerun with the same ``--work``
 resumes both runs.
 """
 

@@ -1,4 +1,4 @@
-"""A twin's face labels (recon/labels.py) against the true world's, at the paper's random oblique poses.
+"""A twin's face labels (recon/semantics/labels.py) against the true world's, at the paper's random oblique poses.
 
     .venv/bin/python tools/bench_labels.py --twin SCENE_DIR [--world demo|demo:small|DIR] [--truth truth.json]
         [--recon-log recon.log]
@@ -6,15 +6,15 @@
         [--pictures OUT.jpg] [--picture-count 4]
 
 The twin (a reconstructed scene folder, read only) is labelled here, in memory, and timed. ``--views`` poses are drawn
-the paper's way (recon.oblique.sample_views: 20-100 m up, tilts up to 45 deg, sky-rejected; seeded) in the true world
-with the camera over the twin's observed area (its scene.json ``observed_area_m``, moved into the world's ENU frame
-through geodetic coordinates: flightplan.geodesy.LocalFrame). Each pose is rendered in both (the twin at the same
+the paper's way (recon.measure.oblique.sample_views: 20-100 m up, tilts up to 45 deg, sky-rejected; seeded) in the true
+world with the camera over the twin's observed area (its scene.json ``observed_area_m``, moved into the world's ENU
+frame through geodetic coordinates: flightplan.geodesy.LocalFrame). Each pose is rendered in both (the twin at the same
 geodetic pose, so its georeferencing error counts; with ``--truth``, the flight's truth.json, the twin is placed by
-its cameras instead, which removes that error: recon.oblique.twin_frame), and class images are looked up from the
-triangle hit (SceneLabels.class_image). Over the in-area pixels (the true surface point inside the observed area, both
-hit, the truth in a group) it prints per-group IoU (sim.render.classes.GROUPS), their mean (mIoU), the unknown share,
-the confusion matrix (rows: truth group; columns: the twin's group, or unknown/other), and the labelling time beside
-the recon run's stage times (``--recon-log``: its ``[stage] done (S s)`` lines).
+its cameras instead, which removes that error: recon.measure.oblique.twin_frame), and class images are looked up from
+the triangle hit (SceneLabels.class_image). Over the in-area pixels (the true surface point inside the observed area,
+both hit, the truth in a group) it prints per-group IoU (sim.render.classes.GROUPS), their mean (mIoU), the unknown
+share, the confusion matrix (rows: truth group; columns: the twin's group, or unknown/other), and the labelling time
+beside the recon run's stage times (``--recon-log``: its ``[stage] done (S s)`` lines).
 
 Without ``--world`` (a real twin with no truth) the poses are drawn in the twin and nothing is scored: only
 ``--pictures`` are drawn. ``--pictures OUT.jpg``: one row per view, the twin as captured | its class image (the
@@ -67,7 +67,7 @@ def group_of_class() -> np.ndarray:
 def twin_placement(twin, world, twin_dir: Path, truth_json: Path | None) -> TwinFrame:
     """Where the twin's ENU frame lies in the world's: through geodetic coordinates (its georeferencing error
     counts), or with ``truth_json`` (the flight's truth.json) by the similarity that takes its cameras onto the true
-    ones (recon.oblique.twin_frame: the georeferencing error removed)."""
+    ones (recon.measure.oblique.twin_frame: the georeferencing error removed)."""
     if truth_json is None:
         return TwinFrame(twin.origin.transform_to(world.origin))
     return twin_frame(twin_dir, json.loads(truth_json.read_text(encoding="utf-8")), world.origin)

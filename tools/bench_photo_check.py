@@ -4,7 +4,7 @@ For every photo of a folder (default: the real DJI set brighton_beach) and copie
 99.9 % of its bytes, it times and scores:
 
 - ``header``: Pillow opens the file (what recon checked before issue 18);
-- ``check``: :func:`recon.priors.decode_problem`, Pillow's decode at 1/8 scale (what recon checks now);
+- ``check``: :func:`recon.inputs.priors.decode_problem`, Pillow's decode at 1/8 scale (what recon checks now);
 - ``full``: Pillow's decode at full size;
 - ``opencv``: ``cv2.imread`` (what COLMAP-like readers do: a cut photo decodes, its missing part grey).
 

@@ -7,13 +7,13 @@
 For each photo folder, through the command-line tool as a user runs it:
 
 1. ``aerostereo-recon --photos PHOTO_DIR`` (EXIF GPS priors; the folder's ``--utc-offset`` passed as
-   ``--capture-utc-offset`` when given, else the UTC offset is searched from the shadows: recon/shadow_timing.py).
-   The texture report says where the capture time came from and the shadow fit (UTC offset, clock and yaw
-   corrections, the photos' mean edge contrast across the predicted shadows before and after the search, log
-   luminance, at 160 px).
+   ``--capture-utc-offset`` when given, else the UTC offset is searched from the shadows:
+   recon/appearance/shadow_timing.py). The texture report says where the capture time came from and the shadow fit (UTC
+   offset, clock and yaw corrections, the photos' mean edge contrast across the predicted shadows before and after the
+   search, log luminance, at 160 px).
 2. The cast-shadow mask the twin and that sun predict in every registered photo (``--width`` pixels) against the
-   photo's dark pixels (recon.shadow_timing.dark_mask), scored away from a 2-pixel band around the predicted edges:
-   IoU mean, median and worst photo.
+   photo's dark pixels (recon.appearance.shadow_timing.dark_mask), scored away from a 2-pixel band around the predicted
+   edges: IoU mean, median and worst photo.
 3. Inside/outside shadow luminance ratio of one surface, in the texture atlas: texels the capture light puts in
    shadow (at most :data:`SHADOW_LIGHT` of the sky's irradiance) against texels it puts in the sun (at least
    :data:`SUN_LIGHT`), each 2-8 texels from the other and in the same 32-texel block (the same surface, as far as a

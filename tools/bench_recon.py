@@ -116,7 +116,7 @@ def bench_sizes_virtual(sizes, features: int) -> tuple[list[dict], Orbit]:
 def p4m_rtk_variants(photo_dir: Path, names):
     """Table 4's rows: (label, camera seed, priors, ``SfmOptions.focal``). The priors' positions are the RTK
     positions (XMP) either way; "GPS sigmas" gives every photo main's consumer-GPS sigma instead of its own. The
-    factory variants change one thing of the default seed (:func:`recon.priors.camera_seed`) each."""
+    factory variants change one thing of the default seed (:func:`recon.inputs.priors.camera_seed`) each."""
     priors = priors_from_exif(photo_dir, names)
     gps = dataclasses.replace(priors, sigma_m=None)
     factory = camera_seed(photo_dir / names[0])

@@ -10,15 +10,15 @@ moved onto the true world by the similarity that takes its registered cameras (`
 ``work/sparse``) onto the true ones, which removes the georeferencing error. ``--views`` poses are drawn the
 paper's way in the TRUE world (sim.sampling's random mode, sky-rejected) with the camera over the observed area
 (the convex hull of the true positions of the photos registered by any scene: for a 50 m orbit, its disc). Each
-pose is rendered in the true world and in every twin with the same camera and sun (recon.oblique).
+pose is rendered in the true world and in every twin with the same camera and sun (recon.measure.oblique).
 
 Printed, a row per scene: over the pixels whose TRUE surface point lies in the observed area (in-area), the
 twin's coverage, formula 3 (%) where it has surface, split into walls (true normal > 45 deg from vertical) and
 flat, their ratio, depth abs rel, and formula 3 over whole images for reference; render seconds per view.
 Means over the views; the JSON has every view.
 
-A second table says how each twin carries light (recon.oblique.score_light): the truth is also rendered under the
-flight's capture sun (``--capture-sun AZ,EL,STRENGTH``, default truth.json's fixed sun), and per scene it prints the
+A second table says how each twin carries light (recon.measure.oblique.score_light): the truth is also rendered under
+the flight's capture sun (``--capture-sun AZ,EL,STRENGTH``, default truth.json's fixed sun), and per scene it prints the
 ghost ratio (twin / truth luminance over the pixels in a capture shadow that the drawn sun lights: 1 when the
 capture's shadows are gone, far below 1 for a texture that still holds them), formula 3 over the pixels lit by both
 suns, and the floor: the twin rendered as captured against the truth under the capture sun.
@@ -113,8 +113,8 @@ def print_table(summaries: dict, truth_s: float, views: int) -> None:
 
 
 def add_view_arguments(parser: argparse.ArgumentParser) -> None:
-    """The options of the paper's random oblique views (recon.oblique.sample_views): how many, their size, field of
-    view and seed."""
+    """The options of the paper's random oblique views (recon.measure.oblique.sample_views): how many, their size, field
+    of view and seed."""
     parser.add_argument("--views", type=positive_int, default=20)
     parser.add_argument("--size", type=positive_int, nargs=2, default=(640, 360), metavar=("W", "H"))
     parser.add_argument("--fov", type=float, default=80.0, help="horizontal field of view, deg (default 80)")

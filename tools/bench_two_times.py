@@ -18,7 +18,7 @@ Through the command lines, as a user runs them (``tools/closed_loop.py``'s stage
    intrinsics, lens distortion), its TRUE sun (the real sun at its UTC time), and its TRUE auto-exposure gain per
    channel as the renderer's exposure (``truth.json``'s ``gain_r/g/b``: photo = gain x the unit-exposure render, in
    linear light, exactly as the virtual drone rendered the photo). The twin is placed on the world by the
-   similarity that takes its registered cameras onto the true ones (:func:`recon.oblique.twin_frame`), which
+   similarity that takes its registered cameras onto the true ones (:func:`recon.measure.oblique.twin_frame`), which
    removes the GPS georeference's error. The true world is rendered the same way as a check of that handling
    (it differs from the photos by their JPEG coding only).
 4. Formula 3 (:func:`sim.evaluation.realism.photorealism_error_masked`) of each render against its photo over the
@@ -27,12 +27,12 @@ Through the command lines, as a user runs them (``tools/closed_loop.py``'s stage
 
 Printed (stdout): per twin and flight the mean and median formula 3 (true gain), the mean with fitted gains, the
 covered fraction; per twin the difference other - own (issue 28's criterion: the relit twin within 1 point of
-itself at its own flight); at the later flight, how each twin carries the light (:func:`recon.oblique.score_light`,
-over the area the first flight stood over and looked at, :func:`flight_area`): the ghost ratio (twin / truth
-luminance where the 08:00 sun cast a shadow that the 15:00 sun lights: 1 when the capture's shadows are gone),
-formula 3 where both suns light the surface, and the twin as captured against the truth under the 08:00 sun (the
-texture's floor at those poses); the time of every stage. Progress on stderr. ``--work`` is resumed: a finished stage
-(its output present and its time recorded in ``stages.json``) is not run again.
+itself at its own flight); at the later flight, how each twin carries the light
+(:func:`recon.measure.oblique.score_light`, over the area the first flight stood over and looked at,
+:func:`flight_area`): the ghost ratio (twin / truth luminance where the 08:00 sun cast a shadow that the 15:00 sun
+lights: 1 when the capture's shadows are gone), formula 3 where both suns light the surface, and the twin as captured
+against the truth under the 08:00 sun (the texture's floor at those poses); the time of every stage. Progress on stderr.
+``--work`` is resumed: a finished stage (its output present and its time recorded in ``stages.json``) is not run again.
 
 Defaults: the closed loop's (``tools/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
 (50 m radius, 30 m up), 800x600 photos, SfM at 800 px, depth maps at 640 px, a photo every :data:`DEFAULT_INTERVAL_S`
@@ -282,8 +282,9 @@ def photo_scores(bench: Bench, camera: PinholeCamera, photo: Photo, pool) -> tup
 
 
 def light_scores(bench: Bench, camera: PinholeCamera, photo: Photo, views: dict, pool) -> dict[str, LightScores]:
-    """How each twin carries the light at a photo of the later flight (:func:`recon.oblique.score_light`): the true
-    world under the photo's sun and under the capture sun, each twin relit and as captured, over the observed area."""
+    """How each twin carries the light at a photo of the later flight (:func:`recon.measure.oblique.score_light`): the
+    true world under the photo's sun and under the capture sun, each twin relit and as captured, over the observed
+    area."""
     captured = render_photo(bench.world, None, camera, photo, pool, sun=bench.capture_sun)
     return {label: score_light(views[TRUE_WORLD], captured, views[label],
                                render_as_captured(scene, frame, camera, photo, pool), bench.area)
@@ -293,7 +294,7 @@ def light_scores(bench: Bench, camera: PinholeCamera, photo: Photo, views: dict,
 def score_flight(bench: Bench, folder: Path, relit: bool) -> dict[str, dict]:
     """Every photo of the flight in ``folder``: per label the per-photo formula 3 (``error``: true gain, ``fitted``:
     fitted gains) and ``covered`` fractions (:func:`photo_scores`); with ``relit`` (the later flight) also each
-    twin's light scores summarised (``light``, :func:`recon.oblique.summarise_light`)."""
+    twin's light scores summarised (``light``, :func:`recon.measure.oblique.summarise_light`)."""
     truth = json.loads((folder / "truth.json").read_text(encoding="utf-8"))
     camera, photos = truth_camera(truth), flight_photos(truth, folder, bench.world.origin)
     labels = (*bench.twins, TRUE_WORLD)
@@ -317,8 +318,9 @@ def score_flight(bench: Bench, folder: Path, relit: bool) -> dict[str, dict]:
 
 
 def flight_area(world: Scene, photos: list[Photo]) -> np.ndarray:
-    """What a flight stood over and looked at (:func:`recon.observed.viewed_area` of its true poses on the world's
-    ground under them, world ENU polygon): for a whole orbit its disc, for a short arc also the centre it looks at."""
+    """What a flight stood over and looked at (:func:`recon.surface.observed.viewed_area` of its true poses on the
+    world's ground under them, world ENU polygon): for a whole orbit its disc, for a short arc also the centre it looks
+    at."""
     poses = np.array([photo.T_world_cam for photo in photos])
     ground = np.nanmedian(world.ground_height(poses[:, 0, 3], poses[:, 1, 3]))
     return viewed_area(poses, float(ground))

@@ -1,6 +1,6 @@
 """Evaluation and report of one closed-loop run (``tools/closed_loop.py``): reads the stages' files, measures
-every error against the truth with :mod:`recon.accuracy` and :mod:`sim.evaluation.realism`, writes ``report.json``,
-``report.md`` and ``closed_loop.png``.
+every error against the truth with :mod:`recon.measure.accuracy` and :mod:`sim.evaluation.realism`, writes
+``report.json``, ``report.md`` and ``closed_loop.png``.
 
 All estimates are moved into the truth's ENU frame by their geodetic origins (``geotags.json``, the
 reconstruction's ``scene.json``), exactly as the dataset renderer moves replayed poses between scenes.

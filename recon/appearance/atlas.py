@@ -1,8 +1,8 @@
 """Texture a 3-D mesh with an atlas: each face coloured from the best photo that sees it.
 
 The approach of Waechter, Moehrle and Goesele, "Let there be color!" (mvs-texturing), small: frames are the scene's
-ENU metres for the mesh and undistorted pinhole photos (:class:`recon.texture.Photo`, OpenCV axes, ``T_world_cam``
-in the same frame).
+ENU metres for the mesh and undistorted pinhole photos (:class:`recon.appearance.texture.Photo`, OpenCV axes,
+``T_world_cam`` in the same frame).
 
 1. **Candidate views** per face: the ``candidates`` best photos in which the face's centroid is in front, inside the
    image, facing the camera and not occluded (an embree occlusion ray from the camera centre). Quality is the face's
@@ -15,7 +15,7 @@ in the same frame).
    distortion beyond the view's own); a face no photo sees is a chart of its own, flattened in its plane. xatlas
    packs the charts into one atlas at ``1 / texel_m`` texels per metre, with a gutter of ``padding_px``.
 4. **Exposure**: per-photo gains (linear light, geometric mean 1) solved globally from the candidates' colours at
-   shared face centroids (:func:`recon.texture.solve_log_gains`) and applied to every sample.
+   shared face centroids (:func:`recon.appearance.texture.solve_log_gains`) and applied to every sample.
 5. **Texels**: each texel inside a face (or in the gutter beside it) gets that face's 3-D point (barycentric,
    clamped to the triangle), projected into the face's photo and sampled bilinearly in linear light, times the
    photo's gain. Texels of faces no photo sees take the nearest coloured texel.
@@ -379,7 +379,8 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
           capture: CaptureSetup | None = None) -> tuple[np.ndarray, np.ndarray | None, Delighting | None]:
     """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face sampled from the face's photo times its
     gain; the rest take the nearest painted texel (grey if none). With ``capture`` (the capture suns): the albedo
-    instead, the capture light (H, W, 3) float32 it was divided by, and what was done (:mod:`recon.delight`)."""
+    instead, the capture light (H, W, 3) float32 it was divided by, and what was done
+    (:mod:`recon.appearance.delight`)."""
     height, width = ids.shape
     colour = np.zeros((height * width, 3), np.float32)
     flat = ids.ravel()
@@ -424,7 +425,8 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
                   sun_enu: np.ndarray | None = None) -> Atlas:
     """The textured atlas of an ENU ``mesh`` from undistorted ``photos`` (see the module docstring); the gains also
     name the ``held_out`` photos, which colour nothing (:func:`held_out_gains`). With ``sun_enu`` (K, 3), each photo's
-    capture sun (unit ENU, towards the sun), the atlas holds the albedo and the capture light (:mod:`recon.delight`)."""
+    capture sun (unit ENU, towards the sun), the atlas holds the albedo and the capture light
+    (:mod:`recon.appearance.delight`)."""
     if not photos:
         raise ValueError("texturing needs at least one photo")
     scene = scene_from_mesh(mesh)

@@ -4,9 +4,9 @@
 A photo's UTC time comes from its geotag (the telemetry's clock, with the camera clock offset that geotagging found)
 or from its EXIF time when the camera wrote its time zone (``OffsetTimeOriginal``) or the user gives it
 (``--capture-utc-offset``); else from its EXIF clock and the UTC offset its shadows show
-(:func:`recon.shadow_timing.fit_utc_offset`). Either way the shadows may refine the clock and the model's yaw
-(:func:`recon.shadow_timing.refine_capture_time`). A photo set that cannot be timed is not guessed at: it gets no
-capture sun, and its texture keeps the capture day's light (said in the log and in ``texture_report.json``).
+(:func:`recon.appearance.shadow_timing.fit_utc_offset`). Either way the shadows may refine the clock and the model's yaw
+(:func:`recon.appearance.shadow_timing.refine_capture_time`). A photo set that cannot be timed is not guessed at: it
+gets no capture sun, and its texture keeps the capture day's light (said in the log and in ``texture_report.json``).
 """
 
 from __future__ import annotations

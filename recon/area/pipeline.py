@@ -9,7 +9,7 @@ Layout of the output folder ``AREA``::
     AREA/ownership.png        16-bit: per ground cell the index of the piece that owns it (65535: none)
     AREA/area_report.json     pieces, corrections, pair offsets before/after (join_warnings: pairs the join left
                               farther apart, also in scene.json), seams, colour gains, timings
-    AREA/labels.npz           the merged mesh's face labels (recon/labels.py), named in scene.json
+    AREA/labels.npz           the merged mesh's face labels (recon/semantics/labels.py), named in scene.json
     AREA/scene.json           written last: the scene renders as one (aerostereo-render --scene AREA)
 
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
@@ -83,7 +83,7 @@ class Flight:
 @dataclass(frozen=True)
 class AreaOptions:
     """How pieces are joined: ground cell (m), seam blend band (m), the largest seam step blended (m); how the joined
-    scene's faces are labelled (recon/labels.py)."""
+    scene's faces are labelled (recon/semantics/labels.py)."""
 
     cell_m: float = 1.0
     blend_width_m: float = 4.0
@@ -142,9 +142,9 @@ def flight_inputs(flights: Sequence[Flight]) -> list[Path]:
 
 def checked_flights(flights: Sequence[Flight], area_dir: Path,
                     options: ReconOptions) -> list[tuple[list[str], PosePriors]]:
-    """Every flight's photo names and priors (:func:`recon.pipeline.load_priors`: readable photos, a geotag for
+    """Every flight's photo names and priors (:func:`recon.run.pipeline.load_priors`: readable photos, a geotag for
     each, enough of them), read and checked as its reconstruction will check them (memory, disk room:
-    :meth:`recon.pipeline.Recon.check_before_run`) before any piece is reconstructed, so that a bad later flight is
+    :meth:`recon.run.pipeline.Recon.check_before_run`) before any piece is reconstructed, so that a bad later flight is
     refused before the first one runs; :class:`BadInput` naming the two flights farthest apart when their photos'
     mean positions lie more than :data:`MAX_FLIGHT_SPREAD_M` apart (flights of different places, or a flight's
     geotags of another place)."""

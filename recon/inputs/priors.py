@@ -61,7 +61,7 @@ class PosePriors:
     #: a time zone: see ``clock_time_s``).
     utc_time_s: np.ndarray | None = None
     #: (N,) each photo's EXIF clock time in the clock's own unknown zone (read as if UTC), where ``utc_time_s`` is
-    #: None: recon times them by their shadows (recon.shadow_timing) or by ``--capture-utc-offset``.
+    #: None: recon times them by their shadows (recon.appearance.shadow_timing) or by ``--capture-utc-offset``.
     clock_time_s: np.ndarray | None = None
 
     def __post_init__(self) -> None:

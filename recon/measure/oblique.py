@@ -3,7 +3,7 @@
 The paper renders its twin from random poses 20-100 m up, tilted up to 45 deg from nadir, so walls, tree crowns
 and roof edges are seen from the side. Here the same pose is rendered in the true world and in the twin, with
 the same camera and the same sun, and the two views are scored over the pixels whose TRUE surface point lies in
-the flight's observed area (:mod:`recon.observed`).
+the flight's observed area (:mod:`recon.surface.observed`).
 
 Frames: the true world's ENU metres ("world"); the twin's own ENU frame ("twin"), which the similarity
 ``T_world_twin`` (scale x rotation + translation, :func:`twin_frame`) maps into the world's after removing the
@@ -78,14 +78,14 @@ class TwinFrame:
 
 def twin_frame(twin_dir: Path, truth: dict, world_origin: LocalFrame) -> TwinFrame:
     """The twin's frame in the world's with the georeferencing error removed: the similarity taking its
-    registered cameras onto the true ones (:func:`recon.scene_cameras.shape_alignment`), then the true home's
+    registered cameras onto the true ones (:func:`recon.measure.scene_cameras.shape_alignment`), then the true home's
     ENU frame into the world's."""
     home = LocalFrame.from_dict(truth["origin"])
     return TwinFrame(home.transform_to(world_origin) @ shape_alignment(twin_dir, truth))
 
 
 def true_camera_area(truth: dict, names, world_origin: LocalFrame) -> np.ndarray:
-    """The observed area (:func:`recon.observed.observed_area`, world ENU) of the photos ``names``, from their
+    """The observed area (:func:`recon.surface.observed.observed_area`, world ENU) of the photos ``names``, from their
     TRUE positions (the virtual drone's), so every twin is scored over the same ground."""
     poses = truth_poses(truth)
     centres = np.array([poses[name][:3, 3] for name in sorted(set(names) & set(poses))]).reshape(-1, 3)

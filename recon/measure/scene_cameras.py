@@ -60,7 +60,7 @@ def registered_poses(scene_dir: Path, truth: dict) -> tuple[dict[str, np.ndarray
 
 def shape_alignment(scene_dir: Path, truth: dict) -> np.ndarray:
     """4x4 similarity from the scene's ENU frame into the truth's that also removes the georeferencing error: the
-    one taking the registered cameras onto the true ones (:func:`recon.accuracy.pose_alignment`)."""
+    one taking the registered cameras onto the true ones (:func:`recon.measure.accuracy.pose_alignment`)."""
     poses, to_truth = registered_poses(scene_dir, truth)
     true = truth_poses(truth)
     names = sorted(set(poses) & set(true))

@@ -1,6 +1,6 @@
 """The reconstruction's command-line options, shared by ``aerostereo-recon`` (one scene, recon/cli.py) and
 ``aerostereo-recon area`` (each piece of an area, recon/area/cli.py): the program's name, the options and their
-argument types, and the :class:`~recon.pipeline.ReconOptions` they make.
+argument types, and the :class:`~recon.run.pipeline.ReconOptions` they make.
 """
 
 from __future__ import annotations

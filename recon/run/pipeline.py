@@ -1,6 +1,6 @@
 """The whole recon run, stage by stage, resumable: photos + priors -> scene folder.
 
-Each stage records what made it in a stamp, ``work/stages/<stage>.json`` (see :mod:`recon.stages`): the options
+Each stage records what made it in a stamp, ``work/stages/<stage>.json`` (see :mod:`recon.run.stages`): the options
 it reads, its inputs and the fingerprint of the stage before it. A rerun skips the stages whose stamp is finished
 with the same fingerprint, and redoes the first other one and every stage after it, saying why on stderr
 (``[mesh] options changed (mesh: 2.5d -> poisson): redoing mesh, texture, scene, labels``):
@@ -14,9 +14,9 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
 | texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture="none"``) |
 | scene | ``texture`` | the sky visibility's bake settings | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` |
-| labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/labels.py), named in ``scene.json`` (rewritten) |
+| labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/semantics/labels.py), named in ``scene.json`` (rewritten) |
 
-The exact table is :data:`recon.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
+The exact table is :data:`recon.run.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
 maps when rerun with the same fingerprint; redone for another one, it deletes them first (:data:`STALE_OUTPUTS`).
 Outputs of stages done before stamps existed (:data:`OLD_MARKERS`) are redone, with a message.
 """
@@ -93,11 +93,11 @@ class ReconOptions:
     of the whole cloud), grid cell (None = 2 GSD), decimation, ``texture`` ("atlas": a texture atlas, each face from
     its best photo; "ortho": a true orthophoto, for 2.5-D fields; "none": vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
     but left out of depth maps, fusion and texture; 0 = none), ``delight``: an atlas of photos with a UTC time stores
-    the albedo and the capture light it divided out (recon/delight.py), so the twin can be lit by another sun;
-    ``capture_sun``: (azimuth, elevation) degrees of the sun of every photo when it is known better than their times
-    say (a virtual flight lit by a fixed sun), None: from each photo's UTC time; ``capture_utc_offset_h``: the zone of
-    the photos' EXIF clocks (hours east of UTC) where they did not write it, None: found from their shadows;
-    ``labels``: the thresholds the faces are labelled with (recon/labels.py)."""
+    the albedo and the capture light it divided out (recon/appearance/delight.py), so the twin can be lit by another
+    sun; ``capture_sun``: (azimuth, elevation) degrees of the sun of every photo when it is known better than their
+    times say (a virtual flight lit by a fixed sun), None: from each photo's UTC time; ``capture_utc_offset_h``: the
+    zone of the photos' EXIF clocks (hours east of UTC) where they did not write it, None: found from their shadows;
+    ``labels``: the thresholds the faces are labelled with (recon/semantics/labels.py)."""
 
     sfm: SfmOptions = field(default_factory=SfmOptions)
     dense: DenseOptions = field(default_factory=DenseOptions)
@@ -144,7 +144,7 @@ def load_priors(photo_dir: Path, geotags_csv: Path | None) -> tuple[list[str], P
 
     Photos that the geotags sidecar lists as ``untagged`` (capture could not place them) are left out; a photo
     that is not a readable image, or whose image data is cut short (a truncated JPEG), is a :class:`PriorsError`
-    naming it (:func:`recon.priors.check_readable`), and so are too few photos left and photos without a geotag
+    naming it (:func:`recon.inputs.priors.check_readable`), and so are too few photos left and photos without a geotag
     (:func:`recon.sfm.pipeline.check_inputs`): all before any stage starts.
     """
     names = list_photos(photo_dir)
@@ -207,7 +207,7 @@ class Recon:
     def __init__(self, photo_dir: Path, geotags_csv: Path | None, scene_dir: Path, options: ReconOptions,
                  log=log_stderr, progress=None, loaded: tuple[list[str], PosePriors] | None = None):
         """``log``: one line at a time (default stderr); ``progress``: ``(stage, step, done, total)`` counts from
-        inside a stage (default: :class:`recon.progress.StepProgress` bars or lines on stderr); ``loaded``: what
+        inside a stage (default: :class:`cliutil.progress.StepProgress` bars or lines on stderr); ``loaded``: what
         :func:`load_priors` returned for these photos and geotags, where the caller checked them already."""
         self.photo_dir, self.geotags_csv = Path(photo_dir), geotags_csv and Path(geotags_csv)
         self.scene_dir, self.options, self.log = Path(scene_dir), options, log
@@ -344,7 +344,7 @@ class Recon:
     @staticmethod
     def observed_area(rec: pycolmap.Reconstruction) -> np.ndarray:
         """(K, 2) ENU polygon the registered cameras of ``rec`` stand over and look at
-        (:func:`recon.observed.viewed_area`, the ground at the sparse points' median height)."""
+        (:func:`recon.surface.observed.viewed_area`, the ground at the sparse points' median height)."""
         ground_z = float(np.median([point.xyz[2] for point in rec.points3D.values()]))
         return viewed_area(np.array(list(camera_poses(rec).values())), ground_z)
 
@@ -431,8 +431,8 @@ class Recon:
     def capture_suns(self, photos, surface: trimesh.Trimesh) -> tuple[CaptureSuns | None, str]:
         """The capture sun of every photo (of ``photos`` where given as one sun; of every prior photo where timed),
         timed (or its clock and yaw refined) by the shadows ``surface`` casts in ``photos``
-        (:mod:`recon.shadow_timing`); or None and why the light is kept (delighting is off, the photos cannot be
-        timed, or the sun was down at their times)."""
+        (:mod:`recon.appearance.shadow_timing`); or None and why the light is kept (delighting is off, the photos cannot
+        be timed, or the sun was down at their times)."""
         names = [photo.name for photo in photos]
         if not self.options.delight:
             return None, "--keep-capture-light"

@@ -1,10 +1,11 @@
 """Write the scene folder of INTERFACES.md: a mesh in local ENU metres, ``cameras.json``, the mesh's baked sky
 visibility (``sky_visibility.npz``, sim/render/sky_file.py) and ``scene.json``.
 
-The normal case is a textured GLB from ``recon/texture.py`` (``encoded`` bytes); the fallback is the mesh with
-vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/render/scene_cameras.py) holds the registered photos of
-the final SfM model with their exposure gains; ``scene.json``'s ``observed_area_m`` is the ground polygon (ENU
-x, y metres) they stand over and look at (:func:`recon.observed.viewed_area`), where the twin is expected to hold.
+The normal case is a textured GLB from ``recon/appearance/texture.py`` (``encoded`` bytes); the fallback is the mesh
+with vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/render/scene_cameras.py) holds the registered
+photos of the final SfM model with their exposure gains; ``scene.json``'s ``observed_area_m`` is the ground polygon (ENU
+x, y metres) they stand over and look at (:func:`recon.surface.observed.viewed_area`), where the twin is expected to
+hold.
 """
 
 from __future__ import annotations

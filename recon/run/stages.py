@@ -78,7 +78,8 @@ def stage_records(options, inputs: dict[str, dict]) -> dict[str, tuple[dict, str
     """
     missing = unclaimed_options(options)
     if missing:
-        raise RuntimeError(f"option field(s) {', '.join(missing)} claimed by no stage in recon.stages.STAGE_OPTIONS")
+        raise RuntimeError(f"option field(s) {', '.join(missing)} claimed by no stage in "
+                           "recon.run.stages.STAGE_OPTIONS")
     fields = option_fields(options)
     records, previous = {}, None
     for stage in STAGES:

@@ -2,7 +2,8 @@
 
 Frames and units: the scene's ENU metres (z up); colours are the texture's albedo (delit where the atlas was), sRGB.
 
-1. Ground: a height grid fitted to the mesh (:mod:`recon.ground`); each face's height above it (its centroid's).
+1. Ground: a height grid fitted to the mesh (:mod:`recon.semantics.ground`); each face's height above it (its
+   centroid's).
 2. Faces lower than ``object_height_m`` are ground: ``road`` where they and most low faces of the 3 x 3 cells around
    are grey (chroma below ``grey_chroma``, not green), else ``ground`` (lawns and crops look alike; ``field`` is not
    given). Confidence grows with the face's distance below the object height (times the grey share for a road).

@@ -33,7 +33,7 @@ _OPENCV_SLOTS = {"SIMPLE_PINHOLE": (), "PINHOLE": (), "SIMPLE_RADIAL": (0,), "RA
 def camera_from_colmap(camera: pycolmap.Camera) -> PinholeCamera:
     """sim camera (OpenCV lens, our pixel convention: COLMAP's principal point minus 0.5 px) of a COLMAP camera
     of model SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV or FULL_OPENCV without its rational terms
-    (k4 = k5 = k6 = 0: the factory seed of :func:`recon.priors.factory_seed`); ``ValueError`` otherwise."""
+    (k4 = k5 = k6 = 0: the factory seed of :func:`recon.inputs.priors.factory_seed`); ``ValueError`` otherwise."""
     slots = _OPENCV_SLOTS.get(camera.model.name)
     if slots is None:
         raise ValueError(f"camera {camera.camera_id}: COLMAP model {camera.model.name} has no OpenCV equivalent "

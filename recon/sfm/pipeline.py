@@ -135,9 +135,9 @@ def georegister_model(rec: pycolmap.Reconstruction, names, priors: PosePriors):
     """Move ``rec`` into the priors' ENU frame (levelled when attitudes exist), in place.
 
     The tags' along-track offset is fitted first where the flight pattern makes it observable
-    (:func:`recon.tag_offset.fit_tag_offset`), and the registration is to the tags moved back by it.
+    (:func:`recon.inputs.tag_offset.fit_tag_offset`), and the registration is to the tags moved back by it.
     Returns (registered names in ``names`` order, the similarity applied, tilt removed in degrees or None,
-    the :class:`~recon.tag_offset.TagOffset`, the priors the model was registered to).
+    the :class:`~recon.inputs.tag_offset.TagOffset`, the priors the model was registered to).
     """
     poses = camera_poses(rec)
     registered = [n for n in names if n in poses]

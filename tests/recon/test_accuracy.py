@@ -1,4 +1,4 @@
-"""recon.accuracy against known truth: analytic meshes and poses with known offsets and rotations."""
+"""recon.measure.accuracy against known truth: analytic meshes and poses with known offsets and rotations."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""recon.atlas against known truth: a textured terrain with a tower whose walls carry their own texture,
+"""recon.appearance.atlas against known truth: a textured terrain with a tower whose walls carry their own texture,
 photographed by sim from known oblique poses; the true mesh and poses are the model (no SfM)."""
 
 import numpy as np

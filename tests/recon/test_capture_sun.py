@@ -1,5 +1,5 @@
-"""Each photo's capture sun (recon/capture_sun.py): the ephemeris's sun at the photo's UTC over the scene, a unit
-direction towards it, nothing for a sun below the horizon or a photo set without times."""
+"""Each photo's capture sun (recon/appearance/capture_sun.py): the ephemeris's sun at the photo's UTC over the scene, a
+unit direction towards it, nothing for a sun below the horizon or a photo set without times."""
 
 import datetime as dt
 import math

@@ -1,5 +1,5 @@
-"""Taking the capture day's light out of an atlas (recon/delight.py), against known truth: a textured terrain with a
-tower photographed by sim under a known sun; the true mesh and poses are the model (no SfM)."""
+"""Taking the capture day's light out of an atlas (recon/appearance/delight.py), against known truth: a textured terrain
+with a tower photographed by sim under a known sun; the true mesh and poses are the model (no SfM)."""
 
 import numpy as np
 import pytest

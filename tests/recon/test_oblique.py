@@ -1,4 +1,5 @@
-"""recon.oblique against analytic scenes: the in-area mask, the wall/flat split, the similarity removal, coverage.
+"""recon.measure.oblique against analytic scenes: the in-area mask, the wall/flat split, the similarity removal,
+coverage.
 
 Scenes: flat ground (sim.worlds.synthetic.grid_mesh), ground with a hole, and tests/sim/render_scene_helpers' ground
 with a box of known corners; cameras nadir or level, so which pixel sees which ground point is known exactly.

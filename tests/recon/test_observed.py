@@ -1,4 +1,4 @@
-"""The observed area (recon/observed.py) against analytic shapes: a circle of cameras and a grid of points."""
+"""The observed area (recon/surface/observed.py) against analytic shapes: a circle of cameras and a grid of points."""
 
 import math
 

@@ -1,4 +1,4 @@
-"""A reconstruction's scene folder stores its mesh's baked sky visibility (recon/scene_out.py,
+"""A reconstruction's scene folder stores its mesh's baked sky visibility (recon/run/scene_out.py,
 sim/render/sky_file.py): a render of that very mesh uses it, one of an edited mesh or of other bake settings bakes
 anew, a damaged file is refused naming it, and rendering never writes into the scene folder."""
 

@@ -1,5 +1,6 @@
-"""Timing photos by their shadows (recon/shadow_timing.py), against known truth: the village of test_delight photographed
-by sim under the real sun of a known UTC time over a known place; the true mesh and poses are the twin (no SfM)."""
+"""Timing photos by their shadows (recon/appearance/shadow_timing.py), against known truth: the village of test_delight
+photographed by sim under the real sun of a known UTC time over a known place; the true mesh and poses are the twin (no
+SfM)."""
 
 import datetime as dt
 import math

@@ -1,5 +1,5 @@
-"""recon.texture against known truth: photos rendered by sim from known poses of a textured synthetic terrain,
-the true mesh and poses as the model (no SfM)."""
+"""recon.appearance.texture against known truth: photos rendered by sim from known poses of a textured synthetic
+terrain, the true mesh and poses as the model (no SfM)."""
 
 import numpy as np
 import pytest

@@ -1,5 +1,5 @@
-"""The twin labeller (recon/labels.py, recon/ground.py) on a synthetic twin of known truth: a sloped lawn with a
-grey road, a box house, a green crown, a small box and a low platform; and ``aerostereo-recon labels``."""
+"""The twin labeller (recon/semantics/labels.py, recon/semantics/ground.py) on a synthetic twin of known truth: a sloped
+lawn with a grey road, a box house, a green crown, a small box and a low platform; and ``aerostereo-recon labels``."""
 
 import json
 
