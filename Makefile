@@ -27,11 +27,11 @@ demo: $(STAMP_RUN)
 
 # The whole pipeline on the demo world, measured against the truth (report in closed_loop/report.md).
 closed-loop: $(STAMP_RUN)
-	$(BIN)/python tools/closed_loop.py --out closed_loop
+	$(BIN)/python tools/loops/closed_loop.py --out closed_loop
 
 # The same over demo:large's 150,732 m2, 1000 dataset frames (report in area_loop/report.md; a rerun continues).
 area-loop: $(STAMP_RUN)
-	$(BIN)/python tools/area_loop.py --out area_loop
+	$(BIN)/python tools/loops/area_loop.py --out area_loop
 
 test: $(STAMP_TEST)
 	$(BIN)/python -m pytest

@@ -20,7 +20,7 @@ Table 4, p4m_rtk (32 nadir DJI FC6360 photos 1600x1300, RTK fixed, factory calib
 sigmas), and the choices behind the default (fixed vs refined factory intrinsics, k3, which focal): time
 against the camera positions' RMS per axis to the RTK positions, the rotation to the XMP gimbal attitude and
 the final focal length.
-Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/virtual_flight.py), SfM once,
+Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/loops/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
 The 30-minute target (one full default orbit, 452 photos) is measured by tools/bench_recon_orbit.py.
 """
@@ -58,7 +58,7 @@ from recon.sfm.pipeline import run_sfm  # noqa: E402
 from recon.inputs.similarity import umeyama  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
-from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reuse_stages  # noqa: E402
+from tools.loops.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reuse_stages  # noqa: E402
 
 DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
 

@@ -5,7 +5,7 @@
                                                 [--scene default|small]
 
 A virtual flight renders the default orbit (50 m radius, 30 m up, 452 photos = one photo a second at 2.5 km/h)
-over the demo world from known poses, with GPS and attitude noise on the geotags (tools/virtual_flight.py), into
+over the demo world from known poses, with GPS and attitude noise on the geotags (tools/loops/virtual_flight.py), into
 ``DIR/flight-<photos>-<W>x<H>`` (kept and reused: it takes minutes). ``aerostereo-recon``'s pipeline then runs at
 its default settings (``--image-size``/``--every``/``--depth-spacing`` override those) into
 ``DIR/scene-<size>-<every|auto>-<spacing>``, which is removed first so every stage is timed; each further
@@ -42,7 +42,7 @@ from recon.sfm.cameras import camera_poses  # noqa: E402
 from recon.sfm.options import SfmOptions  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
-from tools.virtual_flight import (  # noqa: E402
+from tools.loops.virtual_flight import (  # noqa: E402
     FLIGHT_SUN, INNER_RADIUS_M, Flight, Orbit, fly, height_errors, orbit_poses, photo_name, reuse_stages, save_jpeg,
 )
 

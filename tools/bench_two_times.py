@@ -2,7 +2,7 @@
 
     .venv/bin/python tools/bench_two_times.py --work DIR [--quick] [--photo-interval S] [--seed N] [--json F]
 
-Through the command lines, as a user runs them (``tools/closed_loop.py``'s stages, each in a child process):
+Through the command lines, as a user runs them (``tools/loops/closed_loop.py``'s stages, each in a child process):
 
 1. ``aerostereo-mission`` plans the closed loop's orbit over the demo world's origin; ``aerostereo-render fly`` flies
    it twice, ``--start-utc`` at 08:00 and at 15:00 mean local solar time over the scene's origin (UTC = local solar
@@ -34,7 +34,7 @@ lights: 1 when the capture's shadows are gone), formula 3 where both suns light 
 against the truth under the 08:00 sun (the texture's floor at those poses); the time of every stage. Progress on stderr.
 ``--work`` is resumed: a finished stage (its output present and its time recorded in ``stages.json``) is not run again.
 
-Defaults: the closed loop's (``tools/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
+Defaults: the closed loop's (``tools/loops/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
 (50 m radius, 30 m up), 800x600 photos, SfM at 800 px, depth maps at 640 px, a photo every :data:`DEFAULT_INTERVAL_S`
 s. The mission's own interval is 1 s (452 photos); 2 s (226 photos) keeps the run near 30 min on the 2-core machine
 (a 452-photo reconstruction alone takes 12-23 min there, tools/bench_recon_orbit.py, and every photo is rendered
@@ -71,7 +71,7 @@ from sim.render.renderer import View, render  # noqa: E402
 from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
 from sim.render.shade import UNLIT, Lighting, Sun  # noqa: E402
 from sim.sampling.light import SunSetting, frame_light, real_sun, utc_text  # noqa: E402
-from tools.closed_loop import LoopConfig, StageResult, cli, plan_mission, run, world_folder  # noqa: E402
+from tools.loops.closed_loop import LoopConfig, StageResult, cli, plan_mission, run, world_folder  # noqa: E402
 
 #: The day both flights are flown.
 FLIGHT_DATE = dt.date(2026, 5, 1)

@@ -117,7 +117,7 @@ class Prior:
         fix (``prior_tilt_sigma_deg``) widened by the fit's vertical residual over the receivers' vertical sigma.
         Anything else -- a consumer GPS, whose per-battery fix offset no residual shows, or a scene without these
         fields -- gets the consumer defaults. (Over a 5-flight RTK area the defaults let the overlaps' ICP, biased by
-        the pieces' edges, move pieces placed to 1-7 cm by up to 1.25 m; tools/area_loop.py, docs/closed-loop.md.)
+        the pieces' edges, move pieces placed to 1-7 cm by up to 1.25 m; tools/loops/area_loop.py, docs/closed-loop.md.)
         :class:`AreaError` naming ``name`` (the piece) where the fields are there but not 3 + 3 + 1 positive numbers."""
         sfm = ((meta or {}).get("provenance") or {}).get("sfm") or {}
         keys = ("prior_sigma_enu_m", "residual_rms_enu_m", "prior_tilt_sigma_deg")
@@ -450,7 +450,7 @@ def icp_information(surface_a: SurfaceQuery, points_b: np.ndarray, transform: np
     ``point_m``, and neighbouring points are off together. Taken as 4000 independent points of 5 cm, an overlap
     tied its two pieces' relative tilt to ~0.002 deg, and the joint adjustment turned 0.03-0.46 deg pieces by
     2-7 deg to honour biased ICP results (a 14,080 m² area of 5 flights: shape error 1.49 m median; 0.23 m
-    with the honest weight, tools/area_loop.py)."""
+    with the honest weight, tools/loops/area_loop.py)."""
     source = np.asarray(points_b[:: max(1, len(points_b) // ICP_POINTS)], dtype=np.float64)
     moved = _apply(transform, source)
     centre = moved.mean(axis=0)
@@ -472,7 +472,7 @@ def with_systematic_floor(information: np.ndarray, sigma_m: float, lever_m: floa
     (``I - I (S^-1 + I)^-1 I``), so a direction the overlap does not pin stays unpinned.
 
     Without it a tie counted as 200 points of its residual spread: a 1.7 m disagreement still claimed 12 cm, and
-    RTK pieces placed to 1-6 cm were moved by up to 0.4 m (5-flight area, tools/area_loop.py --noise rtk)."""
+    RTK pieces placed to 1-6 cm were moved by up to 0.4 m (5-flight area, tools/loops/area_loop.py --noise rtk)."""
     floor = 1.0 / np.r_[[(sigma_m / max(lever_m, sigma_m)) ** 2] * 3, [sigma_m ** 2] * 3]
     return information - information @ np.linalg.solve(np.diag(floor) + information, information)
 

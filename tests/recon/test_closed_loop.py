@@ -14,7 +14,7 @@ from recon.run.pipeline import read_rgb
 from recon.sfm.cameras import camera_poses
 from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
-from tools.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors
+from tools.loops.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors
 
 ORBIT = Orbit()
 

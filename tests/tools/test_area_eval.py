@@ -1,4 +1,4 @@
-"""The area loop's evaluation (tools/area_eval.py) on small cases whose answer is known: a hand-made ownership
+"""The area loop's evaluation (tools/loops/area_eval.py) on small cases whose answer is known: a hand-made ownership
 grid (known seam distances), pieces moved by a known rigid correction, a nadir view of a flat ground and a tiny
 dataset rendered over a flat scene (every pixel's point on the plane z = 0)."""
 
@@ -22,8 +22,9 @@ from sim.run.options import PoseOptions, RenderOptions, RigOptions
 from sim.run.render_dataset import render_dataset
 from sim.worlds.synthetic import grid_mesh
 from sim.render.scene_cameras import SceneCamera
-from tools.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, dataset_outside_metrics,
-                             merged_camera_errors, pair_truth_offsets, piece_camera_errors, seam_split, view_points)
+from tools.loops.area_eval import (NO_OWNER, Ownership, corrected_camera_errors, dataset_outside_metrics,
+                                   merged_camera_errors, pair_truth_offsets, piece_camera_errors, seam_split,
+                                   view_points)
 
 # -- seams ------------------------------------------------------------------------------------------------------------
 
@@ -254,7 +255,7 @@ def test_dataset_pixels_past_a_polygon_are_those_whose_ground_point_is_past_it(f
 def test_default_field_is_the_worlds_rectangle_less_the_inset_as_the_planner_reads_it(tmp_path):
     from flightplan.field import read_field
     from sim.render.scene import read_scene_json
-    from tools.area_loop import AreaConfig, field_stage, world_folder
+    from tools.loops.area_loop import AreaConfig, field_stage, world_folder
 
     world = world_folder("demo:small")
     box = read_scene_json(world)["valid_area_m"]
@@ -270,7 +271,7 @@ def test_default_field_is_the_worlds_rectangle_less_the_inset_as_the_planner_rea
 
 
 def test_reevaluate_without_a_finished_run_is_one_line_and_exit_2(tmp_path, capsys):
-    from tools.area_loop import main
+    from tools.loops.area_loop import main
 
     assert main(["--out", str(tmp_path), "--scene", "demo:small", "--reevaluate"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -281,7 +282,7 @@ def test_reevaluate_without_a_finished_run_is_one_line_and_exit_2(tmp_path, caps
 def test_the_fuller_mission_is_the_same_route_with_denser_timed_photos(tmp_path):
     from flightplan import litchi
     from flightplan.orbit import OrbitRequest, plan_orbit
-    from tools.area_loop import denser_mission
+    from tools.loops.area_loop import denser_mission
 
     plan = plan_orbit(OrbitRequest(40.1792, 44.4991, photo_interval_s=20.0))
     litchi.write_mission_csv(plan.mission, tmp_path / "flight_01.csv")

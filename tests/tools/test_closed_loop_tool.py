@@ -1,4 +1,4 @@
-"""tools/closed_loop.py: the reduced closed loop with a bound on every error it measures, the TCP link into the
+"""tools/loops/closed_loop.py: the reduced closed loop with a bound on every error it measures, the TCP link into the
 ``aerostereo-ingest record`` process, and the sweep options."""
 
 from __future__ import annotations
@@ -14,10 +14,11 @@ from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.drone.photos import camera_truth, photo_camera
 from sim.cli.render import build_parser
 from sim.render.scene import read_scene_json
-from tools.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_sweep, photo_lens_options, plan_mission,
-                               render_camera_options, run_loop, world_folder, write_true_cameras)
+from tools.loops.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_sweep, photo_lens_options, plan_mission,
+                                     render_camera_options, run_loop, world_folder, write_true_cameras)
 from tools.geotag_csv import geotag_row, write_geotags
-from tools.closed_loop_eval import depth_rows, geotag_poses, markdown, own_gps_rows, sweep_table, total_wall_s, worst
+from tools.loops.closed_loop_eval import (depth_rows, geotag_poses, markdown, own_gps_rows, sweep_table, total_wall_s,
+                                         worst)
 
 
 @pytest.fixture(scope="module")

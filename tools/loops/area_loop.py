@@ -1,7 +1,7 @@
 """The closed loop over an area: field polygon -> plan -> fly every flight -> geotag -> recon area -> dataset,
 every stage measured against the virtual drone's truth (issue 21).
 
-Every stage runs the project's command line in a child process (:func:`tools.closed_loop.run`: wall time and
+Every stage runs the project's command line in a child process (:func:`tools.loops.closed_loop.run`: wall time and
 the child's own peak RSS):
 
 1. field: a GeoJSON polygon, by default the true world's ``valid_area_m`` rectangle less ``--field-inset`` metres
@@ -15,13 +15,13 @@ the child's own peak RSS):
    with ``--fuller-flight F`` flight F is flown and reconstructed again with denser photos into ``fuller/``
    (what the thinning costs);
 6. ``aerostereo-render --scene area --frames N`` renders the dataset at random poses from the merged twin;
-7. the evaluation (:mod:`tools.area_eval`) writes ``report.json`` and ``report.md`` and prints the tables.
+7. the evaluation (:mod:`tools.loops.area_eval`) writes ``report.json`` and ``report.md`` and prints the tables.
 
 A stage whose output exists is skipped (listed as such), so a rerun after a failure continues where it stopped;
 ``--reevaluate`` only evaluates the run in ``--out`` again.
 
-    python tools/area_loop.py --out area_run                      # demo:large, 150,732 m^2, 1000 frames
-    python tools/area_loop.py --out area_run --reevaluate         # score a finished run again
+    python tools/loops/area_loop.py --out area_run                      # demo:large, 150,732 m^2, 1000 frames
+    python tools/loops/area_loop.py --out area_run --reevaluate         # score a finished run again
 """
 
 from __future__ import annotations
@@ -37,15 +37,15 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from flightplan import litchi  # noqa: E402
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from sim.render.scene import SceneError, read_scene_json  # noqa: E402
-from tools.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
-from tools.closed_loop import StageResult, cli, finished_report, run, skipped, world_folder  # noqa: E402
+from tools.loops.area_eval import SEAM_DISTANCE_M, evaluate_area, write_report  # noqa: E402
+from tools.loops.closed_loop import StageResult, cli, finished_report, run, skipped, world_folder  # noqa: E402
 
 
 #: Stage statuses that let the next stage run: it ran now, or its output was there from an earlier run.

@@ -1,6 +1,6 @@
-"""Evaluation of a closed loop over an area (``tools/area_loop.py``) against the virtual drone's truth.
+"""Evaluation of a closed loop over an area (``tools/loops/area_loop.py``) against the virtual drone's truth.
 
-Inputs (layout of :func:`tools.area_loop.run_area_loop`): each flight's ``fly/flight_XX/`` (``truth.json``,
+Inputs (layout of :func:`tools.loops.area_loop.run_area_loop`): each flight's ``fly/flight_XX/`` (``truth.json``,
 ``geotags.csv``), the area reconstruction ``area/`` of ``aerostereo-recon area`` (``scene.json``, the merged mesh,
 ``area_report.json``, ``ownership.png``, ``pieces/<flight>/``) and the dataset rendered from it. Frames: the true
 world's ENU metres ("world"), the area's ENU metres at its ``scene.json`` origin ("area"), each piece's and each
@@ -34,7 +34,7 @@ from sim.sampling.light import frame_sun
 from sim.render.raycast import default_workers
 from sim.sampling.sun import random_sun
 from sim.render.scene import load_scene, read_scene_json
-from tools.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines, surface_metrics
+from tools.loops.closed_loop_eval import _f, geotag_metrics, sfm_metrics, stage_lines, surface_metrics
 
 #: Surface points within this many metres of a seam count as "seam", the others as "inside" a piece.
 SEAM_DISTANCE_M = 5.0
@@ -79,8 +79,8 @@ def _each(items: dict, compute) -> dict:
 
 def flight_metrics(fly_dir: Path, piece_dir: Path) -> dict:
     """Geotag errors of one flight and the SfM camera errors of its piece (its own frame moved by geodetic
-    origins), both against the flight's ``truth.json`` (:func:`tools.closed_loop_eval.geotag_metrics`,
-    :func:`tools.closed_loop_eval.sfm_metrics`)."""
+    origins), both against the flight's ``truth.json`` (:func:`tools.loops.closed_loop_eval.geotag_metrics`,
+    :func:`tools.loops.closed_loop_eval.sfm_metrics`)."""
     truth = read_json(fly_dir / "truth.json")
     return _each({"geotag": lambda: geotag_metrics(fly_dir / "geotags.csv", truth),
                   "sfm": lambda: sfm_metrics(piece_dir, truth)}, lambda name, compute: compute())
@@ -159,7 +159,7 @@ def pair_metrics(area_report: dict, pieces: dict) -> list[dict]:
 def thinning_metrics(thinned: tuple[Path, Path], fuller: tuple[Path, Path], world_dir: Path, samples: int) -> dict:
     """One flight flown twice, thinned (the area run: its fly folder and piece) and with denser photos (``fuller``:
     fly folder and its own reconstruction): photos, SfM camera errors and the shape of the surface (georeference
-    error removed, :func:`tools.closed_loop_eval.surface_metrics`) in the same disc of world ENU, around the
+    error removed, :func:`tools.loops.closed_loop_eval.surface_metrics`) in the same disc of world ENU, around the
     thinned piece's ``observed_area_m`` centroid with half its equivalent radius. The two flights share route and
     seed, not their GPS fix bias, so absolute positions are not compared, shapes are."""
     polygon = move_polygon(observed_polygon(thinned[1]), scene_frame(thinned[1]).transform_to(scene_frame(world_dir)))

@@ -1,4 +1,4 @@
-"""Evaluation and report of one closed-loop run (``tools/closed_loop.py``): reads the stages' files, measures
+"""Evaluation and report of one closed-loop run (``tools/loops/closed_loop.py``): reads the stages' files, measures
 every error against the truth with :mod:`recon.measure.accuracy` and :mod:`sim.evaluation.realism`, writes
 ``report.json``, ``report.md`` and ``closed_loop.png``.
 

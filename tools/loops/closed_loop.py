@@ -23,10 +23,10 @@ A stage that fails or whose inputs are missing is reported as failed/skipped wit
 that need it say "not measured" -- never a silent gap. ``--sweep KNOB=v1,v2`` reruns the loop per value and
 prints time against error.
 
-    python tools/closed_loop.py --out closed_loop                   # demo world, whole orbit (real time)
-    python tools/closed_loop.py --out cl_quick --quick              # small world, short arc, low resolution
-    python tools/closed_loop.py --out cl_sweep --quick --sweep sfm_image_size=400,800
-    python tools/closed_loop.py --out cl_quick --reevaluate        # evaluate a finished run again
+    python tools/loops/closed_loop.py --out closed_loop                   # demo world, whole orbit (real time)
+    python tools/loops/closed_loop.py --out cl_quick --quick              # small world, short arc, low resolution
+    python tools/loops/closed_loop.py --out cl_sweep --quick --sweep sfm_image_size=400,800
+    python tools/loops/closed_loop.py --out cl_quick --reevaluate        # evaluate a finished run again
 """
 
 from __future__ import annotations
@@ -47,7 +47,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import NamedTuple
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
@@ -56,7 +56,7 @@ from cliutil.atomic import write_text_atomic  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from sim.render.scene import SceneError, read_scene_json  # noqa: E402
 from sim.sampling.light import parse_sun  # noqa: E402
-from tools.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
+from tools.loops.closed_loop_eval import evaluate, sweep_table, write_report  # noqa: E402
 from tools.geotag_csv import geotag_row, write_geotags  # noqa: E402
 
 
