@@ -10,7 +10,7 @@ Each table prints time and error side by side; ratios are against a baseline mea
 
 Peers are measured in the same run, on the same scene (``--peers-scene``, default the demo world's mesh), camera,
 resolution and thread count, when installed: Open3D's ``RaycastingScene.cast_rays`` (the ``bench`` extra) and
-Blender's Cycles through ``bpy`` in its own interpreter (tools/blender_cycles.py: ``$AEROSTEREO_BPY_PYTHON`` or
+Blender's Cycles through ``bpy`` in its own interpreter (tools/peers/blender_cycles.py: ``$AEROSTEREO_BPY_PYTHON`` or
 ``.venv-bpy``; 1 spp at the pixel centres, the scene's GLB imported as it is: +Y up becomes Blender's ENU), each
 against our embree caster's planar depth; "not installed (why)" otherwise.
 """
@@ -38,8 +38,8 @@ from sim.render.renderer import StageTimes, Sun, render  # noqa: E402
 from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
 from sim.worlds.synthetic import height_field_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
-from tools.blender_cycles import (PIXEL_CENTRE_FILTER_PX, BpyUnavailable, CyclesJob, bpy_python, read_depth,  # noqa: E402
-                                  run_cycles)
+from tools.peers.blender_cycles import (PIXEL_CENTRE_FILTER_PX, BpyUnavailable, CyclesJob, bpy_python,  # noqa: E402
+                                        read_depth, run_cycles)
 
 CAMERA = PinholeCamera(1100.0, 1100.0, 639.5, 359.5, 1280, 720)
 SUN = Sun(azimuth_deg=135.0, elevation_deg=35.0)
@@ -194,8 +194,8 @@ def open3d_run(scene, rays, workers: int) -> PeerRun | str:
 
 
 def blender_run(scene_dir: Path, pose: np.ndarray, workers: int) -> PeerRun | str:
-    """Blender Cycles in ``bpy``'s own interpreter (:mod:`tools.blender_cycles`): the scene's GLB imported as it is,
-    a camera with :data:`CAMERA`'s intrinsics at ``pose``, 1 sample at each pixel centre, ``workers`` threads, the
+    """Blender Cycles in ``bpy``'s own interpreter (:mod:`tools.peers.blender_cycles`): the scene's GLB imported as it
+    is, a camera with :data:`CAMERA`'s intrinsics at ``pose``, 1 sample at each pixel centre, ``workers`` threads, the
     depth pass written through the compositor; setup: the GLB import and scene set-up (not the interpreter's start
     or ``import bpy``); or why it was not measured."""
     try:

@@ -1,4 +1,4 @@
-"""A dataset frame rendered again in Blender Cycles (``bpy`` in its own interpreter, tools/blender_cycles.py) from
+"""A dataset frame rendered again in Blender Cycles (``bpy`` in its own interpreter, tools/peers/blender_cycles.py) from
 what the dataset records: the same depth, and the same image with the sun at its recorded ``blender_strength``, where
 the paper's strength itself (what ``intensity``/``strength`` used to be read as) is far brighter. The Cycles render
 is skipped, saying why, where no interpreter imports ``bpy``; the job it runs is checked everywhere."""
@@ -19,8 +19,8 @@ from sim.dataset.source import DatasetSource
 from sim.evaluation.realism import photorealism_error_masked
 from sim.sampling.light import OVERCAST_AMBIENT
 from sim.worlds import demo_scene_dir
-from tools.blender_cycles import (BPY_PYTHON_ENV, PIXEL_CENTRE_FILTER_PX, BpyUnavailable, bpy_python, frame_job,
-                                  read_depth, run_cycles)
+from tools.peers.blender_cycles import (BPY_PYTHON_ENV, PIXEL_CENTRE_FILTER_PX, BpyUnavailable, bpy_python, frame_job,
+                                        read_depth, run_cycles)
 
 #: Cycles' samples per pixel: its sun and sky noise at 16 moves formula 3 by < 0.1 point (64: the same).
 SAMPLES = 16

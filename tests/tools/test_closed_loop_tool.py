@@ -18,7 +18,7 @@ from tools.loops.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_
                                      render_camera_options, run_loop, world_folder, write_true_cameras)
 from tools.geotag_csv import geotag_row, write_geotags
 from tools.loops.closed_loop_eval import (depth_rows, geotag_poses, markdown, own_gps_rows, sweep_table, total_wall_s,
-                                         worst)
+                                          worst)
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""tools/sgbm_baseline.py on a dataset whose answer is known: a textured wall facing the rig at a constant
+"""tools/peers/sgbm_baseline.py on a dataset whose answer is known: a textured wall facing the rig at a constant
 disparity of 6 px, so SGBM's predictions, written as users write them, must score (almost) zero error."""
 
 from __future__ import annotations
@@ -12,7 +12,7 @@ from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
 from sim.dataset import DatasetSpec, FrameRecord, KittiDatasetWriter, finalize_dataset
 from sim.render.shade import Sun
-from tools.sgbm_baseline import main
+from tools.peers.sgbm_baseline import main
 
 CAMERA = PinholeCamera(fx=100.0, fy=100.0, cx=79.5, cy=59.5, width=160, height=120)
 BASELINE_M, DISPARITY_PX = 0.3, 6

@@ -7,7 +7,7 @@ is run by it as a script, on a job written as JSON: one process per job, nothing
 - Our side: :func:`bpy_python` finds the interpreter (``$AEROSTEREO_BPY_PYTHON``, else ``<repo>/.venv-bpy/bin/python``),
   :func:`frame_job` sets a :class:`CyclesJob` up from a dataset frame, :func:`run_cycles` runs one and returns its
   times, :func:`read_depth` reads the depth it wrote.
-- Blender's side (``python tools/blender_cycles.py JOB.json`` under that interpreter): imports the GLB as it is
+- Blender's side (``python tools/peers/blender_cycles.py JOB.json`` under that interpreter): imports the GLB as it is
   (Blender turns glTF's +Y up into its +Z up, so its X, Y, Z are our ENU metres), adds the camera at the job's pose
   (OpenCV axes turned into Blender's: x right, y up, looking along -z) with its pinhole intrinsics, the sun and a grey
   world, and renders with the Standard view transform (plain sRGB, as our film) and no dither: an 8-bit sRGB PNG
@@ -37,7 +37,7 @@ from pathlib import Path
 #: The environment variable naming the interpreter that imports ``bpy``.
 BPY_PYTHON_ENV = "AEROSTEREO_BPY_PYTHON"
 #: Where the interpreter is looked for when the variable is not set.
-REPO_BPY_PYTHON = Path(__file__).resolve().parents[1] / ".venv-bpy" / "bin" / "python"
+REPO_BPY_PYTHON = Path(__file__).resolve().parents[2] / ".venv-bpy" / "bin" / "python"
 #: How to make that interpreter (said when it is missing).
 BPY_INSTALL = "python3.11 -m venv .venv-bpy && .venv-bpy/bin/pip install bpy"
 #: Blender's camera clip distance (metres); Cycles' depth of a pixel that hits nothing is beyond it.

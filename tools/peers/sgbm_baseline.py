@@ -6,7 +6,7 @@ user would -- ``OUT/disp/NNNNNN.png`` (KITTI uint16 disparity * 256, 0 where SGB
 ``OUT/depth/NNNNNN.exr`` (``fx * B / d`` metres, +inf where no match) -- then scores them with ``aerostereo-render
 evaluate`` and prints its table after SGBM's time per frame.
 
-    .venv/bin/python tools/sgbm_baseline.py --render /tmp/orbit --out /tmp/sgbm --frames 20
+    .venv/bin/python tools/peers/sgbm_baseline.py --render /tmp/orbit --out /tmp/sgbm --frames 20
 """
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def main(argv=None) -> int:
         options = RenderOptions(seed=0, rig=RigOptions(width=args.width, height=args.height, baseline_m=args.baseline),
                                 poses=PoseOptions(mode="trajectory", trajectory=args.trajectory, frames=args.frames))
         start = time.perf_counter()
-        render_dataset(args.scene, dataset, options, command_line=["tools/sgbm_baseline.py"], progress=False)
+        render_dataset(args.scene, dataset, options, command_line=["tools/peers/sgbm_baseline.py"], progress=False)
         print(f"rendered {args.frames} frames {args.width}x{args.height} of {args.scene} ({args.trajectory}, "
               f"baseline {args.baseline:g} m) in {time.perf_counter() - start:.1f} s", file=sys.stderr)
     seconds = write_predictions(dataset, args.out, args.num_disparities, args.block_size)
