@@ -364,9 +364,9 @@ def _lit_after_all(albedo: np.ndarray, light: TexelLight, shape: tuple[int, int]
     the lit texels of their :data:`BLOCK_PX` block (painted from a photo in which something else hid them, or a
     shadow the twin casts wider than the world did). A milder excess stays a shadow: a brighter material in the shade
     is common, and taken for lit it keeps its capture shadow. Measured on the demo orbit's twin at 16 random oblique
-    views (tools/bench_twin_oblique.py): at 5 times, formula 3 6.88 % and a ghost ratio of 0.80; at 3 times 7.01 % and
-    0.71; with a block rule at 1.8 times a block's median besides, 7.19 % and 0.63; without any rule 6.92 % and 0.91,
-    but then texels painted from a photo in which something hid them stay up to 11 times too bright
+    views (tools/bench/bench_twin_oblique.py): at 5 times, formula 3 6.88 % and a ghost ratio of 0.80; at 3 times 7.01 %
+    and 0.71; with a block rule at 1.8 times a block's median besides, 7.19 % and 0.63; without any rule 6.92 % and
+    0.91, but then texels painted from a photo in which something hid them stay up to 11 times too bright
     (tests/recon/test_delight.py)."""
     luminance = albedo.mean(axis=1)
     lit = light.sun_visible & (light.cos > 0.2)

@@ -294,7 +294,7 @@ def factory_seed(calibration: FactoryCalibration) -> CameraSeed:
     p1 = p2 = 0**: measured on p4m_rtk (P4 Multispectral, whose DewarpData has p1 = p2 = 0.0040638 on every
     photo), DJI's tangential terms pull the camera centres 0.19/0.16 m (RMS east/north) off the RTK positions in
     a pattern fixed to the camera (it flips with the flight direction), without them 0.08/0.03 m, and with
-    either sign flipped it is worse (``tools/bench_recon.py`` table 4, docs/recon.md). A JPEG
+    either sign flipped it is worse (``tools/bench/bench_recon.py`` table 4, docs/recon.md). A JPEG
     DJI has dewarped already (``DewarpFlag`` 1): ``PINHOLE`` at ``CalibratedFocalLength``. Without DewarpData
     only the focal length is known: ``SIMPLE_RADIAL`` at it, distortion left to SfM (not a factory seed).
     """

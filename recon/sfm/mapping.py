@@ -33,7 +33,8 @@ def _mapping_options(options: SfmOptions, refine_focal: bool, refine_extra: bool
     """Incremental mapping with position priors; global bundle adjustment lighter than COLMAP's defaults: less
     often (:data:`GLOBAL_BA_GROWTH`) and without the redundant points (COLMAP's
     ``ba_global_ignore_redundant_points3D``: its authors measured ~2x faster mapping at unchanged accuracy). The
-    closed-loop tests and ``tools/bench_recon_orbit.py`` measure the accuracy against the virtual drone's truth."""
+    closed-loop tests and ``tools/bench/bench_recon_orbit.py`` measure the accuracy against the virtual drone's
+    truth."""
     mapping = pycolmap.IncrementalPipelineOptions()
     mapping.ba_global_frames_ratio = GLOBAL_BA_GROWTH
     mapping.ba_global_points_ratio = GLOBAL_BA_GROWTH

@@ -121,7 +121,7 @@ def pair_depth(ref_img: np.ndarray, src_img: np.ndarray, ref: View, src: View,
 
     Images are grey uint8 of the same size. ``depth_range`` (metres, min < max) bounds the disparity search.
     Handles horizontal and vertical rectifications and either ordering of the two cameras. ``disparity``: the
-    matcher, called like :func:`sgbm_disparity` on the rectified pair (tools/bench_dense_filter.py tries others).
+    matcher, called like :func:`sgbm_disparity` on the rectified pair (tools/bench/bench_dense_filter.py tries others).
     """
     h, w = ref_img.shape
     rotation, translation = relative_pose(ref, src)

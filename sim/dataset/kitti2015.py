@@ -41,7 +41,7 @@ from sim.motion.flow import visible_at
 #: depth (1e-7 relative) and creases inside one pixel, where depth changes by at most tan(incidence) / (2 fx) of
 #: itself over half a pixel: 0.37 % at 80 deg incidence for the default camera (1280 px, 80 deg field of view,
 #: fx = 763 px). An occluder at least 0.5 % of the distance in front of the point (0.5 m at 100 m) hides it.
-#: tools/bench_export.py: the occluded share is flat from 0.2 % to 2 % on the demo world.
+#: tools/bench/bench_export.py: the occluded share is flat from 0.2 % to 2 % on the demo world.
 NOC_RELATIVE_TOLERANCE = 0.005
 PAIR_SUFFIX = "_10"
 #: KITTI's instance images keep the instance in the low byte: 1 .. 255 per label and image.

@@ -1,7 +1,7 @@
 """Closest-hit and occlusion queries on a :class:`sim.render.scene.Scene`, in contiguous row blocks on threads.
 
 embreex (>= 4.4) releases the GIL inside ``run()``, so a thread pool casting contiguous blocks of
-image-ordered rays uses every core without copying rays to other processes (``tools/bench_render.py``
+image-ordered rays uses every core without copying rays to other processes (``tools/bench/bench_render.py``
 measures threads against processes). Inputs are ENU float64; they are recentred in float64 and cast to
 float32 here, the only place rays meet embree.
 """

@@ -54,11 +54,11 @@ MAX_BATCH_FRAMES = 32
 PLUGIN_NAME = "aerostereo-renderer"
 #: Dask config of the cluster ``local:N`` starts (scheduler, nannies, workers). A nanny sets
 #: ``MALLOC_TRIM_THRESHOLD_=65536`` for its workers by default, which turns off glibc's adaptive mmap threshold: every
-#: frame-sized array is then mmap'ed and zeroed afresh, and a frame costs 1.5-2x the CPU (tools/bench_dask.py).
+#: frame-sized array is then mmap'ed and zeroed afresh, and a frame costs 1.5-2x the CPU (tools/bench/bench_dask.py).
 #: Dask's statistical profiler samples every worker thread's stack every 10 ms. Every Dask process also wakes its
 #: event loop every 20 ms to see whether it is blocked ("tick") and each worker checks its memory every 100 ms: an
 #: idle local:2 cluster used 0.065 cores with those, 0.011 with ticks every 1 s, memory checks every 1 s and the
-#: system monitor (dashboard plots) every 5 s (tools/bench_dask.py "idle"), CPU that renders would otherwise get.
+#: system monitor (dashboard plots) every 5 s (tools/bench/bench_dask.py "idle"), CPU that renders would otherwise get.
 #: A render neither blocks an event loop nor grows its memory within a second. Remote workers need the same
 #: settings (docs/cluster.md).
 WORKER_CONFIG = {"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,

@@ -71,7 +71,7 @@ def solar_position(lat_deg: float, lon_deg: float, utc: dt.datetime) -> tuple[fl
     the light itself is bent) through :data:`REFRACTION_PRESSURE_HPA` and :data:`REFRACTION_TEMPERATURE_C`.
 
     PyEphem (libastro, VSOP87 with its own Delta T): within 0.0002 deg (geometric) and 0.006 deg (apparent) of NREL
-    SPA over latitudes -80..80 and a year (``tools/bench_sun.py``); the sun's disc is 0.53 deg across.
+    SPA over latitudes -80..80 and a year (``tools/bench/bench_sun.py``); the sun's disc is 0.53 deg across.
     """
     if utc.tzinfo is not None:
         utc = utc.astimezone(dt.timezone.utc).replace(tzinfo=None)

@@ -17,7 +17,7 @@ from capture.decode import TelemetryRows, TimedPacket, _record_columns, _with_pr
 from capture.duml import Deframer, Packet
 from capture.messages import MessageRegistry, MessageSpec, default_registry, default_specs
 from capture.transports import Chunk
-from tools.bench_duml import corrupt, gimbal_dense_block, synthetic_block
+from tools.bench.bench_duml import corrupt, gimbal_dense_block, synthetic_block
 
 T0 = dt.datetime(2024, 5, 1, 12, 0, 0, 123456, tzinfo=dt.timezone.utc)
 

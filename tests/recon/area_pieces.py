@@ -1,5 +1,5 @@
-"""Synthetic pieces of one area for recon/area/align.py's tests and tools/bench_area_align.py: a hilly terrain (area
-ENU, metres) cut into squares, each moved by a known rigid error."""
+"""Synthetic pieces of one area for recon/area/align.py's tests and tools/bench/bench_area_align.py: a hilly terrain
+(area ENU, metres) cut into squares, each moved by a known rigid error."""
 
 from __future__ import annotations
 

@@ -27,7 +27,7 @@ from render_scene_helpers import (BOX_INSTANCE, BOX_TOP_M, BOX_X_M, BOX_Y_M, ORI
                                   write_scene)
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
-from tools.bench_normals import depth_normals  # noqa: E402
+from tools.bench.bench_normals import depth_normals  # noqa: E402
 
 NEW_FORMATS = "depth_exr,normal_exr,semantic_png,instance_png"
 #: How far (m) a hit point may lie off its plane, and how near (m) to an edge of the box its class is left open.

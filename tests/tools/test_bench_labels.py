@@ -1,10 +1,10 @@
-"""tools/bench_labels.py: group IoU from a class confusion, and the recon log's stage times."""
+"""tools/bench/bench_labels.py: group IoU from a class confusion, and the recon log's stage times."""
 
 import numpy as np
 import pytest
 
 from sim.render.classes import CLASSES, GROUND, OTHER, ROAD, ROOF, TREE, UNKNOWN, WALL
-from tools.bench_labels import group_scores, stage_seconds
+from tools.bench.bench_labels import group_scores, stage_seconds
 
 
 def test_group_iou_pools_classes_into_groups_and_counts_unknown_against_the_truth():

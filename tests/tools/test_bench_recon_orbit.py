@@ -1,10 +1,10 @@
-"""tools/bench_recon_orbit.py: its options are checked before the (long) virtual flight starts."""
+"""tools/bench/bench_recon_orbit.py: its options are checked before the (long) virtual flight starts."""
 
 from __future__ import annotations
 
 import pytest
 
-from tools.bench_recon_orbit import main
+from tools.bench.bench_recon_orbit import main
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -1,4 +1,4 @@
-"""tools/bench_render.py's peers: measured on the same view as ours, their depth agreeing with ours, and a plain
+"""tools/bench/bench_render.py's peers: measured on the same view as ours, their depth agreeing with ours, and a plain
 "not installed" where a peer is missing; Blender runs in ``bpy``'s own interpreter (tools/peers/blender_cycles.py)."""
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ import pytest
 from sim.render.camera import camera_rays
 from sim.render.scene import load_scene
 from sim.worlds import demo_scene_dir
-from tools.bench_render import (CAMERA, blender_run, depth_agreement, embree_distance_run, oblique_pose, open3d_run,
-                                ours_run, peers_table)
+from tools.bench.bench_render import (CAMERA, blender_run, depth_agreement, embree_distance_run, oblique_pose,
+                                      open3d_run, ours_run, peers_table)
 from tools.peers.blender_cycles import BPY_PYTHON_ENV, BpyUnavailable, bpy_python
 
 

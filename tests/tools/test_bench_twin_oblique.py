@@ -1,4 +1,4 @@
-"""tools/bench_twin_oblique.py end to end on a twin that is the true world moved by a known similarity."""
+"""tools/bench/bench_twin_oblique.py end to end on a twin that is the true world moved by a known similarity."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ import pytest
 
 from tests.recon.test_oblique import orbit_truth, similarity, write_moved_twin
 from tests.sim.render_scene_helpers import write_scene
-from tools.bench_twin_oblique import main
+from tools.bench.bench_twin_oblique import main
 
 
 @pytest.fixture()

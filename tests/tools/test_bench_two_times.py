@@ -1,4 +1,5 @@
-"""tools/bench_two_times.py: local solar time to UTC, and the check that the two flights' suns are up and apart."""
+"""tools/bench/bench_two_times.py: local solar time to UTC, and the check that the two flights' suns are up and
+apart."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ from dataclasses import replace
 import pytest
 
 from flightplan.geodesy import LocalFrame
-from tools.bench_two_times import FLIGHT_DATE, check_suns, flights, utc_at_local_solar_time
+from tools.bench.bench_two_times import FLIGHT_DATE, check_suns, flights, utc_at_local_solar_time
 
 DAY = dt.date(2026, 5, 1)
 

@@ -1,6 +1,6 @@
 """A virtual orbit over the small demo world: photos rendered by sim from known poses, noisy geotags, and the
 truth to score a reconstruction against (poses, surface heights). Shared by tests/recon/test_closed_loop.py,
-tools/bench_recon.py and tools/bench_recon_orbit.py."""
+tools/bench/bench_recon.py and tools/bench/bench_recon_orbit.py."""
 
 from __future__ import annotations
 

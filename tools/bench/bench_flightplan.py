@@ -6,7 +6,7 @@ deviation of the modelled flown path from the true circle (m), the largest headi
 flown-path model and predictions) and that time as a ratio of the planner's own choice for the default 0.25 m
 tolerance (the baseline, measured in the same run). A second table gives the chosen N for other radii.
 
-Run: ``python tools/bench_flightplan.py [--repeats 5]``
+Run: ``python tools/bench/bench_flightplan.py [--repeats 5]``
 """
 
 from __future__ import annotations

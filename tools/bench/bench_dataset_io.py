@@ -6,7 +6,7 @@ and prints, per configuration, milliseconds per frame spent in the caller (what 
 waits for), wall time per frame, and bytes per frame. A busy loop of fixed duration stands in
 for rendering, so the overlap of encoding with it is visible.
 
-    .venv/bin/python tools/bench_dataset_io.py --frames 8
+    .venv/bin/python tools/bench/bench_dataset_io.py --frames 8
 """
 
 from __future__ import annotations

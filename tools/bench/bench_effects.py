@@ -11,7 +11,7 @@ Frames of an orbit (``--mode trajectory``) of the demo world (or ``--scene DIR``
   the measured noise standard deviation (linear light, electrons, from the difference of two seeds) against
   ``sqrt(signal + read**2)``.
 
-Usage: ``python tools/bench_effects.py [--scene DIR] [--frames N] [--width W --height H]`` (default 3 frames at
+Usage: ``python tools/bench/bench_effects.py [--scene DIR] [--frames N] [--width W --height H]`` (default 3 frames at
 640x360).
 """
 
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from sim.run.options import CameraEffects  # noqa: E402
 from sim.render.film import add_sensor_noise  # noqa: E402

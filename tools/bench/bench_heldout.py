@@ -1,6 +1,6 @@
 """Held-out photorealism: how real the twin looks from photos its texture never saw, against the ones it used.
 
-    .venv/bin/python tools/bench_heldout.py PHOTO_DIR [PHOTO_DIR ...] [--hold-out 5] [--image-size 800]
+    .venv/bin/python tools/bench/bench_heldout.py PHOTO_DIR [PHOTO_DIR ...] [--hold-out 5] [--image-size 800]
                                            [--dense-size 640] [--width 800] [--work DIR]
                                            [--variant LABEL=MESH:TEXTURE ...]
 
@@ -39,7 +39,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 
@@ -49,7 +49,7 @@ from sim.evaluation.realism import (compare_folders, fit_reference, mean_compari
                                     read_rgb)
 from sim.render.scene import load_scene  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 METRICS = ("error_percent", "gain_error_percent", "covered_error_percent", "covered_gain_error_percent",
            "covered_fit_error_percent", "covered")
 HEADERS = ("photos", "n", "err % whole", "err/g % whole", "err % covered", "err/g % covered", "err/fit % covered",

@@ -1,6 +1,6 @@
 """A twin relit to another time of day: the same mission flown at 08:00 and at 15:00, the twin built from the first.
 
-    .venv/bin/python tools/bench_two_times.py --work DIR [--quick] [--photo-interval S] [--seed N] [--json F]
+    .venv/bin/python tools/bench/bench_two_times.py --work DIR [--quick] [--photo-interval S] [--seed N] [--json F]
 
 Through the command lines, as a user runs them (``tools/loops/closed_loop.py``'s stages, each in a child process):
 
@@ -37,7 +37,7 @@ against the truth under the 08:00 sun (the texture's floor at those poses); the 
 Defaults: the closed loop's (``tools/loops/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
 (50 m radius, 30 m up), 800x600 photos, SfM at 800 px, depth maps at 640 px, a photo every :data:`DEFAULT_INTERVAL_S`
 s. The mission's own interval is 1 s (452 photos); 2 s (226 photos) keeps the run near 30 min on the 2-core machine
-(a 452-photo reconstruction alone takes 12-23 min there, tools/bench_recon_orbit.py, and every photo is rendered
+(a 452-photo reconstruction alone takes 12-23 min there, tools/bench/bench_recon_orbit.py, and every photo is rendered
 six times). ``--quick``: the closed loop's reduced settings (demo:small, a 3-waypoint arc, 480x360 photos).
 """
 
@@ -54,7 +54,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 

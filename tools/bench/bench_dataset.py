@@ -10,7 +10,7 @@ Rows (one run each, same scene, same seed):
   frames were reported done, and the start-up (scene loads, process spawns) before the first ones.
 
 The projected time for the paper's dataset (1000 stereo frames) is start-up + 1000 x per-frame cost.
-Usage: ``python tools/bench_dataset.py [--scene DIR] [--frames N] [--width W --height H]``; without
+Usage: ``python tools/bench/bench_dataset.py [--scene DIR] [--frames N] [--width W --height H]``; without
 ``--scene`` it renders the demo world (``--terrain``: a synthetic textured height field).
 """
 
@@ -28,7 +28,7 @@ from pathlib import Path
 import trimesh
 from PIL import Image
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402
 from sim.dataset import KittiDatasetWriter  # noqa: E402
@@ -51,7 +51,7 @@ def write_terrain_scene(folder: Path) -> Path:
     (folder / "scene.json").write_text(json.dumps({
         "format": "aerostereo-scene/1", "mesh": "terrain.glb", "origin": DEMO_ORIGIN.to_dict(), "units": "m",
         "up_axis": "z", "frame": "enu", "valid_area_m": {"xmin": -half, "xmax": half, "ymin": -half, "ymax": half},
-        "provenance": {"generator": "tools/bench_dataset.py", "cells": TERRAIN_CELLS}}, indent=2))
+        "provenance": {"generator": "tools/bench/bench_dataset.py", "cells": TERRAIN_CELLS}}, indent=2))
     return folder
 
 

@@ -1,6 +1,6 @@
 """Reconstructed twins against the true world at the paper's oblique random poses: coverage, formula 3, depth.
 
-    .venv/bin/python tools/bench_twin_oblique.py --truth FLY/truth.json --scene LABEL=DIR [--scene LABEL=DIR ...]
+    .venv/bin/python tools/bench/bench_twin_oblique.py --truth FLY/truth.json --scene LABEL=DIR [--scene LABEL=DIR ...]
         [--world demo|demo:small|DIR] [--views 20] [--size 640 360] [--fov 80] [--seed 0]
         [--json OUT.json] [--pictures DIR] [--picture-count 4]
 
@@ -33,7 +33,7 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 from scipy.spatial import ConvexHull  # noqa: E402

@@ -4,7 +4,7 @@ Prints one table per variant. The chosen format (GLB with an embedded JPEG atlas
 ratio; the texture error is the mean absolute 8-bit difference between the texture trimesh loads and the lossless
 atlas (so lossy compression shows up beside the time it saves).
 
-    .venv/bin/python tools/bench_worlds.py [--variants small default large] [--seed 0]
+    .venv/bin/python tools/bench/bench_worlds.py [--variants small default large] [--seed 0]
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ split, coverage estimate and every flight's rows; best of ``--repeats``, s), the
 split applied to the lattice's row-by-row order, and the lower bound (max of the spanning tree and the radial
 bound, :func:`flightplan.area.transit_lower_bound_m`), and the field coverage of the well-covered discs.
 
-Run: ``python tools/bench_area.py [--repeats 1]``
+Run: ``python tools/bench/bench_area.py [--repeats 1]``
 """
 
 from __future__ import annotations

@@ -10,7 +10,7 @@ Renders a small random-pose dataset of the demo world (or reads ``--dataset DIR`
   the tolerance) and "occluded" (something closer in the right view). Where the occluded share stops changing as
   the tolerance shrinks, the tolerance no longer hides real occluders.
 
-    .venv/bin/python tools/bench_export.py --frames 4 --width 1280 --height 720
+    .venv/bin/python tools/bench/bench_export.py --frames 4 --width 1280 --height 720
 """
 
 from __future__ import annotations

@@ -17,8 +17,8 @@ written together, numpy) and one packet at a time (the baseline: every spec's ``
 record is decoded and formatted alone, as ``decode`` did before; the same CSV, checked). Time is wall-clock; CPU
 is the process's CPU time (the two differ when the machine is shared).
 
-    PYTHONPATH=. .venv/bin/python tools/bench_duml.py              # 100 MB
-    PYTHONPATH=. .venv/bin/python tools/bench_duml.py --size-mb 19  # issue 18's 19 MB, as in docs/ingest-duml.md
+    PYTHONPATH=. .venv/bin/python tools/bench/bench_duml.py              # 100 MB
+    PYTHONPATH=. .venv/bin/python tools/bench/bench_duml.py --size-mb 19  # issue 18's 19 MB, as in docs/ingest-duml.md
 """
 
 from __future__ import annotations
@@ -104,7 +104,7 @@ def per_packet_registry() -> MessageRegistry:
 
 
 # `aerostereo-ingest ARGS` as a command with the per-packet registry (the baseline)
-_PER_PACKET_COMMAND = ("import sys; from capture import cli; from tools.bench_duml import per_packet_registry; "
+_PER_PACKET_COMMAND = ("import sys; from capture import cli; from tools.bench.bench_duml import per_packet_registry; "
                        "cli.default_registry = per_packet_registry; sys.exit(cli.main(sys.argv[1:]))")
 
 

@@ -13,8 +13,8 @@ preview leaves the photo whole, and neither decode reports it (most of the 99.9 
 complete. Measured (10 brighton_beach photos, 4000x2250): check 47 ms/photo, catches every copy cut at 50 % and
 90 %, full decode 80 ms, OpenCV 50 ms and catches none.
 
-    .venv/bin/python tools/bench_photo_check.py                  # 10 photos of ../shared/data/brighton_beach
-    .venv/bin/python tools/bench_photo_check.py --photos DIR --count 5
+    .venv/bin/python tools/bench/bench_photo_check.py                  # 10 photos of ../shared/data/brighton_beach
+    .venv/bin/python tools/bench/bench_photo_check.py --photos DIR --count 5
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from PIL import Image
 from recon.inputs.priors import decode_problem
 
 CUTS = (0.5, 0.9, 0.999)
-SHARED_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+SHARED_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 
 
 def header_problem(path: Path) -> str | None:

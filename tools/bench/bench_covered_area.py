@@ -7,7 +7,7 @@ stereo poses (the paper's ranges, frustum margin, the default 1280x720 rig at 80
 frame, time per pose, and the share of frames that see past the polygon, found by casting every pixel of both views
 at 64 px wide (the same field of view, so the same footprint) and testing each hit against the polygon.
 
-    PYTHONPATH=. .venv/bin/python tools/bench_covered_area.py [--frames 300]
+    PYTHONPATH=. .venv/bin/python tools/bench/bench_covered_area.py [--frames 300]
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ height, tilts and heading allow; the paper's 38,480 of 153,000 m^2) and the shar
 past the valid area (checked with the view's border rays down to the scene's lowest surface, :mod:`sim.sampling.frustum`).
 No sky probe here (the render adds one).
 
-    .venv/bin/python tools/bench_frustum.py [--variants small default large] [--frames 300] [--margins 0 20 50]
+    .venv/bin/python tools/bench/bench_frustum.py [--variants small default large] [--frames 300] [--margins 0 20 50]
 """
 
 from __future__ import annotations

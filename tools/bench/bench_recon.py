@@ -1,7 +1,7 @@
 """Recon knobs against time and error: the real DJI set (brighton_beach, 18 photos, EXIF GPS priors) and
 virtual flights over the small demo world (known poses and surface).
 
-    .venv/bin/python tools/bench_recon.py [--sizes 800 1600] [--with-3200] [--dense-sizes 640 1000]
+    .venv/bin/python tools/bench/bench_recon.py [--sizes 800 1600] [--with-3200] [--dense-sizes 640 1000]
                                           [--no-synthetic] [--p4m-only [LABEL]] [--data SHARED_DATA]
 
 Table 1, SfM image size on brighton_beach: time per stage, registered photos, 3-D points, mean reprojection
@@ -22,7 +22,7 @@ against the camera positions' RMS per axis to the RTK positions, the rotation to
 the final focal length.
 Table 3, the closed loop: a 24-photo orbit over the small demo world (tools/loops/virtual_flight.py), SfM once,
 then dense/meshing/texture options, each against the true poses and surface.
-The 30-minute target (one full default orbit, 452 photos) is measured by tools/bench_recon_orbit.py.
+The 30-minute target (one full default orbit, 452 photos) is measured by tools/bench/bench_recon_orbit.py.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import laspy  # noqa: E402
 import numpy as np  # noqa: E402
@@ -60,7 +60,7 @@ from sim.render.scene import load_scene  # noqa: E402
 from sim.worlds import demo_scene_dir  # noqa: E402
 from tools.loops.virtual_flight import INNER_RADIUS_M, Orbit, fly, height_errors, reuse_stages  # noqa: E402
 
-DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 
 
 def timed_sfm(photo_dir: Path, names, priors, size: int, features: int, seed=None, focal: str = "auto") -> dict:

@@ -18,8 +18,8 @@ Four parts, one run:
    the bytes per frame over a shared disk of ``--disk-mb-s``; the column ``limit`` names the term that
    dominates (render, coordinator, disk).
 
-Usage: ``python tools/bench_dask.py [--frames N1 N2] [--width W --height H] [--workers J] [--repeats R] [--tasks T]
-[--idle-seconds S] [--views V] [--cores N] [--disk-mb-s B]`` (demo world).
+Usage: ``python tools/bench/bench_dask.py [--frames N1 N2] [--width W --height H] [--workers J] [--repeats R]
+[--tasks T] [--idle-seconds S] [--views V] [--cores N] [--disk-mb-s B]`` (demo world).
 """
 
 from __future__ import annotations
@@ -40,9 +40,9 @@ import distributed
 import numpy as np
 import psutil
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "recon"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests" / "recon"))
 
 from recon.surface.dense import fuse_pair_depths, pair_depth  # noqa: E402
 from synthetic import look_down_view, make_texture, render_plane  # noqa: E402

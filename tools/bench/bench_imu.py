@@ -1,14 +1,14 @@
 """Benchmark the IMU: cost per rendered frame of synthesizing and writing it, against the dead-reckoning error
 its samples leave at each rate.
 
-    .venv/bin/python tools/bench_imu.py [--seconds 10] [--frame-rate 10]
+    .venv/bin/python tools/bench/bench_imu.py [--seconds 10] [--frame-rate 10]
 
 For each trajectory the renderer follows (the closed-form orbit, the spline lawnmower and random loop of an
 analytic sloped ground, the gusty flown path of the default orbit mission) and each IMU rate, the table prints:
 milliseconds per rendered frame (``--frame-rate``) to synthesize the samples (trajectory evaluation, noise) and to
 write them (``imu/NN.csv``), and the position (mm) and attitude (deg) error after ``--seconds`` of integrating the
 noise-free samples from the first true state with RK4 (two samples a step) -- what the sampling rate leaves to
-a consumer's integrator. A rendered frame itself costs ~0.1-1 s (tools/bench_render.py).
+a consumer's integrator. A rendered frame itself costs ~0.1-1 s (tools/bench/bench_render.py).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402

@@ -1,6 +1,6 @@
 """Real photos' shadows: how well the twin and its capture sun predict them, and whether delighting takes them out.
 
-    .venv/bin/python tools/bench_real_shadows.py PHOTO_DIR [PHOTO_DIR ...] [--utc-offset SET=+HH:MM ...]
+    .venv/bin/python tools/bench/bench_real_shadows.py PHOTO_DIR [PHOTO_DIR ...] [--utc-offset SET=+HH:MM ...]
                                                  [--image-size 800] [--dense-size 640] [--hold-out 0]
                                                  [--width 320] [--work DIR]
 
@@ -32,7 +32,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
@@ -47,7 +47,7 @@ from recon.appearance.texture import load_photos  # noqa: E402
 from sim.render.color import SRGB8_TO_LINEAR  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 #: Texels lit by at most this many times the sky's irradiance count as shadowed by the capture sun...
 SHADOW_LIGHT = 1.05
 #: ...and texels lit by at least this many times it as in the sun.

@@ -7,7 +7,7 @@ lights with). Two columns each: geometric (no refraction: the ephemeris itself) 
 refraction at SPA's pressure and temperature, 1013.25 hPa and 12 C: what shadows follow). Then microseconds per
 call for one instant (how the renderer asks: one sun per frame or photo), and what installing the library pulls in.
 
-    .venv/bin/python tools/bench_sun.py [--days 7] [--hours 3] [--calls 2000]
+    .venv/bin/python tools/bench/bench_sun.py [--days 7] [--hours 3] [--calls 2000]
 
 Needs the ``bench`` extra (pvlib, which brings pandas): ``pip install -e '.[bench]'``.
 """

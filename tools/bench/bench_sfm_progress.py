@@ -1,6 +1,6 @@
 """What SfM's progress reports cost: the same SfM run with and without them, alternately, on real photos.
 
-    .venv/bin/python tools/bench_sfm_progress.py [--photos DIR] [--count 24] [--repeats 2] [--image-size 800]
+    .venv/bin/python tools/bench/bench_sfm_progress.py [--photos DIR] [--count 24] [--repeats 2] [--image-size 800]
 
 Default: the first 24 photos of p4m_rtk (nadir DJI photos, EXIF GPS priors). With progress, extraction and
 matching are watched by a thread that counts what pycolmap has written into the database every ``POLL_S``
@@ -20,7 +20,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import pycolmap  # noqa: E402
 
@@ -29,7 +29,7 @@ from recon.sfm.options import SfmOptions  # noqa: E402
 from recon.sfm.pipeline import run_sfm  # noqa: E402
 from recon.sfm.progress import POLL_S, images_with_keypoints, no_progress  # noqa: E402
 
-DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[2] / "shared" / "data"))
+DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 STEPS = ("extract", "match", "map")
 
 

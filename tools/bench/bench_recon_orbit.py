@@ -1,6 +1,6 @@
 """One full default orbit to a textured scene, measured end to end: recon's time per stage beside its error.
 
-    .venv/bin/python tools/bench_recon_orbit.py --out DIR [--photos 452] [--photo-size 2000 1500]
+    .venv/bin/python tools/bench/bench_recon_orbit.py --out DIR [--photos 452] [--photo-size 2000 1500]
                                                 [--image-size PX] [--every K] [--depth-spacing DEG ...]
                                                 [--scene default|small]
 
@@ -30,7 +30,7 @@ import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402

@@ -5,7 +5,7 @@ texture: the shader then groups each view's hits by texture and samples each gro
 The parts' textures are identical, so every render must equal the one-part render byte for byte ("max diff"
 column, 8-bit codes); the time column is the median of the stereo renders (one per repeat) at an oblique pose.
 
-    PYTHONPATH=. .venv/bin/python tools/bench_texture_parts.py [--cells 300] [--width 640] [--parts 1 2 4 16]
+    PYTHONPATH=. .venv/bin/python tools/bench/bench_texture_parts.py [--cells 300] [--width 640] [--parts 1 2 4 16]
 """
 
 from __future__ import annotations

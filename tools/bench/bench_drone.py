@@ -12,7 +12,7 @@ seconds once per flight for the camera's ray table (undistorting every pixel) an
 the green gain, how far the lens moves the image corner (px), and formula 3 of the photos against the ideal
 camera's (mean %).
 
-Usage: python tools/bench_drone.py [--photos N] [--variant default|small] [--seed S]
+Usage: python tools/bench/bench_drone.py [--photos N] [--variant default|small] [--seed S]
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from flightplan import litchi  # noqa: E402
 from flightplan.demo_location import DEMO_ORIGIN  # noqa: E402

@@ -1,6 +1,6 @@
 """Does OpenCV contrib's disparity/depth filtering (ximgproc) improve recon's dense stage? Measured against truth.
 
-    .venv/bin/python tools/bench_dense_filter.py [--pairs 5] [--noise 3]
+    .venv/bin/python tools/bench/bench_dense_filter.py [--pairs 5] [--noise 3]
 
 Each variant computes the reference view's planar depth from one stereo pair with :func:`recon.surface.dense.pair_depth`
 (the stage's rectification, disparity range and SGBM) and is scored against the true depth:
@@ -25,7 +25,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402

@@ -5,7 +5,7 @@
 2. Time to geotag 1000 photos (automatic clock offset vs a manual one as the baseline).
 3. Geotag error against the known poses for 1, 5 and 10 Hz telemetry (time and error side by side).
 
-Usage: python tools/bench_geotag.py [--seed N]
+Usage: python tools/bench/bench_geotag.py [--seed N]
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from capture.geotag import geotag_photos  # noqa: E402
 from capture.logs import read_track  # noqa: E402

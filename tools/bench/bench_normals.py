@@ -12,7 +12,7 @@ Columns: pixels compared (share of the view), median and 90th-percentile angle (
 and the time to make and write the normal output of the view (camera-frame normals + EXR) beside the time to
 render the view (median of ``--repeats``).
 
-Usage: ``python tools/bench_normals.py [--width 640 --height 480] [--repeats 3]``
+Usage: ``python tools/bench/bench_normals.py [--width 640 --height 480] [--repeats 3]``
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from sim.dataset.images import write_exr  # noqa: E402
 from sim.render.camera import PinholeCamera, Rig, look_at  # noqa: E402

@@ -9,7 +9,8 @@ point-to-surface offset on the overlaps before and after the joint adjustment (m
 left at the far corner of the last piece (displacement, mm): chaining the direct neighbours' ICP results from piece 0
 (along the first row, then up) against the joint adjustment.
 
-Run: ``PYTHONPATH=. python tools/bench_area_align.py [--noise-m 0.02] [--cell-m 1] [--pieces 2 4 6] [--layouts row]``
+Run: ``PYTHONPATH=. python tools/bench/bench_area_align.py [--noise-m 0.02] [--cell-m 1] [--pieces 2 4 6] [--layouts
+row]``
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Benchmark the stereo renderer: time per stereo frame by stage, ray throughput, threads vs processes,
 and samples per pixel against image error.
 
-    .venv/bin/python tools/bench_render.py [--cells 1000] [--frames 3] [--scene DIR]
+    .venv/bin/python tools/bench/bench_render.py [--cells 1000] [--frames 3] [--scene DIR]
 
 Scene: a ``2 * cells**2``-triangle height field over 1 km (default 2 M triangles, 1 m cells) and, with
 ``--scene``, any scene folder (e.g. the demo world written by ``sim.worlds``). Camera: 1280x720,
@@ -28,7 +28,7 @@ from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import numpy as np  # noqa: E402
 

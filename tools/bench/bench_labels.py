@@ -1,6 +1,6 @@
 """A twin's face labels (recon/semantics/labels.py) against the true world's, at the paper's random oblique poses.
 
-    .venv/bin/python tools/bench_labels.py --twin SCENE_DIR [--world demo|demo:small|DIR] [--truth truth.json]
+    .venv/bin/python tools/bench/bench_labels.py --twin SCENE_DIR [--world demo|demo:small|DIR] [--truth truth.json]
         [--recon-log recon.log]
         [--views 20] [--size 640 360] [--fov 80] [--seed 0] [--json OUT.json]
         [--pictures OUT.jpg] [--picture-count 4]
@@ -30,7 +30,7 @@ import sys
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 import cv2  # noqa: E402
 import numpy as np  # noqa: E402
@@ -48,7 +48,7 @@ from sim.render.renderer import render  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
 from sim.render.shade import UNLIT  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
-from tools.bench_twin_oblique import add_view_arguments  # noqa: E402
+from tools.bench.bench_twin_oblique import add_view_arguments  # noqa: E402
 
 GROUP_NAMES = tuple(GROUPS)
 #: The column of class ids in no group (unknown, other, sky) in the confusion matrix.
