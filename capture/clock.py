@@ -176,7 +176,8 @@ def estimate_clock_offset(exif_s, resolution_s: float, events_s, *, slack_s: flo
         within = f" within +-{format_duration(max_offset_s)}" if math.isfinite(max_offset_s) else ""
         raise ValueError(f"no photo time lines up with any shutter event{within}; give the clock offset manually")
     candidates = [checked_candidate(fit, events_s, positions) for fit in found.values()]
-    return choose_offset(candidates, len(exif_s), len(events_s), positions is not None, max_misfit_m)
+    return choose_offset(candidates, len(exif_s), len(events_s), positions is not None, max_misfit_m,
+                         resolution_s)
 
 
 def checked_candidate(fit: tuple, events_s: np.ndarray, positions: PhotoPositions | None) -> Candidate:
@@ -291,15 +292,15 @@ def refine(exif_s, resolution_s, events_s, offset, tolerance_s):
 
 
 def choose_offset(candidates: list[Candidate], photos: int, events: int, photos_have_gps: bool,
-                  max_misfit_m: float = math.inf) -> ClockOffset:
+                  max_misfit_m: float = math.inf, resolution_s: float = 1.0) -> ClockOffset:
     """Pick among self-consistent offsets.
 
     Photos about one EXIF resolution apart make every whole-photo shift (and sub-second shifts) nearly as
     self-consistent: only phase crossings of the shutter against the camera second tell them apart. With the
     photos' own GPS, the candidates whose matched events put the track more than twice the best candidate's
     misfit (median, m) from the photos are dropped first; then the most agreeing pairs win, the smaller misfit
-    among ties, and the std covers the rivals the GPS kept that the pattern fits as well (within one agreeing
-    pair). :class:`BadInput` when every candidate is beyond ``max_misfit_m``, or when one the GPS cannot
+    among ties; where the GPS kept rivals less than ``resolution_s`` away that the pattern fits as well (within one
+    agreeing pair), the offset is the middle of them all and its std covers them. :class:`BadInput` when every candidate is beyond ``max_misfit_m``, or when one the GPS cannot
     tell from the best (within twice its misfit) and the pattern fits as well is beyond it: a GPS that far off
     the logs (a datum shift) makes a shift along the track look as good as the truth.
     Without GPS the pattern alone decides, and the note says so (and which offsets fit as well).
@@ -325,13 +326,14 @@ def choose_offset(candidates: list[Candidate], photos: int, events: int, photos_
     if rivals and not checked:
         notes.append(f"ambiguous: offsets {sorted(round(c.offset_s, 2) for c in [chosen, *rivals])} fit as well; "
                      "check --clock-offset")
-    std = chosen.std_s
-    if rivals and checked:  # the GPS cannot tell them apart (a slow flight): the offset is known only that well
-        spread = [c.offset_s for c in [chosen, *rivals]]
-        std = max(std, (max(spread) - min(spread)) / math.sqrt(12))
+    offset, std = chosen.offset_s, chosen.std_s
+    phases = [c.offset_s for c in rivals if abs(c.offset_s - chosen.offset_s) < resolution_s]
+    if phases and checked:  # sub-second phases the GPS cannot tell apart (a slow flight): their middle, that well
+        low, high = min(offset, *phases), max(offset, *phases)
+        offset, std = 0.5 * (low + high), max(std, (high - low) / math.sqrt(12))
     if chosen.agree < chosen.matched:
         notes.append(f"{chosen.matched - chosen.agree} matched events disagree with the offset")
-    return ClockOffset(chosen.offset_s, std, "auto", chosen.matched, photos, events, "; ".join(notes))
+    return ClockOffset(offset, std, "auto", chosen.matched, photos, events, "; ".join(notes))
 
 
 def no_agreeing_offset(best: Candidate, max_misfit_m: float) -> str:
