@@ -31,7 +31,7 @@ from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
 from .clock import ClockOffset, estimate_clock_offset, gps_too_far, match_photos_to_events
-from .flyable import DEFAULT_LIMITS, unflyable_stretches
+from .flyable import DEFAULT_LIMITS, attitude_problems, unflyable_stretches
 from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, MAX_AUTO_CLOCK_OFFSET_S, PHOTO_MISFIT_M
 from .logs.photos import PhotoInfo
 from .track import ReadReport, Track, format_utc, name_list
@@ -298,9 +298,10 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     own_gps = own_gps_misfits(log_tags, timed)
     set_misfit = check_misfit(own_gps, max_misfit_m)
     misfits, misfit_note = photo_misfits(own_gps, photo_misfit_m)
+    attitudes, attitude_note = unflyable_attitudes(log_tags)
     tags, from_photos = [], []
     for photo, (t, time_source), tag in zip(timed, times, log_tags):
-        if reason := tag if isinstance(tag, str) else misfits.get(photo.name):
+        if reason := tag if isinstance(tag, str) else misfits.get(photo.name) or attitudes.get(photo.name):
             tag = photo_tag(photo, t, frame, height_datum, time_source, reason=reason)
             if not isinstance(tag, str):
                 from_photos.append((photo.name, reason))
@@ -309,7 +310,8 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
         else:
             tags.append(tag)
     notes = list(interpolator.notes)
-    notes += [note for note in (set_misfit, misfit_note, fallback_note(from_photos), origin_note) if note]
+    notes += [note for note in (set_misfit, misfit_note, attitude_note, fallback_note(from_photos), origin_note)
+              if note]
     return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes, from_photos)
 
 
@@ -406,6 +408,22 @@ def check_misfit(misfits: dict[str, tuple[float, float]], max_misfit_m: float) -
                        f"{math.ceil(1.01 * worst)} to accept the match anyway (photos whose GPS is known to be off the "
                        "logs)")
     return f"photo GPS vs geotags from the logs: median {median:.2f} m, max {worst:.2f} m ({len(distances)} photos)"
+
+
+def unflyable_attitudes(tags: list[Geotag | str]) -> tuple[dict[str, str], str | None]:
+    """The geotags from the logs (strings: none) whose attitude no aircraft can have
+    (:func:`capture.flyable.attitude_problems`), with the reason, by name; and the note naming them."""
+    tagged = sorted((tag for tag in tags if not isinstance(tag, str)), key=lambda tag: tag.time_s)
+    problems = attitude_problems(
+        [tag.image_name for tag in tagged], np.array([tag.time_s for tag in tagged]),
+        np.array([tag.aircraft_ypr_deg for tag in tagged]).reshape(-1, 3),
+        np.array([tag.gimbal_ypr_deg for tag in tagged]).reshape(-1, 3),
+        [None if tag.R_world_cam is None else Rotation.from_matrix(tag.R_world_cam) for tag in tagged])
+    if not problems:
+        return {}, None
+    return problems, (f"{len(problems)} photos' attitude from the logs is beyond what a {DEFAULT_LIMITS.aircraft} can "
+                      f"do (tilt, gimbal range, turn rate): those photos are tagged from their own XMP attitude and "
+                      f"GPS: {name_list(list(problems))}")
 
 
 def photo_misfits(misfits: dict[str, tuple[float, float]],
