@@ -299,10 +299,11 @@ def choose_offset(candidates: list[Candidate], photos: int, events: int, photos_
     self-consistent: only phase crossings of the shutter against the camera second tell them apart. With the
     photos' own GPS, the candidates whose matched events put the track more than twice the best candidate's
     misfit (median, m) from the photos are dropped first; then the most agreeing pairs win, the smaller misfit
-    among ties; where the GPS kept rivals less than ``resolution_s`` away that the pattern fits as well (within one
-    agreeing pair), the offset is the middle of them all and its std covers them. :class:`BadInput` when every candidate is beyond ``max_misfit_m``, or when one the GPS cannot
-    tell from the best (within twice its misfit) and the pattern fits as well is beyond it: a GPS that far off
-    the logs (a datum shift) makes a shift along the track look as good as the truth.
+    among ties; where the GPS kept rivals less than ``resolution_s`` away that the pattern fits as well (within
+    one agreeing pair), the offset is the middle of them all and its std covers them. :class:`BadInput` when
+    every candidate is beyond ``max_misfit_m``, or when one the GPS cannot tell from the best (within twice its
+    misfit) and the pattern fits as well is beyond it: a GPS that far off the logs (a datum shift) makes a shift
+    along the track look as good as the truth.
     Without GPS the pattern alone decides, and the note says so (and which offsets fit as well).
     """
     checked = [c for c in candidates if math.isfinite(c.misfit_m)]
