@@ -118,7 +118,7 @@ def geotag(photos_dir: _Path, logs: Iterable[_Path], out_csv: _Path, *, clock_of
 
     ``clock_offset``: ``"auto"`` (found within +-14.5 h) or seconds, telemetry UTC - camera clock; ``max_gap_s``:
     longest telemetry gap (s) interpolated across; ``max_misfit_m``: largest median distance (m) between the photos'
-    own GPS and their geotags. Returns the tags (WGS84 position, heights in metres, ENU position in the origin's
+    own GPS and their geotags (default 9: the automatic clock offset only accepts shifts within it). Returns the tags (WGS84 position, heights in metres, ENU position in the origin's
     frame, ``R_world_cam``), the photos left untagged with the reason, the origin and the clock offset.
     :class:`BadInput` when no photo can be read or none could be tagged from the logs.
     """

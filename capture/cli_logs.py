@@ -40,7 +40,9 @@ def register(subparsers) -> None:
                         help="longest telemetry gap (s) to interpolate across (default %(default)s)")
     geotag.add_argument("--max-misfit", type=positive_number, default=DEFAULT_MAX_MISFIT_M,
                         help="largest median distance (m) between the photos' own GPS and their geotags from the "
-                             "logs; a larger one is refused as photos from another place (default %(default)s)")
+                             "logs (default %(default)s: 3 sigma of a consumer GPS); the automatic clock offset only "
+                             "accepts shifts within it, and a larger one is refused as photos from another place or "
+                             "a wrong clock offset; give more for photos whose GPS is known to be off the logs")
     add_time_options(geotag)
     geotag.add_argument("--out", required=True, help="geotags.csv to write (the .json sidecar goes beside it)")
     add_export_options(geotag, "also ")

@@ -8,6 +8,10 @@ fixes can add (:class:`FlightLimits`). Rows are compared with the next row and w
 later (:data:`WINDOWS_S`): a track squeezed in time is caught over the longer windows even where two neighbouring
 rows stay within the error. The span between two rows that break a limit is a stretch no aircraft can fly;
 overlapping spans are merged.
+
+A geotag's attitude is checked the same way (:func:`attitude_problems`): the aircraft's pitch or roll beyond the
+profile's largest tilt (plus :data:`TILT_MARGIN_DEG`), the gimbal's pitch beyond its mechanical stops, or a camera
+that turns faster than the profile allows between a photo and both its neighbours, cannot be what the photo saw.
 """
 
 from __future__ import annotations
@@ -115,3 +119,46 @@ def unflyable_stretches(time_s: np.ndarray, enu_m: np.ndarray, limits: FlightLim
         stretches.append(Stretch(float(starts[group].min()), float(ends[group].max()), float(horizontal[worst]),
                                  float(move[worst, 2]), float(seconds[worst])))
     return stretches
+
+
+#: Allowed beyond the profile's largest tilt: a gust or a brake overshoots what the controller commands, and DJI
+#: reports the attitude to 0.1 deg (ours; UNVERIFIED).
+TILT_MARGIN_DEG = 5.0
+#: Allowed beyond the turn rate between two photos: interpolation and 0.1 deg quantisation of each attitude.
+ROTATION_MARGIN_DEG = 2.0
+
+
+def attitude_problems(names: list[str], times_s: np.ndarray, aircraft_ypr_deg: np.ndarray,
+                      gimbal_ypr_deg: np.ndarray, rotations: list, aircraft: AircraftProfile = DJI_MINI_SE
+                      ) -> dict[str, str]:
+    """Per photo name, why its attitude (DJI NED degrees; NaN unknown) cannot be what the aircraft did: aircraft
+    pitch/roll beyond ``aircraft.max_tilt_deg`` + :data:`TILT_MARGIN_DEG`, gimbal pitch outside its mechanical
+    range, or a camera rotation (``rotations``: scipy Rotations, None where unknown; photos in time order
+    ``times_s``) that differs from both neighbours' faster than ``aircraft.max_rotation_rate_deg_s``."""
+    problems: dict[str, str] = {}
+    tilt = aircraft.max_tilt_deg + TILT_MARGIN_DEG
+    low, high = aircraft.gimbal_pitch_mechanical_deg
+    for name, (_, pitch, roll), gimbal_pitch in zip(names, aircraft_ypr_deg, gimbal_ypr_deg[:, 1]):
+        if max(abs(pitch), abs(roll)) > tilt:  # NaN compares False: unknown is not a problem
+            problems[name] = (f"its aircraft pitch {pitch:.1f} / roll {roll:.1f} deg is beyond the {tilt:g} deg no "
+                              f"{aircraft.name} tilts (its {aircraft.max_tilt_deg:g} deg limit + {TILT_MARGIN_DEG:g})")
+        elif not low <= gimbal_pitch <= high and np.isfinite(gimbal_pitch):
+            problems[name] = (f"its gimbal pitch {gimbal_pitch:.1f} deg is beyond the {aircraft.name} gimbal's "
+                              f"mechanical range {low:g} .. {high:g} deg")
+    for index in range(len(names)):
+        rates = [turn_rate(rotations[index], rotations[other], abs(times_s[other] - times_s[index]))
+                 for other in (index - 1, index + 1) if 0 <= other < len(names)]
+        if rates and all(rate > aircraft.max_rotation_rate_deg_s for rate in rates):
+            problems.setdefault(names[index], f"its camera turns {min(rates):.0f} deg/s from its neighbours' "
+                                              f"attitude, faster than the {aircraft.max_rotation_rate_deg_s:g} "
+                                              f"deg/s a {aircraft.name} turns")
+    return problems
+
+
+def turn_rate(first, second, seconds: float) -> float:
+    """How fast (deg/s) a camera turns from rotation ``first`` to ``second`` in ``seconds``, less
+    :data:`ROTATION_MARGIN_DEG`; 0 where either is unknown or no time passes."""
+    if first is None or second is None or seconds <= 0:
+        return 0.0
+    angle = float(np.degrees((first * second.inv()).magnitude()))
+    return max(angle - ROTATION_MARGIN_DEG, 0.0) / seconds

@@ -30,8 +30,8 @@ from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame, geodesic_inverse
 
 from .attitude import AttitudeSeries, camera_from_gimbal, ned_angles, ned_rotation
-from .clock import ClockOffset, estimate_clock_offset, match_photos_to_events
-from .flyable import DEFAULT_LIMITS, unflyable_stretches
+from .clock import ClockOffset, estimate_clock_offset, gps_too_far, match_photos_to_events
+from .flyable import DEFAULT_LIMITS, attitude_problems, unflyable_stretches
 from .geotag_limits import DEFAULT_MAX_GAP_S, DEFAULT_MAX_MISFIT_M, MAX_AUTO_CLOCK_OFFSET_S, PHOTO_MISFIT_M
 from .logs.photos import PhotoInfo
 from .track import ReadReport, Track, format_utc, name_list
@@ -218,9 +218,10 @@ def take_off_frame(track: Track) -> tuple[LocalFrame, str]:
     return LocalFrame(home.lat_deg, home.lon_deg, 0.0), HEIGHT_UNKNOWN
 
 
-def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
-                  interpolator: "TrackInterpolator") -> tuple[ClockOffset, float]:
-    """The clock offset to use (manual, estimated, or implied) and the EXIF resolution in seconds."""
+def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset, interpolator: "TrackInterpolator",
+                  max_misfit_m: float) -> tuple[ClockOffset, float]:
+    """The clock offset to use (manual, estimated, or implied) and the EXIF resolution in seconds. An estimated one
+    must put the photos' own GPS a median within ``max_misfit_m`` of the track (:class:`BadInput` otherwise)."""
     resolution = max((p.time_resolution_s for p in timed), default=1.0)
     exif = np.array([p.exif_time_s for p in timed])
     events = len(track.photo_times_s)
@@ -231,10 +232,9 @@ def resolve_clock(timed: list[PhotoInfo], track: Track, clock_offset,
     if events == 0 or len(exif) == 0:
         note = "no shutter events in the logs" if events == 0 else "no EXIF times"
         return ClockOffset(0.0, math.nan, "assumed-zero", photos=len(exif), note=note + "; give --clock-offset"), resolution
-    misfit = position_misfit(timed, interpolator)
     return estimate_clock_offset(exif, resolution, track.photo_times_s, slack_s=MATCH_SLACK_S,
-                                 tolerance_s=event_tolerance(track), position_misfit=misfit,
-                                 max_offset_s=MAX_AUTO_CLOCK_OFFSET_S), resolution
+                                 tolerance_s=event_tolerance(track), positions=OwnPositions(timed, interpolator),
+                                 max_offset_s=MAX_AUTO_CLOCK_OFFSET_S, max_misfit_m=max_misfit_m), resolution
 
 
 def event_tolerance(track: Track) -> float:
@@ -243,19 +243,24 @@ def event_tolerance(track: Track) -> float:
     return max(EVENT_TOLERANCE_S, 2.0 * track.event_time_error_s)
 
 
-def position_misfit(timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
-    """For clock estimation: a function of per-photo telemetry times giving the horizontal distance (m)
-    between each photo's own EXIF/XMP position and the track then (NaN where unknown); None without GPS."""
-    own = np.array([[p.values.get("lat_deg", np.nan), p.values.get("lon_deg", np.nan)] for p in timed])
-    if not np.isfinite(own).all(axis=1).any():
-        return None
-    own_en = np.stack(interpolator.frame.to_enu(own[:, 0], own[:, 1], 0.0)[:2], axis=-1)
+class OwnPositions:
+    """The photos' own EXIF/XMP horizontal positions against the track, for the clock estimate
+    (:class:`capture.clock.PhotoPositions`): east/north in the interpolator's frame, NaN where a photo has none."""
 
-    def misfit(times: np.ndarray) -> np.ndarray:
-        track_en = interpolator.horizontal_at(np.asarray(times, float))
-        return np.hypot(*(track_en - own_en).T)
+    def __init__(self, timed: list[PhotoInfo], interpolator: "TrackInterpolator"):
+        own = np.array([[p.values.get("lat_deg", np.nan), p.values.get("lon_deg", np.nan)] for p in timed],
+                       dtype=float).reshape(-1, 2)
+        self.has_position = np.isfinite(own).all(axis=1)
+        self.east_north = np.stack(interpolator.frame.to_enu(own[:, 0], own[:, 1], 0.0)[:2], axis=-1)
+        self.interpolator = interpolator
 
-    return misfit
+    def misfit(self, times_s: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
+        """Horizontal distance (m) between photos ``rows``' own positions and the track at telemetry times
+        ``times_s`` (shape ``(..., len(rows))``); NaN where either is unknown."""
+        times = np.asarray(times_s, float)
+        own = self.east_north if rows is None else self.east_north[rows]
+        track = self.interpolator.horizontal_at(times.ravel()).reshape(*times.shape, 2)
+        return np.hypot(track[..., 0] - own[..., 0], track[..., 1] - own[..., 1])
 
 
 def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset="auto",
@@ -276,7 +281,7 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     interpolator = TrackInterpolator(track, frame, max_gap_s, height_datum != HEIGHT_UNKNOWN)
     timed = [p for p in photos if math.isfinite(p.exif_time_s)]
     untagged = [(p.name, "no EXIF DateTimeOriginal") for p in photos if not math.isfinite(p.exif_time_s)]
-    clock, resolution = resolve_clock(timed, track, clock_offset, interpolator)
+    clock, resolution = resolve_clock(timed, track, clock_offset, interpolator, max_misfit_m)
     exif = np.array([p.exif_time_s for p in timed])
     slack = MATCH_SLACK_S if clock.method == "manual" else max(event_tolerance(track), min(MATCH_SLACK_S, 3 * clock.std_s))
     matches = match_photos_to_events(exif, resolution, track.photo_times_s, clock.offset_s, slack)
@@ -293,9 +298,10 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
     own_gps = own_gps_misfits(log_tags, timed)
     set_misfit = check_misfit(own_gps, max_misfit_m)
     misfits, misfit_note = photo_misfits(own_gps, photo_misfit_m)
+    attitudes, attitude_note = unflyable_attitudes(log_tags)
     tags, from_photos = [], []
     for photo, (t, time_source), tag in zip(timed, times, log_tags):
-        if reason := tag if isinstance(tag, str) else misfits.get(photo.name):
+        if reason := tag if isinstance(tag, str) else misfits.get(photo.name) or attitudes.get(photo.name):
             tag = photo_tag(photo, t, frame, height_datum, time_source, reason=reason)
             if not isinstance(tag, str):
                 from_photos.append((photo.name, reason))
@@ -304,7 +310,8 @@ def geotag_photos(photos: list[PhotoInfo], tracks: list[Track], *, clock_offset=
         else:
             tags.append(tag)
     notes = list(interpolator.notes)
-    notes += [note for note in (set_misfit, misfit_note, fallback_note(from_photos), origin_note) if note]
+    notes += [note for note in (set_misfit, misfit_note, attitude_note, fallback_note(from_photos), origin_note)
+              if note]
     return GeotagResult(tags, untagged, frame, height_datum, clock, [t.report for t in tracks], notes, from_photos)
 
 
@@ -396,11 +403,27 @@ def check_misfit(misfits: dict[str, tuple[float, float]], max_misfit_m: float) -
         return None
     median, worst = float(np.median(distances)), float(distances.max())
     if median > max_misfit_m:
-        raise BadInput(f"the photos' own GPS is a median {format_distance(median)} (max {format_distance(worst)}, "
-                       f"{len(distances)} photos) from the logs' track at their matched times, more than the "
-                       f"{max_misfit_m:g} m a consumer GPS can be off: the photos are probably not from these logs; "
-                       f"give --max-misfit {math.ceil(1.01 * worst)} to accept the match anyway")
+        raise BadInput(f"{gps_too_far(median, worst, len(distances), 'at their matched times', max_misfit_m)}: the "
+                       "photos are probably not from these logs, or the clock offset is wrong; give --max-misfit "
+                       f"{math.ceil(1.01 * worst)} to accept the match anyway (photos whose GPS is known to be off the "
+                       "logs)")
     return f"photo GPS vs geotags from the logs: median {median:.2f} m, max {worst:.2f} m ({len(distances)} photos)"
+
+
+def unflyable_attitudes(tags: list[Geotag | str]) -> tuple[dict[str, str], str | None]:
+    """The geotags from the logs (strings: none) whose attitude no aircraft can have
+    (:func:`capture.flyable.attitude_problems`), with the reason, by name; and the note naming them."""
+    tagged = sorted((tag for tag in tags if not isinstance(tag, str)), key=lambda tag: tag.time_s)
+    problems = attitude_problems(
+        [tag.image_name for tag in tagged], np.array([tag.time_s for tag in tagged]),
+        np.array([tag.aircraft_ypr_deg for tag in tagged]).reshape(-1, 3),
+        np.array([tag.gimbal_ypr_deg for tag in tagged]).reshape(-1, 3),
+        [None if tag.R_world_cam is None else Rotation.from_matrix(tag.R_world_cam) for tag in tagged])
+    if not problems:
+        return {}, None
+    return problems, (f"{len(problems)} photos' attitude from the logs is beyond what a {DEFAULT_LIMITS.aircraft} can "
+                      f"do (tilt, gimbal range, turn rate): those photos are tagged from their own XMP attitude and "
+                      f"GPS: {name_list(list(problems))}")
 
 
 def photo_misfits(misfits: dict[str, tuple[float, float]],
@@ -424,11 +447,6 @@ def photo_misfits(misfits: dict[str, tuple[float, float]],
                      f"{limit_m[0]:g} m horizontally or {limit_m[1]:g} m in height (3 sigma of a consumer GPS, the "
                      f"receiver of both): the logs are wrong there, those photos are tagged from their own GPS: "
                      f"{name_list(list(reasons))}")
-
-
-def format_distance(metres: float) -> str:
-    """``12.3 m`` or ``6360 km``."""
-    return f"{metres / 1000:.4g} km" if metres >= 1000 else f"{metres:.3g} m"
 
 
 def fallback_note(from_photos: list[tuple[str, str]]) -> str | None:

@@ -91,6 +91,9 @@ class AircraftProfile:
     rated_flight_time_s: float
     usable_battery_fraction: float
     gimbal_pitch_range_deg: tuple[float, float]
+    max_tilt_deg: float = 30.0  # largest pitch or roll the flight controller allows (sport mode)
+    gimbal_pitch_mechanical_deg: tuple[float, float] = (-110.0, 35.0)  # the gimbal's stops: no photo beyond them
+    max_rotation_rate_deg_s: float = 250.0  # fastest the camera turns: aircraft yaw rate plus gimbal pitch speed
     unverified: tuple[str, ...] = ()
 
     @property
@@ -120,7 +123,10 @@ MINI_SE_CAMERA = CameraProfile(
 #: controllable gimbal tilt: UNVERIFIED (research/litchi.md section 4). 30 min rated flight time: Wikipedia
 #: and an owner's write-up (rated at 17 km/h without wind). The 80 % usable fraction is our own reserve policy.
 #: Max ascent 5 m/s and descent 3.5 m/s (S mode) and wind resistance 8 m/s (level 4): from memory of DJI's spec
-#: sheet for the Mini series, UNVERIFIED.
+#: sheet for the Mini series, UNVERIFIED. Max tilt 30 deg (S mode; 20 deg in P and C) and the gimbal's mechanical
+#: pitch range -110..+35 deg (research/litchi.md section 4; DUML gimbal pitch about -90..+47, research/dji-telemetry.md
+#: section 2.3): from memory of DJI's Mavic Mini / Mini SE spec sheet, UNVERIFIED; the 250 deg/s camera turn rate
+#: is ours (DJI Mini max yaw rate ~130 deg/s by the same memory, plus the gimbal's pitch speed), UNVERIFIED.
 DJI_MINI_SE = AircraftProfile(
     name="DJI Mini SE",
     camera=MINI_SE_CAMERA,
@@ -132,8 +138,12 @@ DJI_MINI_SE = AircraftProfile(
     rated_flight_time_s=30 * 60.0,
     usable_battery_fraction=0.8,
     gimbal_pitch_range_deg=(-90.0, 0.0),
+    max_tilt_deg=30.0,
+    gimbal_pitch_mechanical_deg=(-110.0, 35.0),
+    max_rotation_rate_deg_s=250.0,
     unverified=("max_speed_m_s", "min_timed_shot_interval_s", "gimbal_pitch_range_deg", "max_ascent_m_s",
-                "max_descent_m_s", "max_wind_m_s"),
+                "max_descent_m_s", "max_wind_m_s", "max_tilt_deg", "gimbal_pitch_mechanical_deg",
+                "max_rotation_rate_deg_s"),
 )
 
 #: Maximum height above take-off allowed without special permission: EU open category 120 m (Regulation

@@ -20,21 +20,22 @@ from sim.drone.photos import photo_camera, photo_geotag, write_dji_jpeg
 START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)  # the virtual flights' start (UTC)
 
 
-def virtual_flight(mission_csv, folder, seed, arrival=None):
-    """Fly a Litchi mission with realistic noise; write its DUML capture (``folder/flight.duml``) and tiny photos
-    with the metadata the drone's camera writes (``folder/photos``). ``arrival(t_s)``: when the link delivered the
-    frame sent at flight time ``t_s`` (s; default: as it was sent). Returns the mission (truth) and the track."""
+def virtual_flight(mission_csv, folder, seed, arrival=None, start=START):
+    """Fly a Litchi mission with realistic noise from ``start`` (UTC); write its DUML capture
+    (``folder/flight.duml``) and tiny photos with the metadata the drone's camera writes (``folder/photos``).
+    ``arrival(t_s)``: when the link delivered the frame sent at flight time ``t_s`` (s; default: as it was sent).
+    Returns the mission (truth) and the track."""
     waypoints = waypoints_from_litchi(litchi.read_mission_csv(mission_csv))
     mission = fly(waypoints, home_below_first_waypoint(waypoints, 1000.0), Imperfections.realistic(), seed=seed)
     frames = duml_frames(mission)
     if arrival is not None:
         frames = [Frame(arrival(frame.t_s), frame.data) for frame in frames]
-    write_raw_capture(frames, folder / "flight.duml", START)
+    write_raw_capture(frames, folder / "flight.duml", start)
     (folder / "photos").mkdir()
     truth, home_h = mission.photos, mission.sensors.measured_home()[2]
     rgb = np.full((30, 40, 3), 128, np.uint8)
     for index in np.flatnonzero(truth.taken):
-        camera_time = START.replace(tzinfo=None) + dt.timedelta(seconds=float(truth.camera_time_s[index]))
+        camera_time = start.replace(tzinfo=None) + dt.timedelta(seconds=float(truth.camera_time_s[index]))
         write_dji_jpeg(folder / "photos" / truth.names[index], rgb,
                        photo_geotag(truth, index, home_h, truth.names[index]), camera_time, photo_camera(40, 30))
     return mission, read_track(folder / "flight.duml")
