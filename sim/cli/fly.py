@@ -8,12 +8,13 @@ import datetime as dt
 from pathlib import Path
 
 from capture.track import parse_utc
-from cliutil.argtypes import finite_number, number_within
+from cliutil.argtypes import finite_number, non_negative_integer, number_within
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, MAX_GEOID_UNDULATION_M, NOISE, FlyOptions, FlyReport,
                                flight_folder, refuse_earlier_flight, run_flights, run_session)
+from sim.render.camera import MAX_IMAGE_SIDE_PX
 from sim.render.scene import load_scene
 from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
 
@@ -24,6 +25,18 @@ def utc_time(text: str) -> dt.datetime:
         return dt.datetime.fromtimestamp(parse_utc(text), dt.timezone.utc)
     except ValueError:
         raise argparse.ArgumentTypeError(f"{text!r} is not an ISO 8601 time like 2024-05-01T10:00:00Z") from None
+
+
+def photo_side(text: str) -> int:
+    """``--photo-size``: one side, 1..:data:`~sim.render.camera.MAX_IMAGE_SIDE_PX` pixels."""
+    try:
+        side = int(text)
+    except ValueError:
+        side = 0
+    if not 1 <= side <= MAX_IMAGE_SIDE_PX:
+        raise argparse.ArgumentTypeError(f"expected 1..{MAX_IMAGE_SIDE_PX} pixels a side (the largest image "
+                                         f"rendered, as the dataset render's --width/--height), got {text!r}")
+    return side
 
 
 def add_fly_parser(subparsers) -> None:
@@ -43,8 +56,9 @@ def add_fly_parser(subparsers) -> None:
                         help="if --out holds an earlier flight, delete it first (its photos/, flight.duml + .idx, "
                              "truth.json/.csv, flight_log.csv, flight.srt, and those of its flight_NN/ folders; "
                              "anything else in --out is kept)")
-    parser.add_argument("--photo-size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"),
-                        help="render size in pixels (default 800 600; the Mini SE field of view is kept)")
+    parser.add_argument("--photo-size", nargs=2, type=photo_side, default=(800, 600), metavar=("W", "H"),
+                        help=f"render size in pixels, 1..{MAX_IMAGE_SIDE_PX} a side (default 800 600; the Mini SE "
+                             "field of view is kept)")
     parser.add_argument("--link", choices=LINKS, default="file",
                         help="file: capture with simulated arrival times; loop: through a pyserial loop:// port into "
                              "the live recorder; tcp: stream to --port socket://HOST:PORT (default file)")
@@ -55,7 +69,7 @@ def add_fly_parser(subparsers) -> None:
                                                                   "area, realistic + a GPS fix offset per flight, "
                                                                   "for several; rtk: area on an RTK fixed solution, "
                                                                   "stated in the photos' XMP)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=non_negative_integer, default=0, help="random seed, >= 0 (default 0)")
     parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now); with several "
                                                            "--mission, of the first flight, the next ones taking off "
                                                            f"{BATTERY_SWAP_S:.0f} s after the previous landed")

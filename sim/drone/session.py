@@ -45,6 +45,7 @@ from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_fr
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
 from sim.drone.sunlight import FlightLight, check_photos, flight_light, sun_truth
+from sim.render.camera import MAX_IMAGE_SIDE_PX
 from sim.render.raycast import default_workers
 from sim.render.renderer import render_memory_bytes
 from sim.render.scene import Scene
@@ -59,8 +60,6 @@ FLIGHT_OUTPUTS = ("photos", CAPTURE_NAME, index_path(CAPTURE_NAME).name, "truth.
                   "flight.srt")
 #: The folders of an area plan's flights (:func:`flight_folder`).
 FLIGHT_FOLDER = re.compile(r"flight_\d{2,}")
-#: JPEG stores a photo's width and height in 16 bits.
-MAX_PHOTO_SIDE_PX = 65535
 #: Largest geoid undulation N accepted (metres, either sign): Earth's geoid lies -107 m (Indian Ocean) to +86 m (New
 #: Guinea) from the WGS84 ellipsoid (EGM2008); beyond it a height above sea level is no height on Earth.
 MAX_GEOID_UNDULATION_M = 150.0
@@ -105,9 +104,9 @@ class FlyOptions:
             raise ValueError(f"link {self.link!r}: expected one of {', '.join(LINKS)}")
         if self.link == "tcp" and not (self.port or "").startswith("socket://"):
             raise ValueError(f"link tcp needs a port socket://HOST:PORT, got {self.port!r}")
-        if not all(0 < side <= MAX_PHOTO_SIDE_PX for side in self.photo_size):
-            raise ValueError(f"photo size must be 1..{MAX_PHOTO_SIDE_PX} pixels a side (JPEG stores each in 16 bits), "
-                             f"got {self.photo_size}")
+        if not all(0 < side <= MAX_IMAGE_SIDE_PX for side in self.photo_size):
+            raise ValueError(f"photo size must be 1..{MAX_IMAGE_SIDE_PX} pixels a side (the largest image rendered: "
+                             f"beyond the largest photogrammetry sensors), got {self.photo_size}")
 
 
 @dataclass

@@ -261,7 +261,7 @@ CASES = [
     Case("fly-geoid-undulation-1e308", "aerostereo-render", [*FLY, "--geoid-undulation", "1e308"],
          r"argument --geoid-undulation: expected metres in \[-150, 150\], got '1e308'", setup=write_mission),
     Case("fly-photo-size-1e6", "aerostereo-render", [*FLY, "--photo-size", "1000000", "1000000"],
-         r"photo size must be 1\.\.65535 pixels a side", setup=write_mission),
+         r"argument --photo-size: expected 1\.\.16384 pixels a side", setup=write_mission),
     Case("fly-log-as-mission", "aerostereo-render", [*FLY[:-1], "{tmp}/flight_log.csv"],
          r"flight_log\.csv:101: more than 99 waypoints", setup=write_flight_log),
     # a mission slower than any battery (issue 31 re-run): its OSD fly time overflowed DJI's 16-bit field in a
