@@ -74,7 +74,7 @@ def _check_daylight(scene_dir: Path, variants: Sequence[LightingVariant]) -> Non
     """Refuse a ``time:`` variant whose sun is at or below the horizon over the scene's origin, before any variant is
     rendered."""
     try:
-        origin = read_scene_json(scene_dir)["origin_frame"]
+        origin = read_scene_json(scene_dir, labels=False)["origin_frame"]
     except SceneError as error:
         raise RenderInputError(str(error)) from None
     for variant in variants:

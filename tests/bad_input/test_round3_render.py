@@ -61,7 +61,7 @@ CASES = [
     # a render that needs the labels names scene.json and its labels entry
     Case("render-semantic-broken-labels", RENDER,
          ["--scene", "{tmp}/scene", "--out", "{tmp}/d", "--frames", "1", "--width", "16", "--height", "12",
-          "--formats", "semantic_png"], r"scene\.json: \"labels\": .*labels\.npz.* not found",
+          "--formats", "semantic_png"], r"scene\.json: \"labels\": its file .labels\.npz. is not found",
          write_scene_with_broken_labels),
 ]
 
