@@ -102,9 +102,11 @@ def _class_predictions(mode: str, file_format: str = "PNG"):
 
 
 @pytest.mark.parametrize("mode, file_format, message", [
-    ("P", "PNG", r"pred/000001\.png: a palette \(mode P\) PNG: .*8-bit grey \(mode L\)"),
-    ("LA", "PNG", r"pred/000001\.png: a grey PNG with an alpha channel \(mode LA\): .*8-bit grey \(mode L\)"),
-    ("L", "JPEG", r"pred/000001\.png: a JPEG image: .*lossless"),
+    ("P", "PNG", r"pred/000001\.png: expected .* \(8-bit grey, mode L\), got a palette \(mode P\) PNG; save its "
+                 r"palette indices as grey"),
+    ("LA", "PNG", r"pred/000001\.png: expected .* \(8-bit grey, mode L\), got a grey PNG with an alpha channel "
+                  r"\(mode LA\)"),
+    ("L", "JPEG", r"pred/000001\.png: expected .* \(8-bit grey, mode L\), got a JPEG image \(lossy"),
 ], ids=["palette", "grey-alpha", "jpeg"])
 def test_a_class_prediction_of_another_kind_is_named_for_what_it_is(labelled, tmp_path, mode, file_format, message):
     shutil.copytree(labelled, tmp_path / "d")
