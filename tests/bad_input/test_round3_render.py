@@ -117,9 +117,10 @@ def test_a_class_prediction_of_another_kind_is_named_for_what_it_is(labelled, tm
 
 @pytest.mark.parametrize("name, classes, message", [
     ("300-bogus", [{"id": i, "name": f"bogus{i}"} for i in range(300)],
-     r"dataset\.json: \"classes\" lists 300 classes; .*at most 255"),
+     r"dataset\.json: \"classes\" lists 300 classes; an 8-bit class image holds at most 255"),
     ("renamed", [{"id": 0, "name": "unknown"}, {"id": 1, "name": "lava"}],
-     r"dataset\.json: \"classes\" entry 1 \{'id': 1, 'name': 'lava'\}: .*class 1 is 'ground'"),
+     r"dataset\.json: \"classes\" entry 1 \{'id': 1, 'name': 'lava'\}: not the renderer's class table .*class 1 is "
+     r"'ground'"),
     ("not-a-list", {"ground": 1}, r"dataset\.json: \"classes\" must be a list"),
 ], ids=["300-bogus", "renamed", "not-a-list"])
 def test_an_export_of_a_bogus_class_table_is_refused(labelled, tmp_path, name, classes, message):
