@@ -11,7 +11,8 @@ naming the file (and line) and what was expected.
   (and like the dataset's ``semantic_2`` files: ``000042.png``), each pixel a class id of :mod:`sim.render.classes`;
   a palette PNG is refused, not read by its indices (its colours are what a viewer shows), as are JPEGs (lossy).
 * **Trajectories** (the left camera's camera-to-world poses): TUM (``t tx ty tz qx qy qz qw`` a line, times in
-  seconds on the dataset's clock, ``times.txt``; a subset of the frames is fine) or KITTI (12 numbers a line,
+  seconds on the dataset's clock, ``times.txt``, or Unix seconds as the ``tum`` export writes them; a subset of the
+  frames is fine) or KITTI (12 numbers a line,
   3x4 row-major, one line per frame in order). ``#`` lines and blank lines are skipped.
 """
 
