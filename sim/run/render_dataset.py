@@ -180,7 +180,7 @@ def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, 
     frames and IMU record would not fit on the disk of ``out_dir``, before any file is written."""
     camera = renderer.rig.cameras[0]
     options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
-    missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
+    missing = missing_frames(out_dir, spec, shard)
     processes = min(workers, max(1, missing))
     poses = renderer.options.poses
     imu_samples = imu_sample_count(poses, spec.frame_count)
@@ -198,6 +198,12 @@ def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, 
         raise RenderInputError(str(error)) from None
     memory = max(processes * renderer.memory_bytes(), imu_memory)
     return RunNeeds(processes, memory, disk)
+
+
+def missing_frames(out_dir: Path, spec: DatasetSpec, shard: range) -> int:
+    """How many frames of ``shard`` the dataset in ``out_dir`` (of ``spec``'s sequence) has not recorded yet (all of
+    them where there is none)."""
+    return len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
 
 
 def imu_sample_count(poses: PoseOptions, frame_count: int) -> int:

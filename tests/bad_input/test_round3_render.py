@@ -79,7 +79,7 @@ def test_many_lighting_variants_are_sized_in_all_before_the_first(tmp_path):
         case = Case("render-300-lighting-variants-small-disk", RENDER,
                     ["--scene", "demo:small", "--out", f"{disk}/d", "--frames", "1", "--width", "64", "--height",
                      "48", "--lighting-variants", variants],
-                    r"300 lighting variants x 1 frames of 64x48 pixels x 2 cameras need about .* on disk")
+                    r"300 lighting variants x 1 frames of 64x48 pixels x 2 cameras needs about .* on disk; .* has .* free")
         assert_refused(run_case(case, tmp_path), case, tmp_path)
 
 
