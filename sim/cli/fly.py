@@ -13,9 +13,9 @@ from cliutil.argtypes import finite_number, non_negative_integer, number_within
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
-from sim.drone.sunlight import DEFAULT_START_NOTE
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, MAX_GEOID_UNDULATION_M, NOISE, FlyOptions, FlyReport,
                                flight_folder, refuse_earlier_flight, run_flights, run_session)
+from sim.drone.sunlight import DEFAULT_START_NOTE
 from sim.render.camera import MAX_IMAGE_SIDE_PX
 from sim.render.scene import load_scene
 from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
