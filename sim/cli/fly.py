@@ -138,8 +138,8 @@ def run_fly(args) -> int:
     else:
         reports = run_flights(args.mission, scene, args.out, options)
     if args.start_utc is None:  # said once every check has passed: a refusal stays one line
-        print(f"no --start-utc: took off at {reports[0].start_utc.isoformat()}, {DEFAULT_START_NOTE} (the same "
-              f"whenever it is run; --start-utc {NOW} for this machine's clock)", file=sys.stderr)
+        print(f"no --start-utc: took off at {reports[0].start_utc.isoformat()}, {DEFAULT_START_NOTE}: the same "
+              f"whenever it is run (--start-utc {NOW} for this machine's clock)", file=sys.stderr)
     for number, report in enumerate(reports, start=1):
         folder = args.out if not several else flight_folder(args.out, number)
         print_flight(report, args.mission[number - 1], scene.source, folder)

@@ -28,7 +28,7 @@ DEFAULT_FLIGHT_DATE = dt.date(2024, 3, 20)
 DEFAULT_SOLAR_HOUR = 10
 #: How truth.json and the command line say where the default start comes from.
 DEFAULT_START_NOTE = (f"{DEFAULT_SOLAR_HOUR:02d}:00 local mean solar time over the scene's origin on "
-                      f"{DEFAULT_FLIGHT_DATE.isoformat()} (the March equinox)")
+                      f"{DEFAULT_FLIGHT_DATE.isoformat()}, the March equinox")
 
 
 def default_start_utc(origin: LocalFrame) -> dt.datetime:
