@@ -98,7 +98,8 @@ def fly(mission_csv: _Path, scene: _Path, out_dir: _Path, options: FlyOptions | 
     the ground truth ``truth.json`` + ``truth.csv`` (poses in the home point's ENU metres, OpenCV camera axes).
 
     ``options`` (:class:`FlyOptions`): photo size in pixels, imperfections, seed, ``start_utc`` (an aware datetime:
-    the photos are lit by the real sun at their UTC time, refused when it is down; default now) or a fixed ``sun``,
+    the photos are lit by the real sun at their UTC time, refused when it is down; default 10:00 local mean solar
+    time over the scene on 2024-03-20, the same whenever it is run) or a fixed ``sun``,
     ``photo_limit``, ``overwrite`` (an ``out_dir`` holding an earlier flight is refused unless it is set)...
     Returns the flown mission, its start and what was written. Several missions (an area plan's flights):
     :func:`sim.drone.session.run_flights`.
@@ -107,7 +108,8 @@ def fly(mission_csv: _Path, scene: _Path, out_dir: _Path, options: FlyOptions | 
     from sim.render.scene import load_scene
     from sim.run.render_dataset import resolve_scene_dir
 
-    return run_session(mission_csv, load_scene(resolve_scene_dir(scene)), out_dir, options or FlyOptions())
+    return run_session(mission_csv, load_scene(resolve_scene_dir(scene), with_labels=False), out_dir,
+                       options or FlyOptions())
 
 
 def geotag(photos_dir: _Path, logs: Iterable[_Path], out_csv: _Path, *, clock_offset: float | str = "auto",

@@ -1,6 +1,6 @@
 """Argparse ``type=`` functions for numbers, shared by the command-line tools.
 
-Each returns a float or raises ``argparse.ArgumentTypeError`` saying what was expected, so argparse reports
+Each returns a number or raises ``argparse.ArgumentTypeError`` saying what was expected, so argparse reports
 ``argument --x: expected ..., got 'text'`` instead of ``invalid <function name> value``. NaN and infinities
 are rejected: ``float()`` accepts them, and they break every later comparison.
 """
@@ -36,6 +36,17 @@ def number_within(low: float, high: float, unit: str) -> Callable[[str], float]:
             raise argparse.ArgumentTypeError(f"expected {unit} in [{low:g}, {high:g}], got {text!r}")
         return value
     return within
+
+
+def non_negative_integer(text: str) -> int:
+    """An integer >= 0 (a seed: numpy's generators take no negative one)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text!r}")
+    return value
 
 
 def _float_or_nan(text: str) -> float:

@@ -2,7 +2,8 @@
 stdout.
 
 - :class:`Parser` is an ``argparse.ArgumentParser`` whose errors are one line (``PROG: error: MESSAGE``) instead
-  of the usage block, and which shows defaults in ``--help``; its subparsers are :class:`Parser` too.
+  of the usage block, which shows defaults in ``--help`` and takes ``-45,60,8`` as a value, not an option; its
+  subparsers are :class:`Parser` too.
 - :func:`run_cli` runs a command's body and turns bad input (:class:`BadInput`, ``ValueError``), file-system
   errors (``OSError``: missing, unwritable, full or read-only disk), ``MemoryError``, ``RecursionError`` and Ctrl-C
   into one line on stderr and an exit code, never a traceback.
@@ -16,6 +17,7 @@ import argparse
 import contextlib
 import ctypes
 import os
+import re
 import sys
 from collections.abc import Callable
 from importlib import metadata
@@ -38,12 +40,20 @@ class DefaultsFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
+#: An argument that starts with ``-`` and a digit (or ``-.`` and a digit) is a value, never an option: argparse's own
+#: rule takes only ``-5`` and ``-.5`` so, and refused ``--sun -45,60,8`` with "expected one argument" (no option of
+#: ours starts with a digit).
+NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+
+
 class Parser(argparse.ArgumentParser):
-    """An argument parser with one-line errors and defaults shown in ``--help``."""
+    """An argument parser with one-line errors, defaults shown in ``--help``, and values that start with a minus
+    sign taken as values (:data:`NEGATIVE_VALUE`: ``--sun -45,60,8``, ``--distortion -0.1,0,0,0,0``)."""
 
     def __init__(self, *args, **kwargs):
         kwargs.setdefault("formatter_class", DefaultsFormatter)
         super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_VALUE
 
     def error(self, message: str):
         """Print ``PROG: error: MESSAGE`` (one line, no usage block) and exit with code 2."""

@@ -5,25 +5,48 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import sys
 from pathlib import Path
 
 from capture.track import parse_utc
-from cliutil.argtypes import finite_number, number_within
+from cliutil.argtypes import finite_number, non_negative_integer, number_within
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, MAX_GEOID_UNDULATION_M, NOISE, FlyOptions, FlyReport,
                                flight_folder, refuse_earlier_flight, run_flights, run_session)
+from sim.drone.sunlight import DEFAULT_START_NOTE
+from sim.render.camera import MAX_IMAGE_SIDE_PX
 from sim.render.scene import load_scene
 from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
 
 
+#: ``--start-utc``'s word for the current time (the only way a flight starts "now").
+NOW = "now"
+
+
 def utc_time(text: str) -> dt.datetime:
-    """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``) read by :func:`capture.track.parse_utc` (naive = UTC)."""
+    """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``) read by :func:`capture.track.parse_utc` (naive = UTC), or
+    :data:`NOW`, this machine's clock."""
+    if text == NOW:
+        return dt.datetime.now(dt.timezone.utc)
     try:
         return dt.datetime.fromtimestamp(parse_utc(text), dt.timezone.utc)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an ISO 8601 time like 2024-05-01T10:00:00Z") from None
+        raise argparse.ArgumentTypeError(f"{text!r} is not an ISO 8601 time like 2024-05-01T10:00:00Z, nor "
+                                         f"'{NOW}'") from None
+
+
+def photo_side(text: str) -> int:
+    """``--photo-size``: one side, 1..:data:`~sim.render.camera.MAX_IMAGE_SIDE_PX` pixels."""
+    try:
+        side = int(text)
+    except ValueError:
+        side = 0
+    if not 1 <= side <= MAX_IMAGE_SIDE_PX:
+        raise argparse.ArgumentTypeError(f"expected 1..{MAX_IMAGE_SIDE_PX} pixels a side (the largest image "
+                                         f"rendered, as the dataset render's --width/--height), got {text!r}")
+    return side
 
 
 def add_fly_parser(subparsers) -> None:
@@ -43,8 +66,9 @@ def add_fly_parser(subparsers) -> None:
                         help="if --out holds an earlier flight, delete it first (its photos/, flight.duml + .idx, "
                              "truth.json/.csv, flight_log.csv, flight.srt, and those of its flight_NN/ folders; "
                              "anything else in --out is kept)")
-    parser.add_argument("--photo-size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"),
-                        help="render size in pixels (default 800 600; the Mini SE field of view is kept)")
+    parser.add_argument("--photo-size", nargs=2, type=photo_side, default=(800, 600), metavar=("W", "H"),
+                        help=f"render size in pixels, 1..{MAX_IMAGE_SIDE_PX} a side (default 800 600; the Mini SE "
+                             "field of view is kept)")
     parser.add_argument("--link", choices=LINKS, default="file",
                         help="file: capture with simulated arrival times; loop: through a pyserial loop:// port into "
                              "the live recorder; tcp: stream to --port socket://HOST:PORT (default file)")
@@ -55,16 +79,19 @@ def add_fly_parser(subparsers) -> None:
                                                                   "area, realistic + a GPS fix offset per flight, "
                                                                   "for several; rtk: area on an RTK fixed solution, "
                                                                   "stated in the photos' XMP)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    parser.add_argument("--start-utc", type=utc_time, help="UTC of motors-on (default: now); with several "
-                                                           "--mission, of the first flight, the next ones taking off "
-                                                           f"{BATTERY_SWAP_S:.0f} s after the previous landed")
+    parser.add_argument("--seed", type=non_negative_integer, default=0, help="random seed, >= 0 (default 0)")
+    parser.add_argument("--start-utc", type=utc_time, metavar="ISO8601|now",
+                        help=f"UTC of motors-on, in years 1000-9999, or '{NOW}' (this machine's clock; default: "
+                             f"{DEFAULT_START_NOTE}, the same whenever it is run: said on stderr and in truth.json); "
+                             f"with several --mission, of the first flight, the next ones taking off "
+                             f"{BATTERY_SWAP_S:.0f} s after the previous landed")
     parser.add_argument("--sun", type=flight_sun_value, metavar="SUN",
                         help="the photos' light: AZ,EL,STRENGTH (degrees clockwise from north, degrees above the "
                              "horizon, the paper's strength: 10 lights a surface facing the sun at its full albedo), "
                              "time:ISO8601 (the real sun as if flown from that UTC), overcast (sky light only) or "
                              "unlit (the scene's texture as captured); default: the real sun over the scene at each "
-                             "photo's UTC time (--start-utc + flight time), refused when it is down")
+                             "photo's UTC time (--start-utc + flight time), refused when it is down. A value starting "
+                             "with a minus sign is taken as it is (--sun -45,60,8)")
     parser.add_argument("--home", nargs=2, type=finite_number, metavar=("LAT", "LON"),
                         help="take-off point, WGS84 degrees, on the scene's ground (default: under the first "
                              "waypoint); an area plan's take_off (area.json) for its flights")
@@ -105,12 +132,17 @@ def run_fly(args) -> int:
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
                          home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite)
-    scene = load_scene(resolve_scene_dir(args.scene))
+    scene = load_scene(resolve_scene_dir(args.scene), with_labels=False)
     if not several:
-        print_flight(run_session(args.mission[0], scene, args.out, options), args.mission[0], scene.source, args.out)
-        return 0
-    for number, report in enumerate(run_flights(args.mission, scene, args.out, options), start=1):
-        print_flight(report, args.mission[number - 1], scene.source, flight_folder(args.out, number))
+        reports = [run_session(args.mission[0], scene, args.out, options)]
+    else:
+        reports = run_flights(args.mission, scene, args.out, options)
+    if args.start_utc is None:  # said once every check has passed: a refusal stays one line
+        print(f"no --start-utc: took off at {reports[0].start_utc.isoformat()}, {DEFAULT_START_NOTE}: the same "
+              f"whenever it is run (--start-utc {NOW} for this machine's clock)", file=sys.stderr)
+    for number, report in enumerate(reports, start=1):
+        folder = args.out if not several else flight_folder(args.out, number)
+        print_flight(report, args.mission[number - 1], scene.source, folder)
     return 0
 
 

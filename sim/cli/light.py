@@ -7,14 +7,14 @@ import argparse
 import re
 
 from sim.run.variants import LightingVariant, check_variant_names
-from sim.sampling.light import OVERCAST_AMBIENT, SUN_SYNTAX, SunSetting, parse_sun
+from sim.sampling.light import MAX_SUN_STRENGTH, OVERCAST_AMBIENT, SUN_SYNTAX, SunSetting, parse_sun
 
 #: ``--sun``'s help: the forms and what each means.
 SUN_HELP = ("random: the paper's sun (30-90 deg high, any azimuth, strength 5-10), drawn per frame, a trajectory "
             "keeping frame 0's; AZ,EL,STRENGTH: degrees clockwise from north, degrees above the horizon in (0, 90], "
-            "the paper's strength (>= 0; 10 lights a surface facing the sun at its full albedo); time:ISO8601: the "
-            "real sun over the scene's origin at that UTC time (apparent, refraction-corrected) at its clear-sky "
-            f"strength (10 at the zenith); overcast: sky light only (ambient {OVERCAST_AMBIENT}, no sun, no "
+            f"the paper's strength (0 to {MAX_SUN_STRENGTH:g}; 10 lights a surface facing the sun at its full albedo); "
+            "time:ISO8601: the real sun over the scene's origin at that UTC time (apparent, refraction-corrected) at "
+            f"its clear-sky strength (10 at the zenith); overcast: sky light only (ambient {OVERCAST_AMBIENT}, no sun, no "
             "shadows); unlit: the texture as captured")
 #: A comma that starts the next ``NAME=SUN`` of ``--lighting-variants``: one followed by a name and ``=`` (no form
 #: of the sun holds an ``=``, so the commas inside ``AZ,EL,STRENGTH`` never match).

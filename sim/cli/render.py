@@ -7,11 +7,13 @@ input raises a ``ValueError`` naming the file or option, which :mod:`sim.cli` re
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 from capture.geotag_io import sidecar_path
+from cliutil.argtypes import non_negative_integer
 from cliutil.program import EXIT_INTERRUPTED, Parser
 from cliutil.errors import BadInput
 from cliutil.paths import folder_inputs, refuse_clobbering, refuse_folders
@@ -23,7 +25,8 @@ from sim.cli.export import add_vkitti2_scene_option, layout_list
 from sim.cli.light import SUN_HELP, lighting_variants_value, sun_value
 from sim.motion.imu import DEFAULT_RATE_HZ
 from sim.run.options import (DEFAULT_SIZE, MODES, SCENE_REPLAY_FORMATS, TRAJECTORIES, VIGNETTING_MODELS, CameraEffects,
-                             LightOptions, OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions)
+                             LightOptions, OutputOptions, PoseOptions, RenderOptions, RigOptions, RunOptions,
+                             height_range_problem)
 from sim.run.render_dataset import is_demo_scene, render_dataset
 from sim.run.variants import VARIANTS_JSON, refuse_mixing, render_variants
 
@@ -44,11 +47,13 @@ def margin_value(text: str) -> float | str:
 
 
 def heights_value(text: str) -> tuple[float, float]:
-    """``--heights MIN,MAX``: metres above the ground."""
+    """``--heights MIN,MAX``: metres above the ground (:func:`~sim.run.options.height_range_problem`)."""
     try:
         low, high = (float(part) for part in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected MIN,MAX metres above the ground, got {text!r}") from None
+    if problem := height_range_problem(low, high):
+        raise argparse.ArgumentTypeError(problem)
     return low, high
 
 
@@ -72,8 +77,8 @@ def _distortion(text: str) -> tuple[float, ...]:
         coefficients = tuple(float(value) for value in text.split(","))
     except ValueError:
         coefficients = ()
-    if len(coefficients) != 5:
-        raise argparse.ArgumentTypeError(f"expected five numbers k1,k2,p1,p2,k3, got {text!r}")
+    if len(coefficients) != 5 or not all(math.isfinite(value) for value in coefficients):
+        raise argparse.ArgumentTypeError(f"expected five finite numbers k1,k2,p1,p2,k3, got {text!r}")
     return coefficients
 
 
@@ -153,7 +158,7 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
              f"are identical) and list them in OUT/{VARIANTS_JSON}; SUN as --sun, a comma followed by NAME= starts "
              "the next variant (e.g. morning=time:2026-06-01T06:30:00Z,noon=45,60,8,flat=overcast); NAME: letters, "
              "digits, '-' and '_'")
-    add("--seed", type=int, default=defaults.seed, help="seed of poses, sun and jitter")
+    add("--seed", type=non_negative_integer, default=defaults.seed, help="seed of poses, sun and jitter (>= 0)")
     add("--workers", type=int, default=run_defaults.workers, help="render processes (each builds the scene once)")
     add("--scheduler", default=run_defaults.scheduler,
         help="render the frames as tasks on a Dask cluster: local:N (N worker processes started here) or "

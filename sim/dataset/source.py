@@ -35,6 +35,9 @@ FIXED_START_UNIX_NS = 10**18
 #: A start after this (2255-03-14T16:00:00Z) is refused: it leaves 7 years before int64 nanoseconds end (2262).
 LATEST_START_UNIX_NS = 9 * 10**18
 UNIX_EPOCH = dt.datetime(1970, 1, 1, tzinfo=dt.timezone.utc)
+#: Most classes an 8-bit class image can list: ids 0..254 (255 is the ignore label of the layouts that have one,
+#: Cityscapes' and KITTI's).
+MAX_CLASSES = 255
 
 
 @dataclass(frozen=True)
@@ -65,6 +68,8 @@ class DatasetSource:
         self.layout = KittiLayout(self.root, self.description["sequence"])
         self.records = self._read_records() if planned is None else []
         self.T_rig_cams = [np.asarray(camera["T_rig_cam"], dtype=np.float64) for camera in self.description["cameras"]]
+        if self.has(LABEL_IMAGES["semantic"].format):
+            check_class_table(self.description.get("classes"), self.layout.dataset_json)
 
     def _read_records(self) -> list[dict]:
         path = self.layout.frames_jsonl
@@ -179,6 +184,29 @@ class DatasetSource:
         """The frames in order."""
         for record in self.records:
             yield SourceFrame(self, int(record["frame"]), record)
+
+
+def check_class_table(classes, dataset_json: Path) -> None:
+    """Refuse (:class:`DatasetError` naming ``dataset_json``) a ``classes`` table (``dataset.json``'s) that is not
+    :mod:`sim.render.classes`' (or an earlier part of it): a list of at most :data:`MAX_CLASSES` entries, each an
+    ``{"id", "name", ...}`` of a known class, no id twice. Class images hold those ids and every layout maps them by
+    that table, so another one would be exported as something it is not."""
+    where = f'{dataset_json}: "classes"'
+    if not isinstance(classes, list):
+        raise DatasetError(f'{where} must be a list of {{"id", "name"}} entries (sim/render/classes.py), got '
+                           f"{type(classes).__name__}")
+    if len(classes) > MAX_CLASSES:
+        raise DatasetError(f"{where} lists {len(classes)} classes; an 8-bit class image holds at most {MAX_CLASSES} "
+                           f"(and the renderer's table has {len(CLASSES)}: sim/render/classes.py)")
+    seen = set()
+    for number, entry in enumerate(classes):
+        known = isinstance(entry, dict) and isinstance(entry.get("id"), int) and 0 <= entry["id"] < len(CLASSES)
+        if not known or entry.get("name") != CLASSES[entry["id"]].name or entry["id"] in seen:
+            expected = (f"class {entry['id']} is {CLASSES[entry['id']].name!r}" if known and entry["id"] not in seen
+                        else f"one of the ids 0..{len(CLASSES) - 1} once each")
+            raise DatasetError(f"{where} entry {number} {str(entry)[:80]}: not the renderer's class table "
+                               f"(sim/render/classes.py: {expected})")
+        seen.add(entry["id"])
 
 
 def read_record(path: Path, number: int, line: str) -> dict:

@@ -44,7 +44,9 @@ from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_c
 from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
-from sim.drone.sunlight import FlightLight, check_photos, flight_light, sun_truth
+from sim.drone.sunlight import (DEFAULT_START_NOTE, FlightLight, check_photos, default_start_utc, flight_light,
+                                sun_truth)
+from sim.render.camera import MAX_IMAGE_SIDE_PX
 from sim.render.raycast import default_workers
 from sim.render.renderer import render_memory_bytes
 from sim.render.scene import Scene
@@ -59,13 +61,16 @@ FLIGHT_OUTPUTS = ("photos", CAPTURE_NAME, index_path(CAPTURE_NAME).name, "truth.
                   "flight.srt")
 #: The folders of an area plan's flights (:func:`flight_folder`).
 FLIGHT_FOLDER = re.compile(r"flight_\d{2,}")
-#: JPEG stores a photo's width and height in 16 bits.
-MAX_PHOTO_SIDE_PX = 65535
 #: Largest geoid undulation N accepted (metres, either sign): Earth's geoid lies -107 m (Indian Ocean) to +86 m (New
 #: Guinea) from the WGS84 ellipsoid (EGM2008); beyond it a height above sea level is no height on Earth.
 MAX_GEOID_UNDULATION_M = 150.0
-#: How far past the flight's end its time stamps may reach (the camera clock's offset is seconds at most).
+#: How far beyond the flight's start and end its time stamps may reach (the camera clock's offset is seconds at most).
 TIME_LINE_SLACK_S = 86400.0
+#: The years a flight's time stamps may lie in: EXIF's DateTimeOriginal holds a 4-digit year ("YYYY:MM:DD HH:MM:SS",
+#: which year 1 broke as "1:01:01"), and Python's datetime ends with year 9999. The sun model (PyEphem's VSOP87)
+#: holds over these millennia.
+EARLIEST_UTC = dt.datetime(1000, 1, 1, tzinfo=dt.timezone.utc)
+LATEST_UTC = dt.datetime(9999, 12, 31, 23, 59, 59, 999999, tzinfo=dt.timezone.utc)
 #: Time on the ground between two flights of an area plan (land, swap the battery, re-acquire the fix, take off).
 BATTERY_SWAP_S = 300.0
 
@@ -75,7 +80,9 @@ class FlyOptions:
     """How to fly: render size (px), link, port URL for ``tcp``, pacing speed-up, imperfections, seed, start, and
     ``geoid_undulation_m`` (N: the geoid's height above the WGS84 ellipsoid at the scene, metres) that turns the
     flight's ellipsoidal heights into the heights above sea level the photos and logs carry (h - N). ``seed`` is
-    an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`). ``sun``: the
+    an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`). ``start_utc``:
+    motors on (an aware datetime); None: :func:`sim.drone.sunlight.default_start_utc` over the scene, the same
+    instant whenever it is flown (a live link's clock too). ``sun``: the
     photos' light (:class:`~sim.sampling.light.SunSetting`, not the random form); None: the real sun over the scene
     at each photo's UTC time (:mod:`sim.drone.sunlight`)."""
 
@@ -105,9 +112,9 @@ class FlyOptions:
             raise ValueError(f"link {self.link!r}: expected one of {', '.join(LINKS)}")
         if self.link == "tcp" and not (self.port or "").startswith("socket://"):
             raise ValueError(f"link tcp needs a port socket://HOST:PORT, got {self.port!r}")
-        if not all(0 < side <= MAX_PHOTO_SIDE_PX for side in self.photo_size):
-            raise ValueError(f"photo size must be 1..{MAX_PHOTO_SIDE_PX} pixels a side (JPEG stores each in 16 bits), "
-                             f"got {self.photo_size}")
+        if not all(0 < side <= MAX_IMAGE_SIDE_PX for side in self.photo_size):
+            raise ValueError(f"photo size must be 1..{MAX_IMAGE_SIDE_PX} pixels a side (the largest image rendered: "
+                             f"beyond the largest photogrammetry sensors), got {self.photo_size}")
 
 
 @dataclass
@@ -180,15 +187,33 @@ def stream_to_port(frames: list[Frame], url: str, clock: MissionClock, progress:
     return sent
 
 
+def start_utc_of(options: FlyOptions, scene: Scene) -> dt.datetime:
+    """The flight's motors-on UTC: ``options.start_utc``, else the default over the scene's origin."""
+    return options.start_utc or default_start_utc(scene.origin)
+
+
+def start_utc_from(options: FlyOptions) -> str:
+    """What ``truth.json`` says of where ``start_utc`` comes from."""
+    return "given" if options.start_utc is not None else f"the default: {DEFAULT_START_NOTE}"
+
+
+def check_time_line(start_utc: dt.datetime, duration_s: float) -> None:
+    """Refuse (``ValueError`` naming ``--start-utc``) a flight whose time stamps, from a day before ``start_utc`` to
+    a day after its ``duration_s`` (:data:`TIME_LINE_SLACK_S`: room for the camera clock's offset), leave
+    :data:`EARLIEST_UTC` .. :data:`LATEST_UTC`."""
+    room = dt.timedelta(seconds=TIME_LINE_SLACK_S)
+    if EARLIEST_UTC + room <= start_utc <= LATEST_UTC - room - dt.timedelta(seconds=duration_s):
+        return
+    raise ValueError(f"--start-utc {start_utc.isoformat()}: the {duration_s:.0f} s flight's time stamps (with a "
+                     f"day's room for the camera clock) must lie within years {EARLIEST_UTC.year} to "
+                     f"{LATEST_UTC.year} (EXIF's DateTimeOriginal holds a 4-digit year)")
+
+
 def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOptions, scene: Scene) -> FlightLight:
-    """Refuse (``ValueError``) a session whose time stamps would pass year 9999, whose photo render needs more
-    memory than is free, or whose photos to render have the real sun at or below the horizon, before anything is
-    written. Returns the photos' light."""
-    try:
-        start_utc + dt.timedelta(seconds=mission.flight.duration_s + TIME_LINE_SLACK_S)
-    except OverflowError:
-        raise ValueError(f"start UTC {start_utc.isoformat()}: the {mission.flight.duration_s:.0f} s flight would "
-                         "end after year 9999, the last a time stamp can hold") from None
+    """Refuse (``ValueError``) a session whose time stamps would leave years 1000-9999 (:func:`check_time_line`),
+    whose photo render needs more memory than is free, or whose photos to render have the real sun at or below the
+    horizon, before anything is written. Returns the photos' light."""
+    check_time_line(start_utc, mission.flight.duration_s)
     width, height = options.photo_size
     pixels = width * height
     require_memory(render_memory_bytes([pixels], 1, default_workers()) + 3 * pixels,  # + the JPEG encoder's copy
@@ -199,14 +224,15 @@ def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOpt
     return light
 
 
-def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission: FlownMission | None = None
-                ) -> FlyReport:
+def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission: FlownMission | None = None,
+                start_from: str | None = None) -> FlyReport:
     """Fly (unless ``mission`` is the flown model already), deliver the telemetry, take the photos and write the truth
-    into ``out_dir`` (module docstring)."""
+    into ``out_dir`` (module docstring). ``start_from``: what truth.json says of where the start time comes from
+    (default: :func:`start_utc_from`)."""
     out_dir = Path(out_dir)
     refuse_earlier_flight(out_dir, options.overwrite)
     mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
-    clock = MissionClock(options.speedup, options.start_utc)
+    clock = MissionClock(options.speedup, start_utc_of(options, scene))
     light = check_session(mission, clock.start_utc, options, scene)
     if options.overwrite:
         remove_earlier_flight(out_dir)
@@ -229,7 +255,8 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     sun, photo_suns = sun_truth(light, mission.flight.duration_s, scene.origin)
     write_truth(out_dir, mission.flight, mission.photos, options.seed, gains=rendered.gains, photo_suns=photo_suns,
                 extra={
-        "start_utc": clock.start_utc.isoformat(), "telemetry_clock_note": "UTC = start_utc + t_s",
+        "start_utc": clock.start_utc.isoformat(), "start_utc_from": start_from or start_utc_from(options),
+        "telemetry_clock_note": "UTC = start_utc + t_s",
         "mission_csv": str(mission_csv), "scene": scene.source, "link": options.link,
         "photo_size_px": list(options.photo_size), "camera_K": camera.K.tolist(), "camera": camera_truth(camera),
         "geoid_undulation_m": options.geoid_undulation_m,
@@ -247,25 +274,27 @@ def flight_folder(out_dir, number: int) -> Path:
 
 def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> list[FlyReport]:
     """Fly the flights of an area plan in order, flight k (1-based) into :func:`flight_folder` with the seed
-    ``(options.seed, k)`` (its own gusts, sensor errors and GPS fix offset) and, when ``options.start_utc`` is
-    set, taking off :data:`BATTERY_SWAP_S` after the previous one landed (else each at its own "now"). Every flight
-    is flown as a model and checked (:func:`check_session`: hours later the sun may have set) before the first writes
-    anything; an earlier flight in ``out_dir`` is refused or, with ``options.overwrite``, removed then."""
+    ``(options.seed, k)`` (its own gusts, sensor errors and GPS fix offset), flight 1 at ``options.start_utc`` (or
+    the default, :func:`start_utc_of`) and each next one :data:`BATTERY_SWAP_S` after the previous one landed. Every
+    flight is flown as a model and checked (:func:`check_session`: hours later the sun may have set) before the first
+    writes anything; an earlier flight in ``out_dir`` is refused or, with ``options.overwrite``, removed then."""
     refuse_earlier_flight(out_dir, options.overwrite)
-    flights, start = [], options.start_utc
+    flights, start = [], start_utc_of(options, scene)
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
         mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections, options.home)
         try:
-            check_session(mission, start or dt.datetime.now(dt.timezone.utc), flight_options, scene)
+            check_session(mission, start, flight_options, scene)
         except ValueError as error:
             raise ValueError(f"{mission_csv} (flight {number}): {error}") from None
         flights.append((mission_csv, mission, flight_options))
-        if start is not None:
-            start += dt.timedelta(seconds=mission.flight.duration_s + BATTERY_SWAP_S)
+        start += dt.timedelta(seconds=mission.flight.duration_s + BATTERY_SWAP_S)
     if options.overwrite:
         remove_earlier_flight(out_dir)
-    return [run_session(mission_csv, scene, flight_folder(out_dir, number), flight_options, mission)
+    first_from = start_utc_from(options)
+    return [run_session(mission_csv, scene, flight_folder(out_dir, number), flight_options, mission,
+                        first_from if number == 1 else f"{BATTERY_SWAP_S:.0f} s after flight {number - 1} landed "
+                                                       f"(flight 1: {first_from})")
             for number, (mission_csv, mission, flight_options) in enumerate(flights, start=1)]
 
 

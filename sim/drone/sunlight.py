@@ -1,6 +1,10 @@
 """The light of a flight's photos: by default the real sun over the scene at each photo's own UTC time (``start_utc``
 plus its flight time: the sun moves about 0.25 deg a minute, so a 15-minute flight sees it move by several degrees),
 else one form of ``--sun`` for every photo (:mod:`sim.sampling.light`); and what ``truth.json`` says of it.
+
+Without a start time a flight takes off at :func:`default_start_utc`: 10:00 local mean solar time over the scene's
+origin on the March equinox of 2024, the same instant whenever it is flown (the photos are the same bytes day and
+night), in daylight everywhere but at the poles.
 """
 
 from __future__ import annotations
@@ -15,6 +19,23 @@ from sim.sampling.light import FrameLight, SunSetting, check_daylight, frame_lig
 
 #: What ``truth.json`` keeps of a sun, per photo and at the flight's start and end.
 TRUTH_KEYS = ("azimuth_deg", "elevation_deg", "strength")
+#: The day of the default start: the March equinox of 2024. The sun is then over the equator, so at 10:00 solar time
+#: #: it stands about asin(cos(latitude) cos 30 deg) high at any latitude in either hemisphere alike (40.5 deg at the
+#: demo's 40.2 N, 8.8 deg at 80 deg), where a solstice would leave one hemisphere's high latitudes dark.
+DEFAULT_FLIGHT_DATE = dt.date(2024, 3, 20)
+#: The local mean solar time of the default start: mid-morning, when survey flights are flown: the sun well up, its
+#: shadows still long enough to show relief, and up for hours after (an area plan's flights follow one another).
+DEFAULT_SOLAR_HOUR = 10
+#: How truth.json and the command line say where the default start comes from.
+DEFAULT_START_NOTE = (f"{DEFAULT_SOLAR_HOUR:02d}:00 local mean solar time over the scene's origin on "
+                      f"{DEFAULT_FLIGHT_DATE.isoformat()}, the March equinox")
+
+
+def default_start_utc(origin: LocalFrame) -> dt.datetime:
+    """The UTC of :data:`DEFAULT_SOLAR_HOUR` local mean solar time (UTC + east longitude / 15 deg an hour) over
+    ``origin`` on :data:`DEFAULT_FLIGHT_DATE`, to the whole second: a flight's start when none is given."""
+    solar = dt.datetime.combine(DEFAULT_FLIGHT_DATE, dt.time(DEFAULT_SOLAR_HOUR), dt.timezone.utc)
+    return (solar - dt.timedelta(hours=origin.lon0_deg / 15.0)).replace(microsecond=0)
 
 
 @dataclass(frozen=True)

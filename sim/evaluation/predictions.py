@@ -7,10 +7,12 @@ naming the file (and line) and what was expected.
   prediction: KITTI's disparity and depth PNGs) or ``.exr`` (float32 channel ``Y``, as OpenCV and our dataset
   write it). Files with other extensions are ignored; every frame needs exactly one prediction of the dataset's
   image size.
-* **Class images** (the left camera's classes): one 8-bit grey PNG per frame, named like the frames (and like the
-  dataset's ``semantic_2`` files: ``000042.png``), each pixel a class id of :mod:`sim.render.classes`.
+* **Class images** (the left camera's classes): one 8-bit grey (Pillow mode L) PNG per frame, named like the frames
+  (and like the dataset's ``semantic_2`` files: ``000042.png``), each pixel a class id of :mod:`sim.render.classes`;
+  a palette PNG is refused, not read by its indices (its colours are what a viewer shows), as are JPEGs (lossy).
 * **Trajectories** (the left camera's camera-to-world poses): TUM (``t tx ty tz qx qy qz qw`` a line, times in
-  seconds on the dataset's clock, ``times.txt``; a subset of the frames is fine) or KITTI (12 numbers a line,
+  seconds on the dataset's clock, ``times.txt``, or Unix seconds as the ``tum`` export writes them; a subset of the
+  frames is fine) or KITTI (12 numbers a line,
   3x4 row-major, one line per frame in order). ``#`` lines and blank lines are skipped.
 """
 
@@ -22,6 +24,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from PIL import Image
 from scipy.spatial.transform import Rotation
 
 from cliutil.errors import BadInput
@@ -80,13 +83,17 @@ def read_map(path: Path, shape: tuple[int, int]) -> np.ndarray:
     return values.astype(np.float64)
 
 
+#: What a class prediction of another Pillow mode is, for the message that refuses it.
+OTHER_MODES = {"P": "a palette (mode P) PNG", "LA": "a grey PNG with an alpha channel (mode LA)",
+               "1": "a 1-bit (mode 1) PNG", "RGB": "a colour (mode RGB) PNG",
+               "RGBA": "a colour PNG with an alpha channel (mode RGBA)"}
+
+
 def read_class_image(path: Path, shape: tuple[int, int]) -> np.ndarray:
-    """A predicted class image: (H, W) uint8 class ids of :mod:`sim.render.classes`; refuses a file that is not an
-    8-bit single-channel image of ``shape`` (H, W) or holds ids outside the class table."""
-    image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-    if image is None or image.dtype != np.uint8 or image.ndim != 2:
-        what = "unreadable" if image is None else f"{image.dtype} with shape {image.shape}"
-        raise BadInput(f"{path}: expected an 8-bit single-channel PNG of class ids, got {what}")
+    """A predicted class image: (H, W) uint8 class ids of :mod:`sim.render.classes` from an 8-bit grey (mode L) PNG;
+    refuses another file (named for what it is: a JPEG, lossy; a palette, alpha, colour or 16-bit PNG), one whose
+    size is not ``shape`` (H, W), or one holding ids outside the class table."""
+    image = _class_png(Path(path))
     if image.shape != tuple(shape):
         raise BadInput(f"{path}: {image.shape[1]}x{image.shape[0]} pixels, but the dataset's frames are "
                        f"{shape[1]}x{shape[0]}")
@@ -96,6 +103,26 @@ def read_class_image(path: Path, shape: tuple[int, int]) -> np.ndarray:
         raise BadInput(f"{path}: class id {image[row, column]} at pixel x={column} y={row}; expected the ids "
                        f"0..{len(CLASSES) - 1} of the class table (sim/render/classes.py)")
     return image
+
+
+def _class_png(path: Path) -> np.ndarray:
+    """The pixels of an 8-bit grey PNG; :class:`BadInput` naming what ``path`` is instead."""
+    expected = f"{path}: expected an 8-bit single-channel PNG of class ids (8-bit grey, mode L)"
+    try:
+        with Image.open(path) as image:
+            file_format, mode = image.format, image.mode
+            pixels = np.asarray(image) if (file_format, mode) == ("PNG", "L") else None
+    except (OSError, SyntaxError, ValueError) as error:  # PIL.UnidentifiedImageError is an OSError
+        raise BadInput(f"{expected}, got an unreadable file ({type(error).__name__})") from None
+    if file_format != "PNG":
+        raise BadInput(f"{expected}, got a {file_format} image (lossy, or not a PNG: class ids need a lossless PNG, "
+                       "a lossy format changes them at every edge)")
+    if pixels is None:
+        what = OTHER_MODES.get(mode, f"a 16-bit grey (mode {mode}) PNG" if mode.startswith("I") else
+                               f"a mode {mode} PNG")
+        advice = "; save its palette indices as grey (Pillow: Image.fromarray(np.asarray(image)))" if mode == "P" else ""
+        raise BadInput(f"{expected}, got {what}{advice}")
+    return pixels
 
 
 def _load_map(path: Path) -> np.ndarray:

@@ -13,6 +13,7 @@ from sim.dataset.images import disparity_from_depth
 from sim.dataset.kitti import relative_poses
 from sim.dataset.kitti2015 import visible_in_right
 from sim.dataset.source import LEFT, RIGHT, DatasetSource
+from sim.dataset.writer import DatasetError
 from sim.evaluation import depth as depth_metrics
 from sim.evaluation import disparity as disparity_metrics
 from sim.evaluation import semantic as semantic_metrics
@@ -88,10 +89,26 @@ def _semantic_inputs(source: DatasetSource, folder: Path | None) -> list[Path]:
 def _trajectory_input(source: DatasetSource, path: Path) -> tuple[Path, TrajectoryFile, list[int]]:
     """The trajectory file read and each of its poses' frame."""
     estimate = read_trajectory(path)
-    indices = match_times(estimate, path, np.array([float(record["time_s"]) for record in source.records]))
+    frame_times_s = np.array([float(record["time_s"]) for record in source.records])
+    indices = match_times(estimate, path, frame_times_on_clock_of(estimate, source, frame_times_s))
     if len(indices) < MIN_POSES:
         raise BadInput(f"{path}: {len(indices)} poses match the dataset's frames; at least {MIN_POSES} are needed")
     return path, estimate, indices
+
+
+def frame_times_on_clock_of(estimate: TrajectoryFile, source: DatasetSource, frame_times_s: np.ndarray) -> np.ndarray:
+    """The frames' times (s) on the clock of a TUM ``estimate``: the dataset's (``times.txt``, ``frame_times_s``), or
+    Unix seconds as the ``tum`` export writes them (frame 0 at the dataset's
+    :meth:`~sim.dataset.source.DatasetSource.start_unix_ns`) when the file's first time is nearer that clock."""
+    if estimate.times_s is None or not len(estimate.times_s):
+        return frame_times_s
+    try:
+        start_s = source.start_unix_ns("a TUM trajectory") / 1e9
+    except DatasetError:  # a dataset whose Unix time cannot be written: the export refused it too
+        return frame_times_s
+    first = estimate.times_s[0]
+    return frame_times_s + start_s if abs(first - start_s - frame_times_s[0]) < abs(first - frame_times_s[0]) \
+        else frame_times_s
 
 
 def evaluate_depth(source: DatasetSource, files: list[Path], options: EvaluateOptions) -> dict:

@@ -215,6 +215,11 @@ def look_at(eye_enu, target_enu, up_enu=(0.0, 0.0, 1.0)) -> np.ndarray:
     return pose_from_position(eye, np.stack([x, y, z], axis=1))
 
 
+#: Widest and tallest image rendered (pixels), a dataset's frame or a flight's photo: above the largest photogrammetry
+#: sensors (Phase One iXM-RS150F, 14204 x 10652) and the 8K video of any drone; a 16384 x 16384 stereo frame already
+#: needs about 29.5 GiB of memory, and OpenCV, which reads the images back, refuses images over 2^30 pixels unless
+#: told otherwise.
+MAX_IMAGE_SIDE_PX = 16384
 #: Most samples per pixel: the stratified pattern numbers a pixel's strata in uint16.
 MAX_SAMPLES_PER_PIXEL = 65535
 

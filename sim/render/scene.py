@@ -229,8 +229,10 @@ def _non_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", cross, cross) > 0
 
 
-def read_scene_json(scene_dir: Path) -> dict:
-    """Parse and check ``scene_dir/scene.json``; raise :class:`SceneError` naming the file and field."""
+def read_scene_json(scene_dir: Path, labels: bool = True) -> dict:
+    """Parse and check ``scene_dir/scene.json``; raise :class:`SceneError` naming the file and field. ``labels``
+    False: without its ``labels`` entry, left unchecked (for what renders no class or object images: a broken entry
+    must not refuse a depth render)."""
     path = Path(scene_dir) / "scene.json"
     if not path.is_file():
         raise SceneError(f"{path}: scene.json not found (a scene folder needs scene.json and its mesh)")
@@ -241,6 +243,8 @@ def read_scene_json(scene_dir: Path) -> dict:
     if not isinstance(meta, dict):
         raise SceneError(f"{path}: expected a JSON object {{\"format\": \"{SCENE_FORMAT}\", ...}}, "
                          f"got a {type(meta).__name__}")
+    if not labels:
+        meta.pop("labels", None)
     if meta.get("format") != SCENE_FORMAT:
         raise SceneError(f"{path}: expected \"format\": \"{SCENE_FORMAT}\", got {meta.get('format')!r}")
     for key, expected in (("units", "m"), ("frame", "enu")):
@@ -301,14 +305,16 @@ def _is_polygon(points) -> bool:
                     and all(np.isfinite(p)) for p in points))
 
 
-def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None, labels: SceneLabels | None = None) -> Scene:
+def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None, labels: SceneLabels | None = None,
+               with_labels: bool = True) -> Scene:
     """Load a scene folder (``scene.json`` + mesh) into a ray-castable :class:`Scene`.
 
     Scenes share :func:`shared_device` unless another ``device`` is given. ``labels``: labels of every face of the
-    mesh file to use instead of the ones scene.json names (a labeller's, not yet written).
+    mesh file to use instead of the ones scene.json names (a labeller's, not yet written). ``with_labels`` False:
+    the face labels scene.json names are neither read nor checked (the scene has none).
     """
     scene_dir = Path(scene_dir)
-    meta = read_scene_json(scene_dir)
+    meta = read_scene_json(scene_dir, labels=with_labels)
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
     if "capture_light" in meta:
         surface = replace(surface, capture_light=read_scene_capture_light(scene_dir, meta))
@@ -321,19 +327,20 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None, labels: Sce
 def read_scene_labels(scene_dir: Path, meta: dict, vertices: np.ndarray, faces: np.ndarray) -> SceneLabels | None:
     """The face labels ``scene.json`` (``meta``) names, for the mesh ``vertices`` and ``faces`` as read
     (:func:`read_scene_mesh_enu`); None where it names none. A file that is missing, unreadable or made for another
-    mesh is a :class:`SceneError`."""
+    mesh is a :class:`SceneError` naming scene.json and its ``labels`` entry."""
     if "labels" not in meta:
         return None
-    path = Path(scene_dir) / meta["labels"]["file"]
+    name = meta["labels"]["file"]
+    path, entry = Path(scene_dir) / name, f"{Path(scene_dir) / 'scene.json'}: \"labels\""
     if not path.is_file():
-        raise SceneError(f"{path}: labels file not found (scene.json names it)")
+        raise SceneError(f"{entry}: its file {name!r} is not found in {scene_dir}")
     try:
         labels, labelled_mesh = read_labels(path)
     except ValueError as error:
-        raise SceneError(str(error)) from None
+        raise SceneError(f"{entry}: {error}") from None
     if labelled_mesh != mesh_sha256(vertices, faces):
-        raise SceneError(f"{path}: labels of another mesh than {meta['mesh']} (its SHA-256 differs); label the scene "
-                         f"again (aerostereo-recon labels {scene_dir})")
+        raise SceneError(f"{entry}: {path} labels another mesh than {meta['mesh']} (its SHA-256 differs); label the "
+                         f"scene again (aerostereo-recon labels {scene_dir})")
     return labels
 
 

@@ -86,7 +86,7 @@ class FrameRenderer:
     def __init__(self, scene_dir: Path, options: RenderOptions, threads: int | None = None):
         self.options = options
         try:
-            self.scene = load_scene(scene_dir)
+            self.scene = load_scene(scene_dir, with_labels=needs_labels(options.outputs.formats))
         except SceneError as error:
             raise RenderInputError(str(error)) from None
         refuse_unlabelled(self.scene, scene_dir, options.outputs.formats)

@@ -27,7 +27,7 @@ from pathlib import Path
 from sim.dataset import DEFAULT_FORMATS, needs_disparity
 from sim.drone.exposure import AUTO_EXPOSURE
 from sim.motion.imu import MAX_RATE_HZ as MAX_IMU_RATE_HZ
-from sim.render.camera import MAX_SAMPLES_PER_PIXEL
+from sim.render.camera import MAX_IMAGE_SIDE_PX, MAX_SAMPLES_PER_PIXEL
 from sim.sampling.light import RANDOM_SUN, UNLIT_SUN, SunSetting
 from sim.sampling.random_poses import RandomPoseSettings
 
@@ -35,10 +35,9 @@ MODES = ("random", "trajectory", "replay")
 TRAJECTORIES = ("orbit", "lawnmower", "loop", "flight")
 #: Image size (pixels) where none is given and none comes from a replayed photo.
 DEFAULT_SIZE = (1280, 720)
-#: Widest and tallest image rendered (pixels): above the largest photogrammetry sensors (Phase One iXM-RS150F,
-#: 14204 x 10652) and the 8K video of any drone; a 16384 x 16384 stereo frame already needs about 29.5 GiB
-#: of memory, and OpenCV, which reads the dataset back, refuses images over 2^30 pixels unless told otherwise.
-MAX_IMAGE_SIDE_PX = 16384
+#: Highest random pose above the ground (metres): above any aerial survey (photogrammetry aircraft fly below 10 km),
+#: so that the views' geometry stays within float32 (a height of 1e308 overflowed it in RuntimeWarnings).
+MAX_POSE_HEIGHT_M = 10_000.0
 #: Outputs of a replay at the scene's cameras unless asked otherwise: photos are not rectified (no disparity).
 SCENE_REPLAY_FORMATS = ("depth_exr",)
 
@@ -280,6 +279,8 @@ def check_options(options: RenderOptions) -> None:
         if value is not None and not 1 <= value <= MAX_IMAGE_SIDE_PX:
             problems.append(f"--{name} must be 1..{MAX_IMAGE_SIDE_PX} pixels (beyond the largest photogrammetry "
                             f"sensors), got {value}")
+    if rig.distortion is not None and not all(math.isfinite(value) for value in rig.distortion):
+        problems.append(f"--distortion must be five finite numbers k1,k2,p1,p2,k3, got {list(rig.distortion)}")
     if rig.spp > MAX_SAMPLES_PER_PIXEL:
         problems.append(f"spp must be at most {MAX_SAMPLES_PER_PIXEL} (the sampler numbers a pixel's strata in "
                         f"16 bits), got {rig.spp}")
@@ -287,9 +288,8 @@ def check_options(options: RenderOptions) -> None:
                         ("speed", poses.speed_m_s), ("rate", poses.frame_rate_hz)):
         if not 0 < value < math.inf:
             problems.append(f"{name} must be a positive finite number, got {value}")
-    if poses.height_range_m is not None and not 0 < poses.height_range_m[0] <= poses.height_range_m[1] < math.inf:
-        problems.append("heights must be MIN,MAX metres with 0 < MIN <= MAX (finite), got "
-                        f"{','.join(f'{h:g}' for h in poses.height_range_m)}")
+    if poses.height_range_m is not None and (problem := height_range_problem(*poses.height_range_m)):
+        problems.append(f"--heights: {problem}")
     if poses.margin_m is not None and not 0 <= poses.margin_m < math.inf:
         problems.append(f"margin must be a finite number >= 0, got {poses.margin_m}")
     if not 0 <= poses.max_sky_fraction <= 1:
@@ -307,6 +307,14 @@ def check_options(options: RenderOptions) -> None:
                         "when rendering with --distortion")
     if problems:
         raise RenderInputError("; ".join(problems))
+
+
+def height_range_problem(low_m: float, high_m: float) -> str | None:
+    """What is wrong with random poses' heights ``low_m``..``high_m`` above the ground (None: nothing)."""
+    if 0 < low_m <= high_m <= MAX_POSE_HEIGHT_M:
+        return None
+    return (f"expected MIN,MAX metres above the ground with 0 < MIN <= MAX <= {MAX_POSE_HEIGHT_M:g} (above any aerial "
+            f"survey), got {low_m:g},{high_m:g}")
 
 
 def _imu_problems(poses: PoseOptions) -> list[str]:

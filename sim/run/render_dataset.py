@@ -60,7 +60,7 @@ from sim.run.options import PoseOptions, RenderInputError, RenderOptions, RunOpt
 from sim.run.processes import Job, render_in_processes
 from sim.dataset.imu_file import DISK_BYTES_PER_SAMPLE, MEMORY_BYTES_PER_SAMPLE, write_imu_csv
 from sim.dataset.kitti import KittiLayout
-from sim.dataset.writer import frame_disk_bytes, recorded_frames
+from sim.dataset.writer import frame_disk_bytes, needs_labels, recorded_frames
 from sim.motion.imu import sample_count
 from sim.render.raycast import default_workers
 from sim.render.scene import read_scene_json
@@ -135,7 +135,7 @@ def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOption
                  command_line: Sequence[str]) -> DatasetSpec:
     """The dataset's constant part: rig, origin, frame count, formats, scene provenance, sampling, command line, and
     the scene's ``labels`` entry (how its face labels were found, if it has any)."""
-    meta = read_scene_json(scene_dir)
+    meta = read_scene_json(scene_dir, labels=needs_labels(options.outputs.formats))
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
                                 formats=tuple(options.outputs.formats), scene=scene,
@@ -180,7 +180,7 @@ def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, 
     frames and IMU record would not fit on the disk of ``out_dir``, before any file is written."""
     camera = renderer.rig.cameras[0]
     options_size = f"{camera.width}x{camera.height} pixels x {len(renderer.rig.cameras)} cameras"
-    missing = len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
+    missing = missing_frames(out_dir, spec, shard)
     processes = min(workers, max(1, missing))
     poses = renderer.options.poses
     imu_samples = imu_sample_count(poses, spec.frame_count)
@@ -198,6 +198,12 @@ def _check_resources(renderer: FrameRenderer, spec: DatasetSpec, out_dir: Path, 
         raise RenderInputError(str(error)) from None
     memory = max(processes * renderer.memory_bytes(), imu_memory)
     return RunNeeds(processes, memory, disk)
+
+
+def missing_frames(out_dir: Path, spec: DatasetSpec, shard: range) -> int:
+    """How many frames of ``shard`` the dataset in ``out_dir`` (of ``spec``'s sequence) has not recorded yet (all of
+    them where there is none)."""
+    return len(shard) - sum(index in shard for index in recorded_frames(KittiLayout(out_dir, spec.sequence)))
 
 
 def imu_sample_count(poses: PoseOptions, frame_count: int) -> int:

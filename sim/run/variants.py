@@ -13,16 +13,20 @@ import contextlib
 import json
 import os
 import re
-from collections.abc import Sequence
+import sys
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from cliutil.atomic import write_text_atomic
+from cliutil.errors import BadInput
 from cliutil.jsonfile import read_json
-from sim.dataset.writer import remove_dataset
+from cliutil.resources import format_bytes, require_disk
+from sim.dataset import DatasetSpec, shard_frames
+from sim.dataset.writer import frame_disk_bytes, remove_dataset
 from sim.render.scene import SceneError, read_scene_json
 from sim.run.options import LightOptions, RenderInputError, RenderOptions, check_options
-from sim.run.render_dataset import RenderSummary, render_dataset, resolve_scene_dir
+from sim.run.render_dataset import RenderSummary, missing_frames, render_dataset, resolve_scene_dir
 from sim.sampling.light import SunSetting, frame_light
 
 VARIANTS_JSON = "lighting_variants.json"
@@ -74,7 +78,7 @@ def _check_daylight(scene_dir: Path, variants: Sequence[LightingVariant]) -> Non
     """Refuse a ``time:`` variant whose sun is at or below the horizon over the scene's origin, before any variant is
     rendered."""
     try:
-        origin = read_scene_json(scene_dir)["origin_frame"]
+        origin = read_scene_json(scene_dir, labels=False)["origin_frame"]
     except SceneError as error:
         raise RenderInputError(str(error)) from None
     for variant in variants:
@@ -84,6 +88,28 @@ def _check_daylight(scene_dir: Path, variants: Sequence[LightingVariant]) -> Non
             except ValueError as error:
                 raise RenderInputError(f"--lighting-variants {variant.name}={variant.sun.text}: {error}; give a time "
                                        "when it is up there") from None
+
+
+def _disk_for_all(out_dir: Path, variants: Sequence[LightingVariant], options: RenderOptions,
+                  progress: bool) -> Callable[[DatasetSpec], None]:
+    """A ``check_spec`` for the first variant's render: refuse (:class:`RenderInputError`) variants whose missing frames,
+    all of them, would not fit on the disk of ``out_dir``, before the first frame (each variant's render checks only
+    its own); else say what they need on stderr."""
+    def check(spec: DatasetSpec) -> None:
+        shard = shard_frames(spec.frame_count, *options.run.shard)
+        missing = sum(missing_frames(out_dir / variant.name, spec, shard) for variant in variants)
+        camera = spec.cameras[0]
+        what = (f"{len(variants)} lighting variants x {len(shard)} frames of {camera.width}x{camera.height} pixels x "
+                f"{len(spec.cameras)} cameras")
+        disk = missing * frame_disk_bytes(spec)
+        try:
+            require_disk(out_dir, disk, what)
+        except BadInput as error:
+            raise RenderInputError(str(error)) from None
+        if progress and missing:
+            print(f"{out_dir}: {missing} frames to render in {what}: need about {format_bytes(disk)} on disk in all",
+                  file=sys.stderr)
+    return check
 
 
 def _open_listing(out_dir: Path, variants: Sequence[LightingVariant], overwrite: bool) -> None:
@@ -130,9 +156,11 @@ def render_variants(scene: str | os.PathLike | None, out_dir: str | os.PathLike,
     _open_listing(out_dir, variants, overwrite)
     summaries = []
     try:
-        for variant in variants:
+        for number, variant in enumerate(variants):
             lit = replace(options, light=LightOptions(variant.sun))
-            summaries.append(render_dataset(scene, out_dir / variant.name, lit, command_line, progress, overwrite))
+            check = _disk_for_all(out_dir, variants, options, progress) if number == 0 else None
+            summaries.append(render_dataset(scene, out_dir / variant.name, lit, command_line, progress, overwrite,
+                                            check_spec=check))
     except BaseException:
         if created and not any((out_dir / variant.name).exists() for variant in variants):
             (out_dir / VARIANTS_JSON).unlink(missing_ok=True)

@@ -35,6 +35,9 @@ FORMS = ("random", "fixed", "time", "overcast", "unlit")
 #: an overcast sky of 0.97-0.99 in mean linear level (16 poses at 240x160, two samplings).
 OVERCAST_AMBIENT = 0.97
 OVERCAST_LIGHTING = Lighting(ambient=OVERCAST_AMBIENT, shadows=False)
+#: The strongest fixed sun taken (the paper's units): ten times a clear zenith sun (10), so that a surface of albedo
+#: 0.1 facing it is already white; beyond it every lit pixel saturates, and near 1e308 the light overflowed to NaN.
+MAX_SUN_STRENGTH = 100.0
 #: The renderer's sun of a sky without one (an overcast day): no light, so its direction is moot.
 NO_SUN = Sun(0.0, 90.0, 0.0)
 
@@ -44,7 +47,8 @@ class SunSetting:
     """One form of the sun: ``form`` is one of :data:`FORMS`.
 
     ``fixed``: ``azimuth_deg`` clockwise from north (any finite number, kept in [0, 360)), ``elevation_deg`` above
-    the horizon in (0, 90], ``strength`` >= 0 in the paper's units (5-10 is its range). ``time``: ``utc``, an aware
+    the horizon in (0, 90], ``strength`` in [0, :data:`MAX_SUN_STRENGTH`] in the paper's units (5-10 is its range).
+    ``time``: ``utc``, an aware
     datetime: the real sun there and then (:func:`~sim.sampling.sun.solar_position`) at its clear-sky strength
     (:func:`~sim.sampling.sun.clear_sky_strength`). ``random``, ``overcast``, ``unlit``: nothing else.
     """
@@ -63,9 +67,9 @@ class SunSetting:
                 raise ValueError(f"azimuth must be a finite number of degrees, got {self.azimuth_deg}")
             if not 0.0 < self.elevation_deg <= 90.0:
                 raise ValueError(f"elevation must be in (0, 90] degrees above the horizon, got {self.elevation_deg}")
-            if not 0.0 <= self.strength < math.inf:
-                raise ValueError(f"strength must be a finite number >= 0 (the paper's units, 5-10), got "
-                                 f"{self.strength}")
+            if not 0.0 <= self.strength <= MAX_SUN_STRENGTH:
+                raise ValueError(f"strength must be a finite number >= 0 and at most {MAX_SUN_STRENGTH:g} (the paper's "
+                                 f"units: 5-10, a clear zenith sun 10), got {self.strength}")
             object.__setattr__(self, "azimuth_deg", float(self.azimuth_deg) % 360.0)
         if self.form == "time" and (self.utc is None or self.utc.tzinfo is None):
             raise ValueError(f"the time form needs an aware UTC datetime, got {self.utc!r}")

@@ -200,10 +200,13 @@ def test_export_leaves_the_source_unchanged_and_pykitti_still_loads_it(plane):
 
 # -- TUM / evo --------------------------------------------------------------------------------------------------------
 
-def test_evo_loads_the_tum_trajectory_with_our_times_and_poses(plane):
+def test_evo_loads_the_tum_trajectory_with_unix_times_and_our_poses(plane):
     _, out, _ = plane
+    # no real time in the dataset: frame 0 at the EuRoC export's fixed start, 10**9 Unix seconds
+    lines = (out / "tum/00.txt").read_text().splitlines()[1:]
+    assert [line.split()[0] for line in lines] == [f"1000000000.{i * 100_000_000:09d}" for i in range(FRAMES)]
     trajectory = read_tum_trajectory_file(str(out / "tum/00.txt"))
-    np.testing.assert_allclose(trajectory.timestamps, [0.1 * i for i in range(FRAMES)], atol=1e-9)
+    np.testing.assert_allclose(trajectory.timestamps, [1e9 + 0.1 * i for i in range(FRAMES)], rtol=0, atol=1e-6)
     for index, pose in enumerate(trajectory.poses_se3):
         np.testing.assert_allclose(pose, looking_down_pose(index), atol=1e-9)
 

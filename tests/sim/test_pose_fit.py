@@ -101,9 +101,9 @@ def test_a_scene_nothing_fits_is_refused_naming_what_would(tmp_path, capsys, opt
 
 @pytest.mark.parametrize("value, message", [("10", "expected MIN,MAX metres above the ground, got '10'"),
                                             ("a,b", "expected MIN,MAX metres above the ground, got 'a,b'"),
-                                            ("0,10", "heights must be MIN,MAX metres with 0 < MIN <= MAX"),
-                                            ("30,20", "heights must be MIN,MAX metres with 0 < MIN <= MAX"),
-                                            ("5,inf", "heights must be MIN,MAX metres with 0 < MIN <= MAX")])
+                                            ("0,10", "expected MIN,MAX metres above the ground with 0 < MIN <= MAX"),
+                                            ("30,20", "expected MIN,MAX metres above the ground with 0 < MIN <= MAX"),
+                                            ("5,inf", "expected MIN,MAX metres above the ground with 0 < MIN <= MAX")])
 def test_bad_heights_are_one_line_exit_2(small_scene, tmp_path, capsys, value, message):
     code, _, err = render(small_scene, tmp_path / "d", capsys, f"--heights={value}")
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1, err

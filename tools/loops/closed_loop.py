@@ -91,8 +91,9 @@ class LoopConfig:
     arc_waypoints: int = 0               # 0: the whole orbit
     photo_size: tuple[int, int] = (800, 600)
     noise: str = "realistic"
-    # fly --sun: the live link runs on the host clock (fly gets no --start-utc), so the photos take a fixed sun rather
-    # than the real one of the hour the loop happens to run at (none at night); the sun they had before it existed.
+    # fly --sun: the tcp link runs on the host clock (fly gets --start-utc now: the recorder in the other process stamps
+    # that clock), so the photos take a fixed sun rather than the real one of the hour the loop happens to run at (none
+    # at night); the sun they had before it existed.
     sun: str = "150,50,10"
     link: str = "tcp"
     speedup: float = 1.0
@@ -241,7 +242,8 @@ def fly_over_tcp(fly_args: list[str], capture: Path, log_dir: Path) -> list[Stag
         if not relay.recorder_connected.wait(60):
             never = StageResult("fly", "skipped", detail="not run: the recorder never connected to the relay")
             return [never, finish("record", recorder, timeout_s=0)]
-        drone = run("fly", fly_args + ["--link", "tcp", "--port", relay.url], log_dir)
+        # the recorder stamps this machine's clock: the flight must start "now", not at fly's fixed default
+        drone = run("fly", fly_args + ["--link", "tcp", "--port", relay.url, "--start-utc", "now"], log_dir)
         relay.drone_closed.wait(30 if drone.status == "ok" else 1)
         deadline = time.monotonic() + 30
         while time.monotonic() < deadline and (not capture.exists() or capture.stat().st_size < relay.forwarded):
