@@ -52,10 +52,12 @@ def _ring(text: str) -> Ring:
         raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH], got {text!r}")
     try:
         numbers = [finite_number(p) for p in parts]
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH] with finite numbers, got {text!r}") from None
+    try:
         height_m(parts[1])
     except argparse.ArgumentTypeError as error:
-        raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH] with finite numbers and HEIGHT "
-                                         f"{str(error).removeprefix('expected ')}") from None
+        raise argparse.ArgumentTypeError(f"a ring's HEIGHT is {str(error).removeprefix('expected ')}") from None
     return Ring(numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else None)
 
 
