@@ -13,6 +13,7 @@ replaced segments grew (the segment itself keeps its size).
 
 from __future__ import annotations
 
+import re
 import struct
 from collections.abc import Callable
 
@@ -54,6 +55,34 @@ def split_jpeg(data: bytes) -> tuple[list[bytes], bytes]:
             at = end
 
 
+#: The next marker in entropy-coded data: an 0xFF that is not a stuffed 0xFF00 or a restart marker RST0-7.
+_NEXT_MARKER = re.compile(rb"\xff(?![\x00\xd0-\xd7])")
+
+
+def image_end(data: bytes, at: int) -> int:
+    """The offset just past the ``EOI`` of the image whose first ``SOS`` is at byte ``at``: scans (their
+    entropy-coded data holds 0xFF only stuffed or as a restart marker) and the table segments between them are
+    walked. ValueError naming the byte where the file ends when it ends before ``EOI`` (a truncated photo)."""
+    while at + 2 <= len(data):
+        marker = data[at + 1]
+        if data[at] != 0xFF:
+            raise ValueError(f"JPEG: no marker at byte {at} after the image data (damaged)")
+        if marker == EOI:
+            return at + 2
+        if marker == 0xFF or marker in STANDALONE:  # fill byte; a restart marker between scans
+            at += 1 if marker == 0xFF else 2
+            continue
+        if at + 4 > len(data):
+            break
+        at += 2 + int.from_bytes(data[at + 2:at + 4], "big")
+        if marker == SOS:
+            found = _NEXT_MARKER.search(data, at)
+            if found is None:
+                break
+            at = found.start()
+    raise ValueError(f"JPEG: truncated: the file ends at byte {len(data)} before the image data's EOI marker")
+
+
 def payload_of(segment: bytes, marker: int, header: bytes) -> bytes | None:
     """The payload (after the length) of an APPn segment with ``marker`` whose payload starts with ``header``."""
     return segment[4:] if segment[1] == marker and segment[4:4 + len(header)] == header else None
@@ -71,8 +100,10 @@ def replace_metadata(data: bytes, exif: Callable[[bytes | None], bytes],
                      xmp: Callable[[bytes | None], bytes]) -> bytes:
     """``data`` with its first EXIF APP1 payload (``Exif\\0\\0`` + TIFF) replaced by ``exif(old payload or
     None)`` and its first XMP APP1 payload (after the XMP namespace header) by ``xmp(old packet or None)``; a new
-    EXIF segment goes after a leading JFIF APP0, a new XMP one after the EXIF. Every other byte is copied."""
+    EXIF segment goes after a leading JFIF APP0, a new XMP one after the EXIF. Every other byte is copied.
+    ValueError for a file that ends before its image's ``EOI`` (:func:`image_end`)."""
     segments, image = split_jpeg(data)
+    image_end(data, len(data) - len(image))  # a truncated photo is refused, not copied
     new = list(segments)
     exif_at = next((i for i, s in enumerate(segments) if payload_of(s, APP1, EXIF_HEADER) is not None), None)
     if exif_at is None:

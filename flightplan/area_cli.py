@@ -9,6 +9,7 @@ that fails a check of a single mission (:func:`flightplan.checks.check_mission`)
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from pathlib import Path
 
@@ -36,18 +37,36 @@ def refuse_single_orbit_options(args: argparse.Namespace) -> None:
                            f"the overview into --out")
 
 
-def refuse_output_folder(folder: Path) -> None:
+#: A flight CSV's name as :func:`flightplan.area_outputs.flight_csv_name` writes it.
+_FLIGHT_CSV = re.compile(r"flight_\d{2,}\.csv")
+#: Most plan files a refusal names one by one.
+_NAMED_FILES = 8
+
+
+def is_plan_file(name: str) -> bool:
+    """Whether a file called ``name`` is one that a plan writes into its folder."""
+    return name in OVERVIEW_NAMES or _FLIGHT_CSV.fullmatch(name) is not None
+
+
+def refuse_output_folder(folder: Path, field_path: Path) -> None:
     """:class:`BadInput` if ``folder`` is a file or already holds a plan, or part of one (its flights would mix
-    with stale ones). A run of this version leaves none half-written (:func:`write_area_plan`)."""
+    with stale ones), or holds the field ``field_path`` under a name the plan writes. A run of this version leaves
+    none half-written (:func:`write_area_plan`). The refusal of a half plan names the exact files to delete, which
+    never include the field."""
     if folder.exists() and not folder.is_dir():
         raise BadInput(f"--out {folder}: is a file; with --area, --out is the folder for the flights and overview")
-    if folder.is_dir():
-        taken = sorted(p.name for p in folder.iterdir() if p.name in OVERVIEW_NAMES or p.name.startswith("flight_"))
-        if SUMMARY_NAME in taken:
-            raise BadInput(f"--out {folder}: already holds a plan ({SUMMARY_NAME}); choose an empty folder")
-        if taken:
-            raise BadInput(f"--out {folder}: holds part of a plan ({taken[0]}, no {SUMMARY_NAME}: an interrupted "
-                           "run); delete its flight_* and area.* files, or choose an empty folder")
+    if not folder.is_dir():
+        return
+    if field_path.parent.resolve() == folder.resolve() and is_plan_file(field_path.name):
+        raise BadInput(f"--area {field_path}: lies in --out {folder} under a name the plan writes; move the field "
+                       "elsewhere or choose another --out")
+    taken = sorted(p.name for p in folder.iterdir() if is_plan_file(p.name))
+    if SUMMARY_NAME in taken:
+        raise BadInput(f"--out {folder}: already holds a plan ({SUMMARY_NAME}); choose an empty folder")
+    if taken:
+        more = f" and {len(taken) - _NAMED_FILES} more flight_NN.csv" if len(taken) > _NAMED_FILES else ""
+        raise BadInput(f"--out {folder}: holds part of a plan (no {SUMMARY_NAME}: an interrupted run); delete "
+                       f"{' '.join(taken[:_NAMED_FILES])}{more} there, or choose an empty folder")
 
 
 def request_from_args(args: argparse.Namespace, field) -> AreaRequest:
@@ -73,7 +92,7 @@ def run_area(args: argparse.Namespace) -> int:
     """Plan the field of ``args.area``, check and write every flight; tables on stdout, warnings on stderr."""
     refuse_single_orbit_options(args)
     refuse_clobbering({"--area": args.area}, {"--out": args.out})
-    refuse_output_folder(args.out)
+    refuse_output_folder(args.out, args.area)
     field = read_field(args.area)
     request = request_from_args(args, field)
     orbit = orbit_at(field, np.zeros(2), request, DJI_MINI_SE)  # an orbit failing the checks fails every flight

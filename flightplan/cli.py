@@ -13,10 +13,10 @@ import json
 import sys
 from pathlib import Path
 
-from flightplan import checks, preview
+from flightplan import checks, litchi, preview
 from flightplan.aircraft import DJI_MINI_SE, LEGAL_MAX_HEIGHT_M
 from flightplan.area import DEFAULT_OVERLAP, DEFAULT_TRANSIT_SPEED_M_S
-from cliutil.argtypes import finite_number
+from cliutil.argtypes import finite_number, number_within
 from cliutil.atomic import atomic_paths, write_text_atomic
 from cliutil.errors import BadInput
 from cliutil.program import Parser, add_version, run_cli
@@ -37,6 +37,13 @@ from flightplan.orbit import (
 
 PROGRAM = "aerostereo-mission"
 
+#: Ranges of the options, from Litchi's limits (:mod:`flightplan.litchi`): a waypoint's speed 0.1..15 m/s (0 would
+#: mean the cruise speed), a photo every 0.1..6000 s, heights -200..500 m above take-off; a transit leg at most the
+#: Mini SE's speed. Refused by argparse in one line naming the option and its range.
+SPEED_KMH_RANGE = (round(litchi.MIN_SPEED_M_S * 3.6, 6), round(litchi.MAX_SPEED_M_S * 3.6, 6))
+TRANSIT_SPEED_KMH_RANGE = (SPEED_KMH_RANGE[0], round(DJI_MINI_SE.max_speed_m_s * 3.6, 6))
+height_m = number_within(litchi.MIN_ALTITUDE_M, litchi.MAX_ALTITUDE_M, "metres above take-off")
+
 
 def _ring(text: str) -> Ring:
     """``RADIUS:HEIGHT`` or ``RADIUS:HEIGHT:PITCH`` (metres, metres above take-off, degrees)."""
@@ -47,6 +54,10 @@ def _ring(text: str) -> Ring:
         numbers = [finite_number(p) for p in parts]
     except argparse.ArgumentTypeError:
         raise argparse.ArgumentTypeError(f"a ring is RADIUS:HEIGHT[:PITCH] with finite numbers, got {text!r}") from None
+    try:
+        height_m(parts[1])
+    except argparse.ArgumentTypeError as error:
+        raise argparse.ArgumentTypeError(f"a ring's HEIGHT is {str(error).removeprefix('expected ')}") from None
     return Ring(numbers[0], numbers[1], numbers[2] if len(numbers) == 3 else None)
 
 
@@ -69,7 +80,8 @@ def build_parser() -> argparse.ArgumentParser:
     orbit = parser.add_argument_group("orbit")
     orbit.add_argument("--radius", type=finite_number, metavar="M", help=f"metres (default {DEFAULT_RADIUS_M:g})")
     orbit.add_argument(
-        "--height", type=finite_number, metavar="M", help=f"metres above take-off (default {DEFAULT_HEIGHT_M:g})"
+        "--height", type=height_m, metavar="M",
+        help=f"metres above take-off, {litchi.MIN_ALTITUDE_M:g}..{litchi.MAX_ALTITUDE_M:g} (default {DEFAULT_HEIGHT_M:g})"
     )
     orbit.add_argument(
         "--rings",
@@ -78,9 +90,12 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="R:H[:PITCH]",
         help="several rings instead of --radius/--height; PITCH fixes the gimbal (else it follows the POI)",
     )
-    orbit.add_argument("--speed-kmh", type=finite_number, default=DEFAULT_SPEED_M_S * 3.6, metavar="KMH", help="default 2.5")
+    orbit.add_argument("--speed-kmh", type=number_within(*SPEED_KMH_RANGE, "km/h"), default=DEFAULT_SPEED_M_S * 3.6,
+                       metavar="KMH", help="%g..%g (default 2.5)" % SPEED_KMH_RANGE)
     orbit.add_argument(
-        "--interval", type=finite_number, default=DEFAULT_PHOTO_INTERVAL_S, metavar="S", help="seconds between photos (default 1)"
+        "--interval", type=number_within(litchi.MIN_PHOTO_INTERVAL, litchi.MAX_PHOTO_INTERVAL, "seconds"),
+        default=DEFAULT_PHOTO_INTERVAL_S, metavar="S",
+        help=f"seconds between photos, {litchi.MIN_PHOTO_INTERVAL:g}..{litchi.MAX_PHOTO_INTERVAL:g} (default 1)"
     )
     orbit.add_argument("--waypoints", type=int, metavar="N", help="per ring (default: the fewest within --tolerance)")
     orbit.add_argument(
@@ -92,7 +107,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     orbit.add_argument("--direction", choices=("cw", "ccw"), default="cw", help="seen from above")
     orbit.add_argument("--start-bearing", type=finite_number, default=0.0, metavar="DEG", help="of the first waypoint (default 0)")
-    orbit.add_argument("--poi-height", type=finite_number, default=0.0, metavar="M", help="above take-off (default 0)")
+    orbit.add_argument("--poi-height", type=height_m, default=0.0, metavar="M",
+                       help=f"above take-off, {litchi.MIN_ALTITUDE_M:g}..{litchi.MAX_ALTITUDE_M:g} (default 0)")
     orbit.add_argument(
         "--legal-height", type=finite_number, default=LEGAL_MAX_HEIGHT_M, metavar="M", help="above take-off (default 120: EU/US)"
     )
@@ -100,8 +116,9 @@ def build_parser() -> argparse.ArgumentParser:
     area.add_argument("--area", type=Path, metavar="FIELD", help="field polygon, .kml or .geojson (WGS84); --out is then a folder")
     area.add_argument("--overlap", type=finite_number, default=DEFAULT_OVERLAP, metavar="F",
                       help="fraction of a well-covered disc's diameter shared with each neighbour")
-    area.add_argument("--transit-speed-kmh", type=finite_number, default=DEFAULT_TRANSIT_SPEED_M_S * 3.6, metavar="KMH",
-                      help="between orbits and to/from take-off")
+    area.add_argument("--transit-speed-kmh", type=number_within(*TRANSIT_SPEED_KMH_RANGE, "km/h"),
+                      default=DEFAULT_TRANSIT_SPEED_M_S * 3.6, metavar="KMH",
+                      help="between orbits and to/from take-off, %g..%g" % TRANSIT_SPEED_KMH_RANGE)
     area.add_argument("--home", type=finite_number, nargs=2, metavar=("LAT", "LON"),
                       help="take-off point (default: the centroid of the field's vertices)")
     out = parser.add_argument_group("outputs")

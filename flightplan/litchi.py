@@ -39,9 +39,17 @@ MAX_MISSION_DISTANCE_M = 30_000.0  # cumulative length of all legs [FLim]
 MIN_CURVE_M, MAX_CURVE_M = 0.2, 1000.0  # 0.2 m (the DJI minimum) is what Litchi writes for "no curve"
 CURVE_CLEARANCE_M = 1.0  # curve_i + curve_(i+1) + 1 m <= leg length [HD4N]
 MAX_SPEED_M_S = 15.0
+#: Slowest per-waypoint speed a mission can ask for: 0 means the mission's cruise speed, not a stop ([HD4N];
+#: litchi_wp: "0.1 # stop movement (0 sets cruise speed, so this is the best we can get)").
+MIN_SPEED_M_S = 0.1
 MIN_ALTITUDE_M, MAX_ALTITUDE_M = -200.0, 500.0
 MIN_GIMBAL_PITCH_DEG, MAX_GIMBAL_PITCH_DEG = -90.0, 30.0
 MIN_PHOTO_INTERVAL, MAX_PHOTO_INTERVAL = 0.1, 6000.0
+#: Values nearer zero than this are written as 0: 1e-10 deg is 11 micrometres on the ground, 1e-10 m, s or m/s far
+#: below what Litchi or an aircraft resolves (the smallest number the planner means is the 1e-8 deg POI nudge). So
+#: a number's text holds at most 17 significant digits (as Litchi's own exports) after at most 10 zeros, never
+#: the 300 digits of a 1e-300.
+WRITTEN_AS_ZERO_BELOW = 1e-10
 
 GIMBAL_DISABLED, GIMBAL_FOCUS_POI, GIMBAL_INTERPOLATE = 0, 1, 2
 ROTATION_CW, ROTATION_CCW = 0, 1
@@ -140,18 +148,37 @@ def hub_degrees(value: float) -> float:
 
 
 def format_number(value: float | int) -> str:
-    """Shortest text that reads back to the same float64, positional (never ``1e-05``), ``.`` decimal point."""
+    """Shortest text that reads back to the same float64, positional (never ``1e-05``), ``.`` decimal point; a value
+    nearer zero than :data:`WRITTEN_AS_ZERO_BELOW` (and ``-0.0``) is written ``0``."""
     if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
         return str(int(value))
     value = float(value)
     if not math.isfinite(value):
         raise ValueError(f"cannot write a non-finite number ({value}) into a Litchi CSV")
+    if abs(value) < WRITTEN_AS_ZERO_BELOW:
+        return "0"
     return np.format_float_positional(value, unique=True, trim="-")
+
+
+def written_value(value: float) -> float:
+    """The float a reader of the CSV gets back for ``value``: ``value``, or 0 where :func:`format_number` writes 0."""
+    return float(format_number(value))
+
+
+#: Columns whose 0 means something else to Litchi (the mission's cruise speed; no photos): a value that would be
+#: written as 0 there (:data:`WRITTEN_AS_ZERO_BELOW`) is refused, not silently given that meaning.
+_ZERO_MEANS_OTHER = {"speed_m_s": "the cruise speed", "photo_time_interval_s": "no timed photos",
+                     "photo_dist_interval_m": "no distance photos"}
 
 
 def _row_values(waypoint: Waypoint) -> list[str]:
     if len(waypoint.actions) > MAX_ACTIONS:
         raise ValueError(f"a waypoint holds at most {MAX_ACTIONS} actions, got {len(waypoint.actions)}")
+    for name, meaning in _ZERO_MEANS_OTHER.items():
+        value = getattr(waypoint, name)
+        if value != 0.0 and written_value(value) == 0.0:
+            raise ValueError(f"{name} {value:g} would be written as 0, which Litchi reads as {meaning}; expected 0 "
+                             f"or at least {WRITTEN_AS_ZERO_BELOW:g}")
     padded = list(waypoint.actions) + [(NO_ACTION, 0)] * (MAX_ACTIONS - len(waypoint.actions))
     values = [getattr(waypoint, c.attribute) for c in _BEFORE_ACTIONS]
     values += [v for action in padded for v in (int(action[0]), action[1])]

@@ -256,13 +256,13 @@ def consecutive_overlap(camera: CameraProfile, radius_m: float, height_above_poi
 
 def poi_coordinates(lat_deg: float, lon_deg: float) -> tuple[float, float]:
     """POI latitude/longitude to write: longitude wrapped into [-180, 180); Litchi reads ``0,0`` as "no POI", so a
-    centre there moves 1e-8 deg north.
+    centre written as 0,0 (:func:`flightplan.litchi.written_value`: within 1e-10 deg of it) moves 1e-8 deg north.
 
     1e-8 deg of latitude is 1.1 mm, far below GPS accuracy; the headings still point at the true centre.
     """
     if lon_deg >= 180.0:  # validate_latlon allows up to 360; subtracting keeps in-range values bit-exact
         lon_deg -= 360.0
-    if lat_deg == 0.0 and lon_deg == 0.0:
+    if litchi.written_value(lat_deg) == 0.0 and litchi.written_value(lon_deg) == 0.0:
         return POI_NUDGE_DEG, 0.0
     return lat_deg, lon_deg
 

@@ -11,6 +11,7 @@ clock is read as UTC and geotagging estimates the offset.
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
@@ -18,6 +19,8 @@ from pathlib import Path
 import numpy as np
 from defusedxml import ElementTree as SafeET
 from PIL import ExifTags, Image, UnidentifiedImageError
+
+from cliutil.program import one_line
 
 from ..attitude import wrap_deg
 from ..track import LogFormatError, ReadReport, Track, name_list, position_problem
@@ -72,14 +75,17 @@ def list_photos(folder) -> list[Path]:
 def read_photo(path) -> PhotoInfo:
     """EXIF + XMP of one JPEG. Unreadable parts are listed in ``problems``; a non-image raises LogFormatError."""
     info = PhotoInfo(Path(path))
-    try:
-        with Image.open(info.path) as image:
-            exif = image.getexif()
-            xmp = image.info.get("xmp")
-    except (UnidentifiedImageError, OSError) as error:
-        raise LogFormatError(f"{info.path}: not a readable image ({error})") from None
-    read_exif_time(exif, info)
-    read_exif_gps(exif, info)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            with Image.open(info.path) as image:
+                exif = image.getexif()
+                xmp = image.info.get("xmp")
+        except (UnidentifiedImageError, OSError) as error:
+            raise LogFormatError(f"{info.path}: not a readable image ({error})") from None
+        read_exif_time(exif, info)
+        read_exif_gps(exif, info)
+    note_damaged_exif(caught, info)
     if xmp:
         try:
             values, problems = dji_xmp_values(dji_xmp_text(xmp))
@@ -90,6 +96,19 @@ def read_photo(path) -> PhotoInfo:
             info.problems += [f"XMP: {problem}, ignored" for problem in problems]
     drop_unusable_position(info)
     return info
+
+
+def note_damaged_exif(caught: list[warnings.WarningMessage], info: PhotoInfo) -> None:
+    """Pillow's EXIF parser (``TiffImagePlugin``) warns of a damaged EXIF ("Corrupt EXIF data", "Truncated File
+    Read") and reads on without the rest: each such warning becomes a problem of ``info`` (a counted note of the
+    photos report, not a line of Python's on stderr); any other warning is issued again as it was."""
+    for caught_warning in caught:
+        if Path(caught_warning.filename).name == "TiffImagePlugin.py":
+            info.problems.append(f"EXIF: damaged ({one_line(str(caught_warning.message))}), the fields it held "
+                                 "treated as missing")
+        else:
+            warnings.warn_explicit(caught_warning.message, caught_warning.category, caught_warning.filename,
+                                   caught_warning.lineno)
 
 
 def value_problem(name: str, value: float) -> str | None:

@@ -6,7 +6,6 @@ argument types, and the :class:`~recon.run.pipeline.ReconOptions` they make.
 from __future__ import annotations
 
 import argparse
-import math
 import re
 
 from recon.surface.dense import DenseOptions
@@ -82,14 +81,16 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
 
 
 def sun_direction(text: str) -> tuple[float, float]:
-    """``--capture-sun AZ,EL``: degrees, the elevation in (0, 90]."""
+    """``--capture-sun AZ,EL``: degrees, the azimuth in [-360, 360] (clockwise from north; beyond a turn either way
+    a float's sine and cosine are noise, 1e308 deg names no direction) and the elevation in (0, 90]."""
     parts = text.split(",")
     try:
         azimuth, elevation = (float(part) for part in parts)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected AZ,EL in degrees (e.g. 150,50), got {text!r}") from None
-    if not (math.isfinite(azimuth) and math.isfinite(elevation) and 0 < elevation <= 90):
-        raise argparse.ArgumentTypeError(f"expected a finite azimuth and an elevation in (0, 90] degrees, got {text!r}")
+    if not (-360 <= azimuth <= 360 and 0 < elevation <= 90):  # also refuses NaN and infinities
+        raise argparse.ArgumentTypeError(f"expected an azimuth in [-360, 360] and an elevation in (0, 90] degrees, "
+                                         f"got {text!r}")
     return azimuth, elevation
 
 

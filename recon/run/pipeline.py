@@ -121,9 +121,9 @@ class ReconOptions:
             raise ValueError(f"mesh must be one of {', '.join(MESHES)}, got {self.mesh!r}")
         if self.texture not in TEXTURES:
             raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
-        if self.capture_sun is not None and not (np.all(np.isfinite(self.capture_sun)) and
+        if self.capture_sun is not None and not (-360 <= self.capture_sun[0] <= 360 and
                                                  0 < self.capture_sun[1] <= 90):
-            raise ValueError(f"capture sun must be an azimuth and an elevation in (0, 90] degrees, "
+            raise ValueError(f"capture sun must be an azimuth in [-360, 360] and an elevation in (0, 90] degrees, "
                              f"got {self.capture_sun}")
         if self.capture_utc_offset_h is not None and not -14.0 <= self.capture_utc_offset_h <= 14.0:
             raise ValueError(f"capture UTC offset must be in [-14, +14] hours, got {self.capture_utc_offset_h}")

@@ -32,6 +32,7 @@ from skimage.feature import peak_local_max
 from skimage.segmentation import watershed
 
 from cliutil.atomic import write_text_atomic
+from cliutil.errors import BadInput
 from cliutil.jsonfile import read_json
 from recon.semantics.ground import GroundFilter, GroundSurface, fit_ground
 from cliutil.progress import log_stderr
@@ -41,6 +42,9 @@ from sim.render.labels import FORMAT, LABELS_FILE, SceneLabels, write_labels
 from sim.render.scene import Surface, read_scene_json, read_scene_mesh_enu
 from sim.render.shade import mesh_albedo
 from sim.render.sky_file import mesh_sha256
+
+#: How scene.json's ``labels.method`` starts where the labels are truth, not estimates (a world generator's).
+EXACT_LABELS = "exact"
 
 
 @dataclass(frozen=True)
@@ -204,11 +208,25 @@ def store_labels(scene_dir: Path, meta: dict, options: LabelOptions = LabelOptio
     return report
 
 
+def refuse_exact_labels(scene_dir: Path, meta: dict) -> None:
+    """:class:`BadInput` naming ``scene_dir`` when scene.json's labels are exact (their ``method`` starts with
+    :data:`EXACT_LABELS`, as a world generator writes them: ``sim.worlds.demo.LABELS_METHOD``): estimated labels
+    must not replace the truth they would be scored against."""
+    labels = meta.get("labels")
+    method = labels.get("method") if isinstance(labels, dict) else None
+    if isinstance(method, str) and method.startswith(EXACT_LABELS):
+        raise BadInput(f"{scene_dir}: its labels ({labels.get('file', LABELS_FILE)}) are exact, from the world "
+                       f"generator; estimated ones would replace them. Label a reconstructed scene folder (a twin of "
+                       f"this world) instead")
+
+
 def label_scene_dir(scene_dir: Path, options: LabelOptions, log=log_stderr) -> dict:
     """Label the faces of the scene folder's mesh (:func:`store_labels`) and rewrite its scene.json
-    (atomically) naming the labels; the labeller's report."""
+    (atomically) naming the labels; the labeller's report. A folder whose labels are exact is refused
+    (:func:`refuse_exact_labels`) before anything is written."""
     read_scene_json(scene_dir)  # a folder that is not a scene: SceneError naming the file and what is wrong
     meta = read_json(scene_dir / "scene.json")
+    refuse_exact_labels(scene_dir, meta)
     report = store_labels(scene_dir, meta, options)
     write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
     log(f"[labels] {report['faces']} faces in {report['seconds']} s: {report['classes']}, {report['objects']} "

@@ -100,7 +100,7 @@ CASES = [
          r"already holds a plan \(area\.json\)",
          files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}), area_json=b"{}\n")),
     Case("area-out-holds-half-a-plan", MISSION, ["--area", "{tmp}/f.geojson", "--out", "{tmp}"],
-         r"--out \S+: holds part of a plan \(flight_01\.csv, no area\.json: an interrupted run\); delete its",
+         r"--out \S+: holds part of a plan \(no area\.json: an interrupted run\); delete flight_01\.csv there,",
          lambda tmp: (files(f_geojson=geojson({"type": "Polygon", "coordinates": [SQUARE]}))(tmp),
                       (tmp / "flight_01.csv").write_bytes(b"latitude\n"))),
     Case("area-take-off-too-far", MISSION, ["--area", "{tmp}/f.geojson", "--home", "40.3", "44.5", *OUT],

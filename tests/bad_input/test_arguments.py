@@ -169,7 +169,7 @@ CASES = [
     Case("recon-image-size-word", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--image-size", "big"],
          r"--image-size: invalid positive_int value: 'big'", PHOTOS),
     Case("recon-capture-sun-too-high", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--capture-sun", "150,95"],
-         r"argument --capture-sun: expected a finite azimuth and an elevation in \(0, 90\] degrees, got '150,95'"),
+         r"argument --capture-sun: expected an azimuth in \[-360, 360\] and an elevation in \(0, 90\] degrees, got '150,95'"),
     Case("recon-capture-sun-one-number", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--capture-sun", "150"],
          r"argument --capture-sun: expected AZ,EL in degrees \(e.g. 150,50\), got '150'"),
     Case("recon-capture-utc-offset-not-hhmm", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",

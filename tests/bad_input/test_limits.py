@@ -20,7 +20,7 @@ from PIL import Image
 
 from capture.geotag_io import GEOTAG_COLUMNS
 from flightplan.demo_location import DEMO_ORIGIN
-from flightplan.litchi import write_mission_csv
+from flightplan.litchi import HEADER, mission_to_csv_text, write_mission_csv
 from flightplan.orbit import OrbitRequest, Ring, plan_orbit
 from tests.bad_input.harness import Case, assert_refused, run_case
 
@@ -36,12 +36,17 @@ def write_mission(tmp: Path) -> None:
 
 
 def write_slow_mission(speed_kmh: float):
-    """A writer of the small orbit of :func:`write_mission` flown at ``speed_kmh`` (the planner warns how many
-    batteries it needs and writes it)."""
+    """A writer of the small orbit of :func:`write_mission` flown at ``speed_kmh``, put into the CSV's speed column
+    as Python's shortest text (the planner warns how many batteries it needs and writes it; a speed nearer 0 than
+    its writer's 1e-10 m/s, which it refuses, comes from another program)."""
     def setup(tmp: Path) -> None:
-        request = OrbitRequest(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg, (Ring(5.0, 20.0),),
-                               speed_m_s=speed_kmh / 3.6)
-        write_mission_csv(plan_orbit(request).mission, tmp / "m.csv")
+        text = mission_to_csv_text(plan_orbit(OrbitRequest(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg,
+                                                            (Ring(5.0, 20.0),))).mission)
+        column = HEADER.index("speed(m/s)")
+        rows = [line.split(",") for line in text.splitlines()]
+        for row in rows[1:]:
+            row[column] = repr(speed_kmh / 3.6)
+        (tmp / "m.csv").write_text("\n".join(",".join(row) for row in rows) + "\n")
     return setup
 
 
