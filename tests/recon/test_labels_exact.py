@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from cliutil.errors import BadInput
-from recon.labels import EXACT_LABELS, LabelOptions, refuse_exact_labels
+from recon.semantics.labels import EXACT_LABELS, LabelOptions, refuse_exact_labels
 from sim.worlds.demo import LABELS_METHOD
 
 
