@@ -6,6 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from capture.check import MAP_NAME, REFLY_NAME, REPORT_NAME
+from capture.cli_logs import parse_clock_offset
+from capture.geotag_limits import DEFAULT_MAX_MISFIT_M
+from cliutil.argtypes import positive_number
 
 
 def register(subparsers) -> None:
@@ -20,6 +23,11 @@ def register(subparsers) -> None:
     parser.add_argument("--log", type=Path, action="append", default=[],
                         help="flight log (DUML capture NAME.duml (+ .idx), Litchi/Airdata CSV, DJI SRT); repeatable; "
                              "without it the photos' own EXIF GPS is used and shutter events are not checked")
+    parser.add_argument("--clock-offset", default="auto", type=parse_clock_offset,
+                        help="as geotag's: 'auto' or seconds to add to the camera clock to get telemetry UTC")
+    parser.add_argument("--max-misfit", type=positive_number, default=DEFAULT_MAX_MISFIT_M,
+                        help="as geotag's: largest median distance (m) between the photos' own GPS and their geotags "
+                             "from the logs (default %(default)s)")
     parser.add_argument("--mission", type=Path, help="the Litchi mission CSV flown (its photo legs are the arcs)")
     parser.add_argument("--out", required=True, type=Path, help="folder for the report, the map and the re-fly CSV")
     parser.set_defaults(handler=run)

@@ -56,7 +56,7 @@ def run_check(args) -> int:
     mission = litchi.read_mission_csv(args.mission) if args.mission else None
     photos, photo_report = read_photo_folder(args.photos)
     tracks = [read_track(path) for path in args.log] or [read_track(args.photos)]
-    result = geotag_tracks(photos, tracks)
+    result = geotag_tracks(photos, tracks, clock_offset=args.clock_offset, max_misfit_m=args.max_misfit)
     tagged = time.perf_counter()
     tags = sorted(result.tags, key=lambda tag: tag.time_s)
     plan = PlannedPath(mission, result.origin) if mission else None
