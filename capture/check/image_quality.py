@@ -6,7 +6,7 @@ that keeps the image at least :data:`SCORE_WIDTH_PX` wide), so a 4000x3000 photo
 does. Sharpness is a gradient-energy ratio: the mean squared Laplacian of the grey image over that of the image
 halved (:func:`sharpness`). Blur (motion or defocus) takes the finest scale's energy first, while the amount of
 texture in the scene (forest against lawn) scales both alike; what is left of the scene's part is taken out by
-comparing each photo with its neighbours along the flight (:func:`relative_sharpness`), whose views overlap it.
+comparing each photo with the sharper of its neighbours along the flight (:func:`relative_sharpness`), whose views overlap it.
 """
 
 from __future__ import annotations
@@ -29,6 +29,8 @@ HIGHLIGHT_CODE, SHADOW_CODE = 253, 2
 FOCAL_35MM_TAG, EXIF_IFD_TAG = 0xA405, 0x8769
 #: Photos on each side of a photo whose sharpness it is compared with (:func:`relative_sharpness`).
 NEIGHBOURS = 10
+#: The percentile of the neighbours' sharpness a photo is compared with.
+REFERENCE_PERCENTILE = 75
 #: Scoring threads (PIL's decoder and OpenCV release the GIL).
 SCORING_THREADS = 2
 
@@ -78,12 +80,15 @@ def score_images(paths: list[Path]) -> list[ImageScore]:
 
 
 def relative_sharpness(sharpness: np.ndarray, neighbours: int = NEIGHBOURS) -> np.ndarray:
-    """Each photo's sharpness over the median of its ``neighbours`` on each side (in flight order, itself left
-    out): about 1 for a photo as sharp as the views around it, lower for a blurred one; 1 for a lone photo."""
+    """Each photo's sharpness over the :data:`REFERENCE_PERCENTILE` th percentile of its ``neighbours`` on each
+    side (in flight order, itself left out): about 1 for a photo as sharp as the views around it, lower for a
+    blurred one; 1 for a lone photo. The upper percentile keeps the reference sharp where up to half the
+    neighbours are blurred (a shaky stretch of the flight)."""
     sharpness = np.asarray(sharpness, float)
     ratio = np.ones(len(sharpness))
     for i in range(len(sharpness)):
         around = np.concatenate([sharpness[max(0, i - neighbours):i], sharpness[i + 1:i + 1 + neighbours]])
-        if len(around) and np.median(around) > 0:
-            ratio[i] = sharpness[i] / np.median(around)
+        reference = np.percentile(around, REFERENCE_PERCENTILE) if len(around) else 0.0
+        if reference > 0:
+            ratio[i] = sharpness[i] / reference
     return ratio

@@ -25,9 +25,10 @@ from capture.check.shutter import ShutterCheck
 from capture.geotag import PHOTO_SOURCE, Geotag
 from capture.track import format_utc, name_list
 
-#: A photo whose sharpness is below this share of its neighbours' median is blurred (calibrated on the virtual
-#: drone's blurred photos: docs/at-the-field.md, tools/bench/bench_capture_check.py).
-BLUR_RATIO = 0.7
+#: A photo whose sharpness is below this share of its neighbours' (:func:`relative_sharpness`) is blurred.
+#: Calibrated on the virtual drone's blurred photos (2-12 px at 800x600: 0.44 at most) and the real sets, which
+#: register whole (0.80 at least): docs/at-the-field.md, tools/bench/bench_capture_check.py.
+BLUR_RATIO = 0.65
 #: A photo with more than this share of its pixels clipped at white (or at black) has lost too much of the scene for
 #: its features: an oblique photo's sky (or a demo world's background beyond its edge) often clips, and a tenth of
 #: the frame lost to it does not stop a photo from registering.
