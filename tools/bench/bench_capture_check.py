@@ -31,8 +31,9 @@ from flightplan.orbit import OrbitRequest, plan_orbit  # noqa: E402
 #: Blur lengths (px at 800x600) flown, each on a window of BLUR_PHOTOS photos.
 BLUR_LENGTHS = (2.0, 3.0, 5.0, 8.0)
 BLUR_PHOTOS = 4
-#: The default orbit's first photo: motors on, 2 s on the ground, a 15 s climb to 30 m (flight seconds).
-FIRST_PHOTO_S = 17.9
+#: The default orbit's first photo (flight seconds since motors on; its truth.json says 18.0: 2 s on the ground, a
+#: 15 s climb to 30 m, then the first interval).
+FIRST_PHOTO_S = 18.0
 BIG_SIZE = (4000, 3000)
 
 
@@ -45,7 +46,7 @@ def fault_options(photos: int) -> list[str]:
         options += ["--blur", f"{start:.1f},{start + BLUR_PHOTOS - 0.5:.1f},{length:g}"]
     for slot in (len(BLUR_LENGTHS), len(BLUR_LENGTHS) + 1):
         start = FIRST_PHOTO_S + (slot + 0.5) * photos / slots
-        options += ["--skip-shots", f"{start:.1f},{start + 0.6:.1f}"]
+        options += ["--skip-shots", f"{start:.1f},{start + 0.95:.2f}"]  # one shot at a 1 s interval
     return options
 
 
