@@ -142,16 +142,18 @@ class ArcFinding:
         return bool(self.skipped_shots or self.gaps or self.flagged or self.short)
 
 
-def arc_findings(plan: PlannedPath, photos: list[PhotoFinding], shutter: ShutterCheck,
+def arc_findings(plan: PlannedPath, photos: list[PhotoFinding], shutter: ShutterCheck | None,
                  position_at: callable) -> list[ArcFinding]:
-    """Each arc's counts: photos and flagged photos by their arc, skipped shots and gap middles placed on the path
-    by ``position_at(times_s) -> (N,2)`` east/north (m)."""
+    """Each arc's counts: photos and flagged photos by their arc, skipped shots and gap middles (None without a log)
+    placed on the path by ``position_at(times_s) -> (N,2)`` east/north (m)."""
     arcs = {arc.number: ArcFinding(arc.number, arc.first_waypoint, arc.expected_photos) for arc in plan.arcs}
     for photo in photos:
         if photo.arc in arcs:
             arcs[photo.arc].photos += 1
             if photo.flags:
                 arcs[photo.arc].flagged.append(photo.tag.image_name)
+    if shutter is None:  # no log: no shutter events to place
+        return list(arcs.values())
     gap_middles = np.array([0.5 * (gap.start_s + gap.end_s) for gap in shutter.gaps])
     for times, attribute in ((shutter.skipped_s, "skipped_shots"), (gap_middles, "gaps")):
         for number in plan.arc_numbers(position_at(times)) if len(times) else []:

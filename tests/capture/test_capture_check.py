@@ -25,6 +25,7 @@ from flightplan.geodesy import LocalFrame
 from flightplan.orbit import OrbitRequest, plan_orbit
 from sim.cli import main as render_main
 from sim.drone.photo_faults import motion_blur
+from tests.conftest import SHARED_DATA
 from tests.flightplan.test_litchi_csv import RESEARCH_HEADER
 from tests.sim.drone_helpers import short_orbit_csv
 
@@ -100,6 +101,21 @@ def test_blur_drops_the_sharpness_ratio_below_the_limit_and_texture_alone_does_n
     assert ratios[2] < BLUR_RATIO and np.all(np.delete(ratios, 2) > BLUR_RATIO)
 
 
+@pytest.mark.parametrize("data_set", ["brighton_beach", "p4m_rtk"])
+def test_real_sets_that_register_whole_are_complete_without_a_log(data_set, tmp_path, capsys):
+    """Both real sets register every photo in recon (docs/recon.md: 18/18, 32/32): the check, from the photos' own
+    EXIF GPS, flags none of them and says what it could not check without a log or a mission."""
+    photos = SHARED_DATA / data_set / "images"
+    if not photos.is_dir():
+        pytest.skip(f"real sample data not found at {SHARED_DATA}")
+    assert ingest_main(["check", "--photos", str(photos), "--out", str(tmp_path)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["verdict"] == "complete" and report["shutter"] is None and report["arcs"] == []
+    assert all(not photo["flags"] for photo in report["photo_scores"])
+    assert report["photos"]["geotagged"] == len(list(photos.glob("*.JPG")))
+    assert any("skipped shots" in item for item in report["not_checked"])
+
+
 # --- end to end: virtual flights -----------------------------------------------------------------------------------
 
 #: The faulty flight's faults: motion blur on its first arc, a skipped shot on its third (flight seconds).
@@ -172,3 +188,15 @@ def test_the_refly_csv_covers_exactly_the_gap_arcs_and_passes_the_checks(flights
     assert legs == {(mission.waypoints[arc.first_waypoint].latitude_deg,
                      mission.waypoints[arc.first_waypoint].longitude_deg) for arc in plan.arcs
                     if arc.number in gap_arcs}
+
+
+@pytest.mark.slow
+def test_without_a_log_the_blur_is_still_named_and_the_skipped_shot_is_said_unchecked(flights, capsys):
+    mission_csv, results = flights
+    truth, _, _, folder = results["faulty"]
+    assert ingest_main(["check", "--photos", str(folder / "photos"), "--mission", str(mission_csv),
+                        "--out", str(folder / "check_without_log")]) == 0
+    report = json.loads(capsys.readouterr().out)
+    blurred = {name for fault in truth["faults"] if fault["kind"] == "motion_blur" for name in fault["photos"]}
+    assert {photo["name"] for photo in report["photo_scores"] if photo["flags"]} == blurred
+    assert report["shutter"] is None and any("skipped shots" in item for item in report["not_checked"])
