@@ -69,7 +69,7 @@ def run_check(args) -> int:
     overlaps = neighbour_overlaps(enu, [tag.R_world_cam for tag in tags], [s.size_px for s in scores], focal)
     by_name = {photo.name: photo for photo in photos}
     misfits = own_gps_misfits(tags, [by_name[tag.image_name] for tag in tags]) if args.log else {}
-    findings = photo_findings(tags, scores, misfits, overlaps, plan)
+    findings = photo_findings(tags, scores, misfits, overlaps, plan, dict(result.from_photos))
     shutter = shutter_check(tracks, tags, plan) if args.log else None
     position_at = positions_along(tags)
     arcs = arc_findings(plan, findings, shutter, position_at) if plan else []

@@ -2,14 +2,16 @@
 
 A photo is flagged when it is blurred (sharpness below :data:`BLUR_RATIO` of its neighbours'), clipped (more than
 :data:`CLIPPED_SHARE` of its pixels at white or at black), tagged from its own GPS because the logs could not tag
-it (:data:`capture.geotag.PHOTO_SOURCE`), its gimbal more than :data:`GIMBAL_TOLERANCE_DEG` off the mission's
+it because its own GPS disagreed with them by more than a consumer GPS can (:data:`capture.geotag.OWN_GPS_DISAGREES`;
+one the logs had no position for, in a link dropout, keeps its own GPS unflagged), its gimbal more than :data:`GIMBAL_TOLERANCE_DEG` off the mission's
 pitch, or its footprint less than :data:`MIN_OVERLAP` seen by either neighbour. The capture is complete when no
 photo is flagged or untagged, no shot was skipped, no shutter gap was left (with a log), and every arc of the
 mission holds at least :data:`MIN_ARC_SHARE` of its planned photos. An arc needs flying again when it holds a
 flagged photo, a skipped shot, the middle of a gap, or too few photos.
 
 Each photo's ``score`` is its worst measure over its threshold (1 at a threshold, below 1 flagged, capped at
-:data:`SCORE_CAP`): what the map colours.
+:data:`SCORE_CAP`; a photo flagged for its GPS, which has no measure against a limit here, at most 0.5): what the map
+colours.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import numpy as np
 from capture.check.image_quality import ImageScore, relative_sharpness
 from capture.check.plan import PlannedPath
 from capture.check.shutter import ShutterCheck
-from capture.geotag import PHOTO_SOURCE, Geotag
+from capture.geotag import OWN_GPS_DISAGREES, Geotag
 from capture.track import format_utc, name_list
 
 #: A photo whose sharpness is below this share of its neighbours' (:func:`relative_sharpness`) is blurred.
@@ -56,6 +58,7 @@ class PhotoFinding:
     gps_misfit_m: float  # its own GPS against its geotag from the logs, horizontal (NaN if either is missing)
     planned_pitch_deg: float
     overlap: float  # the larger share of its footprint one neighbour sees
+    own_gps_reason: str | None = None  # why the logs did not tag it (it was tagged from its own GPS), else None
     flags: dict[str, str] = field(default_factory=dict)  # kind (blur, highlights, ...) -> what was found
     score: float = SCORE_CAP
 
@@ -68,7 +71,7 @@ class PhotoFinding:
                 "shadows": rounded(self.shadows, 4), "gps_misfit_m": rounded(self.gps_misfit_m, 2),
                 "gimbal_pitch_deg": rounded(float(tag.gimbal_ypr_deg[1]), 1),
                 "planned_pitch_deg": rounded(self.planned_pitch_deg, 1), "overlap": rounded(self.overlap, 3),
-                "score": round(self.score, 3), "flags": self.flags}
+                "score": round(self.score, 3), "flags": self.flags, "own_gps_reason": self.own_gps_reason}
 
 
 def rounded(value: float, digits: int) -> float | None:
@@ -77,9 +80,11 @@ def rounded(value: float, digits: int) -> float | None:
 
 
 def photo_findings(tags: list[Geotag], scores: list[ImageScore], gps_misfits: dict[str, tuple[float, float]],
-                   overlaps: tuple[np.ndarray, np.ndarray], plan: PlannedPath | None) -> list[PhotoFinding]:
+                   overlaps: tuple[np.ndarray, np.ndarray], plan: PlannedPath | None,
+                   own_gps_reasons: dict[str, str]) -> list[PhotoFinding]:
     """Measure and flag each photo (``tags`` in flight order, ``scores`` and ``overlaps`` (previous, next) in the
-    same order; ``gps_misfits`` by name as :func:`capture.geotag.own_gps_misfits` gives them)."""
+    same order; ``gps_misfits`` by name as :func:`capture.geotag.own_gps_misfits` gives them, ``own_gps_reasons``
+    by name for the photos tagged from their own GPS, as ``GeotagResult.from_photos`` gives them)."""
     enu = np.array([tag.enu_m for tag in tags]).reshape(-1, 3)
     ratio = relative_sharpness([score.sharpness for score in scores])
     arcs = plan.arc_numbers(enu[:, :2]) if plan else np.zeros(len(tags), int)
@@ -88,7 +93,8 @@ def photo_findings(tags: list[Geotag], scores: list[ImageScore], gps_misfits: di
     findings = []
     for i, (tag, score) in enumerate(zip(tags, scores)):
         finding = PhotoFinding(tag, int(arcs[i]), float(ratio[i]), score.highlights, score.shadows,
-                               gps_misfits.get(tag.image_name, (math.nan,))[0], float(pitch[i]), float(best_overlap[i]))
+                               gps_misfits.get(tag.image_name, (math.nan,))[0], float(pitch[i]), float(best_overlap[i]),
+                               own_gps_reasons.get(tag.image_name))
         flag_photo(finding)
         findings.append(finding)
     return findings
@@ -115,8 +121,8 @@ def flag_photo(finding: PhotoFinding) -> None:
             finding.score = min(finding.score, value)
             if value < 1.0:
                 finding.flags[kind] = text
-    if finding.tag.source == PHOTO_SOURCE:
-        finding.flags["gps"] = "the logs could not tag it: tagged from its own consumer GPS"
+    if finding.own_gps_reason and finding.own_gps_reason.startswith(OWN_GPS_DISAGREES):
+        finding.flags["gps"] = finding.own_gps_reason
         finding.score = min(finding.score, 0.5)
     finding.score = max(0.0, finding.score)
 

@@ -16,8 +16,9 @@ from capture.check.overlap import neighbour_overlaps
 from capture.check.plan import PlannedPath
 from capture.check.refly import leg_runs, refly_mission
 from capture.check.shutter import check_shutter
-from capture.check.verdict import BLUR_RATIO
+from capture.check.verdict import BLUR_RATIO, PhotoFinding, flag_photo
 from capture.cli import main as ingest_main
+from capture.geotag import OWN_GPS_DISAGREES, PHOTO_SOURCE, Geotag
 from flightplan import litchi
 from flightplan.checks import ERROR, check_mission
 from flightplan.demo_location import DEMO_ORIGIN
@@ -200,3 +201,15 @@ def test_without_a_log_the_blur_is_still_named_and_the_skipped_shot_is_said_unch
     blurred = {name for fault in truth["faults"] if fault["kind"] == "motion_blur" for name in fault["photos"]}
     assert {photo["name"] for photo in report["photo_scores"] if photo["flags"]} == blurred
     assert report["shutter"] is None and any("skipped shots" in item for item in report["not_checked"])
+
+
+@pytest.mark.parametrize("reason, flagged", [
+    (f"{OWN_GPS_DISAGREES} 14.2 m horizontally and 0.3 m in height from the logs' position at its time", True),
+    ("in a telemetry gap of 3.10 s (limit 2 s)", False), (None, False)])
+def test_gps_is_flagged_where_the_photo_s_own_gps_disagreed_with_the_logs_not_in_a_dropout(reason, flagged):
+    tag = Geotag("DJI_0001.JPG", 0.0, "event", PHOTO_SOURCE if reason else "duml/event", 40.0, 44.0, 30.0, 1030.0,
+                 np.zeros(3), np.array([0.0, -31.0, 0.0]), np.array([0.0, 0.0, 30.0]), None)
+    finding = PhotoFinding(tag, 1, 1.0, 0.0, 0.0, 0.0, -31.0, 0.9, reason)
+    flag_photo(finding)
+    assert ("gps" in finding.flags) == flagged and len(finding.flags) == int(flagged)
+    assert (finding.score < 1.0) == flagged
