@@ -15,6 +15,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,11 +28,11 @@ from capture.check.plan import PlannedPath
 from capture.check.refly import write_refly
 from capture.check.shutter import ShutterCheck, check_shutter
 from capture.check.verdict import arc_findings, photo_findings, reasons
-from capture.geotag import own_gps_misfits
+from capture.geotag import Geotag, GeotagResult, own_gps_misfits
 from capture.geotag_folder import geotag_tracks, read_photo_folder
 from capture.logs import read_track
 from capture.raw import index_path
-from capture.track import format_utc
+from capture.track import ReadReport, format_utc
 from cliutil.atomic import write_text_atomic
 from cliutil.errors import BadInput
 from cliutil.paths import folder_inputs, path_problem, refuse_clobbering, refuse_folders
@@ -47,63 +48,105 @@ WITHOUT_MISSION = ["photos per arc, arcs short of photos and the re-fly CSV (no 
                    "gimbal pitch against the plan"]
 
 
+@dataclass
+class Capture:
+    """What the check reads: the mission (None without one) and its planned path, the photos on the card and the
+    read report, the logs' tracks (the photos' own without a log), the geotags in flight order."""
+
+    mission: litchi.Mission | None
+    plan: PlannedPath | None
+    photos: list
+    photo_report: ReadReport
+    tracks: list
+    result: GeotagResult
+    tags: list[Geotag]
+
+
 def run_check(args) -> int:
     """Check the capture (module docstring); print the report (stdout) and the verdict (stderr)."""
     started = time.perf_counter()
     outputs = {name: args.out / file for name, file in
                (("--out's report", REPORT_NAME), ("--out's map", MAP_NAME), ("--out's re-fly CSV", REFLY_NAME))}
     check_inputs(args, outputs)
-    mission = litchi.read_mission_csv(args.mission) if args.mission else None
-    photos, photo_report = read_photo_folder(args.photos)
-    tracks = [read_track(path) for path in args.log] or [read_track(args.photos)]
-    result = geotag_tracks(photos, tracks, clock_offset=args.clock_offset, max_misfit_m=args.max_misfit)
+    capture = read_capture(args)
     tagged = time.perf_counter()
-    tags = sorted(result.tags, key=lambda tag: tag.time_s)
-    plan = PlannedPath(mission, result.origin) if mission else None
-    if plan is not None:
-        refuse_other_place(plan, tags, args.mission)
-    scores = score_images([args.photos / tag.image_name for tag in tags])
+    scores = score_images([args.photos / tag.image_name for tag in capture.tags])
     scored = time.perf_counter()
-    focal = np.array([focal_length_px(score.size_px, score.focal_35mm, DJI_MINI_SE.camera) for score in scores])
-    enu = np.array([tag.enu_m for tag in tags]).reshape(-1, 3)
-    overlaps = neighbour_overlaps(enu, [tag.R_world_cam for tag in tags], [s.size_px for s in scores], focal)
-    by_name = {photo.name: photo for photo in photos}
-    misfits = own_gps_misfits(tags, [by_name[tag.image_name] for tag in tags]) if args.log else {}
-    findings = photo_findings(tags, scores, misfits, overlaps, plan, dict(result.from_photos))
-    shutter = shutter_check(tracks, tags, plan) if args.log else None
-    position_at = positions_along(tags)
-    arcs = arc_findings(plan, findings, shutter, position_at) if plan else []
-    why = reasons(findings, result.untagged, shutter, arcs)
-    refly_arcs = [arc for arc in arcs if arc.needs_refly]
-    report = {
-        "verdict": "incomplete" if why else "complete", "reasons": why,
-        "photos": {"on_card": len(photos) + len(photo_report.rejected), "geotagged": len(tags),
-                   "untagged": [{"name": name, "reason": reason} for name, reason in result.untagged],
-                   "unreadable": [str(problem) for problem in photo_report.rejected]},
-        "geotags": {"origin": result.origin.to_dict(), "clock": result.clock.summary(), "notes": result.notes},
-        "shutter": shutter_summary(shutter),
-        "arcs": [arc_dict(arc, plan) for arc in arcs],
-        "refly": None,
-        "not_checked": (WITHOUT_LOG if not args.log else WITHOUT_LOG[2:]) + (WITHOUT_MISSION if not plan else []),
-        "photo_scores": [finding.to_dict() for finding in findings],
-    }
+    findings = measure_photos(capture, scores, with_log=bool(args.log))
+    shutter = shutter_check(capture.tracks, capture.tags, capture.plan) if args.log else None
+    position_at = positions_along(capture.tags)
+    arcs = arc_findings(capture.plan, findings, shutter, position_at) if capture.plan else []
+    report = build_report(capture, findings, shutter, arcs, with_log=bool(args.log))
     args.out.mkdir(parents=True, exist_ok=True)
-    if refly_arcs:
-        warnings = write_refly(mission, [arc.first_waypoint for arc in refly_arcs], outputs["--out's re-fly CSV"])
-        report["refly"] = {"csv": str(outputs["--out's re-fly CSV"]), "arcs": [arc.number for arc in refly_arcs],
-                           "mission_warnings": warnings}
-    line = verdict_line(report, len(tags))
+    write_refly_if_needed(capture.mission, arcs, outputs["--out's re-fly CSV"], report)
     skipped_en = position_at(shutter.skipped_s) if shutter is not None else np.zeros((0, 2))
     gap_en = [position_at(np.array([gap.start_s, gap.end_s])) for gap in shutter.gaps] if shutter is not None else []
-    draw_map(outputs["--out's map"], findings, plan, arcs, skipped_en, gap_en, map_title(report, findings))
+    draw_map(outputs["--out's map"], findings, capture.plan, arcs, skipped_en, gap_en, map_title(report, findings))
     report["outputs"] = {"report": str(outputs["--out's report"]), "map": str(outputs["--out's map"])}
     report["seconds"] = {"geotag": round(tagged - started, 2), "score": round(scored - tagged, 2),
                          "total": round(time.perf_counter() - started, 2)}
     text = json.dumps(report, indent=1) + "\n"
     write_text_atomic(outputs["--out's report"], text)
     print(text, end="")
-    print(line, file=sys.stderr)
+    print(verdict_line(report, len(capture.tags)), file=sys.stderr)
     return 0
+
+
+def read_capture(args) -> Capture:
+    """Read the mission, the photos and the logs, geotag the photos; refuse a mission not of the photos' place."""
+    mission = litchi.read_mission_csv(args.mission) if args.mission else None
+    if mission is not None and not any(row.photo_time_interval_s > 0 for row in mission.waypoints[:-1]):
+        raise BadInput(f"--mission {args.mission}: no leg takes timed photos (photo_timeinterval > 0); expected "
+                       "the mission the photos were taken on")
+    photos, photo_report = read_photo_folder(args.photos)
+    tracks = [read_track(path) for path in args.log] or [read_track(args.photos)]
+    result = geotag_tracks(photos, tracks, clock_offset=args.clock_offset, max_misfit_m=args.max_misfit)
+    tags = sorted(result.tags, key=lambda tag: tag.time_s)
+    plan = PlannedPath(mission, result.origin) if mission else None
+    if plan is not None:
+        refuse_other_place(plan, tags, args.mission)
+    return Capture(mission, plan, photos, photo_report, tracks, result, tags)
+
+
+def measure_photos(capture: Capture, scores, with_log: bool) -> list:
+    """Each geotagged photo's findings (:func:`capture.check.verdict.photo_findings`) from its image ``scores``, its
+    footprint's overlaps and, with a log, its own GPS against its geotag."""
+    tags = capture.tags
+    focal = np.array([focal_length_px(score.size_px, score.focal_35mm, DJI_MINI_SE.camera) for score in scores])
+    enu = np.array([tag.enu_m for tag in tags]).reshape(-1, 3)
+    overlaps = neighbour_overlaps(enu, [tag.R_world_cam for tag in tags], [s.size_px for s in scores], focal)
+    by_name = {photo.name: photo for photo in capture.photos}
+    misfits = own_gps_misfits(tags, [by_name[tag.image_name] for tag in tags]) if with_log else {}
+    return photo_findings(tags, scores, misfits, overlaps, capture.plan, dict(capture.result.from_photos))
+
+
+def build_report(capture: Capture, findings, shutter: ShutterCheck | None, arcs, with_log: bool) -> dict:
+    """The report (module docstring of :mod:`capture.check`; ``refly``, ``outputs`` and ``seconds`` filled later)."""
+    result = capture.result
+    why = reasons(findings, result.untagged, shutter, arcs)
+    return {
+        "verdict": "incomplete" if why else "complete", "reasons": why,
+        "photos": {"on_card": len(capture.photos) + len(capture.photo_report.rejected), "geotagged": len(capture.tags),
+                   "untagged": [{"name": name, "reason": reason} for name, reason in result.untagged],
+                   "unreadable": [str(problem) for problem in capture.photo_report.rejected]},
+        "geotags": {"origin": result.origin.to_dict(), "clock": result.clock.summary(), "notes": result.notes},
+        "shutter": shutter_summary(shutter),
+        "arcs": [arc_dict(arc, capture.plan) for arc in arcs],
+        "refly": None,
+        "not_checked": (WITHOUT_LOG[2:] if with_log else WITHOUT_LOG) + ([] if capture.plan else WITHOUT_MISSION),
+        "photo_scores": [finding.to_dict() for finding in findings],
+    }
+
+
+def write_refly_if_needed(mission: litchi.Mission | None, arcs, path: Path, report: dict) -> None:
+    """Write the re-fly CSV of the arcs that need it into ``path`` and say so in ``report``; with none, remove an
+    earlier run's re-fly CSV there (it would re-fly what this capture no longer lacks)."""
+    refly_arcs = [arc for arc in arcs if arc.needs_refly]
+    if not refly_arcs:
+        path.unlink(missing_ok=True)
+        return
+    warnings = write_refly(mission, [arc.first_waypoint for arc in refly_arcs], path)
+    report["refly"] = {"csv": str(path), "arcs": [arc.number for arc in refly_arcs], "mission_warnings": warnings}
 
 
 def check_inputs(args, outputs: dict[str, Path]) -> None:

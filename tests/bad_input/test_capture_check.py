@@ -9,6 +9,7 @@ Each case must end with exit 2, one stderr line naming what was wrong, no traceb
 from __future__ import annotations
 
 import shutil
+from dataclasses import replace
 
 import pytest
 
@@ -49,6 +50,15 @@ def mission_text(tmp, text: str):
     (tmp / "mission.csv").write_text(text)
 
 
+def mission_without_timed_photos(tmp):
+    """The synthetic flight and the default orbit with its photo interval removed (a mission the photos were not
+    taken on)."""
+    flight(tmp)
+    plan = plan_orbit(OrbitRequest(40.1792, 44.4991))
+    rows = tuple(replace(row, photo_time_interval_s=litchi.DISABLED_INTERVAL) for row in plan.mission.waypoints)
+    litchi.write_mission_csv(litchi.Mission(rows), tmp / "mission.csv")
+
+
 def mission_elsewhere(tmp):
     """The synthetic flight and the default orbit planned 2 km north of its centre (a Litchi CSV of another place)."""
     flight(tmp)
@@ -68,6 +78,11 @@ CASES = [
          r"mission\.csv", lambda tmp: mission_text(tmp, "name,lat,lon\nA,40.1,44.5\n")),
     Case("check-mission-empty", "aerostereo-ingest", [*CHECK, "--mission", "{tmp}/mission.csv"],
          r"mission\.csv", lambda tmp: mission_text(tmp, "")),
+    Case("check-mission-without-timed-photos", "aerostereo-ingest", [*CHECK, "--mission", "{tmp}/mission.csv"],
+         r"--mission .*mission\.csv: no leg takes timed photos", mission_without_timed_photos),
+    Case("check-mission-is-the-out-s-refly", "aerostereo-ingest",
+         [*CHECK[:-1], "{tmp}", "--mission", "{tmp}/refly.csv"], r"refly\.csv: is also --mission",
+         lambda tmp: mission_text(tmp, "x\n") or (tmp / "mission.csv").rename(tmp / "refly.csv")),
     Case("check-mission-of-another-place", "aerostereo-ingest", [*CHECK, "--mission", "{tmp}/mission.csv"],
          r"--mission .*mission\.csv: the photos lie a median 19\d\d m from its path", mission_elsewhere),
     Case("check-no-photos-folder", "aerostereo-ingest", CHECK, r"--photos .*photos: .*expected the card's folder",
