@@ -36,10 +36,11 @@ def draw_map(path: Path, photos: list[PhotoFinding], plan: PlannedPath | None, a
         dots = axes.scatter(*en.T, c=scores, cmap="RdYlGn", norm=TwoSlopeNorm(1.0, 0.0, SCORE_CAP), s=18,
                             edgecolors="k", linewidths=0.3, zorder=3)
         figure.colorbar(dots, ax=axes, shrink=0.7, label="score (below 1: flagged)")
-    for ends in gap_en:
-        axes.plot(*np.asarray(ends).T, color="tab:purple", lw=3, zorder=2)
+    for ends in gap_en:  # above the photos: a gap of a few seconds is a metre or two long
+        axes.plot(*np.asarray(ends).T, color="tab:purple", lw=4, marker="o", markersize=9, markerfacecolor="none",
+                  zorder=5)
     if gap_en:
-        axes.plot([], [], color="tab:purple", lw=3, label="shutter gap")
+        axes.plot([], [], color="tab:purple", lw=4, marker="o", markerfacecolor="none", label="shutter gap")
     if len(skipped_en):
         axes.scatter(*np.asarray(skipped_en).T, marker="x", color="k", s=60, zorder=4, label="skipped shot")
     axes.scatter([0], [0], marker="^", color="tab:blue", s=60, zorder=4, label="take-off")
