@@ -16,7 +16,7 @@ from capture.check.overlap import neighbour_overlaps
 from capture.check.plan import PlannedPath
 from capture.check.refly import leg_runs, refly_mission
 from capture.check.shutter import check_shutter
-from capture.check.verdict import BLUR_RATIO, PhotoFinding, flag_photo
+from capture.check.verdict import BLUR_RATIO, MIN_ARC_SHARE, PhotoFinding, flag_photo
 from capture.cli import main as ingest_main
 from capture.geotag import OWN_GPS_DISAGREES, PHOTO_SOURCE, Geotag
 from flightplan import litchi
@@ -213,3 +213,26 @@ def test_gps_is_flagged_where_the_photo_s_own_gps_disagreed_with_the_logs_not_in
     flag_photo(finding)
     assert ("gps" in finding.flags) == flagged and len(finding.flags) == int(flagged)
     assert (finding.score < 1.0) == flagged
+
+
+@pytest.mark.slow
+def test_the_refly_csv_flown_by_the_virtual_drone_fills_the_gap_arcs(flights, capsys):
+    """Stretch of issue 41, without the recon: the re-fly CSV flown from the original take-off gives each arc it
+    re-flies at least MIN_ARC_SHARE of its planned photos, placed by their geotags on the original mission's arcs;
+    the arcs it skips get at most the odd photo of a neighbouring arc's ends (its curves)."""
+    mission_csv, results = flights
+    truth, report, _, folder = results["faulty"]
+    origin = truth["origin"]
+    refly = folder / "refly_flight"
+    assert render_main(["fly", "--mission", str(folder / "check" / "refly.csv"), "--out", str(refly),
+                        "--photo-size", "160", "120", "--seed", "1",
+                        "--home", str(origin["lat0_deg"]), str(origin["lon0_deg"])]) == 0
+    capsys.readouterr()
+    assert ingest_main(["check", "--photos", str(refly / "photos"), "--log", str(refly / "flight.duml"),
+                        "--mission", str(mission_csv), "--out", str(refly / "check")]) == 0
+    arcs = {arc["arc"]: arc for arc in json.loads(capsys.readouterr().out)["arcs"]}
+    for number, arc in arcs.items():
+        if number in report["refly"]["arcs"]:
+            assert arc["photos"] >= MIN_ARC_SHARE * arc["expected_photos"], arc
+        else:
+            assert arc["photos"] <= 0.25 * arc["expected_photos"], arc
