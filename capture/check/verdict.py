@@ -17,6 +17,7 @@ colours.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -149,7 +150,7 @@ class ArcFinding:
 
 
 def arc_findings(plan: PlannedPath, photos: list[PhotoFinding], shutter: ShutterCheck | None,
-                 position_at: callable) -> list[ArcFinding]:
+                 position_at: Callable[[np.ndarray], np.ndarray]) -> list[ArcFinding]:
     """Each arc's counts: photos and flagged photos by their arc, skipped shots and gap middles (None without a log)
     placed on the path by ``position_at(times_s) -> (N,2)`` east/north (m)."""
     arcs = {arc.number: ArcFinding(arc.number, arc.first_waypoint, arc.expected_photos) for arc in plan.arcs}
