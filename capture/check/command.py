@@ -27,7 +27,7 @@ from capture.check.overlap import focal_length_px, neighbour_overlaps
 from capture.check.plan import PlannedPath
 from capture.check.refly import write_refly
 from capture.check.shutter import ShutterCheck, check_shutter
-from capture.check.verdict import arc_findings, photo_findings, reasons
+from capture.check.verdict import arc_findings, photo_findings, reasons, warnings
 from capture.geotag import Geotag, GeotagResult, own_gps_misfits
 from capture.geotag_folder import geotag_tracks, read_photo_folder
 from capture.logs import read_track
@@ -125,7 +125,7 @@ def build_report(capture: Capture, findings, shutter: ShutterCheck | None, arcs,
     result = capture.result
     why = reasons(findings, result.untagged, shutter, arcs)
     return {
-        "verdict": "incomplete" if why else "complete", "reasons": why,
+        "verdict": "incomplete" if why else "complete", "reasons": why, "warnings": warnings(findings),
         "photos": {"on_card": len(capture.photos) + len(capture.photo_report.rejected), "geotagged": len(capture.tags),
                    "untagged": [{"name": name, "reason": reason} for name, reason in result.untagged],
                    "unreadable": [str(problem) for problem in capture.photo_report.rejected]},
@@ -145,8 +145,9 @@ def write_refly_if_needed(mission: litchi.Mission | None, arcs, path: Path, repo
     if not refly_arcs:
         path.unlink(missing_ok=True)
         return
-    warnings = write_refly(mission, [arc.first_waypoint for arc in refly_arcs], path)
-    report["refly"] = {"csv": str(path), "arcs": [arc.number for arc in refly_arcs], "mission_warnings": warnings}
+    mission_warnings = write_refly(mission, [arc.first_waypoint for arc in refly_arcs], path)
+    report["refly"] = {"csv": str(path), "arcs": [arc.number for arc in refly_arcs],
+                       "mission_warnings": mission_warnings}
 
 
 def check_inputs(args, outputs: dict[str, Path]) -> None:

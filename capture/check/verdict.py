@@ -4,7 +4,8 @@ A photo is flagged when it is blurred (sharpness below :data:`BLUR_RATIO` of its
 :data:`CLIPPED_SHARE` of its pixels at white or at black), tagged from its own GPS because the logs could not tag
 it because its own GPS disagreed with them by more than a consumer GPS can (:data:`capture.geotag.OWN_GPS_DISAGREES`;
 one the logs had no position for, in a link dropout, keeps its own GPS unflagged), its gimbal more than :data:`GIMBAL_TOLERANCE_DEG` off the mission's
-pitch, or its footprint less than :data:`MIN_OVERLAP` seen by either neighbour. The capture is complete when no
+pitch, further than :data:`OFF_PATH_M` from the mission's path, or its footprint less than :data:`MIN_OVERLAP`
+seen by either neighbour. The capture is complete when no
 photo is flagged or untagged, no shot was skipped, no shutter gap was left (with a log), and every arc of the
 mission holds at least :data:`MIN_ARC_SHARE` of its planned photos. An arc needs flying again when it holds a
 flagged photo, a skipped shot, the middle of a gap, or too few photos.
@@ -26,6 +27,7 @@ from capture.check.image_quality import ImageScore, relative_sharpness
 from capture.check.plan import PlannedPath
 from capture.check.shutter import ShutterCheck
 from capture.geotag import OWN_GPS_DISAGREES, Geotag
+from capture.geotag_limits import PHOTO_MISFIT_M
 from capture.track import format_utc, name_list
 
 #: A photo whose sharpness is below this share of its neighbours' (:func:`relative_sharpness`) is blurred.
@@ -41,6 +43,9 @@ GIMBAL_TOLERANCE_DEG = 5.0
 #: Smallest share of a photo's footprint its better-overlapping neighbour must see (the usual minimum side overlap;
 #: brighton_beach, which registers whole, has 62 % at least).
 MIN_OVERLAP = 0.5
+#: Largest horizontal distance (m) of a photo from the mission's path: beyond what a consumer GPS's error explains
+#: (3 sigma), the aircraft was not where the plan put it (a gust, a pilot's stick).
+OFF_PATH_M = PHOTO_MISFIT_M[0]
 #: An arc holding fewer than this share of its planned photos has a hole.
 MIN_ARC_SHARE = 0.8
 #: The score's ceiling (a measure far inside its threshold).
@@ -60,6 +65,7 @@ class PhotoFinding:
     planned_pitch_deg: float
     overlap: float  # the larger share of its footprint one neighbour sees
     own_gps_reason: str | None = None  # why the logs did not tag it (it was tagged from its own GPS), else None
+    off_path_m: float = math.nan  # horizontal distance from the mission's planned path (NaN without a mission)
     flags: dict[str, str] = field(default_factory=dict)  # kind (blur, highlights, ...) -> what was found
     score: float = SCORE_CAP
 
@@ -72,7 +78,8 @@ class PhotoFinding:
                 "shadows": rounded(self.shadows, 4), "gps_misfit_m": rounded(self.gps_misfit_m, 2),
                 "gimbal_pitch_deg": rounded(float(tag.gimbal_ypr_deg[1]), 1),
                 "planned_pitch_deg": rounded(self.planned_pitch_deg, 1), "overlap": rounded(self.overlap, 3),
-                "score": round(self.score, 3), "flags": self.flags, "own_gps_reason": self.own_gps_reason}
+                "off_path_m": rounded(self.off_path_m, 2), "score": round(self.score, 3), "flags": self.flags,
+                "own_gps_reason": self.own_gps_reason}
 
 
 def rounded(value: float, digits: int) -> float | None:
@@ -90,12 +97,13 @@ def photo_findings(tags: list[Geotag], scores: list[ImageScore], gps_misfits: di
     ratio = relative_sharpness([score.sharpness for score in scores])
     arcs = plan.arc_numbers(enu[:, :2]) if plan else np.zeros(len(tags), int)
     pitch = plan.planned_pitch_deg(enu) if plan else np.full(len(tags), math.nan)
+    off_path = plan.locate(enu[:, :2])[2] if plan else np.full(len(tags), math.nan)
     best_overlap = np.fmax(*overlaps)
     findings = []
     for i, (tag, score) in enumerate(zip(tags, scores)):
         finding = PhotoFinding(tag, int(arcs[i]), float(ratio[i]), score.highlights, score.shadows,
                                gps_misfits.get(tag.image_name, (math.nan,))[0], float(pitch[i]), float(best_overlap[i]),
-                               own_gps_reasons.get(tag.image_name))
+                               own_gps_reasons.get(tag.image_name), float(off_path[i]))
         flag_photo(finding)
         findings.append(finding)
     return findings
@@ -114,6 +122,8 @@ def flag_photo(finding: PhotoFinding) -> None:
         ("gimbal", GIMBAL_TOLERANCE_DEG / max(gimbal_error, 1e-9),
          f"gimbal pitch {finding.tag.gimbal_ypr_deg[1]:.1f} deg, planned {finding.planned_pitch_deg:.1f} deg "
          f"(tolerance {GIMBAL_TOLERANCE_DEG:g})"),
+        ("path", OFF_PATH_M / max(finding.off_path_m, 1e-9),
+         f"{finding.off_path_m:.1f} m off the planned path (limit {OFF_PATH_M:g} m, a consumer GPS's 3 sigma)"),
         ("overlap", finding.overlap / MIN_OVERLAP,
          f"forward overlap {100 * finding.overlap:.0f} % with its best neighbour (minimum {100 * MIN_OVERLAP:g} %)"),
     ]
@@ -191,3 +201,14 @@ def reasons(photos: list[PhotoFinding], untagged: list[tuple[str, str]], shutter
         found.append(f"{len(short)} arc(s) short of photos: " + ", ".join(
             f"arc {arc.number} {arc.photos} of {arc.expected_photos:.0f}" for arc in short[:5]))
     return found
+
+
+def warnings(photos: list[PhotoFinding]) -> list[str]:
+    """What is worth knowing but does not stop reconstruction: photos the logs had no position for (a link silent
+    or dropping out), tagged from their own consumer GPS."""
+    unlogged = [photo.tag.image_name for photo in photos
+                if photo.own_gps_reason and not photo.own_gps_reason.startswith(OWN_GPS_DISAGREES)]
+    if not unlogged:
+        return []
+    return [f"{len(unlogged)} photo(s) the logs had no position for (the link silent or dropping out), tagged from "
+            f"their own GPS: {name_list(unlogged)}"]

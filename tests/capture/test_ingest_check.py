@@ -16,7 +16,7 @@ from capture.check.overlap import neighbour_overlaps
 from capture.check.plan import PlannedPath
 from capture.check.refly import leg_runs, refly_mission
 from capture.check.shutter import check_shutter
-from capture.check.verdict import BLUR_RATIO, MIN_ARC_SHARE, PhotoFinding, flag_photo
+from capture.check.verdict import BLUR_RATIO, MIN_ARC_SHARE, PhotoFinding, flag_photo, warnings
 from capture.cli import main as ingest_main
 from capture.geotag import OWN_GPS_DISAGREES, PHOTO_SOURCE, Geotag
 from flightplan import litchi
@@ -209,10 +209,20 @@ def test_without_a_log_the_blur_is_still_named_and_the_skipped_shot_is_said_unch
 def test_gps_is_flagged_where_the_photo_s_own_gps_disagreed_with_the_logs_not_in_a_dropout(reason, flagged):
     tag = Geotag("DJI_0001.JPG", 0.0, "event", PHOTO_SOURCE if reason else "duml/event", 40.0, 44.0, 30.0, 1030.0,
                  np.zeros(3), np.array([0.0, -31.0, 0.0]), np.array([0.0, 0.0, 30.0]), None)
-    finding = PhotoFinding(tag, 1, 1.0, 0.0, 0.0, 0.0, -31.0, 0.9, reason)
+    finding = PhotoFinding(tag, 1, 1.0, 0.0, 0.0, 0.0, -31.0, 0.9, reason, 2.0)
     flag_photo(finding)
     assert ("gps" in finding.flags) == flagged and len(finding.flags) == int(flagged)
     assert (finding.score < 1.0) == flagged
+    assert bool(warnings([finding])) == (reason is not None and not flagged)  # a dropout: said, not flagged
+
+
+@pytest.mark.parametrize("off_path_m, flagged", [(3.0, False), (8.9, False), (9.5, True), (float("nan"), False)])
+def test_a_photo_off_the_planned_path_beyond_gps_error_is_flagged(off_path_m, flagged):
+    tag = Geotag("DJI_0001.JPG", 0.0, "event", "duml/event", 40.0, 44.0, 30.0, 1030.0, np.zeros(3),
+                 np.array([0.0, -31.0, 0.0]), np.array([0.0, 0.0, 30.0]), None)
+    finding = PhotoFinding(tag, 1, 1.0, 0.0, 0.0, 0.0, -31.0, 0.9, None, off_path_m)
+    flag_photo(finding)
+    assert list(finding.flags) == (["path"] if flagged else [])
 
 
 @pytest.mark.slow
