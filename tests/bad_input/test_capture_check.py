@@ -2,8 +2,8 @@
 mission that is not Litchi's or not of the photos' place, outputs that name an input.
 
 Each case must end with exit 2, one stderr line naming what was wrong, no traceback and no file left behind
-(:mod:`tests.bad_input.harness`). Before the check existed each was refused by argparse with two lines (usage +
-"invalid choice: 'check'"), which the harness's one-line rule fails.
+(:mod:`tests.bad_input.harness`). Each fails on the code before the check (run against it: 12 of 12): argparse's
+"invalid choice: 'check'" names neither the input nor what was wrong with it.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """``aerostereo-render fly``'s photo faults (``--skip-shots``, ``--blur``) on hostile values: each is one line naming
-the option and what was expected, exit 2, nothing written. Before the options existed each was refused by argparse
-with two lines (usage + "unrecognized arguments"), which the harness's one-line rule fails."""
+the option and what was expected, exit 2, nothing written. Each fails on the code before the options (run against it:
+12 of 12): argparse's "unrecognized arguments: --blur ..." says nothing of what the option expects."""
 
 from __future__ import annotations
 
