@@ -2,8 +2,8 @@
 
 The parser is assembled from small ``add_<command>_parser(subparsers)`` functions listed in
 :data:`SUBCOMMANDS` (the one place where subcommands are named); ``geotag`` and ``track`` come from
-:mod:`capture.cli_logs`. Each sets ``handler(args) -> int``. Results go to stdout, progress and notes to stderr;
-bad input (and an output that would overwrite an input) is one line ``aerostereo-ingest COMMAND: error: ...`` on
+:mod:`capture.cli_logs`, ``check`` from :mod:`capture.check.cli`. Each sets ``handler(args) -> int``. Results go
+to stdout, progress and notes to stderr; bad input (and an output that would overwrite an input) is one line ``aerostereo-ingest COMMAND: error: ...`` on
 stderr with exit code 2, Ctrl-C exit code 130 (:func:`cliutil.program.run_cli`).
 """
 
@@ -18,6 +18,7 @@ import usb.core
 from serial.tools import list_ports
 
 from capture import cli_logs
+from capture.check import cli as check_cli
 from capture.decode import NoFramesError, decode_to_csv
 from capture.messages import default_registry
 from capture.raw import RawCaptureWriter, index_path
@@ -57,7 +58,7 @@ def add_list_parser(subparsers) -> None:
     parser.set_defaults(handler=run_list)
 
 
-SUBCOMMANDS = (add_record_parser, add_decode_parser, add_list_parser, cli_logs.register)
+SUBCOMMANDS = (add_record_parser, add_decode_parser, add_list_parser, cli_logs.register, check_cli.register)
 
 
 def build_parser() -> argparse.ArgumentParser:

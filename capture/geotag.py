@@ -45,6 +45,9 @@ MATCH_SLACK_S = 0.15  # how far a shutter event may sit outside its photo's EXIF
 EVENT_TOLERANCE_S = 0.03  # expected shutter-event time error (auto offset)
 #: ``source`` of a photo tagged from its own EXIF GPS and XMP attitude where the logs could not tag it.
 PHOTO_SOURCE = "photo_exif"
+#: How the reason a photo was tagged from its own GPS starts when that GPS disagreed with the logs (rather than the logs
+#: having no position at its time): :func:`photo_misfits`.
+OWN_GPS_DISAGREES = "its own GPS is"
 PHOTO_ACCURACY = ("the photo's own EXIF/XMP: consumer GPS as the camera recorded it (metres), height and attitude "
                   "as its XMP says; not interpolated from the logs")
 
@@ -438,7 +441,7 @@ def photo_misfits(misfits: dict[str, tuple[float, float]],
     if median > limit_m[0]:
         return {}, (f"the photos' own GPS is a median {median:.1f} m off the logs (more than {limit_m[0]:g} m): each "
                     "photo keeps its geotag from the logs, none is checked against its own GPS")
-    reasons = {name: (f"its own GPS is {horizontal:.1f} m horizontally and {height:.1f} m in height from the logs' "
+    reasons = {name: (f"{OWN_GPS_DISAGREES} {horizontal:.1f} m horizontally and {height:.1f} m in height from the logs' "
                       f"position at its time, beyond the {limit_m[0]:g} m / {limit_m[1]:g} m a consumer GPS can be off")
                for name, (horizontal, height) in misfits.items() if horizontal > limit_m[0] or height > limit_m[1]}
     if not reasons:

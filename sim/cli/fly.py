@@ -15,6 +15,7 @@ from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, MAX_GEOID_UNDULATION_M, NOISE, FlyOptions, FlyReport,
                                flight_folder, refuse_earlier_flight, run_flights, run_session)
+from sim.drone.photo_faults import MAX_BLUR_PX, MOTION_BLUR, SKIPPED_SHOT, FaultWindow, PhotoFaults
 from sim.drone.sunlight import DEFAULT_START_NOTE
 from sim.render.camera import MAX_IMAGE_SIDE_PX
 from sim.render.scene import load_scene
@@ -47,6 +48,34 @@ def photo_side(text: str) -> int:
         raise argparse.ArgumentTypeError(f"expected 1..{MAX_IMAGE_SIDE_PX} pixels a side (the largest image "
                                          f"rendered, as the dataset render's --width/--height), got {text!r}")
     return side
+
+
+def fault_window(kind: str, fields: tuple[str, ...]):
+    """An argparse type reading ``fields`` comma-separated numbers into a :class:`FaultWindow` of ``kind``."""
+    def parse(text: str) -> FaultWindow:
+        try:
+            values = [float(part) for part in text.split(",")]
+            if len(values) != len(fields):
+                raise ValueError(f"expected {len(fields)} comma-separated numbers")
+            return FaultWindow(kind, *values)
+        except ValueError as error:
+            raise argparse.ArgumentTypeError(f"expected {','.join(fields)} ({error}), got {text!r}") from None
+    return parse
+
+
+def add_photo_fault_options(parser) -> None:
+    """The ``photo faults`` group of ``fly`` (:mod:`sim.drone.photo_faults`), all off by default."""
+    group = parser.add_argument_group("photo faults", "off by default; each repeatable, recorded in truth.json's "
+                                                      "'faults' with the photos it hit (times: seconds since motors on)")
+    group.add_argument("--skip-shots", type=fault_window(SKIPPED_SHOT, ("START", "END")), action="append",
+                       default=[], metavar="START,END",
+                       help="skipped shots: the camera fires (a shutter event in the telemetry) but no photo reaches "
+                            "the card for every shot taken from START to END s")
+    group.add_argument("--blur", type=fault_window(MOTION_BLUR, ("START", "END", "LENGTH")), action="append",
+                       default=[], metavar="START,END,LENGTH",
+                       help="motion blur on every photo taken from START to END s: a line kernel LENGTH pixels long "
+                            f"(at --photo-size; 0 < LENGTH <= {MAX_BLUR_PX:g}) along the camera's motion in the image, "
+                            "applied in linear light")
 
 
 def add_fly_parser(subparsers) -> None:
@@ -102,6 +131,7 @@ def add_fly_parser(subparsers) -> None:
                         help="geoid height above the WGS84 ellipsoid at the scene (m, within "
                              f"+-{MAX_GEOID_UNDULATION_M:g}: Earth's is -107..+86): photos and logs carry "
                              "ellipsoidal height - N as height above sea level (default 0: the ellipsoid)")
+    add_photo_fault_options(parser)
     parser.set_defaults(handler=run_fly)
 
 
@@ -131,7 +161,8 @@ def run_fly(args) -> int:
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
-                         home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite)
+                         home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite,
+                         photo_faults=PhotoFaults(tuple(args.skip_shots + args.blur)))
     scene = load_scene(resolve_scene_dir(args.scene), with_labels=False)
     if not several:
         reports = [run_session(args.mission[0], scene, args.out, options)]

@@ -41,6 +41,7 @@ from sim.render.camera import PinholeCamera, Rig
 from sim.drone.exif import dji_exif
 from sim.drone.exposure import auto_exposure_gains, metered_luminance
 from sim.drone.imperfections import GPS_VERTICAL_FACTOR
+from sim.drone.photo_faults import PhotoFaultPlan
 from sim.render.raycast import default_workers
 from sim.render.renderer import Lighting, Sun, render
 from sim.render.scene import Scene
@@ -153,14 +154,15 @@ class RenderedPhotos:
 
 def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_utc: dt.datetime,
                   lights: Sequence[FrameLight] | None = None, limit: int | None = None, progress: bool = True,
-                  geoid_undulation_m: float = 0.0) -> RenderedPhotos:
+                  geoid_undulation_m: float = 0.0, faults: PhotoFaultPlan = PhotoFaultPlan()) -> RenderedPhotos:
     """Render every photo the camera took (the first ``limit`` if given) from its true pose into ``out_dir``,
     each at its auto-exposure gains (metered first, for the whole set: the gains lag from photo to photo) under its
     light, ``lights[i]`` for scheduled photo ``i`` (None: :data:`DEFAULT_LIGHT` for all).
 
     Names are ``Photos.names`` (DJI_0001.JPG ...); EXIF/XMP carry the measured values (module docstring), heights
     above sea level = ellipsoidal height - ``geoid_undulation_m`` (N, metres, the geoid's height above the WGS84
-    ellipsoid stated for the scene; 0: the virtual world's sea level is the ellipsoid).
+    ellipsoid stated for the scene; 0: the virtual world's sea level is the ellipsoid). ``faults``: the photos
+    with no file on the card (not rendered) and the blurred ones (:mod:`sim.drone.photo_faults`).
     """
     photos, flight = mission.photos, mission.flight
     out_dir = Path(out_dir)
@@ -180,10 +182,13 @@ def render_photos(mission, scene: Scene, out_dir, camera: PinholeCamera, start_u
                                                   flight.imperfections)
         result.meter_s = time.perf_counter() - started
         for index, T_world_cam in zip(tqdm(taken, desc="photos", unit="photo", disable=not progress), poses):
+            if index in faults.missing:
+                continue
             started = time.perf_counter()
             light = lights[index].keywords
             lighting = replace(light.get("lighting", Lighting()), exposure=tuple(result.gains[index]))
-            rgb = render(scene, rig, T_world_cam, light["sun"], lighting=lighting, pool=pool).views[0].rgb
+            rgb = faults.apply(index, render(scene, rig, T_world_cam, light["sun"], lighting=lighting,
+                                             pool=pool).views[0].rgb)
             rendered = time.perf_counter()
             camera_time = start_utc.replace(tzinfo=None) + dt.timedelta(seconds=float(photos.camera_time_s[index]))
             tag = photo_geotag(photos, index, home_msl, names[index])

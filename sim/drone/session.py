@@ -42,6 +42,7 @@ from sim.drone import FlownMission, Imperfections, fly, write_truth
 from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
 from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
+from sim.drone.photo_faults import PhotoFaultPlan, PhotoFaults
 from sim.drone.photos import (RenderedPhotos, camera_truth, ground_height_ellipsoid_m, photo_camera,
                               render_photos)
 from sim.drone.sunlight import (DEFAULT_START_NOTE, FlightLight, check_photos, default_start_utc, flight_light,
@@ -100,6 +101,7 @@ class FlyOptions:
     home: tuple[float, float] | None = None  # take-off (lat, lon) WGS84 degrees; None: under the first waypoint
     sun: SunSetting | None = None
     overwrite: bool = False  # replace an earlier flight in the output folder (else it is refused)
+    photo_faults: PhotoFaults = field(default_factory=PhotoFaults)  # skipped shots, motion blur (sim.drone.photo_faults)
 
     def __post_init__(self) -> None:
         if self.sun is not None and self.sun.form == "random":
@@ -209,10 +211,12 @@ def check_time_line(start_utc: dt.datetime, duration_s: float) -> None:
                      f"{LATEST_UTC.year} (EXIF's DateTimeOriginal holds a 4-digit year)")
 
 
-def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOptions, scene: Scene) -> FlightLight:
+def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOptions,
+                  scene: Scene) -> tuple[FlightLight, PhotoFaultPlan]:
     """Refuse (``ValueError``) a session whose time stamps would leave years 1000-9999 (:func:`check_time_line`),
-    whose photo render needs more memory than is free, or whose photos to render have the real sun at or below the
-    horizon, before anything is written. Returns the photos' light."""
+    whose photo render needs more memory than is free, whose photos to render have the real sun at or below the
+    horizon, or whose photo fault windows hold no photo, before anything is written. Returns the photos' light and
+    their faults."""
     check_time_line(start_utc, mission.flight.duration_s)
     width, height = options.photo_size
     pixels = width * height
@@ -220,8 +224,16 @@ def check_session(mission: FlownMission, start_utc: dt.datetime, options: FlyOpt
                    f"--photo-size {width} {height}")
     photos = mission.photos
     light = flight_light(options.sun, photos.t_s, start_utc, scene.origin)
-    check_photos(light, np.flatnonzero(photos.taken)[:options.photo_limit], photos.names, scene.origin)
-    return light
+    rendered = np.flatnonzero(photos.taken)[:options.photo_limit]
+    check_photos(light, rendered, photos.names, scene.origin)
+    return light, photo_fault_plan(mission, rendered, options.photo_faults)
+
+
+def photo_fault_plan(mission: FlownMission, rendered: np.ndarray, faults: PhotoFaults) -> PhotoFaultPlan:
+    """``faults`` resolved on the flight's photos ``rendered`` (indices of the scheduled photos taken and rendered)."""
+    photos = mission.photos
+    velocity = mission.flight.state_at(photos.t_s).velocity_enu_mps if len(photos.t_s) else np.zeros((0, 3))
+    return faults.on(photos.t_s, photos.names, rendered, photos.R_world_cam, velocity)
 
 
 def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission: FlownMission | None = None,
@@ -233,7 +245,7 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     refuse_earlier_flight(out_dir, options.overwrite)
     mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
     clock = MissionClock(options.speedup, start_utc_of(options, scene))
-    light = check_session(mission, clock.start_utc, options, scene)
+    light, faults = check_session(mission, clock.start_utc, options, scene)
     if options.overwrite:
         remove_earlier_flight(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -251,7 +263,7 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     camera = photo_camera(*options.photo_size, lens=options.imperfections.lens_distortion)
     rendered = render_photos(mission, scene, out_dir / "photos", camera, clock.start_utc, lights=light.photos,
                              limit=options.photo_limit, progress=options.progress,
-                             geoid_undulation_m=options.geoid_undulation_m)
+                             geoid_undulation_m=options.geoid_undulation_m, faults=faults)
     sun, photo_suns = sun_truth(light, mission.flight.duration_s, scene.origin)
     write_truth(out_dir, mission.flight, mission.photos, options.seed, gains=rendered.gains, photo_suns=photo_suns,
                 extra={
@@ -263,7 +275,10 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
         "gps_fix_bias_enu_m": mission.sensors.gps_fix_bias_enu_m.tolist(),
         "gps_fix_bias_note": "the flight's constant GPS error (ENU m), part of every GPS fix: its fix offset",
         "height_note": "h_ellipsoid_m is above the WGS84 ellipsoid; photos and logs carry h_ellipsoid_m - "
-                       "geoid_undulation_m as the height above sea level", "sun": sun})
+                       "geoid_undulation_m as the height above sea level", "sun": sun,
+        "faults": faults.truth(),
+        "faults_note": "each fault's window start_s..end_s on the telemetry clock and the photos it hit; a "
+                       "skipped_shot's photos fired (a shutter event) but are not on the card"})
     return FlyReport(mission, clock.start_utc, len(frames), sent, rendered, sun)
 
 
