@@ -39,6 +39,7 @@ from cliutil.atomic import remove_stale_temps
 from cliutil.resources import require_memory
 from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
+from sim.drone.flight_faults import NO_FAULTS, FaultAfterLanding, FlightFaults
 from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
 from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
@@ -84,7 +85,8 @@ class FlyOptions:
     motors on (an aware datetime); None: :func:`sim.drone.sunlight.default_start_utc` over the scene, the same
     instant whenever it is flown (a live link's clock too). ``sun``: the
     photos' light (:class:`~sim.sampling.light.SunSetting`, not the random form); None: the real sun over the scene
-    at each photo's UTC time (:mod:`sim.drone.sunlight`)."""
+    at each photo's UTC time (:mod:`sim.drone.sunlight`). ``faults``: the flight and link faults asked for
+    (:mod:`sim.drone.flight_faults`; each flight of an area plan gets them, on its own flight time)."""
 
     photo_size: tuple[int, int] = (800, 600)
     link: str = "file"
@@ -100,6 +102,7 @@ class FlyOptions:
     home: tuple[float, float] | None = None  # take-off (lat, lon) WGS84 degrees; None: under the first waypoint
     sun: SunSetting | None = None
     overwrite: bool = False  # replace an earlier flight in the output folder (else it is refused)
+    faults: FlightFaults = NO_FAULTS
 
     def __post_init__(self) -> None:
         if self.sun is not None and self.sun.form == "random":
@@ -130,9 +133,9 @@ class FlyReport:
 
 
 def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfections,
-                       home: tuple[float, float] | None = None) -> FlownMission:
-    """Fly the Litchi CSV over ``scene``, taking off from the scene's ground at ``home`` (lat, lon degrees: the
-    pilot's place, e.g. an area plan's ``take_off``) or, when None, below the first waypoint."""
+                       home: tuple[float, float] | None = None, faults: FlightFaults = NO_FAULTS) -> FlownMission:
+    """Fly the Litchi CSV over ``scene`` with ``faults``, taking off from the scene's ground at ``home`` (lat, lon
+    degrees: the pilot's place, e.g. an area plan's ``take_off``) or, when None, below the first waypoint."""
     waypoints = waypoints_from_litchi(read_mission_csv(mission_csv))
     if home is None:
         first = waypoints[0]
@@ -144,9 +147,12 @@ def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfect
         except ValueError as error:
             raise ValueError(f"--home {home[0]} {home[1]}: {error}; expected a take-off point on the scene") from None
     try:
-        return fly(waypoints, take_off, imperfections, seed=seed)
+        mission = fly(waypoints, take_off, imperfections, seed=seed, faults=faults)
+    except FaultAfterLanding:
+        raise  # its option is what to change, not the mission
     except ValueError as error:
         raise ValueError(f"{mission_csv}: {error}") from None
+    return mission
 
 
 def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True) -> int:
@@ -231,7 +237,8 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     (default: :func:`start_utc_from`)."""
     out_dir = Path(out_dir)
     refuse_earlier_flight(out_dir, options.overwrite)
-    mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
+    mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home,
+                                           options.faults)
     clock = MissionClock(options.speedup, start_utc_of(options, scene))
     light = check_session(mission, clock.start_utc, options, scene)
     if options.overwrite:
@@ -263,7 +270,11 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
         "gps_fix_bias_enu_m": mission.sensors.gps_fix_bias_enu_m.tolist(),
         "gps_fix_bias_note": "the flight's constant GPS error (ENU m), part of every GPS fix: its fix offset",
         "height_note": "h_ellipsoid_m is above the WGS84 ellipsoid; photos and logs carry h_ellipsoid_m - "
-                       "geoid_undulation_m as the height above sea level", "sun": sun})
+                       "geoid_undulation_m as the height above sea level", "sun": sun,
+        "faults": options.faults.truth(clock.start_utc, mission.flight.duration_s),
+        "link_dropouts_s": sorted(mission.telemetry.dropouts_s.tolist()),
+        "link_dropouts_note": "[start, end) flight seconds in which the link sent nothing: its own dropouts "
+                              "(imperfections) and a link_silence fault"})
     return FlyReport(mission, clock.start_utc, len(frames), sent, rendered, sun)
 
 
@@ -282,7 +293,8 @@ def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> lis
     flights, start = [], start_utc_of(options, scene)
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
-        mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections, options.home)
+        mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections,
+                                     options.home, options.faults)
         try:
             check_session(mission, start, flight_options, scene)
         except ValueError as error:
