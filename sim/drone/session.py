@@ -155,9 +155,10 @@ def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfect
     return mission
 
 
-def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True) -> int:
+def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True, tap=None) -> int:
     """Stream ``frames`` into one ``loop://`` port from a thread and record its output to ``path`` (+ ``.idx``)
-    with the live recorder, stamped by ``clock``; both files atomically. Returns the bytes recorded."""
+    with the live recorder, stamped by ``clock``; both files atomically. ``tap``: handed each recorded chunk (a
+    live view's :meth:`capture.live_view.LiveMonitor.put`). Returns the bytes recorded."""
     port = serial.serial_for_url("loop://", timeout=0.05)
     total = sum(len(frame.data) for frame in frames)
     stop = threading.Event()
@@ -176,7 +177,7 @@ def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bo
 
         with atomic_capture(path) as writer:
             sender.start()
-            status = record(until_all_received(), writer, default_registry())
+            status = record(until_all_received(), writer, default_registry(), tap=tap)
         sender.join()
     return status.bytes
 
