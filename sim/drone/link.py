@@ -12,6 +12,8 @@ Frames carry their send time in seconds on the telemetry clock (since the motors
   (simulated arrival, no latency), written atomically;
 * :func:`stream` -- any ``write(bytes)`` callable (a pyserial port from ``serial.serial_for_url``: ``loop://``,
   ``socket://host:port``; the fake pyusb backend's ``push``), paced by a :class:`MissionClock`.
+* :class:`FrameServer` -- a one-shot TCP server streaming to the first client (``aerostereo-ingest record --port
+  socket://127.0.0.1:PORT``), paced the same way.
 
 Time on live links: :class:`MissionClock` maps the host's monotonic clock to flight time at ``speedup`` times
 real time and to UTC from ``start_utc``. It has the shape of :class:`capture.transports.Clock`, so a recorder
@@ -24,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import math
+import socket
 import threading
 import time
 from typing import Callable, Iterable, NamedTuple
@@ -187,3 +190,25 @@ def stream(frames: list[Frame], write: Callable[[bytes], object], clock: Mission
             progress(end - start)
         start = end
     return sent
+
+
+class FrameServer(threading.Thread):
+    """A one-shot TCP server on ``host`` (port chosen by the system: :attr:`port`) that streams ``frames`` to the
+    first client, paced at ``speedup`` times real time from the moment it connects, then closes: the virtual
+    drone's end of ``aerostereo-ingest record --port socket://HOST:PORT``. ``sent``: bytes the kernel took."""
+
+    def __init__(self, frames: list[Frame], speedup: float = 1.0, start_utc: dt.datetime | None = None,
+                 host: str = "127.0.0.1") -> None:
+        super().__init__(name="frame server", daemon=True)
+        self.frames, self.speedup, self.start_utc = frames, speedup, start_utc
+        self.listener = socket.create_server((host, 0))
+        self.port = self.listener.getsockname()[1]
+        self.sent = 0
+        self.clock: MissionClock | None = None
+
+    def run(self) -> None:
+        with self.listener:
+            connection, _ = self.listener.accept()
+        with connection:
+            self.clock = MissionClock(self.speedup, self.start_utc)
+            self.sent = stream(self.frames, connection.sendall, self.clock)

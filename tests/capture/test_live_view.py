@@ -5,11 +5,10 @@ bytes, and the command shows its screen in a real terminal (tmux) and plain line
 from __future__ import annotations
 
 import io
+import re
 import shutil
-import socket
 import subprocess
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -23,7 +22,7 @@ from capture.messages import default_registry
 from flightplan import litchi
 from sim.drone import FlightFaults, Imperfections, fly
 from sim.drone.flight_faults import BatteryDrain, GimbalStuck, Gust, LinkSilence
-from sim.drone.link import MissionClock, duml_frames, stream
+from sim.drone.link import FrameServer, MissionClock, duml_frames
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
 from sim.drone.session import record_loopback
 from tests.capture.virtual_flights import START
@@ -97,3 +96,73 @@ def test_a_clean_flight_raises_only_what_its_link_really_did(mission_csv, tmp_pa
     assert taken - 3 <= monitor.state.photos <= taken
     assert monitor.state.progress.finished
     assert (tmp_path / "flight.duml").read_bytes() == b"".join(frame.data for frame in frames)
+
+
+def record_command(mission_csv, port: int, out: Path, *options: str) -> list[str]:
+    """``record --mission`` from the virtual drone's :class:`FrameServer`; the stream of :func:`gimbal_fault_frames`
+    lasts 3.3 s at 10x, and the silence after it (host seconds) is not warned within 2.5 s."""
+    return [sys.executable, "-m", "capture", "record", "--port", f"socket://127.0.0.1:{port}", "--out", str(out),
+            "--mission", str(mission_csv), "--silent-after", "2.5", *options]
+
+
+STUCK_WARNING = r"GIMBAL: gimbal pitch -(79\.\d|80\.\d) deg, planned -31\.0"
+
+
+def gimbal_fault_frames(mission_csv, until_s: float = FAULT_S + 8.0):
+    faults, _ = FAULTS["gimbal_stuck"]
+    return [frame for frame in duml_frames(flown(mission_csv, faults)) if frame.t_s <= until_s]
+
+
+def test_redirected_it_prints_plain_lines_and_each_warning_once(mission_csv, tmp_path):
+    frames = gimbal_fault_frames(mission_csv)
+    server = FrameServer(frames, SPEEDUP)
+    server.start()
+    done = subprocess.run(record_command(mission_csv, server.port, tmp_path / "r.duml", "--duration", "5"), cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+    server.join(timeout=10)
+    assert done.returncode == 0, done.stderr
+    warnings = [line for line in done.stderr.splitlines() if line.startswith("WARNING")]
+    assert len(warnings) == 1 and re.search(STUCK_WARNING, warnings[0]), done.stderr
+    assert any(line.split()[1:3] == ["s", "link"] for line in done.stderr.splitlines()), done.stderr  # a status line
+    assert "live view: 1 warnings" in done.stdout and "warning:" in done.stdout
+    assert "\x1b" not in done.stderr + done.stdout  # no screen control when redirected
+    assert (tmp_path / "r.duml").read_bytes() == b"".join(frame.data for frame in frames)
+
+
+TMUX = shutil.which("tmux")
+
+
+def tmux(*args: str) -> str:
+    return subprocess.run([TMUX, *args], capture_output=True, text=True, check=True, timeout=10).stdout
+
+
+@pytest.mark.skipif(TMUX is None, reason="tmux is not installed: the live view's screen needs a real terminal to test")
+def test_in_a_terminal_it_shows_the_screen_warns_and_ctrl_c_keeps_every_byte(mission_csv, tmp_path):
+    frames = gimbal_fault_frames(mission_csv)
+    server = FrameServer(frames, SPEEDUP)
+    server.start()
+    session = f"aerostereo-live-{server.port}"
+    tmux("new-session", "-d", "-s", session, "-x", "150", "-y", "30")
+    try:
+        command = " ".join(record_command(mission_csv, server.port, tmp_path / "r.duml"))
+        tmux("send-keys", "-t", session, f"cd {ROOT} && {command}", "Enter")
+        screens = []
+        for _ in range(int(4.0 / 0.5)):  # the fault starts at 2.5 s of wall time (flight 25 s at 10x)
+            time.sleep(0.5)
+            screens.append(tmux("capture-pane", "-p", "-t", session))
+        server.join(timeout=20)
+        time.sleep(0.5)
+        tmux("send-keys", "-t", session, "C-c", "")
+        for _ in range(40):
+            time.sleep(0.25)
+            final = tmux("capture-pane", "-p", "-t", session)
+            if "wrote " in final:
+                break
+    finally:
+        tmux("kill-session", "-t", session)
+    early = next(screen for screen in screens if "PATH" in screen)
+    for topic in ("LINK", "GPS", "HEIGHT", "PATH", "GIMBAL  pitch", "PHOTOS", "WARNINGS"):
+        assert topic in early, early
+    assert any(re.search(STUCK_WARNING, screen) for screen in screens), screens[-1]
+    assert "live view: 1 warnings" in final and "wrote " in final, final
+    assert (tmp_path / "r.duml").read_bytes() == b"".join(frame.data for frame in frames)
