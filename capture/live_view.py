@@ -34,30 +34,33 @@ def _minutes(seconds: float) -> str:
     return f"{int(seconds // 60)}:{int(seconds % 60):02d}"
 
 
-def status_lines(state: LiveState, now: float, t0: float) -> list[str]:
-    """The view's text, a line per topic: link, GPS and battery, height and speed, path, gimbal, photos."""
+def status_lines(state: LiveState, now: float) -> list[tuple[str, str]]:
+    """The view's text as ``(topic, text)``: link, GPS and battery, height and speed, path, gimbal, photos."""
     link, progress, plan, osd = state.link, state.progress, state.plan, state.osd
     since = "-" if link.last_packet_t is None else f"{now - link.last_packet_t:.1f} s"
-    lines = [f"LINK    {link.bytes_per_s():7.0f} B/s  {link.bytes} bytes  {link.packets} packets  CRC errors: header "
-             f"{link.header_crc_errors} packet {link.packet_crc_errors}  last packet {since} ago"]
+    lines = [("LINK", f"{link.bytes_per_s():.0f} B/s, {link.bytes} bytes, {link.packets} packets, CRC errors "
+                      f"{link.header_crc_errors} header / {link.packet_crc_errors} packet, last packet {since} ago")]
     if osd is None:
-        lines += ["GPS     no OSD yet", "HEIGHT  -"]
+        lines += [("GPS", "no OSD yet"), ("BATTERY", "-"), ("HEIGHT", "-")]
     else:
         fix = f"fix, {osd.gps_satellites} satellites, level {osd.gps_level}" if osd.has_fix else "NO FIX"
-        lines.append(f"GPS     {fix}    BATTERY {osd.battery_percent} % (the rest needs "
-                     f"{state.battery_needed_percent():.0f} %)")
         speed = (osd.velocity_x_mps ** 2 + osd.velocity_y_mps ** 2) ** 0.5
-        lines.append(f"HEIGHT  {osd.height_above_takeoff_m:.1f} m (plan {plan.altitude_at(progress.along_m):.1f})    "
-                     f"SPEED {speed:.1f} m/s")
+        lines += [("GPS", fix),
+                  ("BATTERY", f"{osd.battery_percent} %, the rest of the flight needs "
+                              f"{state.battery_needed_percent():.0f} % at {60 * state.battery_rate_percent_per_s():.1f} "
+                              f"%/min"),
+                  ("HEIGHT", f"{osd.height_above_takeoff_m:.1f} m (plan {plan.altitude_at(progress.along_m):.1f}), "
+                             f"speed {speed:.1f} m/s")]
     mission = "finished" if progress.finished else "on the mission" if progress.started else "not on the path yet"
     cross = "-" if progress.cross_m is None else f"{progress.cross_m:.1f} m"
-    lines.append(f"PATH    {mission}: leg {progress.leg + 1}/{plan.legs}  cross-track {cross}  along-track "
-                 f"{progress.along_m:.0f}/{plan.length_m:.0f} m ({100 * progress.along_m / plan.length_m:.0f} %)  "
-                 f"finish in {_minutes(0 if progress.finished else plan.time_to_finish_s(progress.along_m))}")
+    left = 0.0 if progress.finished else plan.time_to_finish_s(progress.along_m)
+    lines.append(("PATH", f"{mission}, leg {progress.leg + 1}/{plan.legs}, cross-track {cross}, along-track "
+                          f"{progress.along_m:.0f}/{plan.length_m:.0f} m ({100 * progress.along_m / plan.length_m:.0f} %),"
+                          f" finish in {_minutes(left)}"))
     pitch = "-" if state.gimbal_pitch_deg is None else f"{state.gimbal_pitch_deg:.1f}"
-    lines.append(f"GIMBAL  pitch {pitch} deg (plan {plan.gimbal_pitch_at(progress.along_m):.1f})")
-    lines.append(f"PHOTOS  {state.photos} of {plan.planned_photos()} planned  longest gap {state.longest_gap_s:.1f} s "
-                 "(link alive)")
+    lines.append(("GIMBAL", f"pitch {pitch} deg (plan {plan.gimbal_pitch_at(progress.along_m):.1f})"))
+    lines.append(("PHOTOS", f"{state.photos} of {plan.planned_photos()} planned, longest shutter gap "
+                            f"{state.longest_gap_s:.1f} s"))
     return lines
 
 
@@ -82,8 +85,8 @@ class LineDisplay:
     def show(self, state: LiveState, now: float, t0: float) -> None:
         if time.monotonic() - self._last >= self.every_s:
             self._last = time.monotonic()
-            print(f"{now - t0:8.1f} s  " + " | ".join(line.split(maxsplit=1)[0].lower() + " " +
-                                                   line.split(maxsplit=1)[1] for line in status_lines(state, now, t0)),
+            print(f"{now - t0:8.1f} s  " + " | ".join(f"{topic.lower()}: {text}"
+                                                      for topic, text in status_lines(state, now)),
                   file=self.stream, flush=True)
 
     def stop(self, state: LiveState, now: float, t0: float) -> None:
@@ -113,8 +116,8 @@ class ScreenDisplay:
         screen = self.screen
         screen.erase()
         height, width = screen.getmaxyx()
-        rows = [(f"{self.title}   t {now - t0:.1f} s", curses.A_BOLD), *((line, 0) for line in
-                                                                          status_lines(state, now, t0))]
+        rows = [(f"{self.title}   t {now - t0:.1f} s", curses.A_BOLD),
+                *((f"{topic:<8}{text}", 0) for topic, text in status_lines(state, now))]
         rows.append((f"WARNINGS ({len(state.active)} now, {len(state.warnings)} in all)", curses.A_BOLD))
         rows += [(alert_line(alert, t0), curses.A_REVERSE if alert.end_t is None else 0)
                  for alert in reversed(state.warnings)]

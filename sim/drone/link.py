@@ -145,9 +145,9 @@ class MissionClock(Clock):
         self.start_utc = start_utc or dt.datetime.now(dt.timezone.utc)
         self._anchor = time.monotonic()
 
-    def restart(self) -> None:
-        """Flight time 0 is now."""
-        self._anchor = time.monotonic()
+    def restart(self, at_s: float = 0.0) -> None:
+        """Flight time ``at_s`` is now (a stream that starts mid-flight)."""
+        self._anchor = time.monotonic() - at_s / self.speedup
 
     def flight_time_s(self) -> float:
         """Seconds of flight time since the start."""

@@ -20,6 +20,7 @@ code path); ``tcp`` streams to ``socket://host:port`` (someone must listen there
 from __future__ import annotations
 
 import datetime as dt
+import io
 import os
 import re
 import shutil
@@ -31,6 +32,9 @@ import numpy as np
 import serial
 from tqdm import tqdm
 
+from capture.live_plan import PlannedPath
+from capture.live_state import LiveLimits, LiveState
+from capture.live_view import LineDisplay, LiveMonitor
 from capture.messages import default_registry
 from capture.raw import atomic_capture, index_path
 from capture.recorder import record
@@ -180,6 +184,18 @@ def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bo
             status = record(until_all_received(), writer, default_registry(), tap=tap)
         sender.join()
     return status.bytes
+
+
+def watch_loopback(frames: list[Frame], path, clock: MissionClock, plan: PlannedPath,
+                   limits: LiveLimits = LiveLimits(), display=None) -> LiveMonitor:
+    """:func:`record_loopback` under a live view of ``plan`` (:mod:`capture.live_view`) on ``clock``, so that its
+    warnings' times are flight seconds, comparable with truth.json's faults; ``display``: where it shows (default:
+    plain lines into nothing). Returns the monitor, closed."""
+    monitor = LiveMonitor(LiveState(plan, limits), default_registry(), clock.monotonic,
+                          display or LineDisplay(io.StringIO()))
+    with monitor:
+        record_loopback(frames, path, clock, progress=False, tap=monitor.put)
+    return monitor
 
 
 def stream_to_port(frames: list[Frame], url: str, clock: MissionClock, progress: bool = True) -> int:

@@ -4,7 +4,6 @@ bytes, and the command shows its screen in a real terminal (tmux) and plain line
 
 from __future__ import annotations
 
-import io
 import re
 import shutil
 import subprocess
@@ -16,15 +15,12 @@ import numpy as np
 import pytest
 
 from capture.live_plan import planned_path
-from capture.live_state import LiveLimits, LiveState
-from capture.live_view import TICK_S, LineDisplay, LiveMonitor
-from capture.messages import default_registry
 from flightplan import litchi
 from sim.drone import FlightFaults, Imperfections, fly
 from sim.drone.flight_faults import BatteryDrain, GimbalStuck, Gust, LinkSilence
 from sim.drone.link import FrameServer, MissionClock, duml_frames
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
-from sim.drone.session import record_loopback
+from sim.drone.session import watch_loopback
 from tests.capture.virtual_flights import START
 from tests.sim.drone_helpers import short_orbit_csv
 
@@ -57,11 +53,8 @@ def watch_loop_flight(mission_csv, mission, capture: Path, until_s: float | None
     """Stream the flight's frames (up to ``until_s`` of flight time) through a ``loop://`` port at :data:`SPEEDUP`
     into the live recorder with a live view; returns the monitor (its times are flight seconds) and the frames."""
     frames = [frame for frame in duml_frames(mission) if until_s is None or frame.t_s <= until_s]
-    clock = MissionClock(SPEEDUP, START)
-    state = LiveState(planned_path(litchi.read_mission_csv(mission_csv)), LiveLimits())
-    monitor = LiveMonitor(state, default_registry(), clock.monotonic, LineDisplay(io.StringIO()))
-    with monitor:
-        record_loopback(frames, capture, clock, progress=False, tap=monitor.put)
+    monitor = watch_loopback(frames, capture, MissionClock(SPEEDUP, START),
+                             planned_path(litchi.read_mission_csv(mission_csv)))
     assert monitor.error is None
     return monitor, frames
 
@@ -123,7 +116,7 @@ def test_redirected_it_prints_plain_lines_and_each_warning_once(mission_csv, tmp
     assert done.returncode == 0, done.stderr
     warnings = [line for line in done.stderr.splitlines() if line.startswith("WARNING")]
     assert len(warnings) == 1 and re.search(STUCK_WARNING, warnings[0]), done.stderr
-    assert any(line.split()[1:3] == ["s", "link"] for line in done.stderr.splitlines()), done.stderr  # a status line
+    assert any(line.split()[1:3] == ["s", "link:"] for line in done.stderr.splitlines()), done.stderr  # a status line
     assert "live view: 1 warnings" in done.stdout and "warning:" in done.stdout
     assert "\x1b" not in done.stderr + done.stdout  # no screen control when redirected
     assert (tmp_path / "r.duml").read_bytes() == b"".join(frame.data for frame in frames)
@@ -161,7 +154,7 @@ def test_in_a_terminal_it_shows_the_screen_warns_and_ctrl_c_keeps_every_byte(mis
     finally:
         tmux("kill-session", "-t", session)
     early = next(screen for screen in screens if "PATH" in screen)
-    for topic in ("LINK", "GPS", "HEIGHT", "PATH", "GIMBAL  pitch", "PHOTOS", "WARNINGS"):
+    for topic in ("LINK", "GPS", "BATTERY", "HEIGHT", "PATH", "GIMBAL  pitch", "PHOTOS", "WARNINGS"):
         assert topic in early, early
     assert any(re.search(STUCK_WARNING, screen) for screen in screens), screens[-1]
     assert "live view: 1 warnings" in final and "wrote " in final, final
