@@ -24,7 +24,6 @@ in height) until it is within ``off_path_m`` of the path's end.
 
 from __future__ import annotations
 
-import bisect
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -42,6 +41,8 @@ SKIPPED_SHOTS_ALLOWED = 1
 PUSH_HOLE_FACTOR = 1.5
 #: Windows (s) over which the battery's use is measured; the fastest of them predicts the rest.
 BATTERY_WINDOWS_S = (2.0, 5.0, 10.0, 30.0)
+#: The least drop (whole percent points) the battery's rate is measured over.
+BATTERY_MIN_DROP_PERCENT = 2
 #: Seconds over which the link's byte rate is averaged.
 RATE_WINDOW_S = 5.0
 
@@ -122,8 +123,9 @@ class LiveState:
         self._push_interval_s = np.inf  # the shortest interval between camera pushes so far
         self._hole_end_t = -np.inf  # the first push after the last hole in the pushes
         self._last_shutter_t: float | None = None
-        self._battery: deque = deque()  # (t, percent) over the longest battery window
-        self._first_battery: tuple[float, int] | None = None
+        self._battery_last: tuple[float, int] | None = None  # the last reading (t, percent)
+        self._battery_changes: deque = deque()  # over the longest window (see _on_battery)
+        self._first_battery_change: tuple[float, float, int] | None = None
 
     # --- input --------------------------------------------------------------------------------------------
     def on_bytes(self, t: float, total_bytes: int, packets: int, header_crc_errors: int,
@@ -219,24 +221,30 @@ class LiveState:
 
     # --- battery ------------------------------------------------------------------------------------------
     def _on_battery(self, t: float, percent: int) -> None:
-        if self._first_battery is None:
-            self._first_battery = (t, percent)
-        self._battery.append((t, percent))
-        while self._battery and self._battery[0][0] < t - max(BATTERY_WINDOWS_S):
-            self._battery.popleft()
+        """Keep the moments the shown percentage changed: ``(previous reading's t, t, percent)``, the change having
+        happened in between."""
+        last = self._battery_last
+        if last is not None and percent != last[1]:
+            self._battery_changes.append((last[0], t, percent))
+            if len(self._battery_changes) == 1:
+                self._first_battery_change = self._battery_changes[0]
+            while self._battery_changes[0][1] < t - max(BATTERY_WINDOWS_S):
+                self._battery_changes.popleft()
+        self._battery_last = (t, percent)
 
     def battery_rate_percent_per_s(self) -> float:
-        """The battery's use (percent per second): the fastest of its lower bounds over :data:`BATTERY_WINDOWS_S`
-        and since the first reading. Percentages are whole numbers, so a drop of D shown points is at least D - 1
-        real ones: the bound never exceeds the true use, and a clean flight's slow, even use reads as 0 over short
-        windows."""
-        if not self._battery:
+        """The battery's use (percent per second): the fastest of its averages over :data:`BATTERY_WINDOWS_S` and
+        since its first change. A whole-percent reading changes when the charge crosses a half percent, so the
+        charge spent between two changes is exactly their difference, over at most the time from the reading before
+        the first to the second: an average that errs low. One needs a drop of at least
+        :data:`BATTERY_MIN_DROP_PERCENT` (a single step could be a reading's jitter)."""
+        changes = self._battery_changes
+        if not changes:
             return 0.0
-        t_now, now_percent = self._battery[-1]
-        times = [t for t, _ in self._battery]
-        starts = [self._battery[bisect.bisect_left(times, t_now - window)] for window in BATTERY_WINDOWS_S]
-        rates = [max(0, percent - now_percent - 1) / (t_now - t) for t, percent in [*starts, self._first_battery]
-                 if t_now - t > 0.5]
+        now = changes[-1][1]
+        firsts = [next(change for change in changes if change[1] >= now - window) for window in BATTERY_WINDOWS_S]
+        rates = [(first[2] - changes[-1][2]) / (now - first[0]) for first in [*firsts, self._first_battery_change]
+                 if first[2] - changes[-1][2] >= BATTERY_MIN_DROP_PERCENT]
         return max(rates, default=0.0)
 
     def time_left_s(self) -> float:

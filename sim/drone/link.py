@@ -195,7 +195,8 @@ def stream(frames: list[Frame], write: Callable[[bytes], object], clock: Mission
 class FrameServer(threading.Thread):
     """A one-shot TCP server on ``host`` (port chosen by the system: :attr:`port`) that streams ``frames`` to the
     first client, paced at ``speedup`` times real time from the moment it connects, then closes: the virtual
-    drone's end of ``aerostereo-ingest record --port socket://HOST:PORT``. ``sent``: bytes the kernel took."""
+    drone's end of ``aerostereo-ingest record --port socket://HOST:PORT``, until the client leaves. ``sent``: bytes
+    of the writes the kernel took whole; ``stream_s``: wall seconds from the connection to the last write."""
 
     def __init__(self, frames: list[Frame], speedup: float = 1.0, start_utc: dt.datetime | None = None,
                  host: str = "127.0.0.1") -> None:
@@ -203,7 +204,7 @@ class FrameServer(threading.Thread):
         self.frames, self.speedup, self.start_utc = frames, speedup, start_utc
         self.listener = socket.create_server((host, 0))
         self.port = self.listener.getsockname()[1]
-        self.sent = 0
+        self.sent, self.stream_s = 0, 0.0
         self.clock: MissionClock | None = None
 
     def run(self) -> None:
@@ -211,4 +212,15 @@ class FrameServer(threading.Thread):
             connection, _ = self.listener.accept()
         with connection:
             self.clock = MissionClock(self.speedup, self.start_utc)
-            self.sent = stream(self.frames, connection.sendall, self.clock)
+            started = time.monotonic()
+            try:
+                stream(self.frames, self._sender(connection), self.clock)
+            except (BrokenPipeError, ConnectionResetError):
+                pass  # the client left (a recorder's --duration ran out): what it took is in ``sent``
+            self.stream_s = time.monotonic() - started
+
+    def _sender(self, connection: socket.socket) -> Callable[[bytes], None]:
+        def send(data: bytes) -> None:
+            connection.sendall(data)
+            self.sent += len(data)
+        return send

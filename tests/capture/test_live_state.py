@@ -167,8 +167,8 @@ def test_time_left_is_the_rest_of_the_path_and_the_way_home():
     assert state.time_left_s() == pytest.approx((LEG_M - 20.0) / SPEED + home_s, abs=1e-3)
 
 
-def test_the_battery_rate_is_a_lower_bound_and_a_fast_drain_is_warned():
-    """At 1 % per 15 s (a 25 min battery) the short windows read 0 and nothing is warned; at 3 %/s from 10 s the
+def test_the_battery_rate_errs_low_and_a_fast_drain_is_warned():
+    """At 1 % per 15 s (a 25 min battery) one change in 10 s gives no rate and nothing is warned; at 3 %/s from 10 s the
     rate read stays below the truth and the warning comes as soon as the rest would need more than is left."""
     state = started_state()
     fly_straight(state, 10.0, shots=np.arange(1.0, 10.0, 2.0), battery=lambda t: round(100 - t / 15))
