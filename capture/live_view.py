@@ -46,9 +46,7 @@ def status_lines(state: LiveState, now: float) -> list[tuple[str, str]]:
         fix = f"fix, {osd.gps_satellites} satellites, level {osd.gps_level}" if osd.has_fix else "NO FIX"
         speed = (osd.velocity_x_mps ** 2 + osd.velocity_y_mps ** 2) ** 0.5
         lines += [("GPS", fix),
-                  ("BATTERY", f"{osd.battery_percent} %, the rest of the flight needs "
-                              f"{state.battery_needed_percent():.0f} % at {60 * state.battery_rate_percent_per_s():.1f} "
-                              f"%/min"),
+                  ("BATTERY", f"{osd.battery_percent} %, " + _battery_use(state)),
                   ("HEIGHT", f"{osd.height_above_takeoff_m:.1f} m (plan {plan.altitude_at(progress.along_m):.1f}), "
                              f"speed {speed:.1f} m/s")]
     mission = "finished" if progress.finished else "on the mission" if progress.started else "not on the path yet"
@@ -62,6 +60,13 @@ def status_lines(state: LiveState, now: float) -> list[tuple[str, str]]:
     lines.append(("PHOTOS", f"{state.photos} of {plan.planned_photos()} planned, longest shutter gap "
                             f"{state.longest_gap_s:.1f} s"))
     return lines
+
+
+def _battery_use(state: LiveState) -> str:
+    rate = state.battery_rate_percent_per_s()
+    if rate == 0:
+        return "its use not measured yet (the reading has not dropped 2 points)"
+    return f"the rest of the flight needs {state.battery_needed_percent():.0f} % at {60 * rate:.1f} %/min"
 
 
 def alert_line(alert: Alert, t0: float) -> str:
