@@ -123,9 +123,9 @@ class LiveState:
         self._push_interval_s = np.inf  # the shortest interval between camera pushes so far
         self._hole_end_t = -np.inf  # the first push after the last hole in the pushes
         self._last_shutter_t: float | None = None
-        self._battery_last: tuple[float, int] | None = None  # the last reading (t, percent)
+        self._battery_percent: int | None = None  # the last reading
         self._battery_changes: deque = deque()  # over the longest window (see _on_battery)
-        self._first_battery_change: tuple[float, float, int] | None = None
+        self._first_battery_change: tuple[float, int] | None = None
 
     # --- input --------------------------------------------------------------------------------------------
     def on_bytes(self, t: float, total_bytes: int, packets: int, header_crc_errors: int,
@@ -221,30 +221,27 @@ class LiveState:
 
     # --- battery ------------------------------------------------------------------------------------------
     def _on_battery(self, t: float, percent: int) -> None:
-        """Keep the moments the shown percentage changed: ``(previous reading's t, t, percent)``, the change having
-        happened in between."""
-        last = self._battery_last
-        if last is not None and percent != last[1]:
-            self._battery_changes.append((last[0], t, percent))
-            if len(self._battery_changes) == 1:
-                self._first_battery_change = self._battery_changes[0]
-            while self._battery_changes[0][1] < t - max(BATTERY_WINDOWS_S):
+        """Keep the moments ``(t, percent)`` the shown percentage changed (the first reading showing each value)."""
+        if self._battery_percent is not None and percent != self._battery_percent:
+            self._battery_changes.append((t, percent))
+            if self._first_battery_change is None:
+                self._first_battery_change = (t, percent)
+            while self._battery_changes[0][0] < t - max(BATTERY_WINDOWS_S):
                 self._battery_changes.popleft()
-        self._battery_last = (t, percent)
+        self._battery_percent = percent
 
     def battery_rate_percent_per_s(self) -> float:
         """The battery's use (percent per second): the fastest of its averages over :data:`BATTERY_WINDOWS_S` and
-        since its first change. A whole-percent reading changes when the charge crosses a half percent, so the
-        charge spent between two changes is exactly their difference, over at most the time from the reading before
-        the first to the second: an average that errs low. One needs a drop of at least
-        :data:`BATTERY_MIN_DROP_PERCENT` (a single step could be a reading's jitter)."""
+        since its first change. A whole-percent reading changes when the charge crosses a half percent, so between
+        two changes exactly their difference was spent (timed to a reading's interval). It takes a drop of at least
+        :data:`BATTERY_MIN_DROP_PERCENT` (a single step could be a reading's jitter); 0 until then."""
         changes = self._battery_changes
         if not changes:
             return 0.0
-        now = changes[-1][1]
-        firsts = [next(change for change in changes if change[1] >= now - window) for window in BATTERY_WINDOWS_S]
-        rates = [(first[2] - changes[-1][2]) / (now - first[0]) for first in [*firsts, self._first_battery_change]
-                 if first[2] - changes[-1][2] >= BATTERY_MIN_DROP_PERCENT]
+        now, percent_now = changes[-1]
+        firsts = [next(change for change in changes if change[0] >= now - window) for window in BATTERY_WINDOWS_S]
+        rates = [(percent - percent_now) / (now - t) for t, percent in [*firsts, self._first_battery_change]
+                 if percent - percent_now >= BATTERY_MIN_DROP_PERCENT]
         return max(rates, default=0.0)
 
     def time_left_s(self) -> float:

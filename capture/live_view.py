@@ -126,8 +126,11 @@ class ScreenDisplay:
         rows.append((f"WARNINGS ({len(state.active)} now, {len(state.warnings)} in all)", curses.A_BOLD))
         rows += [(alert_line(alert, t0), curses.A_REVERSE if alert.end_t is None else 0)
                  for alert in reversed(state.warnings)]
-        for y, (text, attribute) in enumerate(rows[:height]):
-            screen.addnstr(y, 0, text, max(width - 1, 1), attribute)
+        try:
+            for y, (text, attribute) in enumerate(rows[:height]):
+                screen.addnstr(y, 0, text, max(width - 1, 1), attribute)
+        except curses.error:  # a terminal resized while drawing: the next refresh draws it whole
+            pass
         screen.refresh()
 
     def stop(self, state: LiveState, now: float, t0: float) -> None:
@@ -163,9 +166,11 @@ class LiveMonitor:
         return self
 
     def __exit__(self, *exc) -> None:
-        self._queue.put(_STOP)
-        self._thread.join()
-        self.display.stop(self.state, self.now(), self.t0 if self.t0 is not None else self.now())
+        try:
+            self._queue.put(_STOP)
+            self._thread.join()
+        finally:  # a second Ctrl-C while the view finishes still gives the terminal back
+            self.display.stop(self.state, self.now(), self.t0 if self.t0 is not None else self.now())
 
     def _run(self) -> None:
         drawn, reported = -float("inf"), 0

@@ -167,9 +167,9 @@ def test_time_left_is_the_rest_of_the_path_and_the_way_home():
     assert state.time_left_s() == pytest.approx((LEG_M - 20.0) / SPEED + home_s, abs=1e-3)
 
 
-def test_the_battery_rate_errs_low_and_a_fast_drain_is_warned():
+def test_the_battery_rate_is_read_from_its_changes_and_a_fast_drain_is_warned():
     """At 1 % per 15 s (a 25 min battery) one change in 10 s gives no rate and nothing is warned; at 3 %/s from 10 s the
-    rate read stays below the truth and the warning comes as soon as the rest would need more than is left."""
+    rate read is the drain's and the warning comes as soon as the rest would need more than is left."""
     state = started_state()
     fly_straight(state, 10.0, shots=np.arange(1.0, 10.0, 2.0), battery=lambda t: round(100 - t / 15))
     assert state.battery_rate_percent_per_s() <= 1 / 15 and state.warnings == []
@@ -178,7 +178,7 @@ def test_the_battery_rate_errs_low_and_a_fast_drain_is_warned():
         return round(100 - t / 15 - (3.0 * (t - 10.0) if t > 10.0 else 0.0))
 
     fly_straight(state, 20.0, start_s=10.1, shots=np.arange(11.0, 20.0, 2.0), battery=draining)
-    assert state.battery_rate_percent_per_s() <= 3.0 + 1 / 15
+    assert state.battery_rate_percent_per_s() == pytest.approx(3.0 + 1 / 15, rel=0.1)
     assert kinds(state) == ["battery"]
     alert = state.warnings[0]
     assert 10.0 < alert.start_t <= 12.0
