@@ -138,6 +138,13 @@ def test_a_clean_default_orbit_is_warned_only_in_the_links_own_dropouts(seed, tm
     assert 0 <= len(mission.telemetry.shutter) - state.photos <= 3  # shutter events sent; a few lost to byte damage
 
 
+def record_command(mission_csv, port: int, out: Path, *options: str) -> list[str]:
+    """``record --mission`` from the virtual drone's :class:`FrameServer`; the stream of :func:`gimbal_fault_frames`
+    lasts 3.3 s at 10x, and the silence after it (host seconds) is not warned within 2.5 s."""
+    return [sys.executable, "-m", "capture", "record", "--port", f"socket://127.0.0.1:{port}", "--out", str(out),
+            "--mission", str(mission_csv), "--silent-after", "2.5", *options]
+
+
 STUCK_WARNING = r"GIMBAL: gimbal pitch -(79\.\d|80\.\d) deg, planned -31\.0"
 
 
