@@ -241,7 +241,7 @@ class LiveState:
         now, percent_now = changes[-1]
         firsts = [next(change for change in changes if change[0] >= now - window) for window in BATTERY_WINDOWS_S]
         rates = [(percent - percent_now) / (now - t) for t, percent in [*firsts, self._first_battery_change]
-                 if percent - percent_now >= BATTERY_MIN_DROP_PERCENT]
+                 if percent - percent_now >= BATTERY_MIN_DROP_PERCENT and now > t]  # a burst has no timing
         return max(rates, default=0.0)
 
     def time_left_s(self) -> float:

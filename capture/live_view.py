@@ -170,7 +170,10 @@ class LiveMonitor:
             self._queue.put(_STOP)
             self._thread.join()
         finally:  # a second Ctrl-C while the view finishes still gives the terminal back
-            self.display.stop(self.state, self.now(), self.t0 if self.t0 is not None else self.now())
+            try:
+                self.display.stop(self.state, self.now(), self.t0 if self.t0 is not None else self.now())
+            except Exception as error:  # the recording is whole; the caller says the view failed
+                self.error = self.error or error
 
     def _run(self) -> None:
         drawn, reported = -float("inf"), 0

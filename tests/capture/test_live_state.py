@@ -183,3 +183,12 @@ def test_the_battery_rate_is_read_from_its_changes_and_a_fast_drain_is_warned():
     alert = state.warnings[0]
     assert 10.0 < alert.start_t <= 12.0
     assert f"battery {draining(alert.start_t)} %" in alert.message
+
+
+def test_a_burst_of_readings_with_one_receive_time_gives_no_battery_rate():
+    """A link's backlog arrives in one chunk, every packet with its time: a battery drop inside it cannot be timed
+    (it divided by zero, stopping the view at the link's fastest rate)."""
+    state = started_state()
+    for percent in (99, 98, 97, 96):
+        state.on_packet(5.0, osd_at(0.0, 10.0, battery_percent=percent))
+    assert state.battery_rate_percent_per_s() == 0.0 and state.warnings == []
