@@ -206,3 +206,18 @@ def test_in_a_terminal_it_shows_the_screen_warns_and_ctrl_c_keeps_every_byte(mis
     assert any(re.search(STUCK_WARNING, screen) for screen in screens), screens[-1]
     assert "live view: 1 warnings" in final and "wrote " in final, final
     assert (tmp_path / "r.duml").read_bytes() == b"".join(frame.data for frame in frames)
+
+
+def test_at_the_links_fastest_rate_the_view_keeps_up_and_the_recording_is_every_byte(mission_csv, tmp_path):
+    """The whole short arc sent at once (a backlog: packets sharing a chunk's receive time); it once stopped the view
+    (a battery drop timed over 0 s) and ended the command with a traceback."""
+    frames = duml_frames(flown(mission_csv))
+    server = FrameServer(frames, speedup=1e6)
+    server.start()
+    done = subprocess.run(record_command(mission_csv, server.port, tmp_path / "r.duml", "--duration", "3"), cwd=ROOT,
+                          capture_output=True, text=True, timeout=60)
+    server.join(timeout=10)
+    assert done.returncode == 0 and "Traceback" not in done.stderr, done.stderr
+    assert "note: the live view stopped" not in done.stderr
+    assert "live view: " in done.stdout
+    assert (tmp_path / "r.duml").read_bytes() == b"".join(frame.data for frame in frames)
