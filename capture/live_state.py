@@ -16,7 +16,8 @@ Warnings (:data:`WARNING_KINDS`), each raised when its condition starts and clea
   not known to be the camera's, and neither counts for ``longest_gap_s``;
 * ``link_silent``: no packet for more than ``silent_after_s``;
 * ``battery``: the battery, at the rate it has been used, would fall below ``battery_reserve_percent`` before the
-  path is finished and the aircraft is home (:meth:`LiveState.battery_needed_percent`).
+  path is finished and the aircraft is home (:meth:`LiveState.battery_needed_percent`); it is cleared once it would
+  end :data:`BATTERY_CLEAR_MARGIN_PERCENT` above it.
 
 "On the mission" runs from the moment the aircraft is within ``off_path_m`` of the first waypoint (horizontally and
 in height) until it is within ``off_path_m`` of the path's end.
@@ -43,6 +44,8 @@ PUSH_HOLE_FACTOR = 1.5
 BATTERY_WINDOWS_S = (2.0, 5.0, 10.0, 30.0)
 #: The least drop (whole percent points) the battery's rate is measured over.
 BATTERY_MIN_DROP_PERCENT = 2
+#: A battery warning is cleared only once the battery would end this much above the reserve (percent points).
+BATTERY_CLEAR_MARGIN_PERCENT = 5.0
 #: Seconds over which the link's byte rate is averaged.
 RATE_WINDOW_S = 5.0
 
@@ -265,7 +268,8 @@ class LiveState:
             return
         left = self.osd.battery_percent - self.battery_needed_percent()
         reserve = self.limits.battery_reserve_percent
-        self._set("battery", t, left < reserve,
+        margin = BATTERY_CLEAR_MARGIN_PERCENT if "battery" in self.active else 0.0  # no flicker at the edge
+        self._set("battery", t, left < reserve + margin,
                   f"battery {self.osd.battery_percent} %, the rest of the flight needs "
                   f"{self.battery_needed_percent():.0f} % (reserve {reserve:g} %)")
 
