@@ -163,9 +163,10 @@ def read_plan(mission: Path) -> PlannedPath:
 
 
 def live_monitor(args, plan: PlannedPath, now) -> LiveMonitor:
-    """The live view for ``record --mission``: full screen when stdout and stderr are a terminal, else plain lines."""
+    """The live view for ``record --mission``: full screen when stdout and stderr are a terminal curses knows, else
+    plain lines."""
     limits = LiveLimits(args.off_path, args.gimbal_tolerance, args.silent_after, args.battery_reserve)
-    terminal = sys.stdout.isatty() and sys.stderr.isatty()
+    terminal = sys.stdout.isatty() and sys.stderr.isatty() and ScreenDisplay.usable()
     display = ScreenDisplay(f"{PROGRAM} record --mission {args.mission} -> {args.out}") if terminal else LineDisplay()
     return LiveMonitor(LiveState(plan, limits), default_registry(), now, display)
 

@@ -19,7 +19,7 @@ import time
 from typing import Callable, TextIO
 
 from capture.duml import Deframer
-from capture.live_state import Alert, LiveState
+from capture.live_state import BATTERY_MIN_DROP_PERCENT, Alert, LiveState
 from capture.messages import MessageRegistry
 from capture.transports import Chunk
 
@@ -65,7 +65,7 @@ def status_lines(state: LiveState, now: float) -> list[tuple[str, str]]:
 def _battery_use(state: LiveState) -> str:
     rate = state.battery_rate_percent_per_s()
     if rate == 0:
-        return "its use not measured yet (the reading has not dropped 2 points)"
+        return f"its use not measured yet (the reading has not dropped {BATTERY_MIN_DROP_PERCENT} points)"
     return f"the rest of the flight needs {state.battery_needed_percent():.0f} % at {60 * rate:.1f} %/min"
 
 
@@ -104,6 +104,15 @@ class ScreenDisplay:
 
     def __init__(self, title: str) -> None:
         self.title, self.screen = title, None
+
+    @staticmethod
+    def usable() -> bool:
+        """Whether curses knows this terminal (``$TERM``): otherwise the plain lines are shown."""
+        try:
+            curses.setupterm()
+        except curses.error:
+            return False
+        return True
 
     def start(self) -> None:
         self.screen = curses.initscr()
