@@ -194,25 +194,25 @@ def stream(frames: list[Frame], write: Callable[[bytes], object], clock: Mission
 
 class FrameServer(threading.Thread):
     """A one-shot TCP server on ``host`` (port chosen by the system: :attr:`port`) that streams ``frames`` to the
-    first client, paced at ``speedup`` times real time from the moment it connects (flight time ``from_s`` then:
-    give it the frames from there), then closes: the virtual
+    first client, paced by ``clock`` (default: ``speedup`` times real time from ``start_utc``), restarted when the
+    client connects at flight time ``from_s`` (give it the frames from there; a receiver stamping with the same clock
+    has the flight's time line), then closes: the virtual
     drone's end of ``aerostereo-ingest record --port socket://HOST:PORT``, until the client leaves. ``sent``: bytes
     of the writes the kernel took whole; ``stream_s``: wall seconds from the connection to the last write."""
 
     def __init__(self, frames: list[Frame], speedup: float = 1.0, start_utc: dt.datetime | None = None,
-                 host: str = "127.0.0.1", from_s: float = 0.0) -> None:
+                 host: str = "127.0.0.1", from_s: float = 0.0, clock: MissionClock | None = None) -> None:
         super().__init__(name="frame server", daemon=True)
-        self.frames, self.speedup, self.start_utc, self.from_s = frames, speedup, start_utc, from_s
+        self.frames, self.from_s = frames, from_s
         self.listener = socket.create_server((host, 0))
         self.port = self.listener.getsockname()[1]
         self.sent, self.stream_s = 0, 0.0
-        self.clock: MissionClock | None = None
+        self.clock = clock or MissionClock(speedup, start_utc)
 
     def run(self) -> None:
         with self.listener:
             connection, _ = self.listener.accept()
         with connection:
-            self.clock = MissionClock(self.speedup, self.start_utc)
             self.clock.restart(at_s=self.from_s)
             started = time.monotonic()
             try:

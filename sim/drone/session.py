@@ -27,6 +27,7 @@ import shutil
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 import serial
@@ -38,7 +39,7 @@ from capture.live_view import LineDisplay, LiveMonitor
 from capture.messages import default_registry
 from capture.raw import atomic_capture, index_path
 from capture.recorder import record
-from capture.transports import SerialSource
+from capture.transports import Chunk, SerialSource
 from cliutil.atomic import remove_stale_temps
 from cliutil.resources import require_memory
 from flightplan.litchi import read_mission_csv
@@ -159,29 +160,29 @@ def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfect
     return mission
 
 
+def until_received(source: SerialSource, total_bytes: int) -> Iterator[Chunk]:
+    """The chunks of ``source`` until ``total_bytes`` have arrived (a virtual flight's whole stream)."""
+    stop, received = threading.Event(), 0
+    for chunk in source.chunks(stop):
+        yield chunk
+        received += len(chunk.data)
+        if received >= total_bytes:
+            stop.set()
+
+
 def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True, tap=None) -> int:
     """Stream ``frames`` into one ``loop://`` port from a thread and record its output to ``path`` (+ ``.idx``)
     with the live recorder, stamped by ``clock``; both files atomically. ``tap``: handed each recorded chunk (a
     live view's :meth:`capture.live_view.LiveMonitor.put`). Returns the bytes recorded."""
     port = serial.serial_for_url("loop://", timeout=0.05)
-    total = sum(len(frame.data) for frame in frames)
-    stop = threading.Event()
     source = SerialSource("loop://", clock=clock)
     source.connection = port
     with tqdm(total=len(frames), desc="telemetry", unit="frame", disable=not progress) as bar:
         sender = threading.Thread(target=stream, args=(frames, port.write, clock, bar.update), daemon=True)
-
-        def until_all_received():
-            received = 0
-            for chunk in source.chunks(stop):
-                yield chunk
-                received += len(chunk.data)
-                if received >= total:
-                    stop.set()
-
         with atomic_capture(path) as writer:
             sender.start()
-            status = record(until_all_received(), writer, default_registry(), tap=tap)
+            status = record(until_received(source, sum(len(frame.data) for frame in frames)), writer,
+                            default_registry(), tap=tap)
         sender.join()
     return status.bytes
 

@@ -3,9 +3,9 @@
 Rows:
 
 - **latency**, per flight fault (sim.drone.flight_faults, as truth.json records it), at real time and at 10x: the
-  short arc (the default orbit's first 3 waypoints) streamed through a ``loop://`` port into the live recorder under
-  the live view on the flight's clock (sim.drone.session.watch_loopback), from 12 s before the fault to 1 s after it
-  ends (6 s at most); latency = the warning's flight time - the fault's start. ``--battery-factors``: the battery
+  short arc (the default orbit's first 3 waypoints) served over TCP by the virtual drone (sim.drone.link.FrameServer)
+  to the live recorder reading ``socket://`` under the live view, both on the flight's clock, from 12 s before the
+  fault to 1 s after it ends (6 s at most); latency = the warning's flight time - the fault's start. ``--battery-factors``: the battery
   drains measured (the warning waits for the drain to show in whole percent points).
 - **false alarms**, the full default orbit with no fault at 10x (``--clean-seeds``): each warning classed as a
   silence in the flight's own link dropouts (the realistic noise's, truth.json's ``link_dropouts_s``; one a little
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
+import io
 import resource
 import subprocess
 import sys
@@ -36,7 +37,12 @@ import numpy as np
 from capture.decode import timed_packets
 from capture.duml import Deframer
 from capture.live_plan import planned_path
-from capture.transports import replay_file
+from capture.live_state import LiveState
+from capture.live_view import LineDisplay, LiveMonitor
+from capture.messages import default_registry
+from capture.raw import atomic_capture
+from capture.recorder import record
+from capture.transports import SerialSource, replay_file
 from flightplan import litchi
 from flightplan.demo_location import DEMO_ORIGIN
 from flightplan.orbit import OrbitRequest, plan_orbit
@@ -44,7 +50,7 @@ from sim.drone import FlightFaults, Imperfections, fly
 from sim.drone.flight_faults import BatteryDrain, GimbalStuck, Gust, LinkSilence
 from sim.drone.link import CAMERA_STATE_HZ, FrameServer, MissionClock, duml_frames
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
-from sim.drone.session import watch_loopback
+from sim.drone.session import until_received, watch_loopback
 from tests.sim.drone_helpers import short_orbit_csv
 
 START = dt.datetime(2024, 5, 1, 10, 0, tzinfo=dt.timezone.utc)
@@ -76,15 +82,28 @@ def landing_battery_percent(mission_csv: Path, fault: FlightFaults) -> int:
     return flown(mission_csv, fault).telemetry.osd[-1].battery_percent
 
 
+def watch_tcp(frames, capture: Path, clock: MissionClock, from_s: float, plan) -> LiveMonitor:
+    """The live recorder under a live view, reading ``socket://`` from the virtual drone's FrameServer, both on
+    ``clock`` (the flight's time line, from ``from_s``); returns the monitor once the stream has ended."""
+    server = FrameServer(frames, from_s=from_s, clock=clock)
+    server.start()
+    source = SerialSource(f"socket://127.0.0.1:{server.port}", clock=clock)
+    monitor = LiveMonitor(LiveState(plan), default_registry(), clock.monotonic, LineDisplay(io.StringIO()))
+    with monitor, atomic_capture(capture) as writer:
+        record(until_received(source, sum(len(frame.data) for frame in frames)), writer, default_registry(),
+               tap=monitor.put)
+    server.join()
+    return monitor
+
+
 def latency_s(mission_csv: Path, fault: FlightFaults, kind: str, speedup: float, folder: Path) -> float | None:
-    """Flight seconds from the fault's start (truth) to its warning; None when it was not warned."""
+    """Flight seconds from the fault's start (truth) to its warning over the TCP link; None when not warned."""
     mission = flown(mission_csv, fault)
     truth = fault.truth(START, mission.flight.duration_s)[0]
     first, last = truth["start_s"] - LEAD_S, min(truth["end_s"], truth["start_s"] + 6.0) + 1.0
     frames = [frame for frame in duml_frames(mission) if first <= frame.t_s <= last]
-    clock = MissionClock(speedup, START)
-    clock.restart(at_s=first)
-    monitor = watch_loopback(frames, folder / "flight.duml", clock, planned_path(litchi.read_mission_csv(mission_csv)))
+    monitor = watch_tcp(frames, folder / "flight.duml", MissionClock(speedup, START), first,
+                        planned_path(litchi.read_mission_csv(mission_csv)))
     warned = [alert.start_t for alert in monitor.state.warnings if alert.kind == kind]
     return warned[0] - truth["start_s"] if warned else None
 
