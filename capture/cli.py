@@ -58,7 +58,8 @@ def add_record_parser(subparsers) -> None:
                       help=f"warn when the gimbal pitch is more than DEG from the plan's "
                            f"(default {LiveLimits.gimbal_tolerance_deg:g})")
     live.add_argument("--silent-after", type=number_within(0.1, 600.0, "seconds"), default=LiveLimits.silent_after_s,
-                      metavar="S", help=f"warn when no packet came for S seconds (default {LiveLimits.silent_after_s:g})")
+                      metavar="S",
+                      help=f"warn when no packet came for S seconds (default {LiveLimits.silent_after_s:g})")
     live.add_argument("--battery-reserve", type=number_within(0.0, 100.0, "percent"),
                       default=LiveLimits.battery_reserve_percent, metavar="PCT",
                       help="warn when the battery, at the rate it is used, would end the path and the return home "

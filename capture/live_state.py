@@ -189,7 +189,8 @@ class LiveState:
         planned = self.plan.gimbal_pitch_at(self.progress.along_m)
         off = abs(pitch_deg - planned)
         self._set("gimbal", t, self.progress.on_mission and off > self.limits.gimbal_tolerance_deg,
-                  f"gimbal pitch {pitch_deg:.1f} deg, planned {planned:.1f} (limit +-{self.limits.gimbal_tolerance_deg:g})")
+                  f"gimbal pitch {pitch_deg:.1f} deg, planned {planned:.1f} "
+                  f"(limit +-{self.limits.gimbal_tolerance_deg:g})")
 
     def _on_camera(self, t: float, camera: CameraState) -> None:
         if self._last_push_t is not None:

@@ -116,7 +116,8 @@ def add_flight_fault_arguments(parser) -> None:
                                                        "them under \"faults\")")
     group.add_argument("--gust", nargs=3, type=finite_number, metavar=("START", "DURATION", "METRES"),
                        help=f"push the aircraft METRES (at most {MAX_GUST_OFFSET_M:g}) to the right of its path for "
-                            f"DURATION s (at least {2 * GUST_RISE_S:g}: the push rises and falls over {GUST_RISE_S:g} s)")
+                            f"DURATION s (at least {2 * GUST_RISE_S:g}: the push rises and falls over "
+                            f"{GUST_RISE_S:g} s)")
     group.add_argument("--link-silence", nargs=2, type=finite_number, metavar=("START", "DURATION"),
                        help=f"the link sends nothing for DURATION s (at most {MAX_FAULT_DURATION_S:g}); the photos "
                             "are still taken")

@@ -26,8 +26,8 @@ from sim.drone.sensors import Sensors
 from sim.drone.truth import Photos, take_photos, write_truth
 
 __all__ = [
-    "Flight", "FlightConfig", "FlightFaults", "FlightState", "FlownMission", "HomePoint", "Imperfections", "Photos", "Telemetry",
-    "TelemetryRates", "Waypoint", "fly", "write_truth",
+    "Flight", "FlightConfig", "FlightFaults", "FlightState", "FlownMission", "HomePoint", "Imperfections", "Photos",
+    "Telemetry", "TelemetryRates", "Waypoint", "fly", "write_truth",
 ]
 
 

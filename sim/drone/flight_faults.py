@@ -60,7 +60,8 @@ class Gust:
     def __post_init__(self) -> None:
         _check_window(self.option, self.start_s, self.duration_s)
         if not 0.0 < self.offset_m <= MAX_GUST_OFFSET_M:
-            raise ValueError(f"{self.option}: METRES {self.offset_m:g}: expected a push in (0, {MAX_GUST_OFFSET_M:g}] m")
+            raise ValueError(f"{self.option}: METRES {self.offset_m:g}: expected a push in "
+                             f"(0, {MAX_GUST_OFFSET_M:g}] m")
         if self.duration_s < 2 * GUST_RISE_S:
             raise ValueError(f"{self.option}: DURATION {self.duration_s:g} s: a gust rises and falls over "
                              f"{GUST_RISE_S:g} s each, so it lasts at least {2 * GUST_RISE_S:g} s")
@@ -147,8 +148,8 @@ class FlightFaults:
         """:class:`FaultAfterLanding` naming the option of a fault that starts after the flight has landed."""
         for fault in self.asked():
             if fault.start_s >= duration_s:
-                raise FaultAfterLanding(f"{fault.option}: START {fault.start_s:g} s: the flight lasts {duration_s:.1f} s; "
-                                 "expected a start within it")
+                raise FaultAfterLanding(f"{fault.option}: START {fault.start_s:g} s: the flight lasts "
+                                        f"{duration_s:.1f} s; expected a start within it")
 
     def silence_windows(self) -> np.ndarray:
         """The link silence as ``(K, 2)`` ``[start, end)`` seconds (K = 0 or 1)."""

@@ -105,7 +105,8 @@ def test_a_clean_flight_raises_only_silences_the_recording_shows(mission_csv, tm
 
 def replayed(orbit_csv: Path, mission) -> LiveState:
     """The flight's frames fed to a live state at their send times (no link, no threads), ticked every 0.05 s."""
-    state, deframer, registry = LiveState(planned_path(litchi.read_mission_csv(orbit_csv))), Deframer(), default_registry()
+    state = LiveState(planned_path(litchi.read_mission_csv(orbit_csv)))
+    deframer, registry = Deframer(), default_registry()
     ticks = iter(np.arange(0.0, mission.flight.duration_s + 1.0, 0.05).tolist())
     tick = next(ticks)
     for frame in duml_frames(mission):

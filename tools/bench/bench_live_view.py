@@ -5,8 +5,9 @@ Rows:
 - **latency**, per flight fault (sim.drone.flight_faults, as truth.json records it), at real time and at 10x: the
   short arc (the default orbit's first 3 waypoints) served over TCP by the virtual drone (sim.drone.link.FrameServer)
   to the live recorder reading ``socket://`` under the live view, both on the flight's clock, from 12 s before the
-  fault to 1 s after it ends (6 s at most); latency = the warning's flight time - the fault's start. ``--battery-factors``: the battery
-  drains measured (the warning waits for the drain to show in whole percent points).
+  fault to 1 s after it ends (6 s at most); latency = the warning's flight time - the fault's start.
+  ``--battery-factors``: the battery drains measured (the warning waits for the drain to show in whole percent
+  points); "lands with" is the battery the faulty flight lands with: whether a battery warning is due at all.
 - **false alarms**, the full default orbit with no fault at 10x (``--clean-seeds``): each warning classed as a
   silence in the flight's own link dropouts (the realistic noise's, truth.json's ``link_dropouts_s``; one a little
   under the 1 s limit can still silence the link longer, from the send before it to the send after), a pause of
@@ -211,9 +212,9 @@ def main(argv: list[str] | None = None) -> int:
         for label, frames, speedup, seconds in (("115200 baud", first_100_s, BAUD_115200_BPS / rate, 15.0),
                                                 ("fastest", orbit_frames, 1e6, 10.0)):
             run = record_run(orbit_csv, frames, speedup, seconds, folder / "bytes.duml")
-            print(f"{label:<12} {run['bytes']} bytes recorded of {run['sent']} sent at "
-                  f"{run['sent'] / max(run['stream_s'], 1e-9):.0f} B/s, identical to what was sent: {run['identical']}, "
-                  f"view ran: {run['view_ok']}", flush=True)
+            rate_sent = run["sent"] / max(run["stream_s"], 1e-9)
+            print(f"{label:<12} {run['bytes']} bytes recorded of {run['sent']} sent at {rate_sent:.0f} B/s, "
+                  f"identical to what was sent: {run['identical']}, view ran: {run['view_ok']}", flush=True)
             (folder / "bytes.duml").unlink()
             Path(f"{folder / 'bytes.duml'}.idx").unlink()
     return 0
