@@ -80,6 +80,10 @@ class PlannedPath:
         """(W-1,) seconds each leg takes at its speed."""
         return np.diff(self.waypoint_s_m) / self.speed_mps[:-1]
 
+    def along_after_s(self, seconds: float) -> float:
+        """Where along the path (m) the plan is ``seconds`` after the first waypoint, at the legs' speeds."""
+        return float(np.interp(seconds, np.concatenate([[0.0], np.cumsum(self.leg_times_s())]), self.waypoint_s_m))
+
     def time_to_finish_s(self, s_m: float) -> float:
         """Seconds from ``s_m`` to the last waypoint at the legs' speeds."""
         times = self.leg_times_s()

@@ -97,9 +97,14 @@ class Progress:
 
     along_m: float = 0.0
     cross_m: float | None = None
+    along_error_m: float | None = None  # along-track minus where the plan's schedule is (+ ahead, - behind)
     leg: int = 0
-    started: bool = False
+    started_t: float | None = None  # when the aircraft reached the path's start
     finished: bool = False
+
+    @property
+    def started(self) -> bool:
+        return self.started_t is not None
 
     @property
     def on_mission(self) -> bool:
@@ -175,9 +180,10 @@ class LiveState:
         along, cross = self.plan.locate(east, north, progress.along_m)
         height_error = osd.height_above_takeoff_m - self.plan.altitude_at(along)
         if not progress.started and along < limit and cross < limit and abs(height_error) < limit:
-            progress.started = True
-        if progress.started:
+            progress.started_t = t
+        if progress.on_mission:
             progress.along_m, progress.cross_m, progress.leg = along, cross, self.plan.leg_at(along)
+            progress.along_error_m = along - self.plan.along_after_s(t - progress.started_t)
             if self.plan.length_m - along < limit:
                 progress.finished = True
         self._set("off_path", t, progress.on_mission and cross > limit,

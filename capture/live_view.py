@@ -53,8 +53,11 @@ def status_lines(state: LiveState, now: float) -> list[tuple[str, str]]:
     cross = "-" if progress.cross_m is None else f"{progress.cross_m:.1f} m"
     left = 0.0 if progress.finished else plan.time_to_finish_s(progress.along_m)
     share = 100 * progress.along_m / plan.length_m
+    error = progress.along_error_m
+    schedule = "" if error is None else f" ({abs(error):.1f} m {'ahead of' if error >= 0 else 'behind'} the plan)"
     lines.append(("PATH", f"{mission}, leg {progress.leg + 1}/{plan.legs}, cross-track {cross}, along-track "
-                          f"{progress.along_m:.0f}/{plan.length_m:.0f} m ({share:.0f} %), finish in {_minutes(left)}"))
+                          f"{progress.along_m:.0f}/{plan.length_m:.0f} m{schedule}, {share:.0f} % done, finish in "
+                          f"{_minutes(left)}"))
     pitch = "-" if state.gimbal_pitch_deg is None else f"{state.gimbal_pitch_deg:.1f}"
     lines.append(("GIMBAL", f"pitch {pitch} deg (plan {plan.gimbal_pitch_at(progress.along_m):.1f})"))
     lines.append(("PHOTOS", f"{state.photos} of {plan.planned_photos()} planned, longest shutter gap "

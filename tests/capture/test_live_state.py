@@ -81,6 +81,7 @@ def test_the_plan_of_a_straight_leg_has_its_length_time_photos_and_pitch():
     assert plan.time_to_finish_s(40.0) == pytest.approx((LEG_M - 40.0) / SPEED)
     assert plan.planned_photos() == LEG_M / SPEED / INTERVAL
     assert plan.gimbal_pitch_at(50.0) == PITCH
+    assert plan.along_after_s(10.0) == pytest.approx(10.0 * SPEED) and plan.along_after_s(1e3) == plan.length_m
     assert plan.locate(3.0, 40.0, 0.0) == pytest.approx((40.0, 3.0), abs=1e-6)
 
 
@@ -104,6 +105,14 @@ def test_a_clean_straight_flight_raises_nothing_and_counts_its_photos():
     assert state.photos == 20
     assert state.longest_gap_s == pytest.approx(INTERVAL, abs=PUSH_S + 1e-9)
     assert state.progress.along_m == pytest.approx(80.0, abs=1e-3) and state.progress.cross_m < 1e-3
+    assert state.progress.along_error_m == pytest.approx(0.0, abs=1e-3)
+
+
+def test_an_aircraft_slower_than_the_plan_is_behind_it_along_the_track():
+    state = started_state()
+    for t in np.arange(0.0, 20.01, 0.5):
+        state.on_packet(t, osd_at(0.0, 0.75 * SPEED * t))
+    assert state.progress.along_error_m == pytest.approx(-0.25 * SPEED * 20.0, abs=1e-3)
 
 
 def test_off_the_path_is_warned_from_the_first_position_beyond_the_limit_until_it_is_back():
