@@ -311,8 +311,11 @@ def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> lis
     flights, start = [], start_utc_of(options, scene)
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
-        mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections,
-                                     options.home, options.faults)
+        try:
+            mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections,
+                                         options.home, options.faults)
+        except FaultAfterLanding as error:
+            raise FaultAfterLanding(f"{error} (flight {number}, {mission_csv})") from None
         try:
             check_session(mission, start, flight_options, scene)
         except ValueError as error:

@@ -30,6 +30,12 @@ def write_one_waypoint(tmp: Path) -> None:
     write_mission_csv(Mission((Waypoint(DEMO_ORIGIN.lat0_deg, DEMO_ORIGIN.lon0_deg, 30.0),)), tmp / "m.csv")
 
 
+def write_two_missions(tmp: Path) -> None:
+    """The small orbit twice: the flights of an area plan."""
+    write_mission(tmp)
+    (tmp / "m2.csv").write_bytes((tmp / "m.csv").read_bytes())
+
+
 CASES = [
     Case("fly-gust-shorter-than-its-rise-and-fall", RENDER, [*FLY, "--gust", "10", "1", "5"],
          r"--gust: DURATION 1 s: a gust rises and falls over 1 s each, so it lasts at least 2 s", write_mission),
@@ -45,6 +51,10 @@ CASES = [
          r"--link-silence: DURATION 1e\+09 s: expected seconds in \(0, 600\]", write_mission),
     Case("fly-link-silence-after-landing", RENDER, [*FLY, "--link-silence", "5000", "3"],
          r"--link-silence: START 5000 s: the flight lasts \d+\.\d s; expected a start within it", write_mission),
+    Case("fly-area-fault-after-the-first-flight-lands", RENDER,
+         [*FLY, "--mission", "{tmp}/m2.csv", "--link-silence", "5000", "3"],
+         r"--link-silence: START 5000 s: the flight lasts \d+\.\d s; expected a start within it \(flight 1, .*m\.csv\)",
+         write_two_missions),
     Case("fly-gimbal-stuck-above-the-horizon", RENDER, [*FLY, "--gimbal-stuck", "10", "5", "30"],
          r"--gimbal-stuck: PITCH 30: expected degrees in \[-90, 0\]", write_mission),
     Case("fly-battery-drain-slower", RENDER, [*FLY, "--battery-drain", "10", "0.5"],
@@ -71,3 +81,4 @@ CASES = [
 @pytest.mark.parametrize("case", CASES, ids=lambda c: c.id)
 def test_refused(case, tmp_path):
     assert_refused(run_case(case, tmp_path), case, tmp_path)
+
