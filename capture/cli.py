@@ -20,12 +20,16 @@ from serial.tools import list_ports
 from capture import cli_logs
 from capture.check import cli as check_cli
 from capture.decode import NoFramesError, decode_to_csv
+from capture.live_plan import PlannedPath, planned_path
+from capture.live_state import LiveLimits, LiveState
+from capture.live_view import LOG_EVERY_S, LineDisplay, LiveMonitor, ScreenDisplay, alert_line
 from capture.messages import default_registry
 from capture.raw import RawCaptureWriter, index_path
 from capture.recorder import record, stop_after
 from capture.transports import (DJI_VENDOR_ID, HidSource, SerialSource, TransportError, UsbBulkSource, error_text,
                                 find_duml_bulk_in, hidapi_opener, is_pcap, replay_file)
-from cliutil.argtypes import positive_number
+from cliutil.argtypes import number_within, positive_number
+from flightplan.litchi import read_mission_csv
 from cliutil.errors import BadInput
 from cliutil.program import Parser, add_version, run_cli
 from cliutil.paths import path_problem, refuse_clobbering, refuse_folders, refuse_links
@@ -42,6 +46,25 @@ def add_record_parser(subparsers) -> None:
     parser.add_argument("--duration", type=positive_number, default=None,
                         help="seconds to record (default: until Ctrl-C)")
     parser.add_argument("--out", required=True, type=Path, help="raw capture NAME.duml (appended if it exists)")
+    live = parser.add_argument_group("live view", "with --mission, a live view of the flight against its plan while "
+                                                  "recording: full screen on a terminal, else a plain line every "
+                                                  f"{LOG_EVERY_S:g} s and each warning on stderr "
+                                                  "(docs/at-the-field.md)")
+    live.add_argument("--mission", type=Path, help="the Litchi mission CSV being flown")
+    live.add_argument("--off-path", type=number_within(0.1, 1000.0, "metres"), default=LiveLimits.off_path_m,
+                      metavar="M", help="warn when the aircraft is more than M metres from the planned path "
+                                        f"(default {LiveLimits.off_path_m:g})")
+    live.add_argument("--gimbal-tolerance", type=number_within(0.1, 90.0, "degrees"),
+                      default=LiveLimits.gimbal_tolerance_deg, metavar="DEG",
+                      help=f"warn when the gimbal pitch is more than DEG from the plan's "
+                           f"(default {LiveLimits.gimbal_tolerance_deg:g})")
+    live.add_argument("--silent-after", type=number_within(0.1, 600.0, "seconds"), default=LiveLimits.silent_after_s,
+                      metavar="S",
+                      help=f"warn when no packet came for S seconds (default {LiveLimits.silent_after_s:g})")
+    live.add_argument("--battery-reserve", type=number_within(0.0, 100.0, "percent"),
+                      default=LiveLimits.battery_reserve_percent, metavar="PCT",
+                      help="warn when the battery, at the rate it is used, would end the path and the return home "
+                           f"below PCT percent (default {LiveLimits.battery_reserve_percent:g})")
     parser.set_defaults(handler=run_record)
 
 
@@ -110,17 +133,56 @@ def run_record(args) -> int:
     outputs = {"--out": args.out, "--out's index": index_path(args.out)}
     refuse_links(outputs)  # appended to in place: a planted link would append into the file it points to
     port = Path(args.port)
-    refuse_clobbering({"--port": port if port.exists() else None}, outputs)
+    refuse_clobbering({"--port": port if port.exists() else None, "--mission": args.mission}, outputs)
     refuse_folders(outputs)
+    plan = read_plan(args.mission) if args.mission is not None else None
     source = open_source(args.port, args.baud)
     source.open()  # fail before creating any file
     stop = stop_after(args.duration)
     with RawCaptureWriter(args.out) as writer:
-        status = record(source.chunks(stop), writer, default_registry(),
-                        on_status=lambda s: print("\r" + s.line(), end="", file=sys.stderr, flush=True))
+        if plan is None:
+            status = record(source.chunks(stop), writer, default_registry(),
+                            on_status=lambda s: print("\r" + s.line(), end="", file=sys.stderr, flush=True))
+        else:
+            monitor = live_monitor(args, plan, source.clock.monotonic)
+            with monitor:
+                status = record(source.chunks(stop), writer, default_registry(), tap=monitor.put)
     print("\r" + status.line(), file=sys.stderr)
     print(f"wrote {args.out} ({writer.offset} bytes) and {args.out}.idx; reconnects: {source.reconnects}")
+    if plan is not None:
+        report_live_view(monitor)
     return 0
+
+
+def read_plan(mission: Path) -> PlannedPath:
+    """``--mission``'s planned path (:class:`BadInput` naming the file for anything but a flyable Litchi CSV)."""
+    if problem := path_problem(mission, folder=False):
+        raise BadInput(f"--mission {mission}: {problem}; expected a Litchi mission CSV")
+    try:
+        return planned_path(read_mission_csv(mission))
+    except ValueError as error:
+        raise BadInput(f"--mission {mission}: {error}") from None
+
+
+def live_monitor(args, plan: PlannedPath, now) -> LiveMonitor:
+    """The live view for ``record --mission``: full screen when stdout and stderr are a terminal curses knows, else
+    plain lines."""
+    limits = LiveLimits(args.off_path, args.gimbal_tolerance, args.silent_after, args.battery_reserve)
+    terminal = sys.stdout.isatty() and sys.stderr.isatty() and ScreenDisplay.usable()
+    display = ScreenDisplay(f"{PROGRAM} record --mission {args.mission} -> {args.out}") if terminal else LineDisplay()
+    return LiveMonitor(LiveState(plan, limits), default_registry(), now, display)
+
+
+def report_live_view(monitor: LiveMonitor) -> None:
+    """The live view's warnings on stdout (the screen is gone when recording ends); a view that failed on stderr."""
+    state = monitor.state
+    print(f"live view: {len(state.warnings)} warnings; {state.photos} photos of {state.plan.planned_photos()} "
+          f"planned, longest shutter gap {state.longest_gap_s:.1f} s")
+    for alert in state.warnings:
+        print("warning: " + alert_line(alert, monitor.t0 or 0.0))
+    if monitor.error is not None:
+        print(f"note: the live view stopped ({type(monitor.error).__name__}: {monitor.error}); the recording went on",
+              file=sys.stderr)
 
 
 def run_decode(args) -> int:

@@ -37,8 +37,10 @@ class RecordStatus:
 
 
 def record(chunks: Iterable[Chunk], writer: RawCaptureWriter, registry: MessageRegistry,
-           on_status: Callable[[RecordStatus], None] | None = None, status_interval_s: float = 0.5) -> RecordStatus:
-    """Append every chunk to ``writer`` (flushed) BEFORE parsing it, then update the status. Returns the last status.
+           on_status: Callable[[RecordStatus], None] | None = None, status_interval_s: float = 0.5,
+           tap: Callable[[Chunk], None] | None = None) -> RecordStatus:
+    """Append every chunk to ``writer`` (flushed) BEFORE parsing it, then hand it to ``tap`` (a live view's
+    non-blocking put, :class:`capture.live_view.LiveMonitor`) and update the status. Returns the last status.
 
     Stops when ``chunks`` ends (the source's stop event) or on KeyboardInterrupt (Ctrl-C).
     """
@@ -50,6 +52,8 @@ def record(chunks: Iterable[Chunk], writer: RawCaptureWriter, registry: MessageR
         for chunk in chunks:
             writer.append(chunk.receive_time_utc, chunk.receive_time_monotonic, chunk.data)
             status.bytes += len(chunk.data)
+            if tap is not None:
+                tap(chunk)
             for _, packet in deframer.feed(chunk.data):
                 record_ = registry.decode(packet)
                 if isinstance(record_, OsdGeneral):

@@ -13,6 +13,8 @@ from cliutil.argtypes import finite_number, non_negative_integer, number_within
 from cliutil.paths import folder_holds, folder_inputs, path_problem, refuse_clobbering
 from cliutil.errors import BadInput
 from sim.cli.light import flight_sun_value
+from sim.drone.flight_faults import (GUST_RISE_S, MAX_DRAIN_FACTOR, MAX_FAULT_DURATION_S, MAX_GUST_OFFSET_M,
+                                     BatteryDrain, FlightFaults, GimbalStuck, Gust, LinkSilence)
 from sim.drone.session import (BATTERY_SWAP_S, LINKS, MAX_GEOID_UNDULATION_M, NOISE, FlyOptions, FlyReport,
                                flight_folder, refuse_earlier_flight, run_flights, run_session)
 from sim.drone.photo_faults import MAX_BLUR_PX, MOTION_BLUR, SKIPPED_SHOT, FaultWindow, PhotoFaults
@@ -132,7 +134,39 @@ def add_fly_parser(subparsers) -> None:
                              f"+-{MAX_GEOID_UNDULATION_M:g}: Earth's is -107..+86): photos and logs carry "
                              "ellipsoidal height - N as height above sea level (default 0: the ellipsoid)")
     add_photo_fault_options(parser)
+    add_flight_fault_arguments(parser)
     parser.set_defaults(handler=run_fly)
+
+
+def add_flight_fault_arguments(parser) -> None:
+    """The "flight faults" group (:mod:`sim.drone.flight_faults`): each off unless given, times in seconds of flight
+    time (since the motors started), recorded in truth.json's "faults"."""
+    group = parser.add_argument_group("flight faults", "faults to test a live view on (each off by default; START "
+                                                       "and DURATION in seconds of flight time; truth.json lists "
+                                                       "them under \"faults\")")
+    group.add_argument("--gust", nargs=3, type=finite_number, metavar=("START", "DURATION", "METRES"),
+                       help=f"push the aircraft METRES (at most {MAX_GUST_OFFSET_M:g}) to the right of its path for "
+                            f"DURATION s (at least {2 * GUST_RISE_S:g}: the push rises and falls over "
+                            f"{GUST_RISE_S:g} s)")
+    group.add_argument("--link-silence", nargs=2, type=finite_number, metavar=("START", "DURATION"),
+                       help=f"the link sends nothing for DURATION s (at most {MAX_FAULT_DURATION_S:g}); the photos "
+                            "are still taken")
+    group.add_argument("--gimbal-stuck", nargs=3, type=finite_number, metavar=("START", "DURATION", "PITCH"),
+                       help="the gimbal stays at PITCH degrees (-90..0) for DURATION s")
+    group.add_argument("--battery-drain", nargs=2, type=finite_number, metavar=("START", "FACTOR"),
+                       help=f"from START to the landing the battery runs down FACTOR times faster (1 < FACTOR <= "
+                            f"{MAX_DRAIN_FACTOR:g}; normally 100 %% lasts 25 min)")
+
+
+def flight_faults_from(args) -> FlightFaults:
+    """The faults the "flight faults" options ask for (``ValueError`` naming the option where one is out of its
+    bounds)."""
+    def made(kind, values):
+        return None if values is None else kind(*values)
+
+    return FlightFaults(gust=made(Gust, args.gust), link_silence=made(LinkSilence, args.link_silence),
+                        gimbal_stuck=made(GimbalStuck, args.gimbal_stuck),
+                        battery_drain=made(BatteryDrain, args.battery_drain))
 
 
 def refuse_clobbering_fly(args) -> None:
@@ -155,6 +189,7 @@ def run_fly(args) -> int:
             raise BadInput(f"{mission}: {problem}; expected a Litchi mission CSV")
     if args.photo_limit is not None and args.photo_limit < 0:
         raise BadInput(f"--photos {args.photo_limit}: expected a count >= 0")
+    faults = flight_faults_from(args)
     refuse_clobbering_fly(args)
     several = len(args.mission) > 1
     noise = args.noise or ("area" if several else "realistic")
@@ -162,7 +197,8 @@ def run_fly(args) -> int:
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
                          home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite,
-                         photo_faults=PhotoFaults(tuple(args.skip_shots + args.blur)))
+                         photo_faults=PhotoFaults(tuple(args.skip_shots + args.blur)),
+                         faults=faults)
     scene = load_scene(resolve_scene_dir(args.scene), with_labels=False)
     if not several:
         reports = [run_session(args.mission[0], scene, args.out, options)]

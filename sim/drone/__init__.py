@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.drone.flight import Flight, FlightConfig, FlightState
+from sim.drone.flight_faults import NO_FAULTS, FlightFaults
 from sim.drone.imperfections import Imperfections, damage_bytes
 from sim.drone.mission import HomePoint, Waypoint
 from sim.drone.schedule import Telemetry, TelemetryRates, telemetry_schedule
@@ -25,8 +26,8 @@ from sim.drone.sensors import Sensors
 from sim.drone.truth import Photos, take_photos, write_truth
 
 __all__ = [
-    "Flight", "FlightConfig", "FlightState", "FlownMission", "HomePoint", "Imperfections", "Photos", "Telemetry",
-    "TelemetryRates", "Waypoint", "fly", "write_truth",
+    "Flight", "FlightConfig", "FlightFaults", "FlightState", "FlownMission", "HomePoint", "Imperfections", "Photos",
+    "Telemetry", "TelemetryRates", "Waypoint", "fly", "write_truth",
 ]
 
 
@@ -52,10 +53,11 @@ class FlownMission:
 
 def fly(waypoints: list[Waypoint], home: HomePoint, imperfections: Imperfections = Imperfections.none(),
         seed: int | None = 0, config: FlightConfig = FlightConfig(),
-        rates: TelemetryRates = TelemetryRates()) -> FlownMission:
-    """Fly ``waypoints`` from ``home``; every random draw comes from ``seed`` (independent streams per effect)."""
+        rates: TelemetryRates = TelemetryRates(), faults: FlightFaults = NO_FAULTS) -> FlownMission:
+    """Fly ``waypoints`` from ``home``; every random draw comes from ``seed`` (independent streams per effect), the
+    same with or without ``faults`` (:mod:`sim.drone.flight_faults`)."""
     wind_rng, sensor_rng, photo_rng, dropout_rng, link_rng = np.random.default_rng(seed).spawn(5)
-    flight = Flight(waypoints, home, config, imperfections, wind_rng)
+    flight = Flight(waypoints, home, config, imperfections, wind_rng, faults)
     sensors = Sensors(flight, imperfections, sensor_rng, rate_hz=max(rates.osd_hz, rates.gimbal_hz))
     photos = take_photos(flight, sensors, photo_rng)
     telemetry = telemetry_schedule(flight, sensors, photos.t_s[photos.taken], np.flatnonzero(photos.taken),

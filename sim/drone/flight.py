@@ -20,6 +20,7 @@ from capture.attitude import wrap_deg
 from capture.messages import MAX_FLY_TIME_S
 from flightplan.geodesy import LocalFrame
 from sim.drone import path as pathlib
+from sim.drone.flight_faults import NO_FAULTS, FlightFaults
 from sim.drone.imperfections import Imperfections, PathDeviation, first_order_lag
 from sim.drone.mission import GIMBAL_FOCUS_POI, GIMBAL_INTERPOLATE, HomePoint, Waypoint
 
@@ -97,10 +98,12 @@ def _ground_taper(up_m: np.ndarray, height_m: float = 5.0):
 
 
 class Flight:
-    """The true flight of ``waypoints`` from ``home``; wind gusts drawn from ``rng`` when imperfect."""
+    """The true flight of ``waypoints`` from ``home``; wind gusts drawn from ``rng`` when imperfect; ``faults``
+    asked for (:mod:`sim.drone.flight_faults`: a gust's push and a stuck gimbal act here)."""
 
     def __init__(self, waypoints: list[Waypoint], home: HomePoint, config: FlightConfig = FlightConfig(),
-                 imperfections: Imperfections = Imperfections.none(), rng: np.random.Generator | None = None):
+                 imperfections: Imperfections = Imperfections.none(), rng: np.random.Generator | None = None,
+                 faults: FlightFaults = NO_FAULTS):
         if len(waypoints) < 2:
             raise ValueError(f"a mission needs at least 2 waypoints, got {len(waypoints)}")
         self.waypoints = list(waypoints)
@@ -114,6 +117,9 @@ class Flight:
         self.duration_s = self.profile.duration_s + 2.0 * config.ground_time_s
         self._refuse_too_long()
         self.waypoint_heading_deg, self.waypoint_gimbal_pitch_deg = self._waypoint_commands()
+        self.faults = faults
+        faults.check_flight(self.duration_s)
+        self._gust_direction_enu = self._right_of_travel(faults.gust.start_s) if faults.gust else None
         if imperfections.gust_offset_std_m > 0 and rng is None:
             raise ValueError("wind gusts need a numpy Generator (rng)")
         self.deviation = PathDeviation(self.duration_s, imperfections.gust_offset_std_m,
@@ -212,6 +218,15 @@ class Flight:
         command = np.stack([np.unwrap(heading, period=360.0), pitch], axis=1)
         return grid, first_order_lag(command, self.config.gimbal_grid_s, lag)
 
+    def _right_of_travel(self, t_s: float) -> np.ndarray:
+        """The horizontal unit vector (ENU) to the right of the planned path at ``t_s`` (east while the path is
+        vertical: the climb, the descent)."""
+        s, _, _ = self._arc_length([t_s])
+        _, tangent, _, _ = pathlib.evaluate(self.pieces, s)
+        east, north = tangent[0, :2]
+        length = np.hypot(east, north)
+        return np.array([north / length, -east / length, 0.0]) if length > 1e-6 else np.array([1.0, 0.0, 0.0])
+
     # --- sampling -----------------------------------------------------------------------------------------
     def _arc_length(self, t_s: np.ndarray):
         return self.profile.at(np.asarray(t_s, float) - self.config.ground_time_s)
@@ -223,6 +238,9 @@ class Flight:
         nominal, tangent, curvature, piece = pathlib.evaluate(self.pieces, s)
         weight, weight_rate = _ground_taper(nominal[:, 2])
         offset, offset_rate, offset_accel = self.deviation.at(t)
+        if self._gust_direction_enu is not None:
+            push = self.faults.gust.offset_at(t, self._gust_direction_enu)
+            offset, offset_rate, offset_accel = offset + push[0], offset_rate + push[1], offset_accel + push[2]
         velocity_nominal = speed[:, None] * tangent
         position = nominal + weight[:, None] * offset
         taper_rate = weight_rate * velocity_nominal[:, 2]
@@ -236,6 +254,7 @@ class Flight:
             grid, lagged = self._gimbal_grid
             gimbal_yaw = wrap_deg(np.interp(t, grid, lagged[:, 0]))
             gimbal_pitch = np.interp(t, grid, lagged[:, 1])
+        gimbal_pitch = self.faults.gimbal_pitch_deg(t, gimbal_pitch)
         on_ground = (t <= self.config.ground_time_s) | (t >= self.duration_s - self.config.ground_time_s)
         phase = np.where(on_ground, 0, [PHASES.index(self.pieces[k].phase) for k in piece])
         return FlightState(

@@ -12,6 +12,8 @@ Frames carry their send time in seconds on the telemetry clock (since the motors
   (simulated arrival, no latency), written atomically;
 * :func:`stream` -- any ``write(bytes)`` callable (a pyserial port from ``serial.serial_for_url``: ``loop://``,
   ``socket://host:port``; the fake pyusb backend's ``push``), paced by a :class:`MissionClock`.
+* :class:`FrameServer` -- a one-shot TCP server streaming to the first client (``aerostereo-ingest record --port
+  socket://127.0.0.1:PORT``), paced the same way.
 
 Time on live links: :class:`MissionClock` maps the host's monotonic clock to flight time at ``speedup`` times
 real time and to UTC from ``start_utc``. It has the shape of :class:`capture.transports.Clock`, so a recorder
@@ -24,6 +26,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import math
+import socket
 import threading
 import time
 from typing import Callable, Iterable, NamedTuple
@@ -142,9 +145,9 @@ class MissionClock(Clock):
         self.start_utc = start_utc or dt.datetime.now(dt.timezone.utc)
         self._anchor = time.monotonic()
 
-    def restart(self) -> None:
-        """Flight time 0 is now."""
-        self._anchor = time.monotonic()
+    def restart(self, at_s: float = 0.0) -> None:
+        """Flight time ``at_s`` is now (a stream that starts mid-flight)."""
+        self._anchor = time.monotonic() - at_s / self.speedup
 
     def flight_time_s(self) -> float:
         """Seconds of flight time since the start."""
@@ -187,3 +190,39 @@ def stream(frames: list[Frame], write: Callable[[bytes], object], clock: Mission
             progress(end - start)
         start = end
     return sent
+
+
+class FrameServer(threading.Thread):
+    """A one-shot TCP server on ``host`` (port chosen by the system: :attr:`port`) that streams ``frames`` to the
+    first client, paced by ``clock`` (default: ``speedup`` times real time from ``start_utc``), restarted when the
+    client connects at flight time ``from_s`` (give it the frames from there; a receiver stamping with the same clock
+    has the flight's time line), then closes: the virtual
+    drone's end of ``aerostereo-ingest record --port socket://HOST:PORT``, until the client leaves. ``sent``: bytes
+    of the writes the kernel took whole; ``stream_s``: wall seconds from the connection to the last write."""
+
+    def __init__(self, frames: list[Frame], speedup: float = 1.0, start_utc: dt.datetime | None = None,
+                 host: str = "127.0.0.1", from_s: float = 0.0, clock: MissionClock | None = None) -> None:
+        super().__init__(name="frame server", daemon=True)
+        self.frames, self.from_s = frames, from_s
+        self.listener = socket.create_server((host, 0))
+        self.port = self.listener.getsockname()[1]
+        self.sent, self.stream_s = 0, 0.0
+        self.clock = clock or MissionClock(speedup, start_utc)
+
+    def run(self) -> None:
+        with self.listener:
+            connection, _ = self.listener.accept()
+        with connection:
+            self.clock.restart(at_s=self.from_s)
+            started = time.monotonic()
+            try:
+                stream(self.frames, self._sender(connection), self.clock)
+            except (BrokenPipeError, ConnectionResetError):
+                pass  # the client left (a recorder's --duration ran out): what it took is in ``sent``
+            self.stream_s = time.monotonic() - started
+
+    def _sender(self, connection: socket.socket) -> Callable[[bytes], None]:
+        def send(data: bytes) -> None:
+            connection.sendall(data)
+            self.sent += len(data)
+        return send

@@ -103,10 +103,12 @@ def _sample_times(duration_s: float, rate_hz: float) -> np.ndarray:
 
 
 def osd_records(flight: Flight, sensors: Sensors, t_s: np.ndarray) -> list[OsdRecord]:
-    """OSD General records at times ``t_s``."""
+    """OSD General records at times ``t_s``; the battery runs down evenly over :data:`BATTERY_ENDURANCE_S` of its
+    clock (the flight's, faster after a battery-drain fault)."""
     truth = flight.state_at(t_s)
     m = sensors.measure(truth)
-    battery = np.clip(np.round(100.0 * (1.0 - t_s / BATTERY_ENDURANCE_S)), 0, 100).astype(int)
+    battery_s = flight.faults.battery_time_s(t_s)
+    battery = np.clip(np.round(100.0 * (1.0 - battery_s / BATTERY_ENDURANCE_S)), 0, 100).astype(int)
     return [
         OsdRecord(
             t_s=float(t), latitude_deg=float(m.latitude_deg[i]), longitude_deg=float(m.longitude_deg[i]),
@@ -130,9 +132,11 @@ def gimbal_records(flight: Flight, sensors: Sensors, t_s: np.ndarray) -> list[Gi
 
 def telemetry_schedule(flight: Flight, sensors: Sensors, shutter_times_s: np.ndarray, photo_indices: np.ndarray,
                        rng: np.random.Generator, rates: TelemetryRates = TelemetryRates()) -> Telemetry:
-    """Every record the aircraft sends during ``flight``, minus those lost in link dropouts (drawn from ``rng``)."""
+    """Every record the aircraft sends during ``flight``, minus those lost in link dropouts (drawn from ``rng``,
+    and the flight's link-silence fault)."""
     imp = flight.imperfections
     windows = dropout_windows(flight.duration_s, imp.dropout_rate_per_min, imp.dropout_mean_s, rng)
+    windows = np.concatenate([windows, flight.faults.silence_windows()])
 
     def kept(times):
         return times[~in_windows(times, windows)]

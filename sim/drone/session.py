@@ -20,25 +20,31 @@ code path); ``tcp`` streams to ``socket://host:port`` (someone must listen there
 from __future__ import annotations
 
 import datetime as dt
+import io
 import os
 import re
 import shutil
 import threading
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 import serial
 from tqdm import tqdm
 
+from capture.live_plan import PlannedPath
+from capture.live_state import LiveLimits, LiveState
+from capture.live_view import LineDisplay, LiveMonitor
 from capture.messages import default_registry
 from capture.raw import atomic_capture, index_path
 from capture.recorder import record
-from capture.transports import SerialSource
+from capture.transports import Chunk, SerialSource
 from cliutil.atomic import remove_stale_temps
 from cliutil.resources import require_memory
 from flightplan.litchi import read_mission_csv
 from sim.drone import FlownMission, Imperfections, fly, write_truth
+from sim.drone.flight_faults import NO_FAULTS, FaultAfterLanding, FlightFaults
 from sim.drone.logs import write_flight_logs
 from sim.drone.link import Frame, MissionClock, duml_frames, stream, write_raw_capture
 from sim.drone.mission import HomePoint, home_below_first_waypoint, waypoints_from_litchi
@@ -85,7 +91,8 @@ class FlyOptions:
     motors on (an aware datetime); None: :func:`sim.drone.sunlight.default_start_utc` over the scene, the same
     instant whenever it is flown (a live link's clock too). ``sun``: the
     photos' light (:class:`~sim.sampling.light.SunSetting`, not the random form); None: the real sun over the scene
-    at each photo's UTC time (:mod:`sim.drone.sunlight`)."""
+    at each photo's UTC time (:mod:`sim.drone.sunlight`). ``faults``: the flight and link faults asked for
+    (:mod:`sim.drone.flight_faults`; each flight of an area plan gets them, on its own flight time)."""
 
     photo_size: tuple[int, int] = (800, 600)
     link: str = "file"
@@ -102,6 +109,7 @@ class FlyOptions:
     sun: SunSetting | None = None
     overwrite: bool = False  # replace an earlier flight in the output folder (else it is refused)
     photo_faults: PhotoFaults = field(default_factory=PhotoFaults)  # skipped shots, motion blur (sim.drone.photo_faults)
+    faults: FlightFaults = NO_FAULTS
 
     def __post_init__(self) -> None:
         if self.sun is not None and self.sun.form == "random":
@@ -132,9 +140,9 @@ class FlyReport:
 
 
 def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfections,
-                       home: tuple[float, float] | None = None) -> FlownMission:
-    """Fly the Litchi CSV over ``scene``, taking off from the scene's ground at ``home`` (lat, lon degrees: the
-    pilot's place, e.g. an area plan's ``take_off``) or, when None, below the first waypoint."""
+                       home: tuple[float, float] | None = None, faults: FlightFaults = NO_FAULTS) -> FlownMission:
+    """Fly the Litchi CSV over ``scene`` with ``faults``, taking off from the scene's ground at ``home`` (lat, lon
+    degrees: the pilot's place, e.g. an area plan's ``take_off``) or, when None, below the first waypoint."""
     waypoints = waypoints_from_litchi(read_mission_csv(mission_csv))
     if home is None:
         first = waypoints[0]
@@ -146,35 +154,51 @@ def fly_litchi_mission(mission_csv, scene: Scene, seed, imperfections: Imperfect
         except ValueError as error:
             raise ValueError(f"--home {home[0]} {home[1]}: {error}; expected a take-off point on the scene") from None
     try:
-        return fly(waypoints, take_off, imperfections, seed=seed)
+        mission = fly(waypoints, take_off, imperfections, seed=seed, faults=faults)
+    except FaultAfterLanding:
+        raise  # its option is what to change, not the mission
     except ValueError as error:
         raise ValueError(f"{mission_csv}: {error}") from None
+    return mission
 
 
-def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True) -> int:
+def until_received(source: SerialSource, total_bytes: int) -> Iterator[Chunk]:
+    """The chunks of ``source`` until ``total_bytes`` have arrived (a virtual flight's whole stream)."""
+    stop, received = threading.Event(), 0
+    for chunk in source.chunks(stop):
+        yield chunk
+        received += len(chunk.data)
+        if received >= total_bytes:
+            stop.set()
+
+
+def record_loopback(frames: list[Frame], path, clock: MissionClock, progress: bool = True, tap=None) -> int:
     """Stream ``frames`` into one ``loop://`` port from a thread and record its output to ``path`` (+ ``.idx``)
-    with the live recorder, stamped by ``clock``; both files atomically. Returns the bytes recorded."""
+    with the live recorder, stamped by ``clock``; both files atomically. ``tap``: handed each recorded chunk (a
+    live view's :meth:`capture.live_view.LiveMonitor.put`). Returns the bytes recorded."""
     port = serial.serial_for_url("loop://", timeout=0.05)
-    total = sum(len(frame.data) for frame in frames)
-    stop = threading.Event()
     source = SerialSource("loop://", clock=clock)
     source.connection = port
     with tqdm(total=len(frames), desc="telemetry", unit="frame", disable=not progress) as bar:
         sender = threading.Thread(target=stream, args=(frames, port.write, clock, bar.update), daemon=True)
-
-        def until_all_received():
-            received = 0
-            for chunk in source.chunks(stop):
-                yield chunk
-                received += len(chunk.data)
-                if received >= total:
-                    stop.set()
-
         with atomic_capture(path) as writer:
             sender.start()
-            status = record(until_all_received(), writer, default_registry())
+            status = record(until_received(source, sum(len(frame.data) for frame in frames)), writer,
+                            default_registry(), tap=tap)
         sender.join()
     return status.bytes
+
+
+def watch_loopback(frames: list[Frame], path, clock: MissionClock, plan: PlannedPath,
+                   limits: LiveLimits = LiveLimits(), display=None) -> LiveMonitor:
+    """:func:`record_loopback` under a live view of ``plan`` (:mod:`capture.live_view`) on ``clock``, so that its
+    warnings' times are flight seconds, comparable with truth.json's faults; ``display``: where it shows (default:
+    plain lines into nothing). Returns the monitor, closed."""
+    monitor = LiveMonitor(LiveState(plan, limits), default_registry(), clock.monotonic,
+                          display or LineDisplay(io.StringIO()))
+    with monitor:
+        record_loopback(frames, path, clock, progress=False, tap=monitor.put)
+    return monitor
 
 
 def stream_to_port(frames: list[Frame], url: str, clock: MissionClock, progress: bool = True) -> int:
@@ -243,7 +267,8 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     (default: :func:`start_utc_from`)."""
     out_dir = Path(out_dir)
     refuse_earlier_flight(out_dir, options.overwrite)
-    mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home)
+    mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home,
+                                           options.faults)
     clock = MissionClock(options.speedup, start_utc_of(options, scene))
     light, faults = check_session(mission, clock.start_utc, options, scene)
     if options.overwrite:
@@ -276,9 +301,14 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
         "gps_fix_bias_note": "the flight's constant GPS error (ENU m), part of every GPS fix: its fix offset",
         "height_note": "h_ellipsoid_m is above the WGS84 ellipsoid; photos and logs carry h_ellipsoid_m - "
                        "geoid_undulation_m as the height above sea level", "sun": sun,
-        "faults": faults.truth(),
-        "faults_note": "each fault's window start_s..end_s on the telemetry clock and the photos it hit; a "
-                       "skipped_shot's photos fired (a shutter event) but are not on the card"})
+        "faults": sorted(options.faults.truth(clock.start_utc, mission.flight.duration_s) + faults.truth(),
+                         key=lambda fault: fault["start_s"]),
+        "faults_note": "each fault's window start_s..end_s in flight seconds; flight faults (gust, link_silence, "
+                       "gimbal_stuck, battery_drain) also in UTC, photo faults with the photos they hit; a "
+                       "skipped_shot's photos fired (a shutter event) but are not on the card",
+        "link_dropouts_s": sorted(mission.telemetry.dropouts_s.tolist()),
+        "link_dropouts_note": "[start, end) flight seconds in which the link sent nothing: its own dropouts "
+                              "(imperfections) and a link_silence fault"})
     return FlyReport(mission, clock.start_utc, len(frames), sent, rendered, sun)
 
 
@@ -297,7 +327,11 @@ def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> lis
     flights, start = [], start_utc_of(options, scene)
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)
-        mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections, options.home)
+        try:
+            mission = fly_litchi_mission(mission_csv, scene, flight_options.seed, options.imperfections,
+                                         options.home, options.faults)
+        except FaultAfterLanding as error:
+            raise FaultAfterLanding(f"{error} (flight {number}, {mission_csv})") from None
         try:
             check_session(mission, start, flight_options, scene)
         except ValueError as error:
