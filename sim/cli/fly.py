@@ -132,7 +132,7 @@ def run_fly(args) -> int:
                          imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
                          home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite)
-    scene = load_scene(resolve_scene_dir(args.scene), with_labels=False)
+    scene = load_scene(resolve_scene_dir(args.scene), with_labels=False, with_provenance=False)
     if not several:
         reports = [run_session(args.mission[0], scene, args.out, options)]
     else:
