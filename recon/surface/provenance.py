@@ -89,13 +89,21 @@ def face_areas(vertices: np.ndarray, faces: np.ndarray) -> np.ndarray:
 
 def store_face_provenance(scene_dir: Path, meta: dict, evidence: SurfaceEvidence) -> dict:
     """Code every face of the mesh that ``meta`` (scene.json's content, the mesh already written) names, as the scene
-    loader reads it, from ``evidence``; write ``scene_dir/face_provenance.npz`` tied to that mesh and name it in
-    ``meta`` with the code table, the settings and the shares of faces (and area) per bit, which it returns."""
+    loader reads it, from ``evidence``, and store the codes (:func:`store_codes`); their shares."""
     vertices, faces, _ = read_scene_mesh_enu(scene_dir, meta)
-    codes = face_codes(vertices, faces, evidence)
+    return store_codes(scene_dir, meta, face_codes(vertices, faces, evidence),
+                       "recon: fused-point distance and photo coverage per face", evidence.settings())
+
+
+def store_codes(scene_dir: Path, meta: dict, codes: np.ndarray, method: str, settings: dict) -> dict:
+    """Write the face ``codes`` of the mesh that ``meta`` names (as the scene loader reads it) to
+    ``scene_dir/face_provenance.npz`` tied to that mesh, and name it in ``meta`` with how they were found
+    (``method``, ``settings``), the code table and the shares of faces (and area) per bit, which it returns."""
+    vertices, faces, _ = read_scene_mesh_enu(scene_dir, meta)
+    if len(codes) != len(faces):
+        raise ValueError(f"{len(codes)} face provenance codes for a mesh of {len(faces)} faces")
     write_face_provenance(Path(scene_dir) / PROVENANCE_FILE, codes, mesh_sha256(vertices, faces))
     shares = code_shares(codes, face_areas(vertices, faces))
-    meta["face_provenance"] = {"file": PROVENANCE_FILE, "format": FORMAT,
-                               "method": "recon: fused-point distance and photo coverage per face",
-                               "settings": evidence.settings(), "codes": code_table(), "shares": shares}
+    meta["face_provenance"] = {"file": PROVENANCE_FILE, "format": FORMAT, "method": method, "settings": settings,
+                               "codes": code_table(), "shares": shares}
     return shares

@@ -1,8 +1,8 @@
 """Face provenance of a reconstruction (recon/surface/provenance.py) against known answers: a height field over fused
 points with a square hole marks exactly the faces over the hole as filled (and far, deep inside it); faces no photo
 sees are marked texture-filled, by the atlas and by the orthophoto; the codes reach the scene folder tied to the mesh
-as written (a GLB whose vertices the atlas split) and come back through the scene loader; and a whole small recon run
-writes them."""
+as written (a GLB whose vertices the atlas split) and come back through the scene loader; an area's joined scene
+keeps its pieces' codes; and a whole small recon run writes them."""
 
 import json
 
@@ -13,14 +13,16 @@ import trimesh
 
 from recon.appearance.atlas import AtlasOptions, texture_atlas
 from recon.appearance.texture import TextureOptions, orthophoto
+from recon.area.pipeline import AreaOptions, merge_area
 from recon.run.pipeline import Recon
 from recon.run.scene_out import write_scene
 from recon.surface.mesh import height_field, height_field_mesh
-from recon.surface.provenance import GAP_CELLS, SurfaceEvidence, face_codes, surface_codes
+from recon.surface.provenance import GAP_CELLS, SurfaceEvidence, face_codes, store_codes, surface_codes
 from sim.render.camera import look_at
 from sim.render.provenance import FAR_M, PROVENANCE_FILE, SURFACE_FAR, SURFACE_FILLED, TEXTURE_FILLED
-from sim.render.scene import Scene, Surface, load_scene
+from sim.render.scene import Scene, Surface, load_scene, read_scene_mesh_enu
 from sim.worlds.synthetic import grid_mesh, noise_texture
+from tests.recon.test_area_merge import LAYOUT, write_piece
 from tests.recon.test_atlas import ORIGIN
 from tests.recon.test_stages import CENTRES, OPTIONS
 from tests.recon.test_texture import take_photos
@@ -137,3 +139,23 @@ def test_a_recon_run_writes_the_face_provenance_of_its_scene(tmp_path):
     shares = json.loads((tmp_path / "scene/scene.json").read_text())["face_provenance"]["shares"]
     assert shares["measured"]["area"] > 0.8, shares
     assert any(line.startswith("[scene] face provenance") for line in logs)
+
+
+def test_an_area_keeps_each_piece_s_codes_of_the_faces_it_keeps(tmp_path):
+    """Three hand-made pieces (test_area_merge's), each marked with a code of its own: the joined scene's faces carry
+    their piece's code, in the joined mesh's order (each piece's kept faces in turn)."""
+    piece_codes = [0, TEXTURE_FILLED, SURFACE_FILLED | SURFACE_FAR]
+    folders = []
+    for k, ((x0, y0, error, gain), code) in enumerate(zip(LAYOUT, piece_codes)):
+        folder = tmp_path / "pieces" / f"flight_{k + 1:02d}"
+        write_piece(folder, x0, y0, error, gain)
+        meta = json.loads((folder / "scene.json").read_text())
+        faces = len(read_scene_mesh_enu(folder, meta)[1])
+        store_codes(folder, meta, np.full(faces, code, np.uint8), "the test's own marks", {})
+        (folder / "scene.json").write_text(json.dumps(meta))
+        folders.append(folder)
+    report = merge_area(folders, tmp_path / "area", AreaOptions(cell_m=0.5), log=lambda line: None)
+    expected = np.concatenate([np.full(piece["faces"], code, np.uint8)
+                               for piece, code in zip(report["pieces"], piece_codes)])
+    np.testing.assert_array_equal(load_scene(tmp_path / "area").face_provenance, expected)
+    assert report["face_provenance"]["texture_filled"]["faces"] == round(float(np.mean(expected == TEXTURE_FILLED)), 4)
