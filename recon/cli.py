@@ -130,7 +130,8 @@ def run_recon(argv) -> int:
         scene = Recon(args.photos, args.geotags, args.out, options).run()
     print(json.dumps({"scene": str(args.out / "scene.json"), "mesh": scene["mesh"],
                       "ground_height_range_m": scene["ground_height_range_m"],
-                      "valid_area_m": scene["valid_area_m"]}, indent=2))
+                      "valid_area_m": scene["valid_area_m"],
+                      "face_provenance": scene.get("face_provenance", {}).get("shares")}, indent=2))
     return 0
 
 

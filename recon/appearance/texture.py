@@ -142,13 +142,22 @@ class Tiles:
 
 @dataclass(frozen=True)
 class Orthophoto:
-    """The texture (rows, cols, 3) uint8 sRGB with its grid, per-photo ``gains`` and the ``coverage`` fraction of
-    on-mesh texels seen by at least one photo."""
+    """The texture (rows, cols, 3) uint8 sRGB with its grid, per-photo ``gains``, the ``coverage`` fraction of
+    on-mesh texels seen by at least one photo and which texels were (``covered``, (rows, cols) bool; the others hold
+    the nearest covered texel's colour)."""
 
     image: np.ndarray
     texels: Texels
     gains: dict[str, float]
     coverage: float
+    covered: np.ndarray
+
+    def face_seen(self, mesh: trimesh.Trimesh) -> np.ndarray:
+        """(F,) bool per face of ``mesh`` (ENU metres): a photo saw the texel under the face's centroid."""
+        uv = self.texels.uv(np.asarray(mesh.triangles_center)[:, :2])
+        col = np.clip((uv[:, 0] * self.texels.cols).astype(np.int64), 0, self.texels.cols - 1)
+        row = np.clip(((1.0 - uv[:, 1]) * self.texels.rows).astype(np.int64), 0, self.texels.rows - 1)
+        return self.covered[row, col]
 
 
 @dataclass(frozen=True)
@@ -294,7 +303,8 @@ def orthophoto(mesh: trimesh.Trimesh, photos: list[Photo], options: TextureOptio
     image = to_srgb8(colour).reshape(texels.rows, texels.cols, 3)
     image = fill_uncovered(image, covered.reshape(texels.rows, texels.cols))
     coverage = float(np.count_nonzero(covered[on_mesh])) / max(len(on_mesh), 1)
-    return Orthophoto(image, texels, {p.name: float(g) for p, g in zip(photos, gains)}, coverage)
+    return Orthophoto(image, texels, {p.name: float(g) for p, g in zip(photos, gains)}, coverage,
+                      covered.reshape(texels.rows, texels.cols))
 
 
 def fill_uncovered(image: np.ndarray, covered: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ from cliutil.errors import BadInput
 from flightplan.geodesy import LocalFrame
 from recon.surface.merge import ControlPairs
 from recon.sfm.mapping import RTK_GRADE_SIGMA_M
-from sim.render.scene import Surface, read_scene_json, read_scene_mesh_enu
+from sim.render.scene import Surface, read_scene_face_provenance, read_scene_json, read_scene_mesh_enu
 
 MIN_OVERLAP_POINTS = 200  # B vertices on ground both pieces observed; fewer cannot pin 6 degrees of freedom
 ICP_POINTS = 4000  # at most this many of B's overlap vertices enter ICP (evenly spread)
@@ -58,7 +58,8 @@ class FlatOverlapError(AreaError):
 @dataclass(frozen=True)
 class Piece:
     """One scene folder's mesh and footprint in the area's ENU frame (metres), the folder's own origin, how the mesh
-    is coloured (its vertices in the order of ``mesh.vertices``) and the folder's scene.json."""
+    is coloured (its vertices in the order of ``mesh.vertices``), the folder's scene.json and its faces' provenance
+    codes (:mod:`sim.render.provenance`; None: measured everywhere)."""
 
     name: str
     mesh: trimesh.Trimesh
@@ -66,6 +67,7 @@ class Piece:
     origin: LocalFrame
     surface: Surface | None = None
     meta: dict | None = None
+    face_provenance: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -182,7 +184,8 @@ def load_piece(scene_dir: Path, frame: LocalFrame) -> Piece:
     footprint = _footprint(meta)
     ground = np.column_stack([footprint, np.full(len(footprint), np.median(vertices[:, 2]))])
     return Piece(str(scene_dir), trimesh.Trimesh(_convert(vertices, own, frame), faces, process=False),
-                 _convert(ground, own, frame)[:, :2], own, surface, meta)
+                 _convert(ground, own, frame)[:, :2], own, surface, meta,
+                 read_scene_face_provenance(scene_dir, meta, vertices, faces))
 
 
 def control_link(pairs: ControlPairs, a: int, b: int, pieces: list[Piece], frame: LocalFrame) -> Link:

@@ -10,6 +10,7 @@ Layout of the output folder ``AREA``::
     AREA/area_report.json     pieces, corrections, pair offsets before/after (join_warnings: pairs the join left
                               farther apart, also in scene.json), seams, colour gains, timings
     AREA/labels.npz           the merged mesh's face labels (recon/semantics/labels.py), named in scene.json
+    AREA/face_provenance.npz  the pieces' face provenance codes of the faces kept (recon/surface/provenance.py)
     AREA/scene.json           written last: the scene renders as one (aerostereo-render --scene AREA)
 
 Each flight folder holds ``photos/`` and, optionally, ``geotags.csv`` (+ ``geotags.json``; else the photos' own
@@ -44,6 +45,7 @@ from recon.area.merge import (NO_OWNER, blend_seams, colour_gains, covered_polyg
                               look_at_points, ownership, seam_neighbours, surface_mask)
 from recon.semantics.labels import LabelOptions, store_labels
 from recon.surface.grid import Grid
+from recon.surface.provenance import store_codes
 from recon.surface.merge import ControlPairs
 from recon.run.pipeline import Recon, ReconOptions, load_priors
 from recon.inputs.priors import PosePriors
@@ -362,11 +364,18 @@ def merge_area(piece_dirs: Sequence[Path], area_dir: Path, options: AreaOptions 
     report["control"] = control_report
     report["timings_s"] = timings
     write_area(area_dir, frame, mesh_name, encoded, merged, [c for cams in cameras for c in cams], owner, polygon,
-               report, options.labels)
+               report, options.labels, kept_codes(pieces, keep))
     lap("write")
     report["timings_s"] = timings
     write_text_atomic(area_dir / REPORT, json.dumps(report, indent=2) + "\n")
     return report
+
+
+def kept_codes(pieces: Sequence[Piece], keep: Sequence[np.ndarray]) -> np.ndarray:
+    """The face provenance codes of the merged mesh: each piece's codes of its faces ``keep`` (0 for a piece without
+    any: measured everywhere), in the merged mesh's face order."""
+    return np.concatenate([(np.zeros(len(p.mesh.faces), np.uint8) if p.face_provenance is None
+                            else p.face_provenance)[k] for p, k in zip(pieces, keep)])
 
 
 def worse_joins(pairs: Sequence[PairReport], names: Sequence[str]) -> list[str]:
@@ -436,8 +445,9 @@ def _shoelace(polygon: np.ndarray) -> float:
 
 def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merged: list[MergedPiece],
                cameras: list[SceneCamera], owner: np.ndarray, polygon: np.ndarray, report: dict,
-               labels: LabelOptions) -> None:
-    """The merged scene's files, each atomically (its faces labelled with ``labels``), scene.json last."""
+               labels: LabelOptions, codes: np.ndarray) -> None:
+    """The merged scene's files, each atomically (its faces labelled with ``labels``, their provenance ``codes``),
+    scene.json last."""
     with atomic_path(area_dir / mesh_name) as tmp:
         if isinstance(encoded, bytes):
             tmp.write_bytes(encoded)
@@ -456,4 +466,7 @@ def write_area(area_dir: Path, frame: LocalFrame, mesh_name: str, encoded, merge
     meta["join_warnings"] = report["join_warnings"]
     store_sky_visibility(area_dir, meta)
     report["labels"] = store_labels(area_dir, meta, labels)
+    report["face_provenance"] = store_codes(area_dir, meta, codes, "recon area: each piece's codes of the faces it "
+                                            "keeps (seam blending moves vertices, marks none)",
+                                            {"pieces": [p["scene"] for p in report["pieces"]]})
     write_text_atomic(area_dir / "scene.json", json.dumps(meta, indent=2))

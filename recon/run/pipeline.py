@@ -12,8 +12,8 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | depth | ``dense`` pair choice, SGBM, consistency | | ``work/dense/depth_report.json``, per-image maps (below) |
 | fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
 | mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
-| texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb`` (none with ``texture="none"``) |
-| scene | ``texture`` | the sky visibility's bake settings | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` |
+| texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb``, ``work/texture_faces.npy`` (which faces a photo colours; none with ``texture="none"``) |
+| scene | ``texture`` | the sky visibility's bake settings, the face provenance's | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` + ``face_provenance.npz`` (recon/surface/provenance.py) |
 | labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/semantics/labels.py), named in ``scene.json`` (rewritten) |
 
 The exact table is :data:`recon.run.stages.STAGE_OPTIONS`. An interrupted depth stage keeps its finished per-image
@@ -45,6 +45,7 @@ from recon.appearance.atlas import AtlasOptions, texture_atlas
 from recon.appearance.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.surface.observed import viewed_area
 from recon.surface.dense import DenseOptions
+from recon.surface.provenance import GAP_CELLS, SurfaceEvidence
 from recon.semantics.labels import LabelOptions, label_scene_dir
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.resources import require_disk
@@ -62,6 +63,7 @@ from recon.run.stages import STAGES, StageStamps, file_sha256, photo_inputs, sta
 from sim.render.capture_light import write_capture_light
 from sim.render.glb import GEOREF_FORMAT
 from sim.render.labels import LABELS_FILE
+from sim.render.provenance import FAR_M, FORMAT as PROVENANCE_FORMAT
 from sim.render.sky import bake_settings
 
 MESHES = ("3d", "2.5d", "poisson")
@@ -71,6 +73,9 @@ TEXTURES = ("atlas", "ortho", "none")
 OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fusion.cfg",
                "depth": "work/dense/depth_report.json", "fusion": "work/fused.ply", "mesh": "work/mesh.ply",
                "texture": "work/texture_report.json", "scene": "scene.json", "labels": LABELS_FILE}
+
+#: Which faces of the surface mesh a photo colours (texture stage, read by the scene stage's face provenance).
+TEXTURE_FACES = "texture_faces.npy"
 
 #: Partial outputs (relative to ``work``) that a stage reuses when it resumes its own interrupted run, and that are
 #: deleted before it is redone for another fingerprint.
@@ -226,12 +231,15 @@ class Recon:
     def inputs(self) -> dict[str, dict]:
         """The files each stage reads beyond the stages before it, for its fingerprint (sfm: photos and geotags;
         texture: the glTF convention it writes, so a terrain.glb written before the +Y-up GLBs is redone, not
-        taken for one; scene: the settings its sky visibility is baked with, so a scene baked with others, or before
-        scenes stored their bake, is redone)."""
+        taken for one, and the file saying which faces a photo colours, so a texture stage that wrote none is redone;
+        scene: the settings its sky visibility is baked with and its faces' provenance is found with, so a scene
+        made with others, or before scenes stored them, is redone)."""
         geotags = "exif" if self.geotags_csv is None else {
             path.name: file_sha256(path) for path in (self.geotags_csv, sidecar_path(self.geotags_csv))}
         return {"sfm": {"photos": photo_inputs(self.photo_dir, self.names), "geotags": geotags},
-                "texture": {"glb": GEOREF_FORMAT}, "scene": {"sky_visibility": bake_settings()}}
+                "texture": {"glb": GEOREF_FORMAT, "faces": TEXTURE_FACES},
+                "scene": {"sky_visibility": bake_settings(),
+                          "face_provenance": {"format": PROVENANCE_FORMAT, "gap_cells": GAP_CELLS, "far_m": FAR_M}}}
 
     def stage_plan(self):
         """Each stage's record, the stamps and the plan (the stages to do, and why) they make together."""
@@ -341,6 +349,21 @@ class Recon:
         focal = float(np.mean([cam.mean_focal_length() for cam in rec.cameras.values()]))
         return meshing.cell_size_from_gsd(median_view_depth(rec), focal)
 
+    def height_field_cell(self, points: np.ndarray) -> float:
+        """The 2.5-D height field's cell (metres): ``grid_m``, else two ground pixels grown until the fused
+        ``points`` (N, 3) fill the occupied cells (:func:`recon.surface.mesh.cell_size_for_density`)."""
+        return self.options.grid_m or meshing.cell_size_for_density(points, self.cell_size())
+
+    def surface_evidence(self, surface: trimesh.Trimesh, textured: bool) -> SurfaceEvidence:
+        """What the reconstruction measured, for the scene's face provenance (:mod:`recon.surface.provenance`): the
+        fused points, the gap of :data:`~recon.surface.provenance.GAP_CELLS` surface cells (the height field's, else
+        two ground pixels of the depth maps) and, where a texture was made, which faces of ``surface`` a photo
+        colours."""
+        points, _ = meshing.read_point_cloud(self.work / "fused.ply")
+        cell = self.height_field_cell(points) if self.options.mesh == "2.5d" else self.cell_size()
+        face_seen = np.load(self.work / TEXTURE_FACES) if textured else None
+        return SurfaceEvidence(points, GAP_CELLS * cell, face_seen)
+
     @staticmethod
     def observed_area(rec: pycolmap.Reconstruction) -> np.ndarray:
         """(K, 2) ENU polygon the registered cameras of ``rec`` stand over and look at
@@ -360,7 +383,7 @@ class Recon:
             meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)
         else:
             points, colors = meshing.read_point_cloud(self.work / "fused.ply")
-            cell = self.options.grid_m or meshing.cell_size_for_density(points, self.cell_size())
+            cell = self.height_field_cell(points)
             self.log(f"[mesh] height field, cell {cell:.3f} m, {len(points)} points")
             surface = meshing.height_field_mesh(meshing.height_field(points, colors, cell))
             with atomic_path(full) as tmp:
@@ -410,15 +433,20 @@ class Recon:
                                          sun_enu=None if suns is None else
                                          suns.for_names([photo.name for photo in photos]).directions_enu)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
+                face_seen = textured.labels >= 0
             else:
                 suns, kept = None, "an orthophoto keeps the capture day's light (--texture atlas takes it out)"
                 textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
                 encoded, texel_m, coverage = texturing.textured_glb(surface, textured, self.priors.origin), textured.texels.texel_m, \
                     textured.coverage
+                face_seen = textured.face_seen(surface)
         if kept:
             self.log(f"[texture] capture light kept: {kept}")
         with atomic_path(self.work / "terrain.glb") as tmp:
             tmp.write_bytes(encoded)
+        with atomic_path(self.work / TEXTURE_FACES) as tmp:
+            with open(tmp, "wb") as stream:
+                np.save(stream, face_seen)
         height, width = textured.image.shape[:2]
         self.log(f"[texture] {self.options.texture}: {width}x{height} texels of {texel_m:.3f} m, coverage "
                  f"{100 * coverage:.1f} %, exposure gains {min(textured.gains.values()):.3f}.."
@@ -516,8 +544,11 @@ class Recon:
         light = self.work / CAPTURE_LIGHT_FILE
         capture_light = (light.read_bytes(), provenance["texture"]["capture_light"]) if textured_now and \
             light.is_file() else None
-        write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras,
-                    capture_light)
+        scene_json = write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras,
+                                 capture_light, self.surface_evidence(surface, textured_now))
+        shares = read_json(scene_json)["face_provenance"]["shares"]
+        self.log("[scene] face provenance, share of faces: " + ", ".join(
+            f"{name} {100 * share['faces']:.1f} %" for name, share in shares.items()))
 
     def stage_labels(self):
         label_scene_dir(self.scene_dir, self.options.labels, self.log)

@@ -1,5 +1,6 @@
 """Write the scene folder of INTERFACES.md: a mesh in local ENU metres, ``cameras.json``, the mesh's baked sky
-visibility (``sky_visibility.npz``, sim/render/sky_file.py) and ``scene.json``.
+visibility (``sky_visibility.npz``, sim/render/sky_file.py), which of its faces were measured
+(``face_provenance.npz``, recon/surface/provenance.py) and ``scene.json``.
 
 The normal case is a textured GLB from ``recon/appearance/texture.py`` (``encoded`` bytes); the fallback is the mesh
 with vertex colours exported by trimesh (PLY). ``cameras.json`` (sim/render/scene_cameras.py) holds the registered
@@ -22,8 +23,10 @@ import trimesh
 from flightplan.geodesy import LocalFrame
 from cliutil.atomic import atomic_path, write_text_atomic
 from recon.surface.observed import viewed_area
+from recon.surface.provenance import SurfaceEvidence, store_face_provenance
 from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.render.capture_light import ENCODING
+from sim.render.provenance import PROVENANCE_FILE
 from sim.render.scene import Scene, read_scene_mesh_enu
 from sim.render.scene_cameras import SceneCamera, write_cameras
 from sim.render.sky import write_scene_sky_visibility
@@ -76,10 +79,12 @@ def store_sky_visibility(scene_dir: Path, meta: dict) -> None:
 
 def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, provenance: dict,
                 mesh_name: str = "terrain.ply", encoded: bytes | None = None,
-                cameras: Sequence[SceneCamera] = (), capture_light: tuple[bytes, dict] | None = None) -> Path:
+                cameras: Sequence[SceneCamera] = (), capture_light: tuple[bytes, dict] | None = None,
+                evidence: SurfaceEvidence | None = None) -> Path:
     """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh), ``cameras.json``
     when there are ``cameras``, the ``capture_light`` (PNG bytes, what to say of it) of a delit texture, the mesh's
-    sky visibility (:func:`store_sky_visibility`) and ``scene.json`` (last, so its presence means the scene is
+    sky visibility (:func:`store_sky_visibility`), its faces' provenance found from ``evidence`` (None: the mesh is
+    taken as measured everywhere, and no file is left) and ``scene.json`` (last, so its presence means the scene is
     complete). A mesh the scene loader refuses (no texture and no vertex colours) is a ``SceneError`` naming it."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
@@ -103,5 +108,9 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
             area = viewed_area(np.array([camera.T_world_cam for camera in cameras]), ground_z)
             meta["observed_area_m"] = area.round(3).tolist()
     store_sky_visibility(scene_dir, meta)
+    if evidence is not None:
+        store_face_provenance(scene_dir, meta, evidence)
+    else:
+        (scene_dir / PROVENANCE_FILE).unlink(missing_ok=True)
     write_text_atomic(scene_dir / "scene.json", json.dumps(meta, indent=2))
     return scene_dir / "scene.json"

@@ -199,7 +199,7 @@ def run_fly(args) -> int:
                          home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite,
                          photo_faults=PhotoFaults(tuple(args.skip_shots + args.blur)),
                          faults=faults)
-    scene = load_scene(resolve_scene_dir(args.scene), with_labels=False)
+    scene = load_scene(resolve_scene_dir(args.scene), with_labels=False, with_provenance=False)
     if not several:
         reports = [run_session(args.mission[0], scene, args.out, options)]
     else:

@@ -171,7 +171,8 @@ def build_parser(parser: argparse.ArgumentParser | None = None) -> argparse.Argu
              "cameras: "
              f"{','.join(SCENE_REPLAY_FORMATS)}; known {','.join(FORMATS)}; normal_exr: camera-frame normals, "
              "semantic_png/instance_png: class and object ids of the scene's face labels (scene.json 'labels'), "
-             "for every camera)")
+             "provenance_png: whether each pixel's surface and colour were measured (0) or made up (codes of "
+             "scene.json 'face_provenance'; 255 sky), for every camera)")
     effects = parser.add_argument_group("camera effects (colour images only; depth, normals, classes, objects and "
                                         "poses stay exact)")
     effects.add_argument("--line-delay", type=float, default=0.0,

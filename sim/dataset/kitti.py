@@ -12,6 +12,7 @@ Layout of one dataset folder (one sequence)::
     OUT/sequences/NN/image_4, image_5...  colour of rig cameras 2, 3... (KITTI cameras 4, 5...)
     OUT/sequences/NN/depth_C, disp_C, depth_cm_C   per colour camera number C (2, 3, 4...)
     OUT/sequences/NN/normal_C, semantic_C, instance_C   normals, class and object images, when asked for
+    OUT/sequences/NN/provenance_C                     face provenance codes (measured or made up), when asked for
     OUT/sequences/NN/frame_meta/NNNNNN.json        per-frame record, written last (completion marker)
     OUT/sequences/NN/frames.jsonl         the per-frame records in frame order (written by finalize)
     OUT/sequences/NN/replay_2/STEM.png    replay datasets: image_2 frames under their photo's name (replay.py)
@@ -122,6 +123,9 @@ class KittiLayout:
 
     def instance_dir(self, view: int) -> Path:
         return self.sequence_dir / f"instance_{colour_camera_number(view)}"
+
+    def provenance_dir(self, view: int) -> Path:
+        return self.sequence_dir / f"provenance_{colour_camera_number(view)}"
 
     def replay_dir(self, view: int) -> Path:
         """Replayed photos' renders under the photos' names (links to the colour images)."""

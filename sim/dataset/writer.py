@@ -41,6 +41,7 @@ from cliutil.jsonfile import loads_json
 from sim.dataset import images
 from sim.dataset.replay import write_photo_names
 from sim.render.classes import class_table
+from sim.render.provenance import SKY as PROVENANCE_SKY, code_table as provenance_code_table
 from cliutil.atomic import remove_stale_temps, write_text_atomic
 from sim.dataset.kitti import (
     KittiLayout,
@@ -57,18 +58,18 @@ DATASET_FORMAT = "aerostereo-dataset/1"
 #: What readers of ``dataset.json`` (finalize, resume, --overwrite, export) rely on.
 REQUIRED_KEYS = ("sequence", "frame_count", "cameras", "formats", "kitti_projections")
 FORMATS = ("depth_exr", "disparity_png", "disparity_exr", "depth_cm_png", "normal_exr", "semantic_png",
-           "instance_png")
+           "instance_png", "provenance_png")
 DEFAULT_FORMATS = ("depth_exr", "disparity_png", "disparity_exr")
 #: The formats looked up in the scene's face labels (sim/render/labels.py): class and object images.
 LABEL_FORMATS = ("semantic_png", "instance_png")
 #: What a view of a :class:`FrameRecord` holds for a format beyond ``rgb`` and ``depth``: its attribute, dtype and
 #: channels per pixel.
 VIEW_ARRAYS = {"normal_exr": ("normal", np.float32, 3), "semantic_png": ("semantic", np.uint8, 1),
-               "instance_png": ("instance", np.uint16, 1)}
+               "instance_png": ("instance", np.uint16, 1), "provenance_png": ("provenance", np.uint8, 1)}
 STEREO_VIEWS = (0, 1)
 #: Uncompressed bytes per pixel of each file kind of :func:`view_files`.
 RAW_BYTES_PER_PIXEL = {"rgb": 3, "grey": 1, "depth_exr": 4, "depth_cm_png": 2, "disparity_png": 2, "disparity_exr": 4,
-                       "normal_exr": 12, "semantic_png": 1, "instance_png": 2}
+                       "normal_exr": 12, "semantic_png": 1, "instance_png": 2, "provenance_png": 1}
 #: What PNG and EXR files of rendered frames take of their raw size: 0.51 for a whole frame of the demo world
 #: (colour PNG 0.51, grey 0.52, depth EXR 0.65, disparity EXR 0.59, disparity PNG 0.09).
 COMPRESSED_FRACTION = 0.5
@@ -76,8 +77,9 @@ COMPRESSED_FRACTION = 0.5
 #: facets, many pixels share a normal), 0.28 for a height-field terrain of 4 m triangles; a twin's dense mesh changes
 #: its normal every few pixels, like depth (0.65), so the estimate keeps 0.5. Class and object PNGs: 0.013 and 0.015
 #: for the demo world labelled by its geometry (roofs, walls, ground; its buildings as objects), 0.05 kept for a
-#: twin's more fragmented labels (all measured on 1280x720 frames).
-COMPRESSED_FRACTIONS = {"normal_exr": 0.5, "semantic_png": 0.05, "instance_png": 0.05}
+#: twin's more fragmented labels (all measured on 1280x720 frames). Provenance PNGs: as fragmented as a twin's class
+#: images at most (few codes, mostly 0), so the same 0.05.
+COMPRESSED_FRACTIONS = {"normal_exr": 0.5, "semantic_png": 0.05, "instance_png": 0.05, "provenance_png": 0.05}
 #: Smallest space a file takes on disk (one block of ext4, XFS, tmpfs).
 FILE_BLOCK_BYTES = 4096
 
@@ -102,7 +104,8 @@ class DatasetSpec:
     left camera, 1 the right. ``T_rig_cams``: 4x4 rig-from-camera transforms (OpenCV camera axes).
     ``origin``: the scene's geodetic origin (world = ENU metres there). ``scene`` and ``sampling``
     are free JSON-ready provenance dicts. ``labels``: the ``labels`` entry of the scene's ``scene.json`` (how its
-    face labels were found), which :data:`LABEL_FORMATS` need.
+    face labels were found), which :data:`LABEL_FORMATS` need. ``face_provenance``: its ``face_provenance`` entry
+    (None: a scene measured everywhere), which ``provenance_png`` describes.
     """
 
     cameras: Sequence
@@ -115,6 +118,7 @@ class DatasetSpec:
     sampling: Mapping = field(default_factory=dict)
     command_line: Sequence[str] = field(default_factory=lambda: list(sys.argv))
     labels: Mapping | None = None
+    face_provenance: Mapping | None = None
 
     @classmethod
     def from_rig(cls, rig, origin: LocalFrame, frame_count: int, **kwargs) -> "DatasetSpec":
@@ -130,7 +134,7 @@ class FrameRecord:
     ``views[v]`` has ``rgb`` (H, W, 3) uint8 and ``depth`` (H, W) float32 planar z metres (+inf on
     miss) for rig camera ``v``, and what the formats ask for: ``normal`` (H, W, 3) float32 camera-frame unit normals
     (``normal_exr``), ``semantic`` (H, W) uint8 class ids (``semantic_png``), ``instance`` (H, W) uint16 object ids
-    (``instance_png``). ``T_world_cam`` is the **left** camera's camera-to-world pose (4x4,
+    (``instance_png``), ``provenance`` (H, W) uint8 face provenance codes (``provenance_png``). ``T_world_cam`` is the **left** camera's camera-to-world pose (4x4,
     ENU world, OpenCV camera axes). ``sun``: an object with ``azimuth_deg, elevation_deg,
     intensity`` (or a dataclass with more fields), a mapping written as it is, or None.
     """
@@ -187,6 +191,7 @@ def dataset_description(spec: DatasetSpec) -> dict:
         "sampling": dict(spec.sampling),
         "command_line": list(spec.command_line),
         **label_description(spec),
+        **provenance_description(spec),
     }
 
 
@@ -196,6 +201,17 @@ def label_description(spec: DatasetSpec) -> dict:
     if not needs_labels(spec.formats):
         return {}
     return {"classes": class_table(), "labels": dict(spec.labels)}
+
+
+def provenance_description(spec: DatasetSpec) -> dict:
+    """What ``dataset.json`` says of provenance images, when the formats ask for them (nothing otherwise): the code
+    table (:mod:`sim.render.provenance`), the value of sky pixels and the scene's ``face_provenance`` entry (how its
+    codes were found; a scene without one is measured everywhere)."""
+    if "provenance_png" not in spec.formats:
+        return {}
+    scene = dict(spec.face_provenance) if spec.face_provenance is not None else {
+        "file": None, "method": "none: the scene names no face provenance, so every face counts as measured"}
+    return {"provenance": {"measured": 0, "codes": provenance_code_table(), "sky": PROVENANCE_SKY, "scene": scene}}
 
 
 def view_arrays(formats: Iterable[str]) -> list[tuple[str, type, int]]:
@@ -299,6 +315,8 @@ def view_files(layout: KittiLayout, formats: Sequence[str], view: int, index: in
         files[layout.semantic_dir(view) / frame_file_name(index, ".png")] = "semantic_png"
     if "instance_png" in formats:
         files[layout.instance_dir(view) / frame_file_name(index, ".png")] = "instance_png"
+    if "provenance_png" in formats:
+        files[layout.provenance_dir(view) / frame_file_name(index, ".png")] = "provenance_png"
     return files
 
 
@@ -406,6 +424,7 @@ class KittiDatasetWriter:
             "normal_exr": lambda path: images.write_exr(path, data.normal),
             "semantic_png": lambda path: images.write_png(path, data.semantic),
             "instance_png": lambda path: images.write_png(path, data.instance),
+            "provenance_png": lambda path: images.write_png(path, data.provenance),
         }
 
     def _check_record(self, record: FrameRecord) -> None:

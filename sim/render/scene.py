@@ -25,6 +25,7 @@ from flightplan.geodesy import LocalFrame
 from cliutil.jsonfile import loads_json
 from sim.render.capture_light import read_capture_light
 from sim.render.labels import SceneLabels, read_labels
+from sim.render.provenance import read_face_provenance
 from sim.render.mesh_file import check_mesh_file
 from sim.render.scene_cameras import CamerasError, SceneCamera, read_cameras
 from sim.render.sky_file import SkyVisibility, StoredSky, mesh_sha256, read_sky_visibility
@@ -81,7 +82,8 @@ class Scene:
     in those recentred float32 coordinates. ``origin`` is the geodetic origin of the ENU frame. ``cameras``:
     a reconstruction's registered photos (``cameras.json``; empty for other scenes). ``labels``: the class, object and
     confidence of every face (:mod:`sim.render.labels`; given for the faces as passed in, kept for those left), or
-    None for a scene without labels.
+    None for a scene without labels. ``face_provenance``: each face's uint8 provenance code (:mod:`sim.render.provenance`;
+    given for the faces as passed in, kept for those left), or None for a scene measured everywhere.
     """
 
     vertices: np.ndarray
@@ -104,6 +106,7 @@ class Scene:
     #: ``(F, 3)`` float32 unit normals of the faces' winding (which side of a face is its front).
     face_normals: np.ndarray = field(init=False, repr=False)
     labels: SceneLabels | None = field(default=None, repr=False)
+    face_provenance: np.ndarray | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         self.vertices = np.asarray(self.vertices, dtype=np.float64)
@@ -126,6 +129,11 @@ class Scene:
             if len(self.labels) != len(kept):
                 raise SceneError(f"{self.source}: labels for {len(self.labels)} faces, the mesh has {len(kept)}")
             self.labels = self.labels.subset(kept)
+        if self.face_provenance is not None:
+            if len(self.face_provenance) != len(kept):
+                raise SceneError(f"{self.source}: face provenance for {len(self.face_provenance)} faces, the mesh has "
+                                 f"{len(kept)}")
+            self.face_provenance = np.asarray(self.face_provenance, dtype=np.uint8)[kept]
         self.face_normals = unit_face_normals(local32, self.faces).astype(np.float32)
         self.device = self.device or shared_device()
         self.embree = rtcore_scene.EmbreeScene(device=self.device, robust=True)
@@ -229,10 +237,10 @@ def _non_degenerate(local32: np.ndarray, faces: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->i", cross, cross) > 0
 
 
-def read_scene_json(scene_dir: Path, labels: bool = True) -> dict:
+def read_scene_json(scene_dir: Path, labels: bool = True, provenance: bool = True) -> dict:
     """Parse and check ``scene_dir/scene.json``; raise :class:`SceneError` naming the file and field. ``labels``
     False: without its ``labels`` entry, left unchecked (for what renders no class or object images: a broken entry
-    must not refuse a depth render)."""
+    must not refuse a depth render); ``provenance`` False: the same for its ``face_provenance`` entry."""
     path = Path(scene_dir) / "scene.json"
     if not path.is_file():
         raise SceneError(f"{path}: scene.json not found (a scene folder needs scene.json and its mesh)")
@@ -245,6 +253,8 @@ def read_scene_json(scene_dir: Path, labels: bool = True) -> dict:
                          f"got a {type(meta).__name__}")
     if not labels:
         meta.pop("labels", None)
+    if not provenance:
+        meta.pop("face_provenance", None)
     if meta.get("format") != SCENE_FORMAT:
         raise SceneError(f"{path}: expected \"format\": \"{SCENE_FORMAT}\", got {meta.get('format')!r}")
     for key, expected in (("units", "m"), ("frame", "enu")):
@@ -267,7 +277,7 @@ def read_scene_json(scene_dir: Path, labels: bool = True) -> dict:
     if not isinstance(meta.get("cameras", ""), str):
         raise SceneError(f"{path}: \"cameras\" must name the cameras file (cameras.json)")
     named = [("mesh", meta["mesh"]), ("cameras", meta.get("cameras"))]
-    for key in ("capture_light", "sky_visibility", "labels"):
+    for key in ("capture_light", "sky_visibility", "labels", "face_provenance"):
         entry = meta.get(key)
         if entry is not None and not (isinstance(entry, dict) and isinstance(entry.get("file"), str)):
             raise SceneError(f"{path}: \"{key}\" must be {{\"file\": NAME, ...}}, got {entry!r}")
@@ -306,22 +316,24 @@ def _is_polygon(points) -> bool:
 
 
 def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None, labels: SceneLabels | None = None,
-               with_labels: bool = True) -> Scene:
+               with_labels: bool = True, with_provenance: bool = True) -> Scene:
     """Load a scene folder (``scene.json`` + mesh) into a ray-castable :class:`Scene`.
 
     Scenes share :func:`shared_device` unless another ``device`` is given. ``labels``: labels of every face of the
     mesh file to use instead of the ones scene.json names (a labeller's, not yet written). ``with_labels`` False:
-    the face labels scene.json names are neither read nor checked (the scene has none).
+    the face labels scene.json names are neither read nor checked (the scene has none). ``with_provenance`` False:
+    the same for its face provenance (the scene is then taken as measured everywhere).
     """
     scene_dir = Path(scene_dir)
-    meta = read_scene_json(scene_dir, labels=with_labels)
+    meta = read_scene_json(scene_dir, labels=with_labels, provenance=with_provenance)
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
     if "capture_light" in meta:
         surface = replace(surface, capture_light=read_scene_capture_light(scene_dir, meta))
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
                  str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
                  observed_area_m=meta.get("observed_area_m"), stored_sky=read_scene_sky_visibility(scene_dir, meta),
-                 labels=labels if labels is not None else read_scene_labels(scene_dir, meta, vertices, faces))
+                 labels=labels if labels is not None else read_scene_labels(scene_dir, meta, vertices, faces),
+                 face_provenance=read_scene_face_provenance(scene_dir, meta, vertices, faces))
 
 
 def read_scene_labels(scene_dir: Path, meta: dict, vertices: np.ndarray, faces: np.ndarray) -> SceneLabels | None:
@@ -342,6 +354,28 @@ def read_scene_labels(scene_dir: Path, meta: dict, vertices: np.ndarray, faces: 
         raise SceneError(f"{entry}: {path} labels another mesh than {meta['mesh']} (its SHA-256 differs); label the "
                          f"scene again (aerostereo-recon labels {scene_dir})")
     return labels
+
+
+def read_scene_face_provenance(scene_dir: Path, meta: dict, vertices: np.ndarray,
+                               faces: np.ndarray) -> np.ndarray | None:
+    """The face provenance codes ``scene.json`` (``meta``) names, for the mesh ``vertices`` and ``faces`` as read
+    (:func:`read_scene_mesh_enu`); None (measured everywhere) where it names none. A file that is missing, unreadable
+    or made for another mesh is a :class:`SceneError` naming scene.json and its ``face_provenance`` entry."""
+    if "face_provenance" not in meta:
+        return None
+    name = meta["face_provenance"]["file"]
+    path, entry = Path(scene_dir) / name, f"{Path(scene_dir) / 'scene.json'}: \"face_provenance\""
+    if not path.is_file():
+        raise SceneError(f"{entry}: its file {name!r} is not found in {scene_dir}")
+    try:
+        codes, coded_mesh = read_face_provenance(path)
+    except ValueError as error:
+        raise SceneError(f"{entry}: {error}") from None
+    if coded_mesh != mesh_sha256(vertices, faces):
+        raise SceneError(f"{entry}: {path} describes another mesh than {meta['mesh']} (its SHA-256 differs); "
+                         f"write the scene again (aerostereo-recon redoes its scene stage once "
+                         f"{Path(scene_dir) / 'work' / 'stages' / 'scene.json'} is deleted)")
+    return codes
 
 
 def read_scene_sky_visibility(scene_dir: Path, meta: dict) -> StoredSky | None:

@@ -25,6 +25,7 @@ from sim.motion.shutter import render_in_time
 from sim.render.camera import Rig
 from sim.render.color import SRGB8_TO_LINEAR
 from sim.render.film import apply_photometric, effects_memory_bytes
+from sim.render.provenance import provenance_image
 from sim.render.raycast import default_workers
 from sim.render.renderer import View, render, render_memory_bytes
 from sim.render.scene import Scene, SceneError, load_scene
@@ -43,14 +44,15 @@ METERING_WIDTH = 64
 class ViewImages:
     """What the dataset keeps of a rendered view: ``rgb`` (H, W, 3) uint8, planar ``depth`` (H, W) float32 m, and
     only when the formats ask for them (None otherwise, so queued frames stay small): ``normal`` (H, W, 3) float32
-    camera-frame unit normals, ``semantic`` (H, W) uint8 class ids, ``instance`` (H, W) uint16 object ids
-    (:data:`sim.dataset.writer.VIEW_ARRAYS`). Queued frames hold no ray lengths or triangle indices."""
+    camera-frame unit normals, ``semantic`` (H, W) uint8 class ids, ``instance`` (H, W) uint16 object ids,
+    ``provenance`` (H, W) uint8 face provenance codes (:data:`sim.dataset.writer.VIEW_ARRAYS`). Queued frames hold no ray lengths or triangle indices."""
 
     rgb: np.ndarray
     depth: np.ndarray
     normal: np.ndarray | None = None
     semantic: np.ndarray | None = None
     instance: np.ndarray | None = None
+    provenance: np.ndarray | None = None
 
 
 @dataclass
@@ -86,7 +88,8 @@ class FrameRenderer:
     def __init__(self, scene_dir: Path, options: RenderOptions, threads: int | None = None):
         self.options = options
         try:
-            self.scene = load_scene(scene_dir, with_labels=needs_labels(options.outputs.formats))
+            self.scene = load_scene(scene_dir, with_labels=needs_labels(options.outputs.formats),
+                                    with_provenance="provenance_png" in options.outputs.formats)
         except SceneError as error:
             raise RenderInputError(str(error)) from None
         refuse_unlabelled(self.scene, scene_dir, options.outputs.formats)
@@ -114,7 +117,7 @@ class FrameRenderer:
     def memory_bytes(self) -> int:
         """Peak memory (bytes) of rendering and writing frames in this process: the render of the largest frame
         plus the frames queued for writing (each view's :class:`ViewImages`: rgb and depth, 7 bytes per pixel, plus
-        12 for normals, 1 for classes, 2 for objects when the formats ask for them), plus the camera effects' images
+        12 for normals, 1 for classes, 2 for objects, 1 for provenance codes when the formats ask for them), plus the camera effects' images
         when any is on."""
         largest = max(camera.width * camera.height for camera in self.lenses or self.rig.cameras)
         pixels = [largest] * len(self.rig.cameras)
@@ -147,13 +150,16 @@ class FrameRenderer:
 
     def _kept(self, rgb: np.ndarray, view: View) -> ViewImages:
         """What the dataset keeps of ``view`` (its colour ``rgb`` after any camera effect): the arrays its formats
-        write. Normals, classes and objects come from the pixel-centre rays of the frame's pose, like depth."""
+        write. Normals, classes, objects and provenance codes come from the pixel-centre rays of the frame's pose,
+        like depth."""
         formats = self.options.outputs.formats
         labels = self.scene.labels
         return ViewImages(rgb, view.depth,
                           normal=view.camera_normal() if "normal_exr" in formats else None,
                           semantic=labels.class_image(view.triangle) if "semantic_png" in formats else None,
-                          instance=labels.instance_image(view.triangle) if "instance_png" in formats else None)
+                          instance=labels.instance_image(view.triangle) if "instance_png" in formats else None,
+                          provenance=(provenance_image(self.scene.face_provenance, view.triangle)
+                                      if "provenance_png" in formats else None))
 
     def light(self, index: int) -> FrameLight:
         """Frame ``index``'s light (:func:`~sim.sampling.light.frame_light`): a trajectory is one flight under one sky,

@@ -134,13 +134,16 @@ def write_imu_record(renderer: FrameRenderer, out_dir: Path, spec: DatasetSpec) 
 def dataset_spec(renderer: FrameRenderer, scene_dir: Path, options: RenderOptions,
                  command_line: Sequence[str]) -> DatasetSpec:
     """The dataset's constant part: rig, origin, frame count, formats, scene provenance, sampling, command line, and
-    the scene's ``labels`` entry (how its face labels were found, if it has any)."""
-    meta = read_scene_json(scene_dir, labels=needs_labels(options.outputs.formats))
+    the scene's ``labels`` and ``face_provenance`` entries (how its face labels and provenance codes were found, if it
+    has them)."""
+    formats = options.outputs.formats
+    meta = read_scene_json(scene_dir, labels=needs_labels(formats), provenance="provenance_png" in formats)
     scene = {key: meta[key] for key in ("mesh", "valid_area_m", "ground_height_range_m", "provenance") if key in meta}
     return DatasetSpec.from_rig(renderer.rig, renderer.scene.origin, renderer.frame_count,
                                 formats=tuple(options.outputs.formats), scene=scene,
                                 sampling=sampling_description(options, renderer.scene.origin),
-                                command_line=list(command_line), labels=meta.get("labels"))
+                                command_line=list(command_line), labels=meta.get("labels"),
+                                face_provenance=meta.get("face_provenance"))
 
 
 def _cluster_scheduler(run: RunOptions):
