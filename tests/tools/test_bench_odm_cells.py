@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from sim.render.scene import Scene, Surface
-from tools.bench.bench_odm_cells import (COLOUR_CELL_M, align_twin, cell_distances, class_figures, odm_cells,
+from tools.bench.bench_odm_cells import (COLOUR_CELL_M, align_twin, cell_distances, class_figures, main, odm_cells,
                                          odm_grey)
 from tools.bench.bench_recon import yaw_icp, yaw_rotation
 
@@ -93,3 +93,9 @@ def test_classes_holes_and_distances_per_cell():
     assert canopy["within_1m"] == 1.0
     assert ground["holes"] == pytest.approx(9 / ground["cells"])  # the hole's 3 x 3 cells
     assert ground["median"] < 0.1 and ground["within_1m"] == pytest.approx(1 - 9 / ground["cells"])
+
+
+def test_a_scene_folder_that_is_not_there_is_one_line_and_exit_2(tmp_path, capsys):
+    assert main(["--scene", str(tmp_path / "nowhere")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("bench_odm_cells: error: ") and "nowhere" in err

@@ -14,11 +14,11 @@ the progressive morphological ground filter of the cloud (:func:`recon.semantics
 *canopy* where its top is more than 2 m above that ground, *low* from 0.5 to 2 m, *ground* below 0.5 m.
 
 The twin is put on ODM's cloud by a yaw + translation: the ICP of bench_recon (:func:`tools.bench.bench_recon.yaw_icp`,
-its first surface sampled every 2 m over its observed area), then a coarse-to-fine search of yaw and horizontal
-shift that best correlates the twin's texture with ODM's point colours, and the vertical shift that puts it on
-ODM's ground cells. The ICP alone does not settle on this flat park: its yaw drifts from -0.3 to -1.8 deg between
-40 and 200 iterations, and after 40 it leaves the twin about 11 m off (roads cross lawns in a checkerboard overlay);
-the colour fit puts the same roads on each other. Candidates with the defaults' SfM share its frame and alignment.
+on a quarter of its first surface's 0.5 m samples over its observed area), then a coarse-to-fine search of yaw and
+horizontal shift that best correlates the twin's texture with ODM's point colours, and the vertical shift that puts
+it on ODM's ground cells. The ICP alone does not settle on this flat park: its yaw drifts by 1.5 deg between 40 and
+200 iterations, and after 40 it leaves the twin about 11 m off (roads cross lawns in a checkerboard overlay); the
+colour fit puts the same roads on each other. Candidates with the defaults' SfM share its frame and alignment.
 Then, for every ODM cell whose centre lies in the twin's observed area (``scene.json``), a ray cast straight down the
 twin finds its first surface from above: a miss is a *hole*; otherwise the distance is |twin - ODM top|. Per
 class: cells, holes share, median and p90 |distance| over the cells hit, and the share within 1 m (of all the
@@ -46,7 +46,9 @@ import numpy as np  # noqa: E402
 import pycolmap  # noqa: E402
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
+from cliutil.errors import BadInput  # noqa: E402
 from cliutil.jsonfile import read_json  # noqa: E402
+from cliutil.program import Parser, run_cli  # noqa: E402
 from recon.run.cli_options import add_recon_options, recon_options  # noqa: E402
 from recon.run.pipeline import Recon, ReconOptions  # noqa: E402
 from recon.semantics.ground import GroundFilter, fit_ground  # noqa: E402
@@ -55,9 +57,10 @@ from recon.surface.mesh import per_cell_percentile  # noqa: E402
 from recon.surface.observed import inside  # noqa: E402
 from sim.render.raycast import Hits, intersect  # noqa: E402
 from sim.render.shade import surface_albedo  # noqa: E402
-from sim.render.scene import Scene, load_scene  # noqa: E402
+from sim.render.scene import Scene, SceneError, load_scene  # noqa: E402
 from tools.bench.bench_recon import YawShift, read_odm_cloud, yaw_icp  # noqa: E402
 
+PROGRAM = "bench_odm_cells"
 DEFAULT_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", Path(__file__).resolve().parents[3] / "shared" / "data"))
 CLASSES = ("canopy", "low", "ground")
 #: Cell of ODM's colour image that the twin's texture is aligned on (m).
@@ -90,6 +93,12 @@ CANDIDATES: dict[str, tuple[str, object]] = {
     "fusion2-trim3": ("fusion 2 pixels / 45 deg, Poisson trim 3", with_options(LOOSE_FUSION, poisson_trim=3.0)),
     "fusion2-poisson11": ("fusion 2 pixels / 45 deg, Poisson depth 11", with_options(LOOSE_FUSION, poisson_depth=11)),
     "fusion2-2.5d": ("fusion 2 pixels / 45 deg, --mesh 2.5d", with_options(LOOSE_FUSION, mesh="2.5d")),
+    "fusion2-consistency5": ("fusion 2 pixels / 45 deg, consistency 5 %",
+                             with_options(with_dense(fusion_min_pixels=2, fusion_max_normal_error_deg=45.0,
+                                                     consistency=0.05))),
+    "fusion2-dense1600": ("fusion 2 pixels / 45 deg, --dense-size 1600",
+                          with_options(with_dense(fusion_min_pixels=2, fusion_max_normal_error_deg=45.0,
+                                                  max_image_size=1600))),
     "neighbours8": ("8 stereo neighbours", with_dense(num_neighbors=8)),
     "consistency5": ("neighbour consistency 5 %", with_dense(consistency=0.05)),
     "dense1600": ("--dense-size 1600", with_dense(max_image_size=1600)),
@@ -143,7 +152,7 @@ def first_surface_from_above(scene: Scene, xy: np.ndarray) -> np.ndarray:
 def observed_polygon(scene: Scene) -> np.ndarray:
     """The twin's observed area (ENU ``(K, 2)``), as ``scene.json`` stores it."""
     if scene.observed_area_m is None:
-        raise SystemExit(f"bench_odm_cells: error: {scene.source}: scene.json has no observed_area_m (no cameras)")
+        raise BadInput(f"{scene.source}: scene.json has no observed_area_m (a recon scene with its cameras expected)")
     return np.asarray(scene.observed_area_m, dtype=np.float64)
 
 
@@ -237,11 +246,10 @@ def level_on_ground(fit: YawShift, samples: TwinSamples, odm: OdmCells) -> YawSh
 
 def align_twin(scene: Scene, reference: np.ndarray, odm: OdmCells, colours: tuple[Grid, np.ndarray]) \
         -> tuple[YawShift, YawShift]:
-    """The yaw + translation putting the twin (ENU) on ODM's cloud, as the ICP of its first surface sampled every
-    metre over its observed area found it (:func:`yaw_icp`), and then refined on colour
-    (:func:`refine_on_colour`) and levelled on the ground (:func:`level_on_ground`): point-to-point ICP slides on
-    flat ground (on brighton_beach its yaw drifts from -0.3 to -1.8 deg between 40 and 200 iterations), and the
-    heights of a flat park pin no yaw either."""
+    """The yaw + translation putting the twin (ENU) on ODM's cloud, as the ICP of its first surface over its observed
+    area found it (:func:`yaw_icp`), and then refined on colour (:func:`refine_on_colour`) and levelled on the
+    ground (:func:`level_on_ground`): point-to-point ICP slides on flat ground (on brighton_beach its yaw drifts by
+    1.5 deg between 40 and 200 iterations), and the heights of a flat park pin no yaw either."""
     samples = twin_samples(scene, 0.5)
     icp = yaw_icp(samples.points[::4], reference)
     return icp, level_on_ground(refine_on_colour(icp, samples, *colours), samples, odm)
@@ -334,7 +342,12 @@ def print_table(rows: list[dict]) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    return run_cli(PROGRAM, lambda: bench(argv), bad_input=(SceneError,))
+
+
+def bench(argv) -> int:
+    """The benchmark (module docstring); the table on stdout, recon's progress on stderr."""
+    parser = Parser(prog=PROGRAM, description=__doc__.split("\n")[0])
     parser.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the shared data folder (brighton_beach/)")
     parser.add_argument("--work", type=Path, default=Path("/tmp/bench_odm_cells"),
                         help="scene folders (defaults/, one per candidate; resumed)")
@@ -350,9 +363,9 @@ def main(argv=None) -> int:
             print(f"{name}: {what}")
         return 0
     photo_dir, laz = args.data / "brighton_beach" / "images", args.data / "brighton_beach" / "model.laz"
-    for path in (photo_dir, laz, *([args.scene / "scene.json"] if args.scene else [])):
+    for path in (*([args.scene / "scene.json"] if args.scene else []), photo_dir, laz):
         if not path.exists():
-            parser.error(f"{path}: not found")
+            parser.error(f"{path}: not found (expected {'a recon scene folder' if args.scene else 'the shared data'})")
     reference = read_odm_cloud(laz)
     odm = odm_cells(reference, min_points=args.min_points)
     colours = odm_grey(reference, read_odm_colours(laz), COLOUR_CELL_M)
@@ -362,7 +375,8 @@ def main(argv=None) -> int:
     else:
         base_dir = args.work / "defaults"
         base_seconds = reconstruct(photo_dir, base_dir, defaults, None)
-    rows = [{"label": f"CLI defaults ({base_dir})", "times": stage_times(base_seconds, None),
+    label = f"given scene {base_dir}" if args.scene else "CLI defaults"
+    rows = [{"label": label, "times": stage_times(base_seconds, None),
              **measure(base_dir, odm, reference, colours)}]
     for name in args.candidate:
         what, change = CANDIDATES[name]
