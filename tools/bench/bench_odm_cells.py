@@ -71,6 +71,7 @@ LOW_M, CANOPY_M = 0.5, 2.0
 STAGE_GROUPS = {"sfm": ("sfm",), "dense": ("undistort", "depth", "fusion"), "mesh": ("mesh",),
                 "texture+": ("texture", "scene", "labels")}
 
+
 def with_dense(**changes):
     """A candidate changing :class:`~recon.surface.dense.DenseOptions` fields."""
     return lambda options: dataclasses.replace(options, dense=dataclasses.replace(options.dense, **changes))
@@ -81,28 +82,22 @@ def with_options(first=lambda options: options, **changes):
     return lambda options: dataclasses.replace(first(options), **changes)
 
 
-LOOSE_FUSION = with_dense(fusion_min_pixels=2, fusion_max_normal_error_deg=45.0)
+#: Fusion that keeps points seen in 2 depth maps (default 3) with normals up to 45 deg apart (default 20).
+LOOSE_FUSION = {"fusion_min_pixels": 2, "fusion_max_normal_error_deg": 45.0}
 
-
-#: ``--candidate`` rows: name -> (what changes, the defaults -> its options).
+#: ``--candidate`` rows (docs/recon.md has their table): name -> (what changes, the defaults -> its options).
 CANDIDATES: dict[str, tuple[str, object]] = {
     "2.5d": ("--mesh 2.5d (height field)", with_options(mesh="2.5d")),
-    "poisson11": ("Poisson depth 11", with_options(poisson_depth=11)),
     "trim3": ("Poisson trim 3", with_options(poisson_trim=3.0)),
-    "fusion2": ("fusion min 2 pixels, normal error 45 deg", LOOSE_FUSION),
-    "fusion2-trim3": ("fusion 2 pixels / 45 deg, Poisson trim 3", with_options(LOOSE_FUSION, poisson_trim=3.0)),
-    "fusion2-poisson11": ("fusion 2 pixels / 45 deg, Poisson depth 11", with_options(LOOSE_FUSION, poisson_depth=11)),
-    "fusion2-2.5d": ("fusion 2 pixels / 45 deg, --mesh 2.5d", with_options(LOOSE_FUSION, mesh="2.5d")),
-    "fusion2-consistency5": ("fusion 2 pixels / 45 deg, consistency 5 %",
-                             with_options(with_dense(fusion_min_pixels=2, fusion_max_normal_error_deg=45.0,
-                                                     consistency=0.05))),
-    "fusion2-dense1600": ("fusion 2 pixels / 45 deg, --dense-size 1600",
-                          with_options(with_dense(fusion_min_pixels=2, fusion_max_normal_error_deg=45.0,
-                                                  max_image_size=1600))),
     "neighbours8": ("8 stereo neighbours", with_dense(num_neighbors=8)),
-    "consistency5": ("neighbour consistency 5 %", with_dense(consistency=0.05)),
-    "dense1600": ("--dense-size 1600", with_dense(max_image_size=1600)),
-    "dense2000": ("--dense-size 2000", with_dense(max_image_size=2000)),
+    "fusion2": ("fusion min 2 pixels, normal error 45 deg", with_dense(**LOOSE_FUSION)),
+    "fusion2-trim3": ("fusion 2 pixels / 45 deg, Poisson trim 3",
+                      with_options(with_dense(**LOOSE_FUSION), poisson_trim=3.0)),
+    "fusion2-poisson11": ("fusion 2 pixels / 45 deg, Poisson depth 11",
+                          with_options(with_dense(**LOOSE_FUSION), poisson_depth=11)),
+    "fusion2-consistency5": ("fusion 2 pixels / 45 deg, consistency 5 %", with_dense(**LOOSE_FUSION, consistency=0.05)),
+    "fusion2-dense1600": ("fusion 2 pixels / 45 deg, --dense-size 1600",
+                          with_dense(**LOOSE_FUSION, max_image_size=1600)),
 }
 
 
