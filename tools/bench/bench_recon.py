@@ -33,6 +33,7 @@ import os
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
@@ -201,11 +202,38 @@ def yaw_rotation(yaw: float) -> np.ndarray:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
-def distances_after_yaw_icp(points: np.ndarray, reference: np.ndarray, iterations: int = 40) -> np.ndarray:
-    """Nearest-reference distances (m) of ``points`` after a trimmed (80 %) yaw + translation ICP,
-    started from the centroids."""
-    ref = reference - reference.mean(axis=0)
-    pts = points - points.mean(axis=0)
+def read_odm_cloud(path: Path) -> np.ndarray:
+    """``(N, 3)`` float64 points (metres, the file's own frame: UTM 15N for brighton_beach's ``model.laz``) of a
+    LAS/LAZ point cloud."""
+    las = laspy.read(path)
+    return np.column_stack([las.x, las.y, las.z]).astype(np.float64)
+
+
+@dataclass(frozen=True)
+class YawShift:
+    """A rigid move about the vertical: a point ``p`` of the moving frame goes to
+    ``R(yaw) (p - from_centre) + to_centre + shift`` of the reference frame (metres, radians)."""
+
+    yaw: float
+    shift: np.ndarray
+    from_centre: np.ndarray
+    to_centre: np.ndarray
+
+    def apply(self, points: np.ndarray) -> np.ndarray:
+        """``(N, 3)`` moving-frame points in the reference frame."""
+        return (points - self.from_centre) @ yaw_rotation(self.yaw).T + self.to_centre + self.shift
+
+    def invert(self, points: np.ndarray) -> np.ndarray:
+        """``(N, 3)`` reference-frame points in the moving frame."""
+        return (points - self.to_centre - self.shift) @ yaw_rotation(self.yaw) + self.from_centre
+
+
+def yaw_icp(points: np.ndarray, reference: np.ndarray, iterations: int = 40) -> YawShift:
+    """The yaw + translation that puts ``points`` onto ``reference`` (both ``(N, 3)``, metres): a trimmed (80 %)
+    ICP started from the centroids (our ENU frame and ODM's UTM grid differ by the meridian convergence and by
+    their GPS/datum offsets)."""
+    ref_centre, pts_centre = reference.mean(axis=0), points.mean(axis=0)
+    ref, pts = reference - ref_centre, points - pts_centre
     tree = cKDTree(ref)
     yaw, shift = 0.0, np.zeros(3)
     for _ in range(iterations):
@@ -216,7 +244,13 @@ def distances_after_yaw_icp(points: np.ndarray, reference: np.ndarray, iteration
         yaw += np.arctan2(rot2[1, 0], rot2[0, 0])
         rotated = pts @ yaw_rotation(yaw).T
         shift = (ref[idx[keep]] - rotated[keep]).mean(axis=0)
-    return tree.query(pts @ yaw_rotation(yaw).T + shift)[0]
+    return YawShift(float(yaw), shift, pts_centre, ref_centre)
+
+
+def distances_after_yaw_icp(points: np.ndarray, reference: np.ndarray, iterations: int = 40) -> np.ndarray:
+    """Nearest-reference distances (m) of ``points`` after :func:`yaw_icp`."""
+    fit = yaw_icp(points, reference, iterations)
+    return cKDTree(reference - fit.to_centre).query(fit.apply(points) - fit.to_centre)[0]
 
 
 def bench_dense(photo_dir: Path, reference: np.ndarray, dense_size: int, features: int) -> dict:
@@ -341,8 +375,7 @@ def main(argv=None) -> int:
                                       f"{row['errors'].rotation_deg['median']:.3f} / "
                                       f"{row['errors'].rotation_deg['max']:.3f}", f"{row['focal_error_pct']:+.2f}"])
     if args.dense_sizes:
-        las = laspy.read(args.data / "brighton_beach" / "model.laz")
-        reference = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
+        reference = read_odm_cloud(args.data / "brighton_beach" / "model.laz")
         dense_rows = [bench_dense(photo_dir, reference, size, args.features) for size in args.dense_sizes]
         print_dense_table(dense_rows)
     if not args.no_synthetic:
