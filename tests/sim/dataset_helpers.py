@@ -17,6 +17,7 @@ from flightplan.geodesy import LocalFrame
 from sim.render.camera import PinholeCamera
 from sim.dataset import DatasetSpec, FrameRecord
 from sim.render.classes import GROUND, SKY
+from sim.render.provenance import MEASURED, SKY as PROVENANCE_SKY
 from sim.render.shade import Sun
 
 ORIGIN = LocalFrame(40.1792, 44.4991, 1000.0)
@@ -27,13 +28,15 @@ WIDTH, HEIGHT = 64, 48
 @dataclass
 class View:
     """What the dataset writer reads of a rendered view (sim.run.frame_renderer.ViewImages): colour, depth, and the
-    plane's camera-frame normal, class (ground; sky on a miss) and object (1 + the checker square's colour)."""
+    plane's camera-frame normal, class (ground; sky on a miss), object (1 + the checker square's colour) and
+    provenance (measured; sky on a miss)."""
 
     rgb: np.ndarray
     depth: np.ndarray
     normal: np.ndarray
     semantic: np.ndarray
     instance: np.ndarray
+    provenance: np.ndarray
 
 
 CAMERA = PinholeCamera(fx=50.0, fy=52.0, cx=31.5, cy=23.25, width=WIDTH, height=HEIGHT)
@@ -89,7 +92,9 @@ def render_plane_view(camera: PinholeCamera, T_world_cam: np.ndarray) -> View:
     normal = np.where(hit_mask[..., None], up_in_camera, 0.0).astype(np.float32)
     semantic = np.where(hit_mask, GROUND, SKY).astype(np.uint8)
     instance = np.where(hit_mask, 1 + checker, 0).astype(np.uint16)
-    return View(rgb=rgb, depth=depth.astype(np.float32), normal=normal, semantic=semantic, instance=instance)
+    provenance = np.where(hit_mask, MEASURED, PROVENANCE_SKY).astype(np.uint8)
+    return View(rgb=rgb, depth=depth.astype(np.float32), normal=normal, semantic=semantic, instance=instance,
+                provenance=provenance)
 
 
 def frame_record(index: int, camera_count: int = 2) -> FrameRecord:
