@@ -139,6 +139,8 @@ def run_record(args) -> int:
     source = open_source(args.port, args.baud)
     source.open()  # fail before creating any file
     stop = stop_after(args.duration)
+    if plan is None:  # the live view shows a silent link itself; its losses are listed when the screen is gone
+        source.on_link_event = lambda event: print(f"\n{PROGRAM} record: {event}", file=sys.stderr, flush=True)
     with RawCaptureWriter(args.out) as writer:
         if plan is None:
             status = record(source.chunks(stop), writer, default_registry(),
@@ -151,7 +153,18 @@ def run_record(args) -> int:
     print(f"wrote {args.out} ({writer.offset} bytes) and {args.out}.idx; reconnects: {source.reconnects}")
     if plan is not None:
         report_live_view(monitor)
+        for event in source.link_events:
+            print(f"{PROGRAM} record: {event}", file=sys.stderr)
+    report_link_lost(source, args.out, writer.offset)
     return 0
+
+
+def report_link_lost(source, out: Path, kept_bytes: int) -> None:
+    """One line on stderr when the port vanished and had not come back when recording stopped."""
+    if source.lost_since_s is not None:
+        print(f"{PROGRAM} record: {source.description} vanished {source.clock.monotonic() - source.lost_since_s:.1f} s "
+              f"before the end and did not come back; {out} keeps the {kept_bytes} bytes received before",
+              file=sys.stderr)
 
 
 def read_plan(mission: Path) -> PlannedPath:

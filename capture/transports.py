@@ -92,6 +92,9 @@ class LiveSource:
         self.clock = clock or Clock()
         self.reconnects = 0
         self.connection = None
+        self.link_events: list[str] = []  # what happened to the link, in words, in order (losses and returns)
+        self.on_link_event: Callable[[str], None] | None = None  # told each of them as it happens
+        self.lost_since_s: float | None = None  # monotonic time the link was lost, None while it is up
 
     def _open(self):
         raise NotImplementedError
@@ -119,8 +122,9 @@ class LiveSource:
             while not stop.is_set():
                 try:
                     data = self._read(self.connection)
-                except self.disconnect_errors:
+                except self.disconnect_errors as error:
                     self._close_quietly(self.connection)
+                    self._link_lost(error)
                     self.connection = self._reconnect(stop)
                     continue
                 if data:
@@ -142,7 +146,19 @@ class LiveSource:
             except self.disconnect_errors:
                 continue
             self.reconnects += 1
+            self._tell(f"{self.description}: link back after {self.clock.monotonic() - self.lost_since_s:.1f} s")
+            self.lost_since_s = None
             return connection
+
+    def _link_lost(self, error: BaseException) -> None:
+        self.lost_since_s = self.clock.monotonic()
+        self._tell(f"{self.description}: link lost ({error_text(error)}); every byte before it is kept; "
+                   "reconnecting")
+
+    def _tell(self, event: str) -> None:
+        self.link_events.append(event)
+        if self.on_link_event is not None:
+            self.on_link_event(event)
 
     def _close_quietly(self, connection) -> None:
         try:
