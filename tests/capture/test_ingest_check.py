@@ -157,7 +157,8 @@ def test_the_check_names_the_skipped_shot_and_the_blurred_photos(flights):
     _, results = flights
     truth, report, code, _ = results["faulty"]
     assert code == 0 and report["verdict"] == "incomplete"
-    skipped, blurred = truth["faults"]
+    by_kind = {fault["kind"]: fault for fault in truth["faults"]}
+    skipped, blurred = by_kind["skipped_shot"], by_kind["motion_blur"]
     start = dt.datetime.fromisoformat(truth["start_utc"])
     by_name = {row["image_name"]: row for row in truth["photos"]}
     expected = sorted(start + dt.timedelta(seconds=by_name[name]["t_s"]) for name in skipped["photos"])
