@@ -77,7 +77,7 @@ def test_glb_holds_the_generated_mesh_and_a_sharp_texture(small_scene):
     """What trimesh reads back is the generated geometry (float32 positions) and the atlas up to mild JPEG loss
     (trimesh's own exporter would re-encode at quality 75: mean error ~4.5 levels)."""
     _, mesh = small_scene
-    _, generated, atlas, _ = demo.generate_world("small", 0)
+    _, generated, atlas, _, _ = demo.generate_world("small", 0)
     np.testing.assert_array_equal(mesh.faces, generated.faces)
     np.testing.assert_allclose(mesh.vertices, generated.vertices, atol=1e-4)
     np.testing.assert_allclose(mesh.visual.uv, generated.uv, atol=1e-6)
@@ -122,13 +122,15 @@ def test_true_3d_buildings_with_vertical_walls_and_gable_roofs(small_scene):
     assert mesh.area_faces[vertical].sum() > buildings * 4 * 3.0 * 6.0
     heights = np.ptp(mesh.vertices[mesh.faces[vertical]][..., 2], axis=1)
     assert np.count_nonzero(heights > 3.0) >= buildings * 4
-    # Gable ends: vertical triangles whose top vertex stands above neither bottom vertex (a wall quad's triangles
-    # always have their top above a bottom corner), under sloped roof faces. Two per gable-roofed building.
+    # Gable ends: vertical triangles on a level base whose top vertex stands above neither bottom vertex (a wall
+    # quad's triangles always have their top above a bottom corner; a dormer's cheek or a wire's side has no level
+    # base), under sloped roof faces. Two per gable-roofed building.
     triangles = mesh.vertices[mesh.faces[vertical]]
     order = np.argsort(triangles[..., 2], axis=1)
     sorted_xyz = np.take_along_axis(triangles, order[..., None], axis=1)
     top_offsets = np.linalg.norm(sorted_xyz[:, :2, :2] - sorted_xyz[:, 2:, :2], axis=-1)
-    gable_ends = np.count_nonzero(top_offsets.min(axis=1) > 1.0)
+    level_base = np.abs(sorted_xyz[:, 0, 2] - sorted_xyz[:, 1, 2]) < 1e-6
+    gable_ends = np.count_nonzero((top_offsets.min(axis=1) > 1.0) & level_base)
     assert gable_ends == 2 * meta["provenance"]["gable_roofs"] >= 4
     roof_slopes = (normals[:, 2] > 0.3) & (normals[:, 2] < 0.95) & (mesh.triangles_center[:, 2] > 3.0)
     assert np.count_nonzero(roof_slopes) >= 2 * gable_ends

@@ -1,0 +1,187 @@
+"""The demo world's built details and water: what is placed, painted and meshed beyond buildings and trees, and the
+truth of every such object.
+
+In the generator's order (sim/worlds/demo.py): :func:`with_pond` cuts a pond into the layout's terrain (and drops the
+trees its banks would swallow) before anything is painted; after the orthophoto (whose yards the fences follow),
+:func:`place_built` places chimneys and dormers, a power line, lamp posts, fences and parked cars, each clear of the
+others, and :func:`paint_built` paints what they look like from above; :func:`built_part` meshes them with their
+labels and per-object truth.
+
+Objects and labels (docs/demo-world.md): a chimney, a lamp post (with its arm and lamp), a power pole (with its
+crossarm), a wire (one per span and conductor), a fence (all its posts and rails), a car and the pond are each one
+object with their own instance id, numbered after the world's others in that order; a dormer's faces are ``wall``
+and ``roof`` of its building's object.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from sim.render.classes import CAR, CHIMNEY, CLASSES, FENCE, POLE, ROOF, WALL, WATER, WIRE
+from sim.render.labels import SceneLabels
+from sim.worlds.atlas import FacadeAtlas
+from sim.worlds.geometry import Part, concatenate
+from sim.worlds.ground_cover import Yard
+from sim.worlds.layout import Layout, WorldSpec
+from sim.worlds.roof_details import (Chimney, Dormer, chimney_part, chimney_truth, dormer_part, dormer_truth,
+                                     paint_chimney, place_chimney, place_dormer)
+from sim.worlds.shapes import json_point
+from sim.worlds.street_furniture import (POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M, WIRE_RADIUS_M, WIRE_SAG_PER_M, Car, Fence, LampPost, Obstacles, PowerLine,
+                                         car_part, fence_part, lamp_post_part, paint_street_furniture, place_cars,
+                                         place_fence, place_lamp_posts, place_power_line, power_pole_part, wire_part)
+from sim.worlds.water import Pond, PondTerrain, paint_pond, place_pond, trees_clear_of, water_part
+
+CHIMNEY_SHARE, DORMER_SHARE, FENCE_SHARE = 0.75, 0.5, 0.4
+"""Shares of buildings with a chimney, of gable roofs with a dormer (where one fits), of yards with a fence."""
+CARS_PER_BUILDING = 0.5
+#: The kinds of object in scene.json's "objects", in instance order.
+OBJECT_KINDS = ("dormer", "chimney", "lamp_post", "power_pole", "wire", "fence", "car", "pond")
+NEAR_ORIGIN_M = 45.0
+"""The pond's centre and a point of the power line lie this close to the origin, which the demo flight circles."""
+
+
+@dataclass(frozen=True)
+class BuiltObjects:
+    """Everything placed by :func:`place_built`, and the pond of :func:`with_pond`."""
+
+    pond: Pond
+    chimneys: list[Chimney]
+    dormers: list[Dormer]
+    power_line: PowerLine
+    lamp_posts: list[LampPost]
+    fences: list[Fence]
+    cars: list[Car]
+
+
+def with_pond(rng: np.random.Generator, layout: Layout) -> tuple[Layout, Pond]:
+    """The layout with a pond near the origin cut into its terrain (:class:`~sim.worlds.water.PondTerrain`) and the
+    trees in its way left out, and the pond."""
+    radius = (8.0, 12.0) if layout.spec.size_x_m >= 300 else (6.0, 8.0)
+    pond = place_pond(rng, layout, NEAR_ORIGIN_M, radius)
+    return replace(layout, terrain=PondTerrain(layout.terrain, pond), trees=trees_clear_of(layout.trees, pond)), pond
+
+
+def _at_least_one(rng: np.random.Generator, count: int, share: float) -> np.ndarray:
+    """Which of ``count`` items are chosen, each with probability ``share``; the first at least when none was."""
+    chosen = rng.random(count) < share
+    if count and not chosen.any():
+        chosen[0] = True
+    return chosen
+
+
+def _roof_details(rng: np.random.Generator, layout: Layout) -> tuple[list[Chimney], list[Dormer]]:
+    """Dormers on about half the gable roofs that fit one (at least one), then chimneys on about three quarters of
+    the buildings (at least one), clear of the dormers."""
+    fits = [d for i, b in enumerate(layout.buildings) if (d := place_dormer(rng, i, b)) is not None]
+    dormers = [d for d, keep in zip(fits, _at_least_one(rng, len(fits), DORMER_SHARE), strict=True) if keep]
+    by_building = {d.building_index: d for d in dormers}
+    chimneys = []
+    for index in np.flatnonzero(_at_least_one(rng, len(layout.buildings), CHIMNEY_SHARE)):
+        chimney = place_chimney(rng, int(index), layout.buildings[index], by_building.get(int(index)))
+        if chimney is not None:
+            chimneys.append(chimney)
+    return chimneys, dormers
+
+
+def place_built(rng: np.random.Generator, layout: Layout, pond: Pond, yards: tuple[Yard, ...]) -> BuiltObjects:
+    """Place the roof details, the power line, lamp posts, fences around some of the painted ``yards`` and cars."""
+    chimneys, dormers = _roof_details(rng, layout)
+    obstacles = Obstacles(layout.roads, layout.buildings, [(*t.position, t.radius_m) for t in layout.trees])
+    obstacles.add(pond.center, pond.reach_m)
+    spec, terrain = layout.spec, layout.terrain
+    line = place_power_line(rng, spec, terrain, layout.trees, layout.buildings, obstacles, NEAR_ORIGIN_M)
+    lamp_posts = place_lamp_posts(rng, spec, terrain, obstacles)
+    fences = [f for yard, keep in zip(yards, _at_least_one(rng, len(yards), FENCE_SHARE), strict=True)
+              if keep and (f := place_fence(rng, yard, terrain, obstacles, spec)) is not None]
+    cars = place_cars(rng, spec, terrain, obstacles, layout.village_center, 0.6 * min(spec.half_extent_m),
+                      max(int(round(CARS_PER_BUILDING * len(layout.buildings))), 1))
+    return BuiltObjects(pond, chimneys, dormers, line, lamp_posts, fences, cars)
+
+
+def paint_built(rng: np.random.Generator, image: np.ndarray, built: BuiltObjects, spec: WorldSpec) -> None:
+    """Paint the objects as seen from above into the orthophoto ``image`` (after the roofs), in place."""
+    paint_pond(rng, image, built.pond, spec)
+    for chimney in built.chimneys:
+        paint_chimney(image, chimney, spec)
+    paint_street_furniture(image, built.lamp_posts, built.power_line, built.fences, built.cars, spec)
+
+
+@dataclass(frozen=True)
+class Piece:
+    """A meshed object: its part, its faces' class (one id, or one per face), its ``kind`` and JSON truth, and the
+    object id it belongs to when it is part of another (a dormer: its building's), else None (its own)."""
+
+    part: Part
+    face_class: int | np.ndarray
+    kind: str
+    truth: dict
+    owner: int | None = None
+
+
+def _pieces(built: BuiltObjects, layout: Layout, facades: FacadeAtlas) -> list[Piece]:
+    """Every object's piece, in instance order (dormers, owned by their buildings, first)."""
+    spec, terrain, line = layout.spec, layout.terrain, built.power_line
+    pieces = []
+    for dormer in built.dormers:
+        building = layout.buildings[dormer.building_index]
+        walls, roof = dormer_part(dormer, building, facades, spec)
+        classes = np.repeat(np.array([WALL, ROOF], np.uint8), [len(walls.faces), len(roof.faces)])
+        pieces.append(Piece(concatenate([walls, roof]), classes, "dormer", dormer_truth(dormer, building),
+                            owner=dormer.building_index + 1))
+    pieces += [Piece(chimney_part(c, spec), CHIMNEY, "chimney", chimney_truth(c)) for c in built.chimneys]
+    pieces += [Piece(lamp_post_part(p, spec), POLE, "lamp_post", _pole_truth(p.position, p.ground_z, p.height_m,
+                                                                              p.radius_m)) for p in built.lamp_posts]
+    pieces += [Piece(power_pole_part(line, k, spec), POLE, "power_pole",
+                     _pole_truth(xy, float(z), POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M))
+               for k, (xy, z) in enumerate(zip(line.positions, line.ground_z, strict=True))]
+    for span in range(len(line.positions) - 1):
+        for wire in range(3):
+            points = line.wire_points(span, wire)
+            truth = {"span": span, "start_m": json_point(points[0]), "end_m": json_point(points[-1]),
+                     "lowest_z_m": round(float(points[:, 2].min()), 4), "radius_m": WIRE_RADIUS_M,
+                     "sag_per_m": WIRE_SAG_PER_M}
+            pieces.append(Piece(wire_part(line, span, wire, spec), WIRE, "wire", truth))
+    pieces += [Piece(fence_part(f, terrain, spec), FENCE, "fence",
+                     {"corners_m": [json_point(c) for c in f.corners], "height_m": round(f.height_m, 4),
+                      "posts": len(f.posts())}) for f in built.fences]
+    pieces += [Piece(car_part(c, spec), CAR, "car", _car_truth(c)) for c in built.cars]
+    pond = built.pond
+    pieces.append(Piece(water_part(pond, spec), WATER, "pond",
+                        {"center_m": json_point(pond.center), "level_z_m": round(pond.level_z, 4),
+                         "radius_m": round(pond.radius_m, 4), "depth_m": round(pond.depth_m, 4),
+                         "shoreline_m": [json_point(p) for p in pond.outline()]}))
+    return pieces
+
+
+def _pole_truth(xy: np.ndarray, ground_z: float, height_m: float, radius_m: float) -> dict:
+    return {"position_m": json_point(xy), "ground_z_m": round(float(ground_z), 4),
+            "top_z_m": round(float(ground_z) + height_m, 4), "radius_m": round(float(radius_m), 4)}
+
+
+def _car_truth(car: Car) -> dict:
+    return {"position_m": json_point(car.center), "heading_deg": round(float(np.degrees(car.heading_rad)), 3),
+            "length_m": round(car.length_m, 4), "width_m": round(car.width_m, 4),
+            "top_z_m": round(car.ground_z + car.height_m, 4), "ground_z_m": round(car.ground_z, 4)}
+
+
+def built_part(built: BuiltObjects, layout: Layout, facades: FacadeAtlas,
+               first_instance: int) -> tuple[Part, SceneLabels, list[dict]]:
+    """The objects' mesh, its faces' labels (objects of their own numbered from ``first_instance``) and the truth
+    of every object: ``{"instance", "kind", "classes", ...}`` (positions ENU metres; see docs/demo-world.md)."""
+    pieces = _pieces(built, layout, facades)
+    instances, objects, next_instance = [], [], first_instance
+    for piece in pieces:
+        instance = piece.owner if piece.owner is not None else next_instance
+        next_instance += piece.owner is None
+        instances.append(instance)
+        classes = [CLASSES[c].name for c in np.unique(piece.face_class)]
+        objects.append({"instance": int(instance), "kind": piece.kind, "classes": classes, **piece.truth})
+    counts = [len(p.part.faces) for p in pieces]
+    face_class = np.concatenate([np.broadcast_to(np.asarray(p.face_class, np.uint8), (n,)) for p, n in
+                                 zip(pieces, counts, strict=True)])
+    face_instance = np.repeat(instances, counts).astype(np.uint32)
+    labels = SceneLabels(face_class, face_instance, np.ones(len(face_class), np.float32))
+    return concatenate([p.part for p in pieces]), labels, objects
+
