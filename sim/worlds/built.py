@@ -28,9 +28,10 @@ from sim.worlds.layout import Layout, WorldSpec
 from sim.worlds.roof_details import (Chimney, Dormer, chimney_part, chimney_truth, dormer_part, dormer_truth,
                                      paint_chimney, place_chimney, place_dormer)
 from sim.worlds.shapes import json_point
-from sim.worlds.street_furniture import (POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M, WIRE_RADIUS_M, WIRE_SAG_PER_M, Car, Fence, LampPost, Obstacles, PowerLine,
-                                         car_part, fence_part, lamp_post_part, paint_street_furniture, place_cars,
-                                         place_fence, place_lamp_posts, place_power_line, power_pole_part, wire_part)
+from sim.worlds.street_furniture import (POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M, WIRE_RADIUS_M, WIRE_SAG_PER_M,
+                                         Car, Fence, LampPost, Obstacles, PowerLine, car_part, fence_part,
+                                         lamp_post_part, paint_street_furniture, place_cars, place_fence,
+                                         place_lamp_posts, place_power_line, power_pole_part, wire_part)
 from sim.worlds.water import Pond, PondTerrain, paint_pond, place_pond, trees_clear_of, water_part
 
 CHIMNEY_SHARE, DORMER_SHARE, FENCE_SHARE = 0.75, 0.5, 0.4

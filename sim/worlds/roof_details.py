@@ -30,8 +30,8 @@ DORMER_OVERHANG_M = 0.15
 
 @dataclass(frozen=True)
 class Chimney:
-    """A chimney on building ``building_index``: square of ``size_m``, centred at ``along``/``across`` (local metres),
-    from ``base_z`` (inside the roof) up to ``top_z``; ``roof_z`` is the roof's height under its centre."""
+    """A chimney on building ``building_index``: square of ``size_m`` on ENU ``center``, from ``base_z`` (inside the
+    roof) up to ``top_z``, 1-2 m above ``roof_z``, the highest point of the roof under it."""
 
     building_index: int
     center: np.ndarray  # ENU x, y
@@ -101,12 +101,12 @@ def place_chimney(rng: np.random.Generator, index: int, building: Building, dorm
         across = 0.0 if building.gable and rng.random() < 0.5 else rng.uniform(-across_room, across_room)
         if dormer is not None and abs(along - dormer.along) < (dormer.width_m + size) / 2 + 0.3:
             continue
-        corners_across = across + np.array([-0.5, 0.5]) * size
-        roof = roof_height(building, corners_across) if building.gable else np.full(2, building.eave_z)
-        roof_centre = float(roof_height(building, across)) if building.gable else building.eave_z
+        nearest_ridge, farthest = max(abs(across) - size / 2, 0.0), abs(across) + size / 2
+        roof_top, roof_low = (roof_height(building, np.array([nearest_ridge, farthest])) if building.gable
+                              else (building.eave_z, building.eave_z))
         center = _to_enu(building, along, across)
-        return Chimney(index, center, building.heading_rad, size, float(roof.min()) - CHIMNEY_SINK_M,
-                       float(roof.max()) + rise, roof_centre, rgb)
+        return Chimney(index, center, building.heading_rad, size, float(roof_low) - CHIMNEY_SINK_M,
+                       float(roof_top) + rise, float(roof_top), rgb)
     return None
 
 
@@ -176,7 +176,9 @@ def dormer_truth(dormer: Dormer, building: Building) -> dict:
 
 
 def chimney_truth(chimney: Chimney) -> dict:
-    """JSON-ready truth of a chimney: centre (ENU), size, top, the roof under it."""
-    return {"position_m": json_point(chimney.center), "size_m": round(chimney.size_m, 4),
+    """JSON-ready truth of a chimney: its building's object, centre (ENU), heading (its sides along and across the
+    ridge), size, top, the highest roof point under it."""
+    return {"building_instance": chimney.building_index + 1, "position_m": json_point(chimney.center),
+            "heading_deg": round(float(np.degrees(chimney.heading_rad)), 3), "size_m": round(chimney.size_m, 4),
             "top_z_m": round(chimney.top_z, 4), "roof_z_m": round(chimney.roof_z, 4),
             "height_above_roof_m": round(chimney.top_z - chimney.roof_z, 4)}

@@ -246,7 +246,8 @@ def place_fence(rng: np.random.Generator, yard: Yard, terrain, obstacles: Obstac
     corners = building.center + local[:, :1] * along + local[:, 1:] * across
     fence = Fence(corners, float(rng.uniform(1.0, 1.4)), FENCE_COLOURS[rng.integers(len(FENCE_COLOURS))])
     samples = np.vstack([a + np.linspace(0, 1, 20)[:, None] * (b - a) for a, b in zip(corners[:-1], corners[1:])])
-    if not all(_inside(p, spec, 1.0) and obstacles.clear(p, 0.3, road_gap_m=0.6, own_building=building) for p in samples):
+    if not all(_inside(p, spec, 1.0) and obstacles.clear(p, 0.3, road_gap_m=0.6, own_building=building)
+               for p in samples):
         return None
     for p in fence.posts():
         obstacles.add(p, 0.3)
