@@ -31,6 +31,8 @@ WIRE_SAG_PER_M = 0.02
 """A wire's sag at mid-span, per metre of span."""
 WIRE_POINTS = 9
 """Points per span along a wire's parabola."""
+ORIGIN_CLEARANCE_M = 10.0
+"""The power line passes at least this far (m) from the ENU origin, the centre of the demo flight's orbit."""
 FOOT_SINK_M = 0.2
 """How far (m) posts and poles reach into the ground."""
 
@@ -167,17 +169,22 @@ def _line_conflicts(through: np.ndarray, direction: np.ndarray, layout_trees, bu
 
 def place_power_line(rng: np.random.Generator, spec: WorldSpec, terrain, trees, buildings, obstacles: Obstacles,
                      within_m: float) -> PowerLine:
-    """A straight power line across the world through a point within ``within_m`` of the origin, of the drawn
-    candidates the one that passes the fewest trees and buildings; a pole every 35-45 m, each moved up to 8 m along
+    """A straight power line across the world through a point within ``within_m`` of the origin but passing at
+    least :data:`ORIGIN_CLEARANCE_M` from it (no wires over the orbit's centre), of the drawn candidates the one
+    that passes the fewest trees and buildings; a pole every 35-45 m, each moved up to 8 m along
     the line off roads and obstacles (or left out)."""
     best = None
     for _ in range(40):
         angle, distance, bearing = rng.uniform(0, np.pi), within_m * np.sqrt(rng.random()), rng.uniform(0, 2 * np.pi)
         through = distance * np.array([np.cos(bearing), np.sin(bearing)])
         direction = np.array([np.cos(angle), np.sin(angle)])
+        if abs(through @ [-direction[1], direction[0]]) < ORIGIN_CLEARANCE_M:
+            continue
         conflicts = _line_conflicts(through, direction, trees, buildings, CROSSARM_HALF_M + 1.0)
         if best is None or conflicts < best[0]:
             best = (conflicts, through, direction)
+    if best is None:
+        raise ValueError(f"no power line through a point within {within_m:.0f} m of the origin clears it")
     _, through, direction = best
     spacing = rng.uniform(35.0, 45.0)
     reach = float(np.hypot(*spec.half_extent_m))

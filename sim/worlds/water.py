@@ -25,6 +25,8 @@ FREEBOARD_M = 0.3
 SURFACE_OVERLAP_M = 0.4
 """How far (m) past the shoreline the water surface reaches, under the banks."""
 OUTLINE_POINTS = 64
+ORIGIN_CLEARANCE_M = 3.0
+"""How far (m) the pond's banks keep off the ENU origin."""
 #: The water's colour (sRGB) and the bank's (wet mud), painted into the orthophoto.
 WATER_RGB, BANK_RGB = np.array([34.0, 46.0, 54.0]), np.array([92.0, 80.0, 60.0])
 BANK_WIDTH_M = 1.2
@@ -94,8 +96,9 @@ def _trees_inside(center: np.ndarray, reach_m: float, trees: list[Tree]) -> int:
 
 def place_pond(rng: np.random.Generator, layout: Layout, within_m: float, radius_m: tuple[float, float],
                candidates: int = 200) -> Pond:
-    """A pond whose centre lies within ``within_m`` of the ENU origin (where the demo flight looks), off the roads
-    and buildings, of the drawn candidates the one whose banks would swallow the fewest trees."""
+    """A pond whose centre lies within ``within_m`` of the ENU origin (where the demo flight looks) but whose banks
+    keep :data:`ORIGIN_CLEARANCE_M` off it (the orbit's centre), off the roads and buildings, of the drawn
+    candidates the one whose banks would swallow the fewest trees."""
     wobble = tuple((float(rng.uniform(0.04, 0.12)), harmonic, float(rng.uniform(0, 2 * np.pi)))
                    for harmonic in (2, 3))
     radius, depth = float(rng.uniform(*radius_m)), float(rng.uniform(0.8, 1.5))
@@ -104,6 +107,8 @@ def place_pond(rng: np.random.Generator, layout: Layout, within_m: float, radius
     for _ in range(candidates):
         distance, angle = within_m * np.sqrt(rng.random()), rng.uniform(0, 2 * np.pi)
         center = distance * np.array([np.cos(angle), np.sin(angle)])
+        if distance < probe.reach_m + ORIGIN_CLEARANCE_M:
+            continue
         if not _clear_of(center, probe.reach_m, layout.roads, layout.buildings):
             continue
         trees = _trees_inside(center, probe.reach_m, layout.trees)
