@@ -27,12 +27,11 @@ from sim.worlds.ground_cover import Yard
 from sim.worlds.layout import Layout, WorldSpec
 from sim.worlds.roof_details import (Chimney, Dormer, chimney_part, chimney_truth, dormer_part, dormer_truth,
                                      paint_chimney, place_chimney, place_dormer)
-from sim.worlds.shapes import json_point
-from sim.worlds.street_furniture import (POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M, WIRE_RADIUS_M, WIRE_SAG_PER_M,
-                                         Car, Fence, LampPost, Obstacles, PowerLine, car_part, fence_part,
-                                         lamp_post_part, paint_street_furniture, place_cars, place_fence,
-                                         place_lamp_posts, place_power_line, power_pole_part, wire_part)
-from sim.worlds.water import Pond, PondTerrain, paint_pond, place_pond, trees_clear_of, water_part
+from sim.worlds.street_furniture import (WIRES, Car, Fence, LampPost, Obstacles, PowerLine, car_part, car_truth,
+                                         fence_part, fence_truth, lamp_post_part, lamp_post_truth,
+                                         paint_street_furniture, place_cars, place_fence, place_lamp_posts,
+                                         place_power_line, power_pole_part, power_pole_truth, wire_part, wire_truth)
+from sim.worlds.water import Pond, PondTerrain, paint_pond, place_pond, pond_truth, trees_clear_of, water_part
 
 CHIMNEY_SHARE, DORMER_SHARE, FENCE_SHARE = 0.75, 0.5, 0.4
 """Shares of buildings with a chimney, of gable roofs with a dormer (where one fits), of yards with a fence."""
@@ -121,50 +120,34 @@ class Piece:
     owner: int | None = None
 
 
-def _pieces(built: BuiltObjects, layout: Layout, facades: FacadeAtlas) -> list[Piece]:
-    """Every object's piece, in instance order (dormers, owned by their buildings, first)."""
-    spec, terrain, line = layout.spec, layout.terrain, built.power_line
+def _roof_pieces(built: BuiltObjects, layout: Layout, facades: FacadeAtlas) -> list[Piece]:
+    """The dormers (owned by their buildings) and the chimneys."""
     pieces = []
     for dormer in built.dormers:
         building = layout.buildings[dormer.building_index]
-        walls, roof = dormer_part(dormer, building, facades, spec)
+        walls, roof = dormer_part(dormer, building, facades, layout.spec)
         classes = np.repeat(np.array([WALL, ROOF], np.uint8), [len(walls.faces), len(roof.faces)])
         pieces.append(Piece(concatenate([walls, roof]), classes, "dormer", dormer_truth(dormer, building),
                             owner=dormer.building_index + 1))
-    pieces += [Piece(chimney_part(c, spec), CHIMNEY, "chimney", chimney_truth(c)) for c in built.chimneys]
-    pieces += [Piece(lamp_post_part(p, spec), POLE, "lamp_post", _pole_truth(p.position, p.ground_z, p.height_m,
-                                                                              p.radius_m)) for p in built.lamp_posts]
-    pieces += [Piece(power_pole_part(line, k, spec), POLE, "power_pole",
-                     _pole_truth(xy, float(z), POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M))
-               for k, (xy, z) in enumerate(zip(line.positions, line.ground_z, strict=True))]
-    for span in range(len(line.positions) - 1):
-        for wire in range(3):
-            points = line.wire_points(span, wire)
-            truth = {"span": span, "start_m": json_point(points[0]), "end_m": json_point(points[-1]),
-                     "lowest_z_m": round(float(points[:, 2].min()), 4), "radius_m": WIRE_RADIUS_M,
-                     "sag_per_m": WIRE_SAG_PER_M}
-            pieces.append(Piece(wire_part(line, span, wire, spec), WIRE, "wire", truth))
-    pieces += [Piece(fence_part(f, terrain, spec), FENCE, "fence",
-                     {"corners_m": [json_point(c) for c in f.corners], "height_m": round(f.height_m, 4),
-                      "posts": len(f.posts())}) for f in built.fences]
-    pieces += [Piece(car_part(c, spec), CAR, "car", _car_truth(c)) for c in built.cars]
-    pond = built.pond
-    pieces.append(Piece(water_part(pond, spec), WATER, "pond",
-                        {"center_m": json_point(pond.center), "level_z_m": round(pond.level_z, 4),
-                         "radius_m": round(pond.radius_m, 4), "depth_m": round(pond.depth_m, 4),
-                         "shoreline_m": [json_point(p) for p in pond.outline()]}))
-    return pieces
+    return pieces + [Piece(chimney_part(c, layout.spec), CHIMNEY, "chimney", chimney_truth(c)) for c in built.chimneys]
 
 
-def _pole_truth(xy: np.ndarray, ground_z: float, height_m: float, radius_m: float) -> dict:
-    return {"position_m": json_point(xy), "ground_z_m": round(float(ground_z), 4),
-            "top_z_m": round(float(ground_z) + height_m, 4), "radius_m": round(float(radius_m), 4)}
+def _street_pieces(built: BuiltObjects, layout: Layout) -> list[Piece]:
+    """Lamp posts, the power line's poles and wires, fences and cars."""
+    spec, line = layout.spec, built.power_line
+    pieces = [Piece(lamp_post_part(p, spec), POLE, "lamp_post", lamp_post_truth(p)) for p in built.lamp_posts]
+    pieces += [Piece(power_pole_part(line, k, spec), POLE, "power_pole", power_pole_truth(line, k))
+               for k in range(len(line.positions))]
+    pieces += [Piece(wire_part(line, span, wire, spec), WIRE, "wire", wire_truth(line, span, wire))
+               for span in range(len(line.positions) - 1) for wire in range(WIRES)]
+    pieces += [Piece(fence_part(f, layout.terrain, spec), FENCE, "fence", fence_truth(f)) for f in built.fences]
+    return pieces + [Piece(car_part(c, spec), CAR, "car", car_truth(c)) for c in built.cars]
 
 
-def _car_truth(car: Car) -> dict:
-    return {"position_m": json_point(car.center), "heading_deg": round(float(np.degrees(car.heading_rad)), 3),
-            "length_m": round(car.length_m, 4), "width_m": round(car.width_m, 4),
-            "top_z_m": round(car.ground_z + car.height_m, 4), "ground_z_m": round(car.ground_z, 4)}
+def _pieces(built: BuiltObjects, layout: Layout, facades: FacadeAtlas) -> list[Piece]:
+    """Every object's piece, in instance order (dormers, owned by their buildings, first)."""
+    pond = Piece(water_part(built.pond, layout.spec), WATER, "pond", pond_truth(built.pond))
+    return _roof_pieces(built, layout, facades) + _street_pieces(built, layout) + [pond]
 
 
 def built_part(built: BuiltObjects, layout: Layout, facades: FacadeAtlas,

@@ -2,8 +2,9 @@
 
 ENU metres, z up. Every object stands on the terrain it is given (its foot sunk a little into it) and keeps clear of
 the roads' bands, the buildings, the trees' crowns and the objects placed before it (:class:`Obstacles`). Poles and
-wires are tubes of one colour, the texel painted at the pole's foot (:func:`~sim.worlds.shapes.swatch_uv`); cars and
-fence parts are boxes whose tops are seen from above in the orthophoto.
+wires are tubes, and fences boxes, of one colour: the texel painted at the pole's (first post's) foot
+(:func:`~sim.worlds.shapes.swatch_uv`); cars are boxes whose tops are painted from above in the orthophoto. The
+``*_truth`` functions give each object's JSON truth for scene.json (ENU metres, rounded to 0.1 mm).
 """
 
 from __future__ import annotations
@@ -15,7 +16,8 @@ import numpy as np
 from sim.worlds.geometry import Part, concatenate
 from sim.worlds.ground_cover import Yard
 from sim.worlds.layout import Building, Road, WorldSpec, distance_to_polyline
-from sim.worlds.shapes import box_part, footprint_corners, paint_local_mask, paint_swatch, swatch_uv, tube_part
+from sim.worlds.shapes import (box_part, footprint_corners, json_point, paint_local_mask, paint_swatch, swatch_uv,
+                               tube_part)
 
 LAMP_RGB, WOOD_POLE_RGB = (112, 114, 118), (74, 62, 50)
 FENCE_COLOURS = [(134, 104, 72), (222, 220, 212), (92, 96, 90)]
@@ -29,6 +31,8 @@ CROSSARM_Z_M, CROSSARM_HALF_M = 8.4, 1.0
 WIRE_RADIUS_M = 0.015
 WIRE_SAG_PER_M = 0.02
 """A wire's sag at mid-span, per metre of span."""
+WIRES = 3
+"""Wires per span: from the crossarm's two ends and the pole top."""
 WIRE_POINTS = 9
 """Points per span along a wire's parabola."""
 ORIGIN_CLEARANCE_M = 10.0
@@ -133,6 +137,16 @@ def lamp_post_part(post: LampPost, spec: WorldSpec) -> Part:
     return concatenate([pole, arm, lamp])
 
 
+def _pole_truth(xy: np.ndarray, ground_z: float, height_m: float, radius_m: float) -> dict:
+    return {"position_m": json_point(xy), "ground_z_m": round(float(ground_z), 4),
+            "top_z_m": round(float(ground_z) + height_m, 4), "radius_m": round(float(radius_m), 4)}
+
+
+def lamp_post_truth(post: LampPost) -> dict:
+    """Foot (ENU x, y and ground z), top and radius of a lamp post's pole."""
+    return _pole_truth(post.position, post.ground_z, post.height_m, post.radius_m)
+
+
 # --- power line -------------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -218,6 +232,19 @@ def wire_part(line: PowerLine, span: int, wire: int, spec: WorldSpec) -> Part:
                      swatch_uv(line.positions[span], spec))
 
 
+def power_pole_truth(line: PowerLine, pole: int) -> dict:
+    """Foot (ENU x, y and ground z), top and radius of a power pole."""
+    return _pole_truth(line.positions[pole], float(line.ground_z[pole]), POWER_POLE_HEIGHT_M, POWER_POLE_RADIUS_M)
+
+
+def wire_truth(line: PowerLine, span: int, wire: int) -> dict:
+    """A wire's span (between poles ``span`` and ``span + 1``), its ends, lowest point, radius and sag."""
+    points = line.wire_points(span, wire)
+    return {"span": span, "start_m": json_point(points[0]), "end_m": json_point(points[-1]),
+            "lowest_z_m": round(float(points[:, 2].min()), 4), "radius_m": WIRE_RADIUS_M,
+            "sag_per_m": WIRE_SAG_PER_M}
+
+
 # --- fences -----------------------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
@@ -277,6 +304,12 @@ def fence_part(fence: Fence, terrain, spec: WorldSpec) -> Part:
             parts.append(box_part(mid, heading, float(np.linalg.norm(end - start)), 0.04, z - 0.04, z + 0.04, spec,
                                   uv, uv, bottom=True))
     return concatenate(parts)
+
+
+def fence_truth(fence: Fence) -> dict:
+    """A fence's polyline (ENU x, y), height and number of posts."""
+    return {"corners_m": [json_point(c) for c in fence.corners], "height_m": round(fence.height_m, 4),
+            "posts": len(fence.posts())}
 
 
 # --- parked cars ------------------------------------------------------------------------------------------------
@@ -366,6 +399,13 @@ def paint_car(image: np.ndarray, car: Car, spec: WorldSpec) -> None:
         pixels[roof] = np.asarray(car.rgb) * 0.85
 
     paint_local_mask(image, spec, car.center, car.heading_rad, car.length_m / 2 + 0.2, paint)
+
+
+def car_truth(car: Car) -> dict:
+    """A car's centre, heading, size, top and the highest ground under it."""
+    return {"position_m": json_point(car.center), "heading_deg": round(float(np.degrees(car.heading_rad)), 3),
+            "length_m": round(car.length_m, 4), "width_m": round(car.width_m, 4),
+            "top_z_m": round(car.ground_z + car.height_m, 4), "ground_z_m": round(car.ground_z, 4)}
 
 
 def paint_street_furniture(image: np.ndarray, lamp_posts: list[LampPost], line: PowerLine, fences: list[Fence],

@@ -16,7 +16,7 @@ import numpy as np
 from sim.worlds.geometry import Part
 from sim.worlds.layout import Building, Layout, Road, Tree, WorldSpec, distance_to_polyline
 from sim.worlds.noise import HeightField, value_noise
-from sim.worlds.shapes import paint_local_mask, polygon_part
+from sim.worlds.shapes import json_point, paint_local_mask, polygon_part
 
 BANK_SLOPE = 0.5
 """Rise (m) per metre of the cut banks, inside and outside the shoreline."""
@@ -147,3 +147,10 @@ def paint_pond(rng: np.random.Generator, image: np.ndarray, pond: Pond, spec: Wo
         pixels[water] = (WATER_RGB * ripples[..., None])[water]
 
     paint_local_mask(image, spec, pond.center, 0.0, reach, paint)
+
+
+def pond_truth(pond: Pond) -> dict:
+    """The pond's centre, water level, radius, depth and shoreline (ENU metres)."""
+    return {"center_m": json_point(pond.center), "level_z_m": round(pond.level_z, 4),
+            "radius_m": round(pond.radius_m, 4), "depth_m": round(pond.depth_m, 4),
+            "shoreline_m": [json_point(p) for p in pond.outline()]}
