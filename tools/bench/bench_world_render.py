@@ -46,7 +46,11 @@ def main(argv: list[str] | None = None) -> int:
                         help="a scene folder to time (repeat; ratios are to the first)")
     parser.add_argument("--frames", type=positive_int, default=5, help="orbit views per scene (plus the oblique one)")
     args = parser.parse_args(argv)
-    scenes = {label: load_scene(folder) for label, folder in args.scene}
+    try:
+        scenes = {label: load_scene(folder) for label, folder in args.scene}
+    except (OSError, ValueError) as error:  # SceneError is a ValueError
+        print(f"bench_world_render: error: {error}", file=sys.stderr)
+        return 2
     rig = Rig.stereo(CAMERA, 1.0)
     poses = {label: orbit_poses(scene, args.frames) for label, scene in scenes.items()}
     for label, scene in scenes.items():
