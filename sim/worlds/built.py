@@ -1,11 +1,11 @@
 """The demo world's built details and water: what is placed, painted and meshed beyond buildings and trees, and the
 truth of every such object.
 
-In the generator's order (sim/worlds/demo.py): :func:`with_pond` cuts a pond into the layout's terrain (and drops the
-trees its banks would swallow) before anything is painted; after the orthophoto (whose yards the fences follow),
-:func:`place_built` places chimneys and dormers, a power line, lamp posts, fences and parked cars, each clear of the
-others, and :func:`paint_built` paints what they look like from above; :func:`built_part` meshes them with their
-labels and per-object truth.
+In the generator's order (sim/worlds/demo.py): :func:`clear_sites` cuts a pond into the layout's terrain and places a
+power line (dropping the trees the pond's banks would swallow and those under the wires) before anything is painted;
+after the orthophoto (whose yards the fences follow), :func:`place_built` places chimneys and dormers, lamp posts,
+fences and parked cars, each clear of the others and of the corridor under the wires, and :func:`paint_built`
+paints what they look like from above; :func:`built_part` meshes them with their labels and per-object truth.
 
 Objects and labels (docs/demo-world.md): a chimney, a lamp post (with its arm and lamp), a power pole (with its
 crossarm), a wire (one per span and conductor), a fence (all its posts and rails), a car and the pond are each one
@@ -27,10 +27,11 @@ from sim.worlds.ground_cover import Yard
 from sim.worlds.layout import Layout, WorldSpec
 from sim.worlds.roof_details import (Chimney, Dormer, chimney_part, chimney_truth, dormer_part, dormer_truth,
                                      paint_chimney, place_chimney, place_dormer)
-from sim.worlds.street_furniture import (WIRES, Car, Fence, LampPost, Obstacles, PowerLine, car_part, car_truth,
-                                         fence_part, fence_truth, lamp_post_part, lamp_post_truth,
-                                         paint_street_furniture, place_cars, place_fence, place_lamp_posts,
-                                         place_power_line, power_pole_part, power_pole_truth, wire_part, wire_truth)
+from sim.worlds.street_furniture import (CROSSARM_HALF_M, WIRES, Car, Fence, LampPost, Obstacles, PowerLine,
+                                         car_part, car_truth, fence_part, fence_truth, lamp_post_part,
+                                         lamp_post_truth, paint_street_furniture, place_cars, place_fence,
+                                         place_lamp_posts, place_power_line, power_pole_part, power_pole_truth,
+                                         trees_clear_of_wires, wire_part, wire_truth)
 from sim.worlds.water import Pond, PondTerrain, paint_pond, place_pond, pond_truth, trees_clear_of, water_part
 
 CHIMNEY_SHARE, DORMER_SHARE, FENCE_SHARE = 0.75, 0.5, 0.4
@@ -44,7 +45,7 @@ NEAR_ORIGIN_M = 45.0
 
 @dataclass(frozen=True)
 class BuiltObjects:
-    """Everything placed by :func:`place_built`, and the pond of :func:`with_pond`."""
+    """Everything placed by :func:`place_built`, and the pond and power line of :func:`clear_sites`."""
 
     pond: Pond
     chimneys: list[Chimney]
@@ -55,12 +56,29 @@ class BuiltObjects:
     cars: list[Car]
 
 
-def with_pond(rng: np.random.Generator, layout: Layout) -> tuple[Layout, Pond]:
-    """The layout with a pond near the origin cut into its terrain (:class:`~sim.worlds.water.PondTerrain`) and the
-    trees in its way left out, and the pond."""
+def clear_sites(rng: np.random.Generator, layout: Layout) -> tuple[Layout, Pond, PowerLine]:
+    """The layout with a pond near the origin cut into its terrain (:class:`~sim.worlds.water.PondTerrain`) and a
+    power line placed, the trees in the pond's way and under the wires left out (before the crowns are painted);
+    the pond and the line."""
     radius = (8.0, 12.0) if layout.spec.size_x_m >= 300 else (6.0, 8.0)
     pond = place_pond(rng, layout, NEAR_ORIGIN_M, radius)
-    return replace(layout, terrain=PondTerrain(layout.terrain, pond), trees=trees_clear_of(layout.trees, pond)), pond
+    trees = trees_clear_of(layout.trees, pond)
+    line = place_power_line(rng, layout.spec, layout.terrain, trees, layout.buildings,
+                            _obstacles(layout, trees, pond), NEAR_ORIGIN_M)
+    cleared = replace(layout, terrain=PondTerrain(layout.terrain, pond), trees=trees_clear_of_wires(trees, line))
+    return cleared, pond, line
+
+
+def _obstacles(layout: Layout, trees: list, pond: Pond, line: PowerLine | None = None) -> Obstacles:
+    """What objects keep clear of: roads, buildings, the crowns of ``trees``, the pond, and the power line's poles
+    and the corridor under its wires (discs every 2 m along each span)."""
+    obstacles = Obstacles(layout.roads, layout.buildings, [(*t.position, t.radius_m) for t in trees])
+    obstacles.add(pond.center, pond.reach_m)
+    if line is not None:
+        for start, end in zip(line.positions[:-1], line.positions[1:], strict=True):
+            for share in np.linspace(0.0, 1.0, int(np.linalg.norm(end - start) / 2.0) + 2):
+                obstacles.add(start + share * (end - start), CROSSARM_HALF_M + 0.5)
+    return obstacles
 
 
 def _at_least_one(rng: np.random.Generator, count: int, share: float) -> np.ndarray:
@@ -85,13 +103,13 @@ def _roof_details(rng: np.random.Generator, layout: Layout) -> tuple[list[Chimne
     return chimneys, dormers
 
 
-def place_built(rng: np.random.Generator, layout: Layout, pond: Pond, yards: tuple[Yard, ...]) -> BuiltObjects:
-    """Place the roof details, the power line, lamp posts, fences around some of the painted ``yards`` and cars."""
+def place_built(rng: np.random.Generator, layout: Layout, pond: Pond, line: PowerLine,
+                yards: tuple[Yard, ...]) -> BuiltObjects:
+    """Place the roof details, lamp posts, fences around some of the painted ``yards`` and cars, clear of the pond
+    and the power line of :func:`clear_sites`."""
     chimneys, dormers = _roof_details(rng, layout)
-    obstacles = Obstacles(layout.roads, layout.buildings, [(*t.position, t.radius_m) for t in layout.trees])
-    obstacles.add(pond.center, pond.reach_m)
+    obstacles = _obstacles(layout, layout.trees, pond, line)
     spec, terrain = layout.spec, layout.terrain
-    line = place_power_line(rng, spec, terrain, layout.trees, layout.buildings, obstacles, NEAR_ORIGIN_M)
     lamp_posts = place_lamp_posts(rng, spec, terrain, obstacles)
     fences = [f for yard, keep in zip(yards, _at_least_one(rng, len(yards), FENCE_SHARE), strict=True)
               if keep and (f := place_fence(rng, yard, terrain, obstacles, spec)) is not None]

@@ -27,7 +27,7 @@ from sim.render.labels import LABELS_FILE, SceneLabels, concatenate_labels, writ
 from sim.render.sky_file import mesh_sha256
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
-from sim.worlds.built import OBJECT_KINDS, built_part, paint_built, place_built, with_pond
+from sim.worlds.built import OBJECT_KINDS, built_part, clear_sites, paint_built, place_built
 from sim.worlds.geometry import Part, concatenate, world_part
 from sim.render.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
@@ -63,16 +63,16 @@ def _generators(seed: int, variant: str) -> tuple[np.random.Generator, ...]:
 
 def generate_world(variant: str = "default",
                    seed: int = 0) -> tuple[Layout, Part, np.ndarray, SceneLabels, list[dict]]:
-    """The layout (its terrain with the pond cut in), the textured mesh (ENU metres), the (texture_px, texture_px, 3)
-    uint8 RGB atlas, the labels of the mesh's faces and the truth of the built objects (sim/worlds/built.py) of a
-    world."""
+    """The layout (its terrain with the pond cut in, without the trees in the pond's or the wires' way), the textured
+    mesh (ENU metres), the (texture_px, texture_px, 3) uint8 RGB atlas, the labels of the mesh's faces and the truth
+    of the built objects (sim/worlds/built.py) of a world."""
     spec = _spec(variant)
     layout_rng, paint_rng, mesh_rng, built_rng = _generators(seed, variant)
-    layout, pond = with_pond(built_rng, generate_layout(spec, layout_rng))
+    layout, pond, power_line = clear_sites(built_rng, generate_layout(spec, layout_rng))
     facades = allocate_facades(layout.buildings, spec)
     atlas = np.zeros((spec.texture_px, spec.texture_px, 3), np.float32)
     atlas[: spec.ortho_rows], cover = paint_orthophoto(paint_rng, layout)
-    built = place_built(built_rng, layout, pond, cover.yards)
+    built = place_built(built_rng, layout, pond, power_line, cover.yards)
     paint_built(built_rng, atlas[: spec.ortho_rows], built, spec)
     paint_facades(paint_rng, facades, layout.buildings, atlas)
     mesh, labels = world_part(layout, facades, mesh_rng, cover)

@@ -31,6 +31,8 @@ CROSSARM_Z_M, CROSSARM_HALF_M = 8.4, 1.0
 WIRE_RADIUS_M = 0.015
 WIRE_SAG_PER_M = 0.02
 """A wire's sag at mid-span, per metre of span."""
+MIN_POLES = 4
+"""The fewest poles in a row that make the power line."""
 WIRES = 3
 """Wires per span: from the crossarm's two ends and the pole top."""
 WIRE_POINTS = 9
@@ -174,44 +176,100 @@ class PowerLine:
         return start + t * (end - start) - np.array([0.0, 0.0, 4.0 * sag]) * t * (1 - t)
 
 
-def _line_conflicts(through: np.ndarray, direction: np.ndarray, layout_trees, buildings, corridor_m: float) -> int:
-    """How many trees and buildings reach within ``corridor_m`` of the infinite line."""
+BUILDING_CONFLICT = 1000
+"""A building near a candidate line counts as this many trees: a line passes any number of trees before one."""
+
+
+def _line_conflicts(through: np.ndarray, direction: np.ndarray, trees, buildings, corridor_m: float) -> int:
+    """How many trees, and :data:`BUILDING_CONFLICT` times how many buildings, reach within ``corridor_m`` of the
+    infinite line."""
     normal = np.array([-direction[1], direction[0]])
-    count = sum(abs((t.position - through) @ normal) < t.radius_m + corridor_m for t in layout_trees)
-    return count + sum(abs((b.center - through) @ normal) < b.radius_m + corridor_m for b in buildings)
+    count = sum(abs((t.position - through) @ normal) < t.radius_m + corridor_m for t in trees)
+    return count + BUILDING_CONFLICT * sum(abs((b.center - through) @ normal) < b.radius_m + corridor_m
+                                           for b in buildings)
+
+
+def _nearest_run(stations: np.ndarray, spacing_m: float) -> np.ndarray:
+    """Of the runs of consecutive stations (metres along the line, increasing) no more than 1.5 spacings apart and
+    of :data:`MIN_POLES` at least, the one that comes nearest the origin (station 0); empty when there is none."""
+    breaks = np.flatnonzero(np.diff(stations) > 1.5 * spacing_m) + 1
+    runs = [stations[a:b] for a, b in zip(np.r_[0, breaks], np.r_[breaks, len(stations)], strict=True)
+            if b - a >= MIN_POLES]
+    return min(runs, key=lambda run: np.abs(run).min()) if runs else np.zeros(0)
+
+
+def _stations(through: np.ndarray, direction: np.ndarray, spacing_m: float, offset_m: float, spec: WorldSpec,
+              obstacles: Obstacles) -> np.ndarray:
+    """Where poles can stand along the line (metres from the origin's foot on it): every ``spacing_m`` from
+    ``offset_m``, each moved up to 8 m along the line off roads and obstacles, or left out."""
+    reach = float(np.hypot(*spec.half_extent_m))
+    stations = []
+    for s in np.arange(-reach, reach, spacing_m) + offset_m:
+        for shift in (0, 3, -3, 6, -6, 8, -8):
+            xy = through + (s + shift) * direction
+            if _inside(xy, spec, 3.0) and obstacles.clear(xy, CROSSARM_HALF_M + 0.3, road_gap_m=1.0):
+                stations.append(through @ direction + s + shift)
+                break
+    return np.array(stations)
 
 
 def place_power_line(rng: np.random.Generator, spec: WorldSpec, terrain, trees, buildings, obstacles: Obstacles,
                      within_m: float) -> PowerLine:
-    """A straight power line across the world through a point within ``within_m`` of the origin but passing at
-    least :data:`ORIGIN_CLEARANCE_M` from it (no wires over the orbit's centre), of the drawn candidates the one
-    that passes the fewest trees and buildings; a pole every 35-45 m, each moved up to 8 m along
-    the line off roads and obstacles (or left out)."""
-    best = None
-    for _ in range(40):
+    """A straight power line through a point within ``within_m`` of the origin but passing at least
+    :data:`ORIGIN_CLEARANCE_M` from it (no wires over the orbit's centre): of 40 drawn lines, the first in order of
+    fewest buildings then fewest trees near it where :data:`MIN_POLES` poles at least stand in a row passing the
+    line's point nearest the origin, every 35-45 m, each moved up to 8 m along the line off roads and obstacles, and
+    no building rises near its wires."""
+    candidates = []
+    for index in range(40):
         angle, distance, bearing = rng.uniform(0, np.pi), within_m * np.sqrt(rng.random()), rng.uniform(0, 2 * np.pi)
         through = distance * np.array([np.cos(bearing), np.sin(bearing)])
         direction = np.array([np.cos(angle), np.sin(angle)])
-        if abs(through @ [-direction[1], direction[0]]) < ORIGIN_CLEARANCE_M:
+        if abs(through @ [-direction[1], direction[0]]) >= ORIGIN_CLEARANCE_M:
+            conflicts = _line_conflicts(through, direction, trees, buildings, CROSSARM_HALF_M + 1.0)
+            candidates.append((conflicts, index, through, direction))
+    spacing, offset = rng.uniform(35.0, 45.0), rng.uniform(0.0, 45.0)
+    for _, _, through, direction in sorted(candidates, key=lambda c: c[:2]):
+        stations = _nearest_run(_stations(through, direction, spacing, offset, spec, obstacles), spacing)
+        if not len(stations) or np.abs(stations).min() > spacing:  # the wires must pass the point nearest the origin
             continue
-        conflicts = _line_conflicts(through, direction, trees, buildings, CROSSARM_HALF_M + 1.0)
-        if best is None or conflicts < best[0]:
-            best = (conflicts, through, direction)
-    if best is None:
-        raise ValueError(f"no power line through a point within {within_m:.0f} m of the origin clears it")
-    _, through, direction = best
-    spacing = rng.uniform(35.0, 45.0)
-    reach = float(np.hypot(*spec.half_extent_m))
-    positions = []
-    for s in np.arange(-reach, reach, spacing) + rng.uniform(0, spacing):
-        for shift in (0, 3, -3, 6, -6, 8, -8):
-            xy = through + (s + shift) * direction
-            if _inside(xy, spec, 3.0) and obstacles.clear(xy, CROSSARM_HALF_M + 0.3, road_gap_m=1.0):
-                positions.append(xy)
+        positions = (through - (through @ direction) * direction) + stations[:, None] * direction
+        line = PowerLine(positions, terrain.height(positions[:, 0], positions[:, 1]), direction)
+        if _wires_clear_of(line, buildings):
+            for xy in positions:
                 obstacles.add(xy, CROSSARM_HALF_M + 0.3)
-                break
-    positions = np.array(positions).reshape(-1, 2)
-    return PowerLine(positions, terrain.height(positions[:, 0], positions[:, 1]), direction)
+            return line
+    raise ValueError(f"no room for a power line of {MIN_POLES} poles passing within {within_m:.0f} m of the origin")
+
+
+def _span_floors(line: PowerLine) -> list[tuple[np.ndarray, float]]:
+    """Per span, its two poles' (2, 2) ENU x, y and its lowest wire's lowest point (ENU z)."""
+    return [(line.positions[k:k + 2], min(line.wire_points(k, wire)[:, 2].min() for wire in range(WIRES)))
+            for k in range(len(line.positions) - 1)]
+
+
+def _wires_clear_of(line: PowerLine, buildings) -> bool:
+    """Whether no building within :data:`CROSSARM_HALF_M` + 0.5 m of a span rises to 1 m under its lowest wire."""
+    for ends, lowest in _span_floors(line):
+        steps = np.linspace(0.0, 1.0, int(np.linalg.norm(ends[1] - ends[0])) + 2)[:, None]  # about every metre
+        along = ends[0] + steps * (ends[1] - ends[0])
+        for building in buildings:
+            near = building.covers_local(*building.local(along[:, 0], along[:, 1]), CROSSARM_HALF_M + 0.5)
+            if np.any(near) and building.ridge_z > lowest - 1.0:
+                return False
+    return True
+
+
+def trees_clear_of_wires(trees: list, line: PowerLine) -> list:
+    """The trees but those whose crowns reach within :data:`CROSSARM_HALF_M` + 0.5 m of a span and above its lowest
+    wire less 0.5 m: the corridor a utility keeps clear."""
+    spans = _span_floors(line)
+
+    def under_wires(tree) -> bool:
+        return any(distance_to_polyline(tree.position[None], ends)[0] - tree.radius_m < CROSSARM_HALF_M + 0.5
+                   and tree.ground_z + tree.height_m > lowest - 0.5 for ends, lowest in spans)
+
+    return [tree for tree in trees if not under_wires(tree)]
 
 
 def power_pole_part(line: PowerLine, pole: int, spec: WorldSpec) -> Part:

@@ -12,7 +12,8 @@ from sim.render.classes import (CAR, CHIMNEY, CLASSES, FENCE, GROUPS, POLE, ROOF
 from sim.render.raycast import intersect
 from sim.render.scene import load_scene
 from sim.worlds.built import NEAR_ORIGIN_M, OBJECT_KINDS
-from sim.worlds.street_furniture import POLE_SIDES, WIRE_RADIUS_M
+from sim.worlds.layout import distance_to_polyline
+from sim.worlds.street_furniture import CROSSARM_HALF_M, MIN_POLES, POLE_SIDES, WIRE_RADIUS_M
 from sim.worlds.water import FREEBOARD_M
 
 DOWN = np.array([[0.0, 0.0, -1.0]])
@@ -93,15 +94,16 @@ def test_a_level_ray_at_half_height_hits_the_pole_at_its_radius(world, kind):
 
 
 def test_the_pond_is_flat_at_its_level_inside_its_shore_and_banks_rise_above_it(world):
-    """Rays down inside the shoreline (0.5 m in) meet water at the stored level, upwards; 1.5 m outside, the bank
-    stands above the level; the level is the freeboard under the lowest natural ground on the shore, and the bed
-    lies under the water."""
+    """Rays down from 1 m above the water inside the shoreline (0.5 m in) meet it at the stored level, upwards; 1.5 m
+    outside, the bank stands above the level; the level is the freeboard under the lowest natural ground on the
+    shore, and the bed lies under the water."""
     scene, _, by_kind, layout = world
     (pond,) = by_kind["pond"]
     center, shore = np.array(pond["center_m"]), np.array(pond["shoreline_m"])
     outward = (shore - center) / np.linalg.norm(shore - center, axis=1, keepdims=True)
     inside = np.vstack([center[None], center + 0.5 * (shore - center), shore - 0.5 * outward])
-    points, classes, instances, back = _cast(scene, np.column_stack([inside, np.full(len(inside), 50.0)]), DOWN)
+    above = np.full(len(inside), pond["level_z_m"] + 1.0)  # under the wires, which may cross the pond
+    points, classes, instances, back = _cast(scene, np.column_stack([inside, above]), DOWN)
     np.testing.assert_allclose(points[:, 2], pond["level_z_m"], atol=1e-4)
     assert np.all(classes == WATER) and np.all(instances == pond["instance"]) and not np.any(back)
     outside = shore + 1.5 * outward
@@ -153,6 +155,33 @@ def test_wires_sag_between_the_poles_and_are_thin(world):
         assert np.all(np.linalg.norm(points - curve, axis=1) < WIRE_RADIUS_M + 0.01)
         assert points[:, 2].min() == pytest.approx(wire["lowest_z_m"], abs=0.02)
         assert min(np.hypot(*(np.array(p) - start[:2])) for p in poles) < 1.1  # hangs on a pole's crossarm or top
+
+
+def test_the_power_line_is_a_row_of_poles_whose_wires_clear_buildings_and_crowns(world):
+    """At least four poles in a straight row 30-70 m apart passing the origin at 10-45 m; under no wire (within the
+    crossarm's half length + 0.5 m of a span) a building reaches its lowest wire less 1 m or a crown its lowest
+    wire less 0.5 m; lamp posts, fences and cars stand off the corridor."""
+    _, _, by_kind, layout = world
+    poles = np.array([p["position_m"] for p in by_kind["power_pole"]])
+    assert len(poles) >= MIN_POLES
+    spans = np.diff(poles, axis=0)
+    assert np.all((np.linalg.norm(spans, axis=1) > 30.0) & (np.linalg.norm(spans, axis=1) < 70.0))
+    direction = spans[0] / np.linalg.norm(spans[0])
+    normal = np.array([-direction[1], direction[0]])
+    np.testing.assert_allclose((poles - poles[0]) @ normal, 0.0, atol=1e-3)
+    assert 10.0 <= abs(poles[0] @ normal) <= NEAR_ORIGIN_M
+    reach = CROSSARM_HALF_M + 0.5
+    for span, (start, end) in enumerate(zip(poles[:-1], poles[1:])):
+        lowest = min(w["lowest_z_m"] for w in by_kind["wire"] if w["span"] == span)
+        samples = start + np.linspace(0, 1, 200)[:, None] * (end - start)
+        for building in layout.buildings:
+            if np.any(building.covers_local(*building.local(samples[:, 0], samples[:, 1]), reach)):
+                assert building.ridge_z < lowest - 1.0
+        for tree in layout.trees:
+            if distance_to_polyline(tree.position[None], np.array([start, end]))[0] - tree.radius_m < reach:
+                assert tree.ground_z + tree.height_m <= lowest - 0.5
+    others = [o.get("position_m") or o["corners_m"][0] for k in ("lamp_post", "car", "fence") for o in by_kind[k]]
+    assert distance_to_polyline(np.array(others), poles).min() > reach
 
 
 def test_fences_run_along_their_corners_at_their_height(world):

@@ -18,7 +18,7 @@ from sim.worlds.orthophoto import paint_fields, paint_village_lawn
 
 #: SHA-256 of world.glb of the small world, seed 0, generator version 9 (chimneys, poles, cars, the pond...: issue
 #: 39; labelling itself changed no byte of version 7's, bea4c4d0...). A Pillow with another libjpeg changes it too.
-SMALL_GLB_SHA256 = "76404402ab834cf2b9fcb5242bad62b35942c9d81fb7363123c9e5568fde81d8"
+SMALL_GLB_SHA256 = "6831458b110f326971781a82c7747d64fd832cdbaae41fc0f32fcefb9293b9bf"
 #: Largest distance (m) from a terrain face's centroid to its corners on the 1 m grid (corner (0, 0) of the
 #: triangle (0, 0), (1, 0), (1, 1)): how far a point of a face lies from where its class was decided.
 CENTROID_REACH_M = np.hypot(2 / 3, 1 / 3)
