@@ -31,14 +31,19 @@ from sim.worlds.geometry import Part, world_part
 from sim.render.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
+from sim.worlds.foliage import paint_vegetation_patches
+from sim.worlds.vegetation import vegetation_parts, vegetation_truth
 
-GENERATOR_VERSION = 8
+GENERATOR_VERSION = 9
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused. 8: the folder
-gained labels.npz and scene.json its "labels" and "classes" (world.glb unchanged)."""
+gained labels.npz and scene.json its "labels" and "classes" (world.glb unchanged). 9: trees with trunks, branches and
+porous crowns, conifers in whorls, a forest stand and hedges (sim/worlds/vegetation.py), and their truth in
+scene.json's "vegetation"."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
 JPEG_QUALITY = 95
-LABELS_METHOD = ("exact: the generator's own parts (walls, roofs, trees: one object per building and per tree); "
+LABELS_METHOD = ("exact: the generator's own parts (walls, roofs, trees with their trunks and branches, hedges: one "
+                 "object per building, per tree and per hedge); "
                  "terrain faces by the orthophoto's ground cover at their centroid (road, yard or village lawn: "
                  "ground, else field)")
 
@@ -67,7 +72,8 @@ def generate_world(variant: str = "default", seed: int = 0) -> tuple[Layout, Par
     atlas = np.zeros((spec.texture_px, spec.texture_px, 3), np.float32)
     atlas[: spec.ortho_rows], cover = paint_orthophoto(paint_rng, layout)
     paint_facades(paint_rng, facades, layout.buildings, atlas)
-    mesh, labels = world_part(layout, facades, mesh_rng, cover)
+    paint_vegetation_patches(paint_rng, atlas, spec)
+    mesh, labels = world_part(layout, facades, cover, vegetation_parts(layout, mesh_rng))
     return layout, mesh, np.clip(atlas, 0, 255).astype(np.uint8), labels
 
 
@@ -103,7 +109,7 @@ def _rounded_outwards(low_high: tuple[float, float], step: float = 1e-4) -> list
     return [round(float(np.floor(low_high[0] / step) * step), 9), round(float(np.ceil(low_high[1] / step) * step), 9)]
 
 
-def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> dict:
+def scene_description(layout: Layout, mesh: Part, labels: SceneLabels, variant: str, seed: int) -> dict:
     """The ``scene.json`` content of a built world."""
     half_x, half_y = layout.spec.half_extent_m
     return {
@@ -126,10 +132,15 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
             "buildings": len(layout.buildings),
             "gable_roofs": sum(b.gable for b in layout.buildings),
             "trees": len(layout.trees),
+            "conifers": sum(t.conifer for t in layout.trees),
+            "forest_trees": sum(t.forest for t in layout.trees),
+            "hedges": len(layout.hedges),
             "roads": len(layout.roads),
         },
         "labels": {"file": LABELS_FILE, "format": LABELS_FORMAT, "method": LABELS_METHOD},
         "classes": class_table(),
+        "vegetation": vegetation_truth(layout, mesh.vertices, mesh.faces, labels.face_instance,
+                                       len(layout.buildings) + 1),
     }
 
 
@@ -142,7 +153,7 @@ def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed:
     out = Path(out_dir)
     write_bytes_atomic(out / MESH_NAME, encode_glb(mesh, atlas))
     write_labels(out / LABELS_FILE, labels, stored_mesh_sha256(mesh))
-    text = json.dumps(scene_description(layout, mesh, variant, seed), indent=2) + "\n"
+    text = json.dumps(scene_description(layout, mesh, labels, variant, seed), indent=2) + "\n"
     write_text_atomic(out / SCENE_JSON, text)
     return out
 
