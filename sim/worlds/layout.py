@@ -340,10 +340,19 @@ def _rectangle(center: np.ndarray, heading: float, length_m: float, width_m: flo
     return center + signs[:, :1] * (length_m / 2) * along + signs[:, 1:] * (width_m / 2) * across
 
 
+FOREST_SPACING_M = 4.0
+"""Distance between neighbouring stems of the forest stand (before a jitter of up to 0.8 m)."""
+FOREST_CROWN_M = 3.0
+"""Largest crown radius in the forest stand: its stems stand at least this far inside its edge."""
+FOREST_CLEARING_M = 5.0
+"""Open ground around the forest stand: no other tree's crown or hedge comes closer to its edge."""
+
+
 def _place_forest(rng: np.random.Generator, spec: WorldSpec, terrain: HeightField, roads: list[Road],
                   buildings: list[Building]) -> tuple[ForestStand, list[Tree]]:
-    """A rectangular stand in the open, clear of roads and buildings, filled with trees on a jittered ~5 m grid
-    (mixed, a third conifers), every crown within the rectangle: a closed canopy with a clear edge."""
+    """A rectangular stand in the open, clear of roads and buildings, filled with trees on a jittered grid of
+    :data:`FOREST_SPACING_M` (mixed, a third conifers) whose crowns overlap, every crown within the rectangle: a
+    closed canopy with a clear edge."""
     length, width = spec.forest_size_m
     half = np.array(spec.half_extent_m)
     for _ in range(2000):
@@ -355,24 +364,21 @@ def _place_forest(rng: np.random.Generator, spec: WorldSpec, terrain: HeightFiel
             break
     else:
         raise ValueError(f"no room for a {length} m x {width} m forest stand")
-    stand = ForestStand(corners)
-    along, across = corners[1] - corners[0], corners[3] - corners[0]
-    columns, rows = int(length // 5.0), int(width // 5.0)
+    along, across = (corners[1] - corners[0]) / length, (corners[3] - corners[0]) / width
+    stems = [np.linspace(FOREST_CROWN_M, side - FOREST_CROWN_M,
+                         int((side - 2 * FOREST_CROWN_M) // FOREST_SPACING_M) + 1) for side in (length, width)]
     trees = []
-    for i in range(columns):
-        for j in range(rows):
+    for a in stems[0]:
+        for c in stems[1]:
+            jitter = np.clip(np.array([a, c]) + rng.uniform(-0.8, 0.8, 2), FOREST_CROWN_M,
+                             np.array([length, width]) - FOREST_CROWN_M)
+            position = corners[0] + jitter[0] * along + jitter[1] * across
             conifer = bool(rng.random() < 0.35)
-            radius = rng.uniform(1.8, 2.6) if conifer else rng.uniform(2.2, 3.0)
-            fraction = (np.array([i, j]) + 0.5 + rng.uniform(-0.2, 0.2, 2)) / [columns, rows]
-            position = corners[0] + fraction[0] * along + fraction[1] * across
-            if not stand.covers(position[None], -radius)[0]:  # the crown must stay inside the edge
-                position = stand.corners.mean(0) + (position - stand.corners.mean(0)) * 0.97
-                if not stand.covers(position[None], -radius)[0]:
-                    continue
+            radius = rng.uniform(1.8, 2.6) if conifer else rng.uniform(2.2, FOREST_CROWN_M)
             height = rng.uniform(12.0, 17.0) if conifer else rng.uniform(11.0, 15.0)
             trees.append(Tree(position, float(terrain.height(*position)), float(radius), float(height), conifer,
                               forest=True))
-    return stand, trees
+    return ForestStand(corners), trees
 
 
 def _place_hedges(rng: np.random.Generator, spec: WorldSpec, roads: list[Road], buildings: list[Building],
@@ -394,7 +400,7 @@ def _place_hedges(rng: np.random.Generator, spec: WorldSpec, roads: list[Road], 
                       float(rng.uniform(1.2, 2.2)))
         line = hedge.points()
         if not (_inside(line, spec, 3.0) and _clear_of_roads(line, roads, hedge.width_m / 2 + 0.5)
-                and _clear_of_buildings(line, buildings, 2.5) and not np.any(forest.covers(line, 3.0))):
+                and _clear_of_buildings(line, buildings, 2.5) and not np.any(forest.covers(line, FOREST_CLEARING_M))):
             continue
         if any(distance_to_polyline(line, np.array([h.start, h.end])).min() < 3.0 for h in hedges):
             continue
@@ -421,7 +427,7 @@ def _place_trees(rng: np.random.Generator, spec: WorldSpec, terrain: HeightField
             continue
         if any(np.hypot(*(t.position - position)) < 0.8 * (t.radius_m + radius) for t in trees):
             continue
-        if forest.covers(position[None], radius + 2.0)[0] or any(
+        if forest.covers(position[None], radius + FOREST_CLEARING_M)[0] or any(
                 distance_to_polyline(position[None], np.array([h.start, h.end]))[0] < radius + h.width_m / 2 + 0.3
                 for h in hedges):
             continue

@@ -38,8 +38,10 @@ LEAF_TEXTURE_M = 0.01
 GAP_CELL_M = 0.02
 """Cell size of the grid on which a crown's or hedge's shadow from above is drawn to count its gaps."""
 SPRAY_POOL = 5.0
-"""Sprays drawn for a crown or hedge per spray area (size^2) over its footprint; as many are kept as reach the
-target gap fraction."""
+"""Sprays drawn for a crown per spray area (size^2) over its footprint; as many are kept as reach the target gap
+fraction."""
+HEDGE_SPRAY_POOL = 16.0
+"""The same for a hedge, whose sprays turn every way (so each covers less from above) and whose target is denser."""
 SPRAY_FOLD = 0.15
 """How far (in spray sizes) a spray's two side corners rise off its diagonal along its normal: a 24 degree fold."""
 SINK_M = 0.3
@@ -231,15 +233,16 @@ def conifer_part(tree: Tree, rng: np.random.Generator, spec: WorldSpec) -> Part:
 
 
 def hedge_part(hedge: Hedge, layout: Layout, rng: np.random.Generator) -> Part:
-    """A hedge: leaf sprays turned every way filling its box from the ground to its height along the terrain, as
-    many as leave :data:`HEDGE_GAP_FRACTION` of its footprint open from above."""
+    """A hedge: leaf sprays turned every way, centred in its box from the ground to its height along the terrain
+    (so they reach up to 0.3 m out of it), as many as leave :data:`HEDGE_GAP_FRACTION` of its footprint open from
+    above."""
     length = float(np.linalg.norm(hedge.end - hedge.start))
     along_unit = (hedge.end - hedge.start) / length
     normal = np.array([-along_unit[1], along_unit[0]])
     spray = 0.4
-    pool = int(SPRAY_POOL * length * hedge.width_m / spray ** 2)
-    along = rng.uniform(spray / 2, length - spray / 2, pool)
-    across = rng.uniform(-0.5, 0.5, pool) * (hedge.width_m - spray)
+    pool = int(HEDGE_SPRAY_POOL * length * hedge.width_m / spray ** 2)
+    along = rng.uniform(0.0, length, pool)
+    across = rng.uniform(-0.5, 0.5, pool) * hedge.width_m
     xy = hedge.start + along[:, None] * along_unit + across[:, None] * normal
     height = rng.uniform(0.3 * spray, hedge.height_m - 0.5 * spray, pool)
     centres = np.column_stack([xy, layout.terrain.height(xy[:, 0], xy[:, 1]) + height])
@@ -265,9 +268,10 @@ def _object_faces(face_instance: np.ndarray, instances: np.ndarray) -> list[np.n
 
 
 def _footprint(points_xy: np.ndarray) -> list[list[float]]:
-    """The convex hull of ``points_xy`` (M, 2), counter-clockwise, rounded to the centimetre."""
-    hull = points_xy[ConvexHull(points_xy).vertices]
-    return np.round(hull, 2).tolist()
+    """The convex hull, counter-clockwise, of ``points_xy`` (M, 2) rounded to the centimetre (so no point lies more
+    than 7 mm outside it)."""
+    rounded = np.round(points_xy, 2)
+    return rounded[ConvexHull(rounded).vertices].tolist()
 
 
 def vegetation_truth(layout: Layout, vertices: np.ndarray, faces: np.ndarray, face_instance: np.ndarray,
