@@ -121,10 +121,7 @@ class Building:
     @property
     def corners(self) -> np.ndarray:
         """Footprint corners (4, 2), counter-clockwise from above."""
-        along, across = self.axes
-        signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
-        return (self.center + signs[:, :1] * (self.length_m / 2) * along
-                + signs[:, 1:] * (self.width_m / 2) * across)
+        return rectangle(self.center, self.heading_rad, self.length_m, self.width_m)
 
     def local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Building-local coordinates (metres from the centre along the ridge, and across it) of the ENU points
@@ -332,8 +329,9 @@ def _clear_of_buildings(points: np.ndarray, buildings: list[Building], clearance
     return all(np.all(np.linalg.norm(points - b.center, axis=1) > b.radius_m + clearance_m) for b in buildings)
 
 
-def _rectangle(center: np.ndarray, heading: float, length_m: float, width_m: float) -> np.ndarray:
-    """Corners (4, 2) of a rectangle, counter-clockwise from above."""
+def rectangle(center: np.ndarray, heading: float, length_m: float, width_m: float) -> np.ndarray:
+    """Corners (4, 2) of a rectangle centred at ``center`` with its length along ``heading`` (radians from east),
+    counter-clockwise from above, starting at its local (-length/2, -width/2) corner."""
     along = np.array([np.cos(heading), np.sin(heading)])
     across = np.array([-along[1], along[0]])
     signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
@@ -356,7 +354,7 @@ def _place_forest(rng: np.random.Generator, spec: WorldSpec, terrain: HeightFiel
     length, width = spec.forest_size_m
     half = np.array(spec.half_extent_m)
     for _ in range(2000):
-        corners = _rectangle(rng.uniform(-half * 0.8, half * 0.8), rng.uniform(0.0, np.pi), length, width)
+        corners = rectangle(rng.uniform(-half * 0.8, half * 0.8), rng.uniform(0.0, np.pi), length, width)
         inner = corners.mean(0) + (corners - corners.mean(0)) * np.linspace(0.0, 1.0, 6)[:, None, None]
         outline = np.vstack([inner.reshape(-1, 2), (corners + np.roll(corners, -1, axis=0)) / 2])
         if _inside(outline, spec, 4.0) and _clear_of_roads(outline, roads, 3.0) \
