@@ -1,8 +1,8 @@
 """Paint the vegetation patches of the demo world's atlas (sim/worlds/atlas.py): leaves, needles and bark.
 
 Each patch is a ``VEGETATION_PATCH_PX`` square seen at ``LEAF_TEXTURE_M`` (1 cm) per texel: overlapping leaves of
-5-10 cm in several greens over dark gaps, tufts of needles, bark with vertical furrows. Images are float32 RGB in
-0-255.
+5-10 cm in several greens over deeper leaves, tufts of needles, bark with vertical furrows. They are albedos (the
+shade inside a crown is the renderer's to cast). Images are float32 RGB in 0-255.
 """
 
 from __future__ import annotations
@@ -15,9 +15,11 @@ from sim.worlds.layout import WorldSpec
 from sim.worlds.noise import value_noise
 
 _SUBPIXEL_BITS = 4  # cv2 drawing with 1/16 pixel precision
-LEAF_GREENS = np.array([(58, 96, 38), (76, 116, 44), (48, 80, 34), (92, 128, 54), (108, 138, 60), (70, 98, 30)],
+# Albedos (sRGB): green leaves reflect ~4-6 % of blue, ~12-20 % of green; needles less. The shade inside a crown is
+# the renderer's to cast, so the patches' gaps between leaves are only deeper leaves, not black.
+LEAF_GREENS = np.array([(70, 104, 52), (84, 120, 56), (62, 92, 48), (98, 132, 62), (112, 140, 66), (78, 104, 46)],
                        np.float64)
-NEEDLE_GREENS = np.array([(34, 62, 44), (44, 76, 52), (28, 52, 40), (58, 88, 58)], np.float64)
+NEEDLE_GREENS = np.array([(46, 72, 54), (54, 84, 60), (42, 64, 50), (64, 94, 64)], np.float64)
 
 
 def _subpixel(points: np.ndarray) -> np.ndarray:
@@ -25,9 +27,9 @@ def _subpixel(points: np.ndarray) -> np.ndarray:
 
 
 def paint_leaves(rng: np.random.Generator, size: int) -> np.ndarray:
-    """Overlapping leaves (ellipses of 5-10 x 2-4 texels with a lighter midrib) over a shadowed interior."""
+    """Overlapping leaves (ellipses of 5-10 x 2-4 texels with a lighter midrib) over deeper, darker leaves."""
     image = np.empty((size, size, 3), np.float32)
-    image[:] = (24, 38, 20)
+    image[:] = (50, 74, 42)
     image *= (1.0 + 0.25 * value_noise(rng, (size, size), 6.0))[..., None]
     count = size * size // 12
     centres = _subpixel(rng.uniform(0, size, (count, 2)))
@@ -44,9 +46,9 @@ def paint_leaves(rng: np.random.Generator, size: int) -> np.ndarray:
 
 
 def paint_needles(rng: np.random.Generator, size: int) -> np.ndarray:
-    """Tufts of short dark needles (lines of 4-8 texels) over a darker interior."""
+    """Tufts of short needles (lines of 4-8 texels) over deeper, darker needles."""
     image = np.empty((size, size, 3), np.float32)
-    image[:] = (18, 30, 24)
+    image[:] = (36, 54, 42)
     image *= (1.0 + 0.3 * value_noise(rng, (size, size), 8.0))[..., None]
     count = size * size // 6
     starts = rng.uniform(0, size, (count, 2))

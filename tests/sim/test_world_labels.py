@@ -20,7 +20,7 @@ from sim.worlds.vegetation import SINK_M
 #: SHA-256 of world.glb of the small world, seed 0, at generator version 9 (the vegetation of issue 39; before it,
 #: from the labels (5224ff3) to version 8, bea4c4d0...): labelling changes no byte of the mesh or texture, and
 #: nothing else may change them without bumping the version (a Pillow with another libjpeg would change it too).
-SMALL_GLB_SHA256 = "8c619d15f5924f046dec53e5c3af748701c762c74b802787a869e14be7d7ed45"
+SMALL_GLB_SHA256 = "56d6caac765769cb4604bea3536936b5d1398cddf80a3887a04067a3d4edc872"
 #: Largest distance (m) from a terrain face's centroid to its corners on the 1 m grid (corner (0, 0) of the
 #: triangle (0, 0), (1, 0), (1, 1)): how far a point of a face lies from where its class was decided.
 CENTROID_REACH_M = np.hypot(2 / 3, 1 / 3)

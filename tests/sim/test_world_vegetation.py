@@ -37,8 +37,8 @@ def _patch_of_faces(scene, faces):
     names = np.full(len(faces), "", dtype=object)
     for name in ("leaves", "needles", "bark"):
         col0, row0 = vegetation_patch_origin(spec, name)
-        inside = ((col >= col0 + PATCH_MARGIN_PX - 1e-3) & (col <= col0 + VEGETATION_PATCH_PX - PATCH_MARGIN_PX + 1e-3)
-                  & (row >= row0 + PATCH_MARGIN_PX - 1e-3) & (row <= row0 + VEGETATION_PATCH_PX - PATCH_MARGIN_PX + 1e-3))
+        low, high = PATCH_MARGIN_PX - 1e-3, VEGETATION_PATCH_PX - PATCH_MARGIN_PX + 1e-3
+        inside = (col >= col0 + low) & (col <= col0 + high) & (row >= row0 + low) & (row <= row0 + high)
         names[np.all(inside, axis=1)] = name
     return names
 
