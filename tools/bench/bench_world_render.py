@@ -11,7 +11,6 @@ the old one (e.g. ``python -m sim.worlds OUT`` on two checkouts).
 
 from __future__ import annotations
 
-import argparse
 import os
 import statistics
 import sys
@@ -20,6 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from cliutil.program import Parser  # noqa: E402
 from sim.render.camera import Rig  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.render.renderer import render  # noqa: E402
@@ -43,13 +43,20 @@ def frame_times(scenes: list, height_m: float, frames: int) -> list[float]:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = Parser(description=__doc__.splitlines()[0])
     parser.add_argument("scenes", nargs="+", help="scene folders; the first is the baseline of the ratios")
     parser.add_argument("--frames", type=int, default=3, help="timed stereo frames per scene and height")
     parser.add_argument("--heights", type=float, nargs="+", default=[400.0, 80.0],
                         help="camera heights above the scene centre's ground, metres")
     args = parser.parse_args(argv)
-    scenes = [load_scene(folder) for folder in args.scenes]
+    if args.frames < 1 or any(height <= 0 for height in args.heights):
+        parser.error(f"--frames must be >= 1 and --heights > 0, got {args.frames} and {args.heights}")
+    scenes = []
+    for folder in args.scenes:
+        try:
+            scenes.append(load_scene(folder))
+        except (OSError, ValueError) as error:  # SceneError is a ValueError
+            parser.error(f"argument scenes: cannot load {folder}: {error}")
     print(f"1280x720 stereo frame, 1 spp, {default_workers()} threads, median of {args.frames} interleaved, "
           f"load average {os.getloadavg()[0]:.1f}")
     print(f"{'scene':<40}{'M triangles':>12}" + "".join(f"{f'{h:g} m: ms':>12}{'ratio':>7}" for h in args.heights))
