@@ -2,15 +2,16 @@
 truth of every such object.
 
 In the generator's order (sim/worlds/demo.py): :func:`clear_sites` cuts a pond into the layout's terrain and places a
-power line (dropping the trees the pond's banks would swallow and those under the wires) before anything is painted;
+power line (dropping the standalone trees the pond's banks would swallow and those under the wires; both keep clear
+of the forest stands and the hedges, which lose nothing) before anything is painted or the trees are meshed;
 after the orthophoto (whose yards the fences follow), :func:`place_built` places chimneys and dormers, lamp posts,
 fences and parked cars, each clear of the others and of the corridor under the wires, and :func:`paint_built`
 paints what they look like from above; :func:`built_part` meshes them with their labels and per-object truth.
 
 Objects and labels (docs/demo-world.md): a chimney, a lamp post (with its arm and lamp), a power pole (with its
 crossarm), a wire (one per span and conductor), a fence (all its posts and rails), a car and the pond are each one
-object with their own instance id, numbered after the world's others in that order; a dormer's faces are ``wall``
-and ``roof`` of its building's object.
+object with their own instance id, numbered in that order after the world's others (buildings, trees, hedges:
+sim/worlds/geometry.py); a dormer's faces are ``wall`` and ``roof`` of its building's object.
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from sim.render.labels import SceneLabels
 from sim.worlds.atlas import FacadeAtlas
 from sim.worlds.geometry import Part, concatenate
 from sim.worlds.ground_cover import Yard
-from sim.worlds.layout import Layout, WorldSpec
+from sim.worlds.layout import NEAR_ORIGIN_M, Layout, WorldSpec
 from sim.worlds.roof_details import (Chimney, Dormer, chimney_part, chimney_truth, dormer_part, dormer_truth,
                                      paint_chimney, place_chimney, place_dormer)
 from sim.worlds.street_furniture import (CROSSARM_HALF_M, WIRES, Car, Fence, LampPost, Obstacles, PowerLine,
@@ -39,8 +40,6 @@ CHIMNEY_SHARE, DORMER_SHARE, FENCE_SHARE = 0.75, 0.5, 0.4
 CARS_PER_BUILDING = 0.5
 #: The kinds of object in scene.json's "objects", in instance order.
 OBJECT_KINDS = ("dormer", "chimney", "lamp_post", "power_pole", "wire", "fence", "car", "pond")
-NEAR_ORIGIN_M = 45.0
-"""The pond's centre and a point of the power line lie this close to the origin, which the demo flight circles."""
 
 
 @dataclass(frozen=True)
@@ -58,8 +57,8 @@ class BuiltObjects:
 
 def clear_sites(rng: np.random.Generator, layout: Layout) -> tuple[Layout, Pond, PowerLine]:
     """The layout with a pond near the origin cut into its terrain (:class:`~sim.worlds.water.PondTerrain`) and a
-    power line placed, the trees in the pond's way and under the wires left out (before the crowns are painted);
-    the pond and the line."""
+    power line placed, clear of the forest stands and hedges, the (standalone) trees in the pond's way and under the
+    wires left out (before the trees are meshed and their truth taken); the pond and the line."""
     radius = (8.0, 12.0) if layout.spec.size_x_m >= 300 else (6.0, 8.0)
     pond = place_pond(rng, layout, NEAR_ORIGIN_M, radius)
     trees = trees_clear_of(layout.trees, pond)
@@ -70,9 +69,14 @@ def clear_sites(rng: np.random.Generator, layout: Layout) -> tuple[Layout, Pond,
 
 
 def _obstacles(layout: Layout, trees: list, pond: Pond, line: PowerLine | None = None) -> Obstacles:
-    """What objects keep clear of: roads, buildings, the crowns of ``trees``, the pond, and the power line's poles
-    and the corridor under its wires (discs every 2 m along each span)."""
-    obstacles = Obstacles(layout.roads, layout.buildings, [(*t.position, t.radius_m) for t in trees])
+    """What objects keep clear of: roads, buildings, the forest stands, the crowns of ``trees``, the hedges (discs
+    every metre along each, 0.3 m past its sides), the pond, and the power line's poles and the corridor under its
+    wires (discs every 2 m along each span)."""
+    obstacles = Obstacles(layout.roads, layout.buildings, areas=list(layout.forests),
+                          discs=[(*t.position, t.radius_m) for t in trees])
+    for hedge in layout.hedges:
+        for point in hedge.points(1.0):
+            obstacles.add(point, hedge.width_m / 2 + 0.3)
     obstacles.add(pond.center, pond.reach_m)
     if line is not None:
         for start, end in zip(line.positions[:-1], line.positions[1:], strict=True):

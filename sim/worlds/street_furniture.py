@@ -45,18 +45,22 @@ FOOT_SINK_M = 0.2
 
 @dataclass
 class Obstacles:
-    """What a new object must keep out of: the roads' bands, the buildings' footprints and discs (ENU x, y, radius:
-    trees' crowns, the pond, objects placed before); grows as objects are placed."""
+    """What a new object must keep out of: the roads' bands, the buildings' footprints, ``areas`` (the forest
+    stands: anything with a ``covers(xy, margin_m)`` test) and discs (ENU x, y, radius: trees' crowns, hedges, the
+    pond, objects placed before); grows as objects are placed."""
 
     roads: list[Road]
     buildings: list[Building]
+    areas: list = field(default_factory=list)
     discs: list[tuple[float, float, float]] = field(default_factory=list)
 
     def clear(self, xy: np.ndarray, radius_m: float, road_gap_m: float | None,
               building_gap_m: float = 1.0, own_building: Building | None = None) -> bool:
-        """Whether a disc of ``radius_m`` around ENU ``xy`` stays out of every disc and ``building_gap_m`` off every
-        footprint (but ``own_building``'s), and, unless ``road_gap_m`` is None, ``xy`` lies ``road_gap_m`` off every
-        road's band."""
+        """Whether a disc of ``radius_m`` around ENU ``xy`` stays out of every disc and area and ``building_gap_m``
+        off every footprint (but ``own_building``'s), and, unless ``road_gap_m`` is None, ``xy`` lies ``road_gap_m``
+        off every road's band."""
+        if any(area.covers(np.asarray(xy, np.float64)[None], radius_m)[0] for area in self.areas):
+            return False
         if self.discs:
             discs = np.asarray(self.discs)
             if np.any(np.hypot(discs[:, 0] - xy[0], discs[:, 1] - xy[1]) < discs[:, 2] + radius_m):
@@ -219,7 +223,7 @@ def place_power_line(rng: np.random.Generator, spec: WorldSpec, terrain, trees, 
     :data:`ORIGIN_CLEARANCE_M` from it (no wires over the orbit's centre): of 40 drawn lines, the first in order of
     fewest buildings then fewest trees near it where :data:`MIN_POLES` poles at least stand in a row passing the
     line's point nearest the origin, every 35-45 m, each moved up to 8 m along the line off roads and obstacles, and
-    no building rises near its wires."""
+    no building rises near its wires nor do they cross one of the obstacles' areas (the forest stands)."""
     candidates = []
     for index in range(40):
         angle, distance, bearing = rng.uniform(0, np.pi), within_m * np.sqrt(rng.random()), rng.uniform(0, 2 * np.pi)
@@ -235,7 +239,7 @@ def place_power_line(rng: np.random.Generator, spec: WorldSpec, terrain, trees, 
             continue
         positions = (through - (through @ direction) * direction) + stations[:, None] * direction
         line = PowerLine(positions, terrain.height(positions[:, 0], positions[:, 1]), direction)
-        if _wires_clear_of(line, buildings):
+        if _wires_clear_of(line, buildings, obstacles.areas):
             for xy in positions:
                 obstacles.add(xy, CROSSARM_HALF_M + 0.3)
             return line
@@ -248,11 +252,14 @@ def _span_floors(line: PowerLine) -> list[tuple[np.ndarray, float]]:
             for k in range(len(line.positions) - 1)]
 
 
-def _wires_clear_of(line: PowerLine, buildings) -> bool:
-    """Whether no building within :data:`CROSSARM_HALF_M` + 0.5 m of a span rises to 1 m under its lowest wire."""
+def _wires_clear_of(line: PowerLine, buildings, areas) -> bool:
+    """Whether no building within :data:`CROSSARM_HALF_M` + 0.5 m of a span rises to 1 m under its lowest wire, and
+    no span passes within that of one of the ``areas`` (a forest stand is never cut through)."""
     for ends, lowest in _span_floors(line):
         steps = np.linspace(0.0, 1.0, int(np.linalg.norm(ends[1] - ends[0])) + 2)[:, None]  # about every metre
         along = ends[0] + steps * (ends[1] - ends[0])
+        if any(np.any(area.covers(along, CROSSARM_HALF_M + 0.5)) for area in areas):
+            return False
         for building in buildings:
             near = building.covers_local(*building.local(along[:, 0], along[:, 1]), CROSSARM_HALF_M + 0.5)
             if np.any(near) and building.ridge_z > lowest - 1.0:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sim.worlds.geometry import Part
-from sim.worlds.layout import Building, Layout, Road, Tree, WorldSpec, distance_to_polyline
+from sim.worlds.layout import Layout, Tree, WorldSpec, distance_to_polyline
 from sim.worlds.noise import HeightField, value_noise
 from sim.worlds.shapes import json_point, paint_local_mask, polygon_part
 
@@ -82,11 +82,17 @@ class PondTerrain:
         return np.minimum(self.natural.height(x, y), cut)
 
 
-def _clear_of(center: np.ndarray, reach_m: float, roads: list[Road], buildings: list[Building]) -> bool:
-    """Whether a disc of ``reach_m`` around ``center`` stays 2 m off every road and building."""
-    if any(distance_to_polyline(center[None], r.points)[0] < r.width_m / 2 + reach_m + 2.0 for r in roads):
+def _clear_of(center: np.ndarray, reach_m: float, layout: Layout) -> bool:
+    """Whether a disc of ``reach_m`` around ``center`` stays 2 m off every road, building, forest stand and hedge."""
+    margin = reach_m + 2.0
+    if any(distance_to_polyline(center[None], r.points)[0] < r.width_m / 2 + margin for r in layout.roads):
         return False
-    return all(np.linalg.norm(b.center - center) > b.radius_m + reach_m + 2.0 for b in buildings)
+    if any(forest.covers(center[None], margin)[0] for forest in layout.forests):
+        return False
+    if any(distance_to_polyline(center[None], np.array([h.start, h.end]))[0] < h.width_m / 2 + margin
+           for h in layout.hedges):
+        return False
+    return all(np.linalg.norm(b.center - center) > b.radius_m + margin for b in layout.buildings)
 
 
 def _trees_inside(center: np.ndarray, reach_m: float, trees: list[Tree]) -> int:
@@ -97,8 +103,8 @@ def _trees_inside(center: np.ndarray, reach_m: float, trees: list[Tree]) -> int:
 def place_pond(rng: np.random.Generator, layout: Layout, within_m: float, radius_m: tuple[float, float],
                candidates: int = 200) -> Pond:
     """A pond whose centre lies within ``within_m`` of the ENU origin (where the demo flight looks) but whose banks
-    keep :data:`ORIGIN_CLEARANCE_M` off it (the orbit's centre), off the roads and buildings, of the drawn
-    candidates the one whose banks would swallow the fewest trees."""
+    keep :data:`ORIGIN_CLEARANCE_M` off it (the orbit's centre), off the roads, buildings, forest stands and hedges,
+    of the drawn candidates the one whose banks would swallow the fewest (standalone) trees."""
     wobble = tuple((float(rng.uniform(0.04, 0.12)), harmonic, float(rng.uniform(0, 2 * np.pi)))
                    for harmonic in (2, 3))
     radius, depth = float(rng.uniform(*radius_m)), float(rng.uniform(0.8, 1.5))
@@ -109,7 +115,7 @@ def place_pond(rng: np.random.Generator, layout: Layout, within_m: float, radius
         center = distance * np.array([np.cos(angle), np.sin(angle)])
         if distance < probe.reach_m + ORIGIN_CLEARANCE_M:
             continue
-        if not _clear_of(center, probe.reach_m, layout.roads, layout.buildings):
+        if not _clear_of(center, probe.reach_m, layout):
             continue
         trees = _trees_inside(center, probe.reach_m, layout.trees)
         if trees < best_trees:
