@@ -263,7 +263,8 @@ def test_hedges_are_dense_but_porous_from_above(world):
         directions = np.tile([0.0, 0.0, -1.0], (len(xy), 1))
         gap = 1.0 - _sees_object(scene, origins, directions, truth["instance"]).mean()
         assert HEDGE_GAP_FRACTION <= gap <= HEDGE_GAP_FRACTION + 0.05, gap
-        assert truth["top_z_m"] <= float(layout.terrain.height(*xy.T).max()) + hedge.height_m + 1e-3
+        # its sprays reach up to 0.3 m out of its box (sim/worlds/vegetation.py's hedge_part)
+        assert truth["top_z_m"] <= float(layout.terrain.height(*xy.T).max()) + hedge.height_m + 0.3
 
 
 @pytest.mark.slow
