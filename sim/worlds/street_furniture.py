@@ -354,20 +354,15 @@ def place_fence(rng: np.random.Generator, yard: Yard, terrain, obstacles: Obstac
 
 
 def fence_part(fence: Fence, terrain, spec: WorldSpec) -> Part:
-    """Posts (0.1 m square) and two rails (4 cm x 8 cm, at 40 % and 85 % of the height) per side, in the colour
-    painted at the first post's foot."""
+    """Posts (0.1 m square) and two rails (4-sided tubes 8 cm across, at 40 % and 85 % of the height above each
+    post's ground, so they follow the slope post to post), in the colour painted at the first post's foot."""
     uv = swatch_uv(fence.corners[0], spec)
     posts = fence.posts()
     ground = terrain.height(posts[:, 0], posts[:, 1])
     parts = [box_part(p, 0.0, 0.1, 0.1, g - FOOT_SINK_M, g + fence.height_m, spec, uv, uv) for p, g in
              zip(posts, ground, strict=True)]
-    for start, end in zip(fence.corners[:-1], fence.corners[1:], strict=True):
-        mid, heading = (start + end) / 2, float(np.arctan2(*(end - start)[::-1]))
-        rail_ground = float(terrain.height(*mid))
-        for share in (0.4, 0.85):
-            z = rail_ground + share * fence.height_m
-            parts.append(box_part(mid, heading, float(np.linalg.norm(end - start)), 0.04, z - 0.04, z + 0.04, spec,
-                                  uv, uv, bottom=True))
+    feet = np.column_stack([posts, ground])
+    parts += [tube_part(feet + [0.0, 0.0, share * fence.height_m], 0.04, 4, spec, uv) for share in (0.4, 0.85)]
     return concatenate(parts)
 
 

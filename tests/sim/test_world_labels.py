@@ -21,7 +21,7 @@ from sim.worlds.vegetation import SINK_M
 #: details, chimneys, poles, cars, the pond...; before it, from the labels (5224ff3) to version 8, bea4c4d0...):
 #: labelling changes no byte of the mesh or texture, and nothing else may change them without bumping the version (a
 #: Pillow with another libjpeg would change it too).
-SMALL_GLB_SHA256 = "eb6b942cc27d56e7529f717003c2282e341675e1588f73f0403bb01755c77798"
+SMALL_GLB_SHA256 = "0f2d02937e280fc2a254374ffae0e9ae2ccd2e2d54a504a2773d5ada2fe3fd4f"
 #: Largest distance (m) from a terrain face's centroid to its corners on the 1 m grid (corner (0, 0) of the
 #: triangle (0, 0), (1, 0), (1, 1)): how far a point of a face lies from where its class was decided.
 CENTROID_REACH_M = np.hypot(2 / 3, 1 / 3)
