@@ -53,14 +53,14 @@ class WorldSpec:
 
 
 VARIANTS: dict[str, WorldSpec] = {
-    # 384 m x 312 m, 9.4 cm texels, a 1 m terrain grid (the hills are smooth), ~0.28 M triangles.
+    # 384 m x 312 m, 9.4 cm texels, a 1 m terrain grid (the hills are smooth), ~0.45 M triangles (generator 10).
     "default": WorldSpec(size_x_m=384.0, texture_px=4096, ortho_rows=3328, grid_step_m=1.0,
                          building_count=45, tree_count=600, forest_size_m=(52.0, 40.0), hedge_count=10),
-    # 192 m x 156 m, same texel size and grid, ~70 k triangles: for tests.
+    # 192 m x 156 m, same texel size and grid, ~93 k triangles: for tests.
     "small": WorldSpec(size_x_m=192.0, texture_px=2048, ortho_rows=1664, grid_step_m=1.0,
                        building_count=12, tree_count=60, forest_size_m=(24.0, 18.0), hedge_count=3),
     # 480 m x 324 m = 155,520 m^2 (the paper's 153,000 m^2), same texel size and grid; buildings and trees scaled
-    # with the area (facade strips: 8 x 5120 texels). ~0.36 M triangles: for area plans (issue 21).
+    # with the area (facade strips: 8 x 5120 texels). ~0.58 M triangles: for area plans (issue 21).
     "large": WorldSpec(size_x_m=480.0, texture_px=5120, ortho_rows=3456, grid_step_m=1.0,
                        building_count=56, tree_count=720, forest_size_m=(60.0, 44.0), hedge_count=12),
 }
