@@ -7,10 +7,13 @@
 
 Neither table has water: it is written as their no-class value (VKITTI2 ``Undefined``, Cityscapes ``unlabeled``), as
 ``unknown`` is, so that a model trained on the export learns it as nothing rather than as some other class. Our
-``other`` (vehicles, poles, clutter) is VKITTI2's ``Misc`` and Cityscapes' ``static`` (void: stationary things of no
-other class, ignored by its evaluation). Roofs and walls are both ``Building``/``building``: Cityscapes' ``wall`` is a
+``other`` (clutter) is VKITTI2's ``Misc`` and Cityscapes' ``static`` (void: stationary things of no other class,
+ignored by its evaluation). Roofs, walls and chimneys are ``Building``/``building``: Cityscapes' ``wall`` is a
 free-standing wall, not a building's; trees are VKITTI2's ``Tree`` and Cityscapes' ``vegetation``; fields are
 VKITTI2's ``Vegetation`` (low plants) and Cityscapes' ``terrain`` (grass, soil), where our ``ground`` goes too.
+Poles (street lamps with their arms, as Cityscapes counts a pole's horizontal part) are ``Pole``/``pole``; cars are
+``Car``/``car``; fences are Cityscapes' ``fence`` and VKITTI2's ``GuardRail``, its only barrier along a road. Neither
+table has wires: they are ``Misc``/``static``, like clutter.
 """
 
 from __future__ import annotations
@@ -27,15 +30,18 @@ VKITTI2_COLOURS: tuple[tuple[str, tuple[int, int, int]], ...] = (
     ("Truck", (160, 60, 60)), ("Car", (255, 127, 80)), ("Van", (0, 139, 139)), ("Undefined", (0, 0, 0)))
 #: Each of our classes (by name) as a VKITTI2 class.
 TO_VKITTI2 = {"unknown": "Undefined", "ground": "Terrain", "road": "Road", "roof": "Building", "wall": "Building",
-              "tree": "Tree", "field": "Vegetation", "water": "Undefined", "other": "Misc", "sky": "Sky"}
+              "tree": "Tree", "field": "Vegetation", "water": "Undefined", "other": "Misc", "sky": "Sky",
+              "chimney": "Building", "pole": "Pole", "wire": "Misc", "fence": "GuardRail", "car": "Car"}
 
 #: The Cityscapes labels our classes become: name -> (labelId, RGB colour).
 CITYSCAPES = {"unlabeled": (0, (0, 0, 0)), "static": (4, (0, 0, 0)), "road": (7, (128, 64, 128)),
-              "building": (11, (70, 70, 70)), "vegetation": (21, (107, 142, 35)), "terrain": (22, (152, 251, 152)),
-              "sky": (23, (70, 130, 180))}
+              "building": (11, (70, 70, 70)), "fence": (13, (190, 153, 153)), "pole": (17, (153, 153, 153)),
+              "vegetation": (21, (107, 142, 35)), "terrain": (22, (152, 251, 152)), "sky": (23, (70, 130, 180)),
+              "car": (26, (0, 0, 142))}
 #: Each of our classes (by name) as a Cityscapes label.
 TO_CITYSCAPES = {"unknown": "unlabeled", "ground": "terrain", "road": "road", "roof": "building", "wall": "building",
-                 "tree": "vegetation", "field": "terrain", "water": "unlabeled", "other": "static", "sky": "sky"}
+                 "tree": "vegetation", "field": "terrain", "water": "unlabeled", "other": "static", "sky": "sky",
+                 "chimney": "building", "pole": "pole", "wire": "static", "fence": "fence", "car": "car"}
 
 
 def _lookup(values: dict, dtype) -> np.ndarray:

@@ -74,6 +74,12 @@ class SceneLabels:
         return np.where(instance <= MAX_INSTANCE, instance, 0).astype(np.uint16)
 
 
+def concatenate_labels(parts: list[SceneLabels]) -> SceneLabels:
+    """The labels of meshes joined in the order of ``parts``."""
+    return SceneLabels(*(np.concatenate([getattr(p, name) for p in parts]) for name in
+                         ("face_class", "face_instance", "face_confidence")))
+
+
 def unlabelled(face_count: int) -> SceneLabels:
     """Labels saying nothing: every face unknown, no object, confidence 0."""
     return SceneLabels(np.full(face_count, UNKNOWN, np.uint8), np.zeros(face_count, np.uint32),

@@ -1,9 +1,10 @@
 """The one texture atlas of the demo world: where each surface's texels live.
 
 The atlas is ``texture_px`` square. Its top ``ortho_rows`` rows are an orthophoto of the ground rectangle (north
-up): the terrain, the roofs and the tree crowns are textured by straight-down projection of their ENU x/y. The rows
-below are strips of building facades, each wall getting its own unique piece (no repeated tiles, which would
-confuse feature matching).
+up): the terrain and the roofs are textured by straight-down projection of their ENU x/y. The rows below are strips
+of building facades, each wall getting its own unique piece (no repeated tiles, which would confuse feature
+matching), left of a column of vegetation patches: leaves, needles and bark, one square each, which every tree and
+hedge samples at its own offsets (sim/worlds/vegetation.py).
 
 UV convention (OBJ/glTF-as-trimesh): u = column / width, v = 1 - row / height, with (0, 0) the bottom-left corner
 of the image and pixel ``(row, col)`` covering ``[row, row + 1) x [col, col + 1)`` in continuous coordinates.
@@ -21,6 +22,13 @@ FACADE_ROW_PX = 192
 """Height in texels of one strip of facades."""
 FACADE_GAP_PX = 4
 """Empty texels between two walls in a strip, so bilinear lookups never bleed between walls."""
+VEGETATION_PATCH_PX = 128
+"""Side in texels of each vegetation patch."""
+VEGETATION_PATCHES = ("leaves", "needles", "bark")
+"""The vegetation patches, stacked in this order from the top of the facade rows in the atlas's rightmost
+``VEGETATION_PATCH_PX`` columns."""
+PATCH_MARGIN_PX = 2
+"""Texels along each patch's edge that no UV reaches, so bilinear lookups never bleed into a neighbour."""
 
 
 def ortho_pixels(xy: np.ndarray, spec: WorldSpec) -> np.ndarray:
@@ -39,6 +47,20 @@ def pixels_to_uv(col_row: np.ndarray, spec: WorldSpec) -> np.ndarray:
 def ortho_uv(xy: np.ndarray, spec: WorldSpec) -> np.ndarray:
     """Atlas UVs of the straight-down projection of ENU points ``xy`` (..., 2)."""
     return pixels_to_uv(ortho_pixels(xy, spec), spec)
+
+
+def vegetation_patch_origin(spec: WorldSpec, name: str) -> tuple[int, int]:
+    """Atlas pixel (column, row) of the top-left corner of the vegetation patch ``name``."""
+    return spec.texture_px - VEGETATION_PATCH_PX, spec.ortho_rows + VEGETATION_PATCHES.index(name) * VEGETATION_PATCH_PX
+
+
+def vegetation_patch_uv(spec: WorldSpec, name: str, st: np.ndarray) -> np.ndarray:
+    """Atlas UVs of patch coordinates ``st`` (..., 2) in [0, 1] (s rightwards, t downwards) of the patch ``name``,
+    squeezed ``PATCH_MARGIN_PX`` inside its edges."""
+    col0, row0 = vegetation_patch_origin(spec, name)
+    span = VEGETATION_PATCH_PX - 2 * PATCH_MARGIN_PX
+    col_row = np.array([col0, row0], np.float64) + PATCH_MARGIN_PX + np.clip(st, 0.0, 1.0) * span
+    return pixels_to_uv(col_row, spec)
 
 
 @dataclass(frozen=True)
@@ -118,16 +140,19 @@ def _pack(lengths_m: np.ndarray, metres_per_px: float, strips: int, strip_width:
 
 
 def allocate_facades(buildings: list[Building], spec: WorldSpec) -> FacadeAtlas:
-    """Give every wall its own piece of the facade strips at the finest common texel size that fits."""
+    """Give every wall its own piece of the facade strips (left of the vegetation patches) at the finest common
+    texel size that fits."""
     walls = building_walls(buildings)
     strips = (spec.texture_px - spec.ortho_rows) // FACADE_ROW_PX
-    if strips < 1:
-        raise ValueError(f"no room for facades: texture {spec.texture_px} px, orthophoto {spec.ortho_rows} rows")
+    if strips < 1 or spec.texture_px - spec.ortho_rows < len(VEGETATION_PATCHES) * VEGETATION_PATCH_PX:
+        raise ValueError(f"no room for facades and vegetation patches: texture {spec.texture_px} px, orthophoto "
+                         f"{spec.ortho_rows} rows")
+    strip_width = spec.texture_px - VEGETATION_PATCH_PX
     tallest = max((w.apex_z - w.base_z for w in walls), default=1.0)
     lengths = np.array([w.length_m for w in walls])
-    usable = strips * (spec.texture_px - FACADE_GAP_PX * (len(walls) // strips + 2))
+    usable = strips * (strip_width - FACADE_GAP_PX * (len(walls) // strips + 2))
     metres_per_px = max(float(lengths.sum()) / max(usable, 1), 1e-3)
-    while (packed := _pack(lengths, metres_per_px, strips, spec.texture_px)) is None:
+    while (packed := _pack(lengths, metres_per_px, strips, strip_width)) is None:
         metres_per_px *= 1.03
     slots = [FacadeSlot(s.col0, s.width_px, spec.ortho_rows + s.row_top * FACADE_ROW_PX) for s in packed]
     return FacadeAtlas(spec, walls, slots, metres_per_px, (tallest + 0.5) / FACADE_ROW_PX)

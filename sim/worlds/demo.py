@@ -23,22 +23,30 @@ from cliutil.atomic import write_bytes_atomic, write_text_atomic
 from flightplan.demo_location import DEMO_ORIGIN
 from sim.render.classes import class_table
 from sim.render.labels import FORMAT as LABELS_FORMAT
-from sim.render.labels import LABELS_FILE, SceneLabels, write_labels
+from sim.render.labels import LABELS_FILE, SceneLabels, concatenate_labels, write_labels
 from sim.render.sky_file import mesh_sha256
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
-from sim.worlds.geometry import Part, world_part
+from sim.worlds.built import OBJECT_KINDS, built_part, clear_sites, paint_built, place_built
+from sim.worlds.geometry import Part, concatenate, world_part
 from sim.render.glb import encode_textured_glb
 from sim.worlds.layout import VARIANTS, Layout, WorldSpec, generate_layout
 from sim.worlds.orthophoto import paint_orthophoto
+from sim.worlds.foliage import paint_vegetation_patches
+from sim.worlds.vegetation import vegetation_parts, vegetation_truth
 
-GENERATOR_VERSION = 8
+GENERATOR_VERSION = 10
 """Bump whenever the bytes written for a given (variant, seed) change, so stale caches are not reused. 8: the folder
-gained labels.npz and scene.json its "labels" and "classes" (world.glb unchanged)."""
+gained labels.npz and scene.json its "labels" and "classes" (world.glb unchanged). 9 (two branches, two worlds): trees
+with trunks, branches and porous crowns, conifers in whorls, a forest stand and hedges (sim/worlds/vegetation.py) and
+their truth in scene.json's "vegetation"; or chimneys, dormers, lamp posts, a power line, fences, parked cars and a
+pond (sim/worlds/built.py), their classes and scene.json's "objects". 10: both in one world."""
 MESH_NAME = "world.glb"
 SCENE_JSON = "scene.json"
 JPEG_QUALITY = 95
-LABELS_METHOD = ("exact: the generator's own parts (walls, roofs, trees: one object per building and per tree); "
+LABELS_METHOD = ("exact: the generator's own parts (walls, roofs, trees with their trunks and branches, hedges: one "
+                 "object per building, per tree and per hedge; chimneys, poles, wires, fences, cars and the pond: one "
+                 "object each, dormers their building's); "
                  "terrain faces by the orthophoto's ground cover at their centroid (road, yard or village lawn: "
                  "ground, else field)")
 
@@ -54,21 +62,30 @@ def _generators(seed: int, variant: str) -> tuple[np.random.Generator, ...]:
     if not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     entropy = [int(seed), list(VARIANTS).index(variant)]  # declaration order: a new variant changes no other
-    return tuple(np.random.default_rng(s) for s in np.random.SeedSequence(entropy).spawn(3))
+    # A spawned stream depends on its index only: adding the fourth (built details) changed none of the first three.
+    return tuple(np.random.default_rng(s) for s in np.random.SeedSequence(entropy).spawn(4))
 
 
-def generate_world(variant: str = "default", seed: int = 0) -> tuple[Layout, Part, np.ndarray, SceneLabels]:
-    """The layout, the textured mesh (ENU metres), the (texture_px, texture_px, 3) uint8 RGB atlas and the labels
-    of the mesh's faces of a world."""
+def generate_world(variant: str = "default",
+                   seed: int = 0) -> tuple[Layout, Part, np.ndarray, SceneLabels, list[dict]]:
+    """The layout (its terrain with the pond cut in, without the trees in the pond's or the wires' way), the textured
+    mesh (ENU metres), the (texture_px, texture_px, 3) uint8 RGB atlas, the labels of the mesh's faces and the truth
+    of the built objects (sim/worlds/built.py) of a world."""
     spec = _spec(variant)
-    layout_rng, paint_rng, mesh_rng = _generators(seed, variant)
-    layout = generate_layout(spec, layout_rng)
+    layout_rng, paint_rng, mesh_rng, built_rng = _generators(seed, variant)
+    layout, pond, power_line = clear_sites(built_rng, generate_layout(spec, layout_rng))
     facades = allocate_facades(layout.buildings, spec)
     atlas = np.zeros((spec.texture_px, spec.texture_px, 3), np.float32)
     atlas[: spec.ortho_rows], cover = paint_orthophoto(paint_rng, layout)
+    built = place_built(built_rng, layout, pond, power_line, cover.yards)
+    paint_built(built_rng, atlas[: spec.ortho_rows], built, spec)
     paint_facades(paint_rng, facades, layout.buildings, atlas)
-    mesh, labels = world_part(layout, facades, mesh_rng, cover)
-    return layout, mesh, np.clip(atlas, 0, 255).astype(np.uint8), labels
+    paint_vegetation_patches(paint_rng, atlas, spec)
+    mesh, labels = world_part(layout, facades, cover, vegetation_parts(layout, mesh_rng))
+    first_object = len(layout.buildings) + len(layout.trees) + len(layout.hedges) + 1
+    details, detail_labels, objects = built_part(built, layout, facades, first_object)
+    return (layout, concatenate([mesh, details]), np.clip(atlas, 0, 255).astype(np.uint8),
+            concatenate_labels([labels, detail_labels]), objects)
 
 
 def encode_glb(mesh: Part, atlas: np.ndarray) -> bytes:
@@ -103,7 +120,8 @@ def _rounded_outwards(low_high: tuple[float, float], step: float = 1e-4) -> list
     return [round(float(np.floor(low_high[0] / step) * step), 9), round(float(np.ceil(low_high[1] / step) * step), 9)]
 
 
-def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> dict:
+def scene_description(layout: Layout, mesh: Part, labels: SceneLabels, variant: str, seed: int,
+                      objects: list[dict]) -> dict:
     """The ``scene.json`` content of a built world."""
     half_x, half_y = layout.spec.half_extent_m
     return {
@@ -126,10 +144,17 @@ def scene_description(layout: Layout, mesh: Part, variant: str, seed: int) -> di
             "buildings": len(layout.buildings),
             "gable_roofs": sum(b.gable for b in layout.buildings),
             "trees": len(layout.trees),
+            "conifers": sum(t.conifer for t in layout.trees),
+            "forest_trees": sum(t.forest for t in layout.trees),
+            "hedges": len(layout.hedges),
             "roads": len(layout.roads),
+            **{f"{kind}s": sum(o["kind"] == kind for o in objects) for kind in OBJECT_KINDS},
         },
         "labels": {"file": LABELS_FILE, "format": LABELS_FORMAT, "method": LABELS_METHOD},
         "classes": class_table(),
+        "objects": objects,
+        "vegetation": vegetation_truth(layout, mesh.vertices, mesh.faces, labels.face_instance,
+                                       len(layout.buildings) + 1),
     }
 
 
@@ -138,11 +163,11 @@ def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed:
     (created if missing; ``world.glb``, ``labels.npz`` and ``scene.json`` are replaced atomically). Same arguments,
     same bytes. Returns the folder."""
     _spec(variant)
-    layout, mesh, atlas, labels = generate_world(variant, seed)
+    layout, mesh, atlas, labels, objects = generate_world(variant, seed)
     out = Path(out_dir)
     write_bytes_atomic(out / MESH_NAME, encode_glb(mesh, atlas))
     write_labels(out / LABELS_FILE, labels, stored_mesh_sha256(mesh))
-    text = json.dumps(scene_description(layout, mesh, variant, seed), indent=2) + "\n"
+    text = json.dumps(scene_description(layout, mesh, labels, variant, seed, objects), indent=2) + "\n"
     write_text_atomic(out / SCENE_JSON, text)
     return out
 

@@ -1,8 +1,8 @@
 """Triangle geometry of the demo world (ENU metres, z up) with atlas UVs, as plain numpy arrays.
 
 Every part is a ``Part``: vertices (N, 3) float64, faces (M, 3) int64 counter-clockwise seen from outside, and
-uv (N, 2) float64. Terrain, roofs and tree crowns take the orthophoto UVs of their x/y; walls take their own
-facade slot.
+uv (N, 2) float64. Terrain and roofs take the orthophoto UVs of their x/y; walls take their own facade slot; trees
+and hedges (sim/worlds/vegetation.py) take the vegetation patches.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from sim.render.classes import ROOF, TREE, WALL
 from sim.render.labels import SceneLabels
 from sim.worlds.atlas import FacadeAtlas, ortho_uv
 from sim.worlds.ground_cover import GroundCover
-from sim.worlds.layout import Building, Layout, Tree, WorldSpec
+from sim.worlds.layout import Building, Layout, WorldSpec
 
 
 @dataclass(frozen=True)
@@ -83,44 +83,15 @@ def roof_part(building: Building, spec: WorldSpec) -> Part:
     return Part(np.column_stack([xy, z]), faces, ortho_uv(xy, spec))
 
 
-def _ring_faces(upper: np.ndarray, lower: np.ndarray) -> np.ndarray:
-    """Triangles joining two rings of vertex indices (counter-clockwise from above), normals outwards."""
-    u_next, l_next = np.roll(upper, -1), np.roll(lower, -1)
-    return np.concatenate([np.stack([upper, lower, l_next], 1), np.stack([upper, l_next, u_next], 1)])
-
-
-def tree_part(tree: Tree, rng: np.random.Generator, spec: WorldSpec, sides: int = 10) -> Part:
-    """A cone (conifer) or a lumpy ellipsoid crown (broadleaf) standing on the ground, slightly sunk into it."""
-    angles = np.linspace(0.0, 2 * np.pi, sides, endpoint=False) + rng.uniform(0, 2 * np.pi)
-    direction = np.stack([np.cos(angles), np.sin(angles)], 1)
-    if tree.conifer:
-        ring_xy = tree.position + direction * tree.radius_m * rng.uniform(0.85, 1.15, (sides, 1))
-        xyz = np.vstack([np.column_stack([ring_xy, np.full(sides, tree.ground_z - 0.3)]),
-                         [*tree.position, tree.ground_z + tree.height_m]])
-        faces = np.stack([np.arange(sides), np.roll(np.arange(sides), -1), np.full(sides, sides)], 1)
-        return Part(xyz, faces, ortho_uv(xyz[:, :2], spec))
-    polar = np.linspace(0.0, np.pi, 7)[1:-1]  # five rings between the poles
-    lumps = rng.uniform(0.8, 1.15, (len(polar), sides, 1))
-    ring_xy = tree.position + np.sin(polar)[:, None, None] * direction[None] * tree.radius_m * lumps
-    center_z = tree.ground_z + tree.height_m / 2 - 0.2
-    ring_z = center_z + np.cos(polar)[:, None] * tree.height_m / 2 * lumps[..., 0]
-    rings_xyz = np.concatenate([ring_xy, ring_z[..., None]], -1).reshape(-1, 3)
-    top, bottom = len(rings_xyz), len(rings_xyz) + 1
-    xyz = np.vstack([rings_xyz, [*tree.position, center_z + tree.height_m / 2],
-                     [*tree.position, center_z - tree.height_m / 2]])
-    ring = np.arange(len(polar) * sides).reshape(len(polar), sides)
-    faces = [np.stack([np.full(sides, top), ring[0], np.roll(ring[0], -1)], 1)]
-    faces += [_ring_faces(ring[k], ring[k + 1]) for k in range(len(polar) - 1)]
-    faces += [np.stack([np.full(sides, bottom), np.roll(ring[-1], -1), ring[-1]], 1)]
-    return Part(xyz, np.concatenate(faces), ortho_uv(xyz[:, :2], spec))
-
-
-def world_part(layout: Layout, facades: FacadeAtlas, rng: np.random.Generator,
-               cover: GroundCover) -> tuple[Part, SceneLabels]:
-    """The whole world: terrain, then buildings (walls and roofs), then trees; and every face's exact label.
+def world_part(layout: Layout, facades: FacadeAtlas, cover: GroundCover,
+               vegetation: list[Part]) -> tuple[Part, SceneLabels]:
+    """The whole world: terrain, then buildings (walls and roofs), then the ``vegetation`` (one part per tree, then
+    per hedge: sim/worlds/vegetation.py); and every face's exact label.
 
     Terrain faces take the class of the ``cover`` at their centroid; walls and roofs are building ``i``'s object
-    ``i + 1``, trees object ``B + 1 + j`` (``B`` buildings); confidence 1 everywhere.
+    ``i + 1``; every face of tree ``j`` (trunk, branches, leaves) is ``tree`` of object ``B + 1 + j`` (``B``
+    buildings), as Cityscapes files trunks under vegetation, and hedge ``k`` is ``tree`` of object ``B + T + 1 + k``
+    (``T`` trees); confidence 1 everywhere.
     """
     terrain = terrain_part(layout)
     # (part, its faces' class: one id for all or one per face, its object)
@@ -128,7 +99,7 @@ def world_part(layout: Layout, facades: FacadeAtlas, rng: np.random.Generator,
     labelled += [(wall_part(facades, i), WALL, wall.building_index + 1) for i, wall in enumerate(facades.walls)]
     labelled += [(roof_part(b, layout.spec), ROOF, i + 1) for i, b in enumerate(layout.buildings)]
     first_tree = len(layout.buildings) + 1
-    labelled += [(tree_part(t, rng, layout.spec), TREE, first_tree + j) for j, t in enumerate(layout.trees)]
+    labelled += [(part, TREE, first_tree + j) for j, part in enumerate(vegetation)]
     counts = [len(part.faces) for part, _, _ in labelled]
     face_class = np.concatenate([np.broadcast_to(np.asarray(c, np.uint8), (n,)) for (_, c, _), n in
                                  zip(labelled, counts, strict=True)])

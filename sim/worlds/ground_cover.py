@@ -2,10 +2,11 @@
 by the painter (sim/worlds/orthophoto.py) so that the labels of the terrain faces say what their texture shows.
 
 The painter lays, in this order: crop fields everywhere (hedges between the parcels), the village lawn over them,
-small shapes, a yard around every building, the roads; then the roofs and tree crowns, which texture the buildings'
-and trees' own meshes. So a ground point is a ``road`` on a road (asphalt or dirt track), else ``ground`` on a yard
-or where the lawn outweighs the fields in the painter's blend, else ``field``. Hedges (0.8 m strips painted flat
-between parcels, no height) are the fields' margins: ``field``. The shapes (bushes, stones, soil patches, flowers of
+small shapes, a yard around every building, the roads; then the roofs, which texture the buildings' own meshes
+(trees and hedges are meshes with texture patches of their own: sim/worlds/vegetation.py). So a ground point is a
+``road`` on a road (asphalt or dirt track), else ``ground`` on a yard or where the lawn outweighs the fields in the
+painter's blend, else ``field``. Hedge strips (0.8 m strips painted flat between parcels, no height; the 3-D hedges
+are meshes) are the fields' margins: ``field``. The shapes (bushes, stones, soil patches, flowers of
 0.25-1.5 m, painted flat) are clutter on whatever they lie on: they change no class. Ground under a roof is the
 building's yard (``ground``, never seen); ground under a crown keeps the class of its cover.
 """

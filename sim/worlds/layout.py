@@ -1,4 +1,5 @@
-"""Where things are in the demo world: size, roads, buildings and trees, in ENU metres (x east, y north).
+"""Where things are in the demo world: size, roads, buildings, trees, a forest stand and hedges, in ENU metres (x east,
+y north).
 
 Pure functions of a ``WorldSpec`` and a ``numpy.random.Generator``; no geometry or pixels here.
 """
@@ -20,7 +21,9 @@ class WorldSpec:
 
     The ground covers ``[-size_x_m/2, size_x_m/2] x [-size_y_m/2, size_y_m/2]`` (ENU metres); the top
     ``ortho_rows`` rows of the square ``texture_px`` atlas are an orthophoto of exactly that rectangle, the rows
-    below hold the building facades.
+    below hold the building facades (and the vegetation's texture patches, sim/worlds/atlas.py). ``tree_count``
+    standalone trees are tried (alleys, groves, singles; ~90 % find room), plus one forest stand of
+    ``forest_size_m`` (length, width) and ``hedge_count`` hedges.
     """
 
     size_x_m: float
@@ -29,6 +32,8 @@ class WorldSpec:
     grid_step_m: float
     building_count: int
     tree_count: int
+    forest_size_m: tuple[float, float]
+    hedge_count: int
     relief_m: float = 5.0
 
     @property
@@ -48,16 +53,16 @@ class WorldSpec:
 
 
 VARIANTS: dict[str, WorldSpec] = {
-    # 384 m x 312 m, 9.4 cm texels, a 1 m terrain grid (the hills are smooth), ~0.28 M triangles.
+    # 384 m x 312 m, 9.4 cm texels, a 1 m terrain grid (the hills are smooth), ~0.45 M triangles (generator 10).
     "default": WorldSpec(size_x_m=384.0, texture_px=4096, ortho_rows=3328, grid_step_m=1.0,
-                         building_count=45, tree_count=600),
-    # 192 m x 156 m, same texel size and grid, ~70 k triangles: for tests.
+                         building_count=45, tree_count=600, forest_size_m=(52.0, 40.0), hedge_count=10),
+    # 192 m x 156 m, same texel size and grid, ~93 k triangles: for tests.
     "small": WorldSpec(size_x_m=192.0, texture_px=2048, ortho_rows=1664, grid_step_m=1.0,
-                       building_count=12, tree_count=150),
+                       building_count=12, tree_count=60, forest_size_m=(24.0, 18.0), hedge_count=3),
     # 480 m x 324 m = 155,520 m^2 (the paper's 153,000 m^2), same texel size and grid; buildings and trees scaled
-    # with the area (facade strips: 8 x 5120 texels). ~0.36 M triangles: for area plans (issue 21).
+    # with the area (facade strips: 8 x 5120 texels). ~0.58 M triangles: for area plans (issue 21).
     "large": WorldSpec(size_x_m=480.0, texture_px=5120, ortho_rows=3456, grid_step_m=1.0,
-                       building_count=56, tree_count=720),
+                       building_count=56, tree_count=720, forest_size_m=(60.0, 44.0), hedge_count=12),
 }
 """Variants by name; the order is part of each variant's random streams (sim/worlds/demo.py), so append only."""
 
@@ -116,10 +121,7 @@ class Building:
     @property
     def corners(self) -> np.ndarray:
         """Footprint corners (4, 2), counter-clockwise from above."""
-        along, across = self.axes
-        signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
-        return (self.center + signs[:, :1] * (self.length_m / 2) * along
-                + signs[:, 1:] * (self.width_m / 2) * across)
+        return rectangle(self.center, self.heading_rad, self.length_m, self.width_m)
 
     def local(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Building-local coordinates (metres from the centre along the ridge, and across it) of the ENU points
@@ -141,13 +143,48 @@ class Building:
 
 @dataclass(frozen=True)
 class Tree:
-    """A tree standing at ``position`` (ENU x, y) on ground height ``ground_z``: a cone (conifer) or a blob."""
+    """A tree whose stem stands at ``position`` (ENU x, y) on ground height ``ground_z``: a conifer in whorls or a
+    broadleaf tree, its crown within ``radius_m`` of the stem and at most ``height_m`` above the ground
+    (sim/worlds/vegetation.py builds it); ``forest`` when it belongs to the forest stand."""
 
     position: np.ndarray
     ground_z: float
     radius_m: float
     height_m: float
     conifer: bool
+    forest: bool = False
+
+
+@dataclass(frozen=True)
+class ForestStand:
+    """A closed stand of trees on the rectangle ``corners`` (4, 2) ENU metres (counter-clockwise from above): its
+    trees stand inside it with their crowns within it, so its outline is the forest's edge."""
+
+    corners: np.ndarray
+
+    def covers(self, xy: np.ndarray, margin_m: float = 0.0) -> np.ndarray:
+        """Whether each ENU point of ``xy`` (M, 2) lies inside the rectangle grown by ``margin_m`` on every side."""
+        edges = np.roll(self.corners, -1, axis=0) - self.corners
+        edges /= np.linalg.norm(edges, axis=1, keepdims=True)
+        rel = xy[:, None, :] - self.corners[None]
+        left = edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0]  # metres inside each edge
+        return np.all(left >= -margin_m, axis=1)
+
+
+@dataclass(frozen=True)
+class Hedge:
+    """A straight hedge from ``start`` to ``end`` (ENU x, y) along the ground, ``width_m`` thick and ``height_m``
+    high above the ground under it."""
+
+    start: np.ndarray
+    end: np.ndarray
+    width_m: float
+    height_m: float
+
+    def points(self, step_m: float = 1.0) -> np.ndarray:
+        """Points (M, 2) every ``step_m`` metres or less along the hedge's centreline, both ends included."""
+        count = int(np.ceil(np.linalg.norm(self.end - self.start) / step_m)) + 1
+        return self.start + np.linspace(0.0, 1.0, count)[:, None] * (self.end - self.start)
 
 
 @dataclass(frozen=True)
@@ -160,6 +197,8 @@ class Layout:
     buildings: list[Building]
     trees: list[Tree]
     village_center: np.ndarray
+    forests: list[ForestStand]
+    hedges: list[Hedge]
 
 
 def distance_to_polyline(points: np.ndarray, polyline: np.ndarray) -> np.ndarray:
@@ -285,8 +324,97 @@ def _tree_candidates(rng: np.random.Generator, spec: WorldSpec, roads: list[Road
     return candidates[rng.permutation(len(candidates))]
 
 
+def _clear_of_buildings(points: np.ndarray, buildings: list[Building], clearance_m: float) -> bool:
+    """Whether every point (M, 2) lies more than ``clearance_m`` outside every building's bounding circle."""
+    return all(np.all(np.linalg.norm(points - b.center, axis=1) > b.radius_m + clearance_m) for b in buildings)
+
+
+def rectangle(center: np.ndarray, heading: float, length_m: float, width_m: float) -> np.ndarray:
+    """Corners (4, 2) of a rectangle centred at ``center`` with its length along ``heading`` (radians from east),
+    counter-clockwise from above, starting at its local (-length/2, -width/2) corner."""
+    along = np.array([np.cos(heading), np.sin(heading)])
+    across = np.array([-along[1], along[0]])
+    signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
+    return center + signs[:, :1] * (length_m / 2) * along + signs[:, 1:] * (width_m / 2) * across
+
+
+FOREST_SPACING_M = 4.0
+"""Distance between neighbouring stems of the forest stand (before a jitter of up to 0.8 m)."""
+FOREST_CROWN_M = 3.0
+"""Largest crown radius in the forest stand: its stems stand at least this far inside its edge."""
+FOREST_CLEARING_M = 5.0
+"""Open ground around the forest stand: no other tree's crown or hedge comes closer to its edge."""
+NEAR_ORIGIN_M = 45.0
+"""The pond's centre and a point of the power line lie this close to the ENU origin, which the demo flight circles
+(sim/worlds/built.py); the forest stand keeps out of this disc, so they find room clear of it."""
+
+
+def _place_forest(rng: np.random.Generator, spec: WorldSpec, terrain: HeightField, roads: list[Road],
+                  buildings: list[Building]) -> tuple[ForestStand, list[Tree]]:
+    """A rectangular stand in the open, clear of roads, buildings and the disc of :data:`NEAR_ORIGIN_M`
+    around the origin, filled with trees on a jittered grid of
+    :data:`FOREST_SPACING_M` (mixed, a third conifers) whose crowns overlap, every crown within the rectangle: a
+    closed canopy with a clear edge."""
+    length, width = spec.forest_size_m
+    half = np.array(spec.half_extent_m)
+    for _ in range(2000):
+        corners = rectangle(rng.uniform(-half * 0.8, half * 0.8), rng.uniform(0.0, np.pi), length, width)
+        inner = corners.mean(0) + (corners - corners.mean(0)) * np.linspace(0.0, 1.0, 6)[:, None, None]
+        outline = np.vstack([inner.reshape(-1, 2), (corners + np.roll(corners, -1, axis=0)) / 2])
+        if _inside(outline, spec, 4.0) and _clear_of_roads(outline, roads, 3.0) \
+                and _clear_of_buildings(outline, buildings, 4.0) \
+                and not ForestStand(corners).covers(np.zeros((1, 2)), NEAR_ORIGIN_M)[0]:
+            break
+    else:
+        raise ValueError(f"no room for a {length} m x {width} m forest stand")
+    along, across = (corners[1] - corners[0]) / length, (corners[3] - corners[0]) / width
+    stems = [np.linspace(FOREST_CROWN_M, side - FOREST_CROWN_M,
+                         int((side - 2 * FOREST_CROWN_M) // FOREST_SPACING_M) + 1) for side in (length, width)]
+    trees = []
+    for a in stems[0]:
+        for c in stems[1]:
+            jitter = np.clip(np.array([a, c]) + rng.uniform(-0.8, 0.8, 2), FOREST_CROWN_M,
+                             np.array([length, width]) - FOREST_CROWN_M)
+            position = corners[0] + jitter[0] * along + jitter[1] * across
+            conifer = bool(rng.random() < 0.35)
+            radius = rng.uniform(1.8, 2.6) if conifer else rng.uniform(2.2, FOREST_CROWN_M)
+            height = rng.uniform(12.0, 17.0) if conifer else rng.uniform(11.0, 15.0)
+            trees.append(Tree(position, float(terrain.height(*position)), float(radius), float(height), conifer,
+                              forest=True))
+    return ForestStand(corners), trees
+
+
+def _place_hedges(rng: np.random.Generator, spec: WorldSpec, roads: list[Road], buildings: list[Building],
+                  forest: ForestStand) -> list[Hedge]:
+    """Straight hedges of 10-25 m parallel to a road, a few metres off its edge (garden and field hedges), clear
+    of roads, buildings, the forest and each other."""
+    hedges: list[Hedge] = []
+    for _ in range(spec.hedge_count * 80):
+        if len(hedges) == spec.hedge_count:
+            break
+        road = roads[rng.integers(len(roads))]
+        i = int(rng.integers(1, len(road.points) - 1))
+        tangent = road.points[i + 1] - road.points[i - 1]
+        tangent /= np.linalg.norm(tangent)
+        normal = np.array([-tangent[1], tangent[0]]) * rng.choice([-1.0, 1.0])
+        middle = road.points[i] + normal * (road.width_m / 2 + rng.uniform(2.5, 5.0))
+        length = rng.uniform(10.0, 25.0)
+        hedge = Hedge(middle - tangent * length / 2, middle + tangent * length / 2, float(rng.uniform(0.8, 1.3)),
+                      float(rng.uniform(1.2, 2.2)))
+        line = hedge.points()
+        if not (_inside(line, spec, 3.0) and _clear_of_roads(line, roads, hedge.width_m / 2 + 0.5)
+                and _clear_of_buildings(line, buildings, 2.5) and not np.any(forest.covers(line, FOREST_CLEARING_M))):
+            continue
+        if any(distance_to_polyline(line, np.array([h.start, h.end])).min() < 3.0 for h in hedges):
+            continue
+        hedges.append(hedge)
+    return hedges
+
+
 def _place_trees(rng: np.random.Generator, spec: WorldSpec, terrain: HeightField, roads: list[Road],
-                 buildings: list[Building]) -> list[Tree]:
+                 buildings: list[Building], forest: ForestStand, hedges: list[Hedge]) -> list[Tree]:
+    """Standalone trees (alleys, groves, singles) clear of roads, buildings, the forest, the hedges and each other's
+    stems."""
     trees: list[Tree] = []
     centers = np.array([b.center for b in buildings]).reshape(-1, 2)
     radii = np.array([b.radius_m for b in buildings])
@@ -302,12 +430,17 @@ def _place_trees(rng: np.random.Generator, spec: WorldSpec, terrain: HeightField
             continue
         if any(np.hypot(*(t.position - position)) < 0.8 * (t.radius_m + radius) for t in trees):
             continue
+        if forest.covers(position[None], radius + FOREST_CLEARING_M)[0] or any(
+                distance_to_polyline(position[None], np.array([h.start, h.end]))[0] < radius + h.width_m / 2 + 0.3
+                for h in hedges):
+            continue
         trees.append(Tree(position, float(terrain.height(*position)), float(radius), float(height), conifer))
     return trees
 
 
 def generate_layout(spec: WorldSpec, rng: np.random.Generator) -> Layout:
-    """Terrain, roads, buildings and trees of one world, deterministic for a given generator state."""
+    """Terrain, roads, buildings, the forest stand, hedges and trees of one world, deterministic for a given
+    generator state. The forest's trees come first in ``trees``, then the standalone ones."""
     terrain = HeightField.random(rng, spec.relief_m)
     half_x, half_y = spec.half_extent_m
     ew_offset = rng.uniform(12.0, 25.0) * rng.choice([-1.0, 1.0])
@@ -320,5 +453,7 @@ def generate_layout(spec: WorldSpec, rng: np.random.Generator) -> Layout:
     village_radius = 0.45 * min(half_x, half_y)
     roads += [_straight_track(rng, spec, village_center, village_radius) for _ in range(3)]
     buildings = _place_buildings(rng, spec, terrain, roads, village_center, village_radius)
-    trees = _place_trees(rng, spec, terrain, roads, buildings)
-    return Layout(spec, terrain, roads, buildings, trees, village_center)
+    forest, forest_trees = _place_forest(rng, spec, terrain, roads, buildings)
+    hedges = _place_hedges(rng, spec, roads, buildings, forest)
+    trees = forest_trees + _place_trees(rng, spec, terrain, roads, buildings, forest, hedges)
+    return Layout(spec, terrain, roads, buildings, trees, village_center, [forest], hedges)

@@ -1,7 +1,7 @@
-"""Paint the orthophoto (straight-down view, north up) of the demo world: fields, lawns, roads, yards, roofs, crowns.
+"""Paint the orthophoto (straight-down view, north up) of the demo world: fields, lawns, roads, yards, roofs.
 
 Textured at several scales on purpose, so feature matching works from 30-100 m and from oblique views: colour
-zones of ~70 m, field parcels of tens of metres with crop rows of 0.4-3 m, hedges, thousands of small shapes
+zones of ~70 m, field parcels of tens of metres with crop rows of 0.4-3 m, hedge strips, thousands of small shapes
 (bushes, stones, patches), road markings, roof tiles, and grass/soil noise down to single texels.
 Images are float32 RGB in 0-255; pixel ``(row, col)`` centres are at ENU ``x = -half_x + (col + 0.5) * texel``,
 ``y = half_y - (row + 0.5) * texel``.
@@ -14,7 +14,7 @@ import numpy as np
 
 from sim.worlds.atlas import ortho_pixels
 from sim.worlds.ground_cover import LAWN_MIN_WEIGHT, GroundCover, Yard
-from sim.worlds.layout import Building, Layout, Road, Tree, WorldSpec
+from sim.worlds.layout import Building, Layout, Road, WorldSpec
 from sim.worlds.noise import fractal_noise, value_noise
 
 _SUBPIXEL_BITS = 4  # cv2 drawing with 1/16 pixel precision
@@ -202,24 +202,6 @@ def paint_roof(rng: np.random.Generator, image: np.ndarray, building: Building, 
     image[region][inside] = roof[inside]
 
 
-def paint_crown(rng: np.random.Generator, image: np.ndarray, clumps: np.ndarray, tree: Tree,
-                spec: WorldSpec) -> None:
-    """A tree crown from above, in place: a ragged disc of leaf clumps, darker towards the rim."""
-    col, row = ortho_pixels(tree.position, spec)
-    radius_px = _px(tree.radius_m, spec) * 1.1
-    r0, r1 = max(int(row - radius_px) - 1, 0), min(int(row + radius_px) + 2, spec.ortho_rows)
-    c0, c1 = max(int(col - radius_px) - 1, 0), min(int(col + radius_px) + 2, spec.texture_px)
-    dy = np.arange(r0, r1)[:, None] + 0.5 - row
-    dx = np.arange(c0, c1)[None, :] + 0.5 - col
-    distance = np.hypot(dx, dy) / radius_px
-    angle = np.arctan2(dy, dx)
-    ragged = 1.0 + 0.08 * np.sin(5 * angle + rng.uniform(0, 6.3)) + 0.05 * np.sin(9 * angle + rng.uniform(0, 6.3))
-    inside = distance < ragged
-    green = np.array((38, 70, 46) if tree.conifer else (62, 98, 40)) * rng.uniform(0.8, 1.2, 3)
-    light = (0.75 + 0.3 * clumps[r0:r1, c0:c1]) * (1.0 - 0.35 * np.clip(distance, 0, 1) ** 2)
-    image[r0:r1, c0:c1][inside] = (green * light[..., None])[inside]
-
-
 def paint_orthophoto(rng: np.random.Generator, layout: Layout) -> tuple[np.ndarray, GroundCover]:
     """The whole orthophoto, (ortho_rows, texture_px, 3) uint8 RGB, and the ground cover it shows."""
     spec = layout.spec
@@ -232,9 +214,6 @@ def paint_orthophoto(rng: np.random.Generator, layout: Layout) -> tuple[np.ndarr
     for building in layout.buildings:
         paint_roof(rng, image, building, spec)
     shape = image.shape[:2]
-    clumps = value_noise(rng, shape, _px(0.5, spec))
-    for tree in layout.trees:
-        paint_crown(rng, image, clumps, tree, spec)
     zones = fractal_noise(rng, shape, [_px(70.0, spec), _px(25.0, spec)], [0.07, 0.04])
     detail = fractal_noise(rng, shape, [1.0, _px(0.4, spec), _px(2.0, spec), _px(8.0, spec)],
                            [0.03, 0.05, 0.05, 0.05])

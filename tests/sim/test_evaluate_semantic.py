@@ -14,7 +14,7 @@ import pytest
 
 from sim.cli import main as cli_main
 from sim.evaluation.semantic import confusion, scores
-from sim.render.classes import GROUND, ROOF, SKY, TREE, UNKNOWN, WALL
+from sim.render.classes import CLASSES, GROUND, ROOF, SKY, TREE, UNKNOWN, WALL
 from tests.sim.label_dataset_helpers import write_labelled_dataset
 
 FRAMES = 2
@@ -56,7 +56,7 @@ def test_the_truth_scores_one_everywhere_and_the_unknown_pixels_are_not_scored(l
     assert {name for name, values in report["classes"].items() if values["iou"] is not None} == \
         {"ground", "roof", "wall", "sky"}
     assert report["classes"]["tree"] == {"id": TREE, "iou": None, "truth_pixels": 0, "predicted_pixels": 0}
-    assert report["groups"]["building"] == {"classes": ["roof", "wall"], "iou": 1.0}
+    assert report["groups"]["building"] == {"classes": ["roof", "wall", "chimney"], "iou": 1.0}
     assert report["groups"]["vegetation"]["iou"] is None
     table = capsys.readouterr().out
     assert "mIoU" in table and "building" in table and "\n        tree" not in table
@@ -104,7 +104,7 @@ def refused(capsys, arguments) -> str:
     ("16-bit", r"pred/000001\.png: expected an 8-bit single-channel PNG of class ids .*, got a 16-bit grey \(mode "
                r"I;16\) PNG"),
     ("size", r"pred/000001\.png: 95x72 pixels, but the dataset's frames are 96x72"),
-    ("id", r"pred/000001\.png: class id 10 at pixel x=3 y=2; expected the ids 0\.\.9"),
+    ("id", rf"pred/000001\.png: class id {len(CLASSES)} at pixel x=3 y=2; expected the ids 0\.\.{len(CLASSES) - 1}"),
     ("no-frame-1", r"--semantic .*pred: no prediction of 1 of the dataset's 2 frames \(000001\); expected one \.png"),
 ])
 def test_predictions_that_do_not_fit_are_refused(labelled, tmp_path, capsys, case, expected):
@@ -118,7 +118,7 @@ def test_predictions_that_do_not_fit_are_refused(labelled, tmp_path, capsys, cas
         cv2.imwrite(str(second), bad[case])
     elif case == "id":
         classes = labelled.semantic[1][0].copy()
-        classes[2, 3] = 10
+        classes[2, 3] = len(CLASSES)  # one past the table
         cv2.imwrite(str(second), classes)
     elif case == "no-frame-1":
         second.unlink()

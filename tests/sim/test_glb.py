@@ -194,6 +194,6 @@ def test_the_default_demo_world_has_no_vertex_outside_every_triangle(tmp_path):
 
 
 def test_demo_world_loads_back_to_its_generated_enu_mesh(small_world):
-    _, generated, _, _ = generate_world("small", 0)
+    _, generated, _, _, _ = generate_world("small", 0)
     scene = load_scene(small_world)
     np.testing.assert_array_equal(scene.vertices, generated.vertices.astype(np.float32).astype(np.float64))

@@ -15,7 +15,7 @@ from sim.dataset.kitti2015 import kitti_instance_image
 from sim.dataset.source import DatasetSource
 from sim.dataset.vkitti2 import TrackIds
 from sim.dataset.writer import DatasetError
-from sim.render.classes import GROUND, ROOF, SKY, WALL
+from sim.render.classes import CLASSES, GROUND, ROOF, SKY, WALL
 from tests.sim.label_dataset_helpers import BOX_OBJECT, write_labelled_dataset
 
 FRAMES = 2
@@ -153,8 +153,9 @@ def test_the_source_refuses_class_images_of_another_size_bit_depth_or_ids(export
         with pytest.raises(DatasetError, match=r"semantic_3/000000\.png: a PNG image of mode I;16, expected a class "
                                                r"image \(8-bit grey PNG\)"):
             source.require(("semantic",), "test")
-        cv2.imwrite(str(path), np.full((72, 96), 10, np.uint8))
-        with pytest.raises(DatasetError, match=r"semantic_3/000000\.png: holds class id 10; expected the ids 0\.\.9"):
+        cv2.imwrite(str(path), np.full((72, 96), len(CLASSES), np.uint8))  # one past the table
+        with pytest.raises(DatasetError, match=rf"semantic_3/000000\.png: holds class id {len(CLASSES)}; expected the "
+                                               rf"ids 0\.\.{len(CLASSES) - 1}"):
             frame.semantic(1)
     finally:
         path.write_bytes(original)

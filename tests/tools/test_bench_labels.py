@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sim.render.classes import CLASSES, GROUND, OTHER, ROAD, ROOF, TREE, UNKNOWN, WALL
+from sim.render.classes import CAR, CHIMNEY, CLASSES, GROUND, OTHER, POLE, ROAD, ROOF, TREE, UNKNOWN, WALL
 from tools.bench.bench_labels import group_scores, stage_seconds
 
 
@@ -14,13 +14,25 @@ def test_group_iou_pools_classes_into_groups_and_counts_unknown_against_the_trut
     matrix[GROUND, TREE] = 10
     matrix[ROOF, WALL] = 30
     matrix[ROOF, UNKNOWN] = 10
+    matrix[CHIMNEY, ROOF] = 5  # a chimney taken for roof: right group (building)
     matrix[TREE, TREE] = 40
+    matrix[CAR, CAR] = 5
+    matrix[POLE, GROUND] = 5  # a pole lost into the ground
     matrix[OTHER, GROUND] = 99  # truth in no group: left out
     scores = group_scores(matrix)
-    assert scores["iou"] == pytest.approx({"ground": 80 / 90, "building": 30 / 40, "vegetation": 40 / 50})
-    assert scores["miou"] == pytest.approx(np.mean([80 / 90, 30 / 40, 40 / 50]))
-    assert scores["pixels"] == 170 and scores["unknown_share"] == pytest.approx(10 / 170)
-    assert scores["group_confusion"] == [[80, 0, 10, 0], [0, 30, 0, 10], [0, 0, 40, 0]]
+    expected = {"ground": 80 / 95, "building": 35 / 45, "vegetation": 40 / 50, "objects": 5 / 10}
+    assert scores["iou"] == pytest.approx(expected)
+    assert scores["miou"] == pytest.approx(np.mean(list(expected.values())))
+    assert scores["pixels"] == 185 and scores["unknown_share"] == pytest.approx(10 / 185)
+    assert scores["group_confusion"] == [[80, 0, 10, 0, 0], [0, 35, 0, 0, 10], [0, 0, 40, 0, 0], [5, 0, 0, 5, 0]]
+
+
+def test_a_group_the_truth_does_not_show_has_no_iou_and_stays_out_of_the_mean():
+    matrix = np.zeros((len(CLASSES), len(CLASSES)), np.int64)
+    matrix[GROUND, GROUND], matrix[ROOF, ROOF], matrix[TREE, GROUND] = 50, 30, 10
+    scores = group_scores(matrix)
+    assert np.isnan(scores["iou"]["objects"]) and scores["iou"]["vegetation"] == 0.0
+    assert scores["miou"] == pytest.approx(np.mean([50 / 60, 1.0, 0.0]))
 
 
 def test_stage_seconds_are_read_from_the_done_lines_of_a_recon_log(tmp_path):

@@ -88,15 +88,17 @@ def confusion(true_view, twin_view, world, twin, area: np.ndarray) -> np.ndarray
 
 
 def group_scores(matrix: np.ndarray) -> dict:
-    """Per-group IoU, mIoU, the unknown share and the group confusion (rows: truth group, columns: twin group or
-    none; pixels whose truth is in no group are left out)."""
+    """Per-group IoU (NaN for a group the truth does not show), mIoU over the groups shown, the unknown share and
+    the group confusion (rows: truth group, columns: twin group or none; pixels whose truth is in no group are left
+    out)."""
     groups = group_of_class()
     grouped = np.zeros((NO_GROUP + 1, NO_GROUP + 1), np.int64)
     np.add.at(grouped, (groups[:, None], groups[None, :]), matrix)
     grouped = grouped[:NO_GROUP]
     iou = {name: float(grouped[k, k] / (grouped[k].sum() + grouped[:, k].sum() - grouped[k, k]))
-           for k, name in enumerate(GROUP_NAMES)}
-    return {"iou": iou, "miou": float(np.mean(list(iou.values()))), "pixels": int(grouped.sum()),
+           if grouped[k].sum() else float("nan") for k, name in enumerate(GROUP_NAMES)}
+    shown = [value for value in iou.values() if not np.isnan(value)]
+    return {"iou": iou, "miou": float(np.mean(shown)) if shown else float("nan"), "pixels": int(grouped.sum()),
             "unknown_share": float(grouped[:, NO_GROUP].sum() / grouped.sum()), "group_confusion": grouped.tolist()}
 
 

@@ -61,7 +61,7 @@ def _loaded_texture(loaded: trimesh.Trimesh) -> np.ndarray:
 def bench_variant(variant: str, seed: int) -> None:
     tracemalloc.start()  # numpy reports its buffers to tracemalloc: the peak is the generator's memory
     start = time.perf_counter()
-    _, mesh, atlas, _ = generate_world(variant, seed)
+    _, mesh, atlas, _, _ = generate_world(variant, seed)
     generate_s = time.perf_counter() - start
     peak_mb = tracemalloc.get_traced_memory()[1] / 1e6
     tracemalloc.stop()
