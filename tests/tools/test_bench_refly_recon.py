@@ -10,7 +10,9 @@ from scipy.spatial.transform import Rotation
 from capture.geotag_io import load_geotags, read_sidecar
 from flightplan.geodesy import LocalFrame
 from recon.inputs.priors import read_geotags
-from tools.bench.bench_refly_recon import arcs_of_photos, registration, union_geotags, union_photos
+from tools.bench.bench_refly_recon import (
+    arcs_of_photos, registration, skipped_shot_distances_m, union_geotags, union_photos,
+)
 from tools.geotag_csv import geotag_row, write_geotags
 
 FIRST = LocalFrame(40.1792, 44.4991, 1000.0)
@@ -79,5 +81,19 @@ def test_registration_counts_the_union_s_photos_on_the_re_flown_arcs_by_the_chec
     assert arcs == {"first_DJI_0001.JPG": 1, "first_DJI_0002.JPG": 2, "first_DJI_0003.JPG": None,
                     "refly_DJI_0001.JPG": 2, "refly_DJI_0002.JPG": 3}
     registered = {"first_DJI_0002.JPG", "refly_DJI_0002.JPG", "first_DJI_0001.JPG"}
-    assert registration(arcs, [2], registered) == {"gap_registered": 1, "gap_photos": 2, "registered": 3,
-                                                   "photos": 5}
+    assert registration(arcs, [2], registered) == {"gap_registered": 1, "gap_photos": 2, "refly_registered": 1,
+                                                   "refly_photos": 2, "registered": 3, "photos": 5}
+
+
+def test_a_skipped_shot_s_place_is_measured_to_the_nearest_registered_re_fly_photo(two_flights, tmp_path):
+    """The skipped shot was taken 3 m east of the re-fly's first photo (in the re-fly's frame, given in WGS84 as
+    truth.json does); the re-fly's second photo is nearer (1 m further east) but not registered, the first flight's
+    photos are not the re-fly's: 3 m, to a millimetre. Unregistered, nothing is near it."""
+    csv_path = union_geotags(two_flights, tmp_path / "union")
+    lat, lon, height = REFLY.to_geodetic(-20.0 + 3.0, 5.0, 30.0)
+    truth = {"photos": [{"image_name": "DJI_0007.JPG", "lat_deg": float(lat), "lon_deg": float(lon),
+                         "h_ellipsoid_m": float(height)}],
+             "faults": [{"kind": "motion_blur", "photos": []}, {"kind": "skipped_shot", "photos": ["DJI_0007.JPG"]}]}
+    registered = {"refly_DJI_0001.JPG", "first_DJI_0001.JPG", "first_DJI_0002.JPG"}
+    assert skipped_shot_distances_m(truth, csv_path, registered) == [pytest.approx(3.0, abs=1e-3)]
+    assert skipped_shot_distances_m(truth, csv_path, {"first_DJI_0001.JPG"}) == [np.inf]

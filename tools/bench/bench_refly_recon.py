@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from capture.geotag_io import load_geotags, read_sidecar  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from tests.sim.drone_helpers import short_orbit_csv  # noqa: E402
 from tools.bench.bench_capture_check import FIRST_PHOTO_S, run  # noqa: E402
@@ -99,18 +100,37 @@ def arcs_of_photos(reports: dict[str, dict]) -> dict[str, int | None]:
 
 
 def registration(arcs: dict[str, int | None], refly_arcs: list[int], registered: set[str]) -> dict:
-    """Photos registered against those in the union: on the re-flown arcs, and all."""
+    """Photos registered against those in the union: on the re-flown arcs, the re-fly's, and all."""
     on_gaps = {name for name, arc in arcs.items() if arc in refly_arcs}
+    refly = {name for name in arcs if name.startswith(f"{FLIGHTS[1]}_")}
     return {"gap_registered": len(on_gaps & registered), "gap_photos": len(on_gaps),
+            "refly_registered": len(refly & registered), "refly_photos": len(refly),
             "registered": len(set(arcs) & registered), "photos": len(arcs)}
 
 
-def table(counts: dict, planned_on_gaps: int, seconds: dict[str, float]) -> str:
-    """The printed result: registration, then each step's wall time."""
+def skipped_shot_distances_m(truth: dict, geotags_csv: Path, registered: set[str]) -> list[float]:
+    """For each skipped shot of the first flight (truth.json), the horizontal distance (m) from where it was taken
+    to the nearest registered re-fly photo's geotag (in the union geotags' frame): how well the re-fly filled it."""
+    tags = [tag for tag in load_geotags(geotags_csv)
+            if tag.image_name.startswith(f"{FLIGHTS[1]}_") and tag.image_name in registered]
+    refly = np.array([tag.position_enu_m[:2] for tag in tags]).reshape(-1, 2)
+    by_name = {row["image_name"]: row for row in truth["photos"]}
+    skipped = [by_name[name] for fault in truth["faults"] if fault["kind"] == "skipped_shot"
+               for name in fault["photos"]]
+    frame = read_sidecar(geotags_csv)[0]
+    places = [frame.enu_points(row["lat_deg"], row["lon_deg"], row["h_ellipsoid_m"])[:2] for row in skipped]
+    return [float(np.min(np.hypot(*(refly - place).T), initial=np.inf)) for place in places]
+
+
+def table(counts: dict, planned_on_gaps: float, distances_m: list[float], seconds: dict[str, float]) -> str:
+    """The printed result: registration, the skipped shots' nearest re-fly photo, then each step's wall time."""
     lines = ["| photos | registered / in the union |", "|---|---|",
-             f"| of the re-flown arcs ({planned_on_gaps} planned) | {counts['gap_registered']} / "
+             f"| of the re-flown arcs (both flights; {planned_on_gaps:.0f} planned) | {counts['gap_registered']} / "
              f"{counts['gap_photos']} |",
+             f"| of the re-fly | {counts['refly_registered']} / {counts['refly_photos']} |",
              f"| all (both flights) | {counts['registered']} / {counts['photos']} |",
+             "", f"skipped shots' places to the nearest registered re-fly photo (m): "
+             f"{', '.join(f'{d:.2f}' for d in distances_m)}",
              "", "| step | wall time (s) |", "|---|---|"]
     lines += [f"| {step} | {value:.1f} |" for step, value in seconds.items()]
     return "\n".join(lines)
@@ -167,7 +187,9 @@ def main(argv=None) -> int:
         planned = sum(arc["expected_photos"] for arc in report["arcs"] if arc["arc"] in report["refly"]["arcs"])
         print(f"{args.waypoints} waypoints of the default orbit over {WORLD}, {'x'.join(PHOTO_SIZE)}; re-flown arcs "
               f"{report['refly']['arcs']}; machine: {len(os.sched_getaffinity(0))} cores")
-        print(table(counts, planned, seconds))
+        distances = skipped_shot_distances_m(json.loads((first / "truth.json").read_text()), geotags,
+                                             set(sfm["registered"]))
+        print(table(counts, planned, distances, seconds))
         print(f"\nunregistered: {sfm.get('unregistered')}")
     return 0
 
