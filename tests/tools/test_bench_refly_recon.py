@@ -17,7 +17,7 @@ from tools.geotag_csv import geotag_row, write_geotags
 
 FIRST = LocalFrame(40.1792, 44.4991, 1000.0)
 #: The re-fly's geotag origin: its own take-off fix, 0.5 km north-east and 12 m higher (a frame far enough off that
-#: a position left in it would be hundreds of metres wrong).
+#: a position left in it would be hundreds of metres wrong; its height is the GPS fix's error, not to be used).
 REFLY = LocalFrame(40.1830, 44.5040, 1012.0)
 #: A camera 30 m up looking north, 35 deg down (OpenCV camera: x right, y down, z forward), ENU <- camera.
 LOOK_NORTH_DOWN = np.array([[1.0, 0.0, 0.0], [0.0, -np.sin(np.radians(35)), np.cos(np.radians(35))],
@@ -47,7 +47,8 @@ def two_flights(tmp_path):
 def test_the_union_s_geotags_put_each_flight_s_cameras_at_their_place_in_the_first_flight_s_frame(two_flights,
                                                                                                   tmp_path):
     """Truth by geodesy: each camera's position and a point 100 m along its optical axis, taken to WGS84 from its
-    own flight's frame and back into the first's, are where the union's geotags put them."""
+    own flight's frame (at the first's origin height: one take-off ground, heights above it kept) and back into the
+    first's, are where the union's geotags put them."""
     csv_path = union_geotags(two_flights, tmp_path / "union")
     assert read_sidecar(csv_path)[0] == FIRST
     tags = {tag.image_name: tag for tag in load_geotags(csv_path)}
@@ -56,7 +57,8 @@ def test_the_union_s_geotags_put_each_flight_s_cameras_at_their_place_in_the_fir
         for k in range(2):
             camera = np.array([east + k, 5.0, 30.0])
             ahead = camera + 100.0 * LOOK_NORTH_DOWN[:, 2]
-            expected = FIRST.enu_points(*frame.to_geodetic(*np.stack([camera, ahead]).T))
+            own = LocalFrame(frame.lat0_deg, frame.lon0_deg, FIRST.h0_m)
+            expected = FIRST.enu_points(*own.to_geodetic(*np.stack([camera, ahead]).T))
             tag = tags[f"{prefix}_DJI_000{k + 1}.JPG"]
             assert tag.position_enu_m == pytest.approx(expected[0], abs=1e-3)
             axis = tag.R_world_cam[:, 2]

@@ -23,6 +23,7 @@ import os
 import shutil
 import sys
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -59,14 +60,20 @@ def moved_row(row: dict, transform: np.ndarray) -> dict:
 
 
 def union_geotags(parts: list[tuple[str, Path]], out: Path) -> Path:
-    """One ``out/geotags.csv`` (+ sidecar) from several geotag results ``(prefix, geotags.csv)``: each photo renamed
-    ``prefix_NAME``, its pose in the first result's ENU frame; the sidecar is the first's with the untagged photos
-    of all (renamed)."""
+    """One ``out/geotags.csv`` (+ sidecar) from several geotag results ``(prefix, geotags.csv)`` of flights from one
+    take-off point: each photo renamed ``prefix_NAME``, its pose in the first result's ENU frame; the sidecar is the
+    first's with the untagged photos of all (renamed).
+
+    A geotag's ``up_m`` is the barometric height above its flight's take-off, and its origin's height that
+    take-off's GPS fix (a few metres off, differently each flight): the same ground, so each origin is taken at the
+    first's height and the heights above take-off are kept; horizontally each origin is its own fix, where the
+    photos' GPS positions were measured from."""
     sidecars = [json.loads(path.with_suffix(".json").read_text()) for _, path in parts]
     target = LocalFrame.from_dict(sidecars[0]["origin"])
     rows, untagged = [], []
     for (prefix, path), sidecar in zip(parts, sidecars):
-        transform = LocalFrame.from_dict(sidecar["origin"]).transform_to(target)
+        frame = replace(LocalFrame.from_dict(sidecar["origin"]), h0_m=target.h0_m)
+        transform = frame.transform_to(target)
         with path.open(newline="") as handle:
             reader = csv.DictReader(handle)
             columns = reader.fieldnames
