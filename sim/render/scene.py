@@ -340,20 +340,9 @@ def read_scene_labels(scene_dir: Path, meta: dict, vertices: np.ndarray, faces: 
     """The face labels ``scene.json`` (``meta``) names, for the mesh ``vertices`` and ``faces`` as read
     (:func:`read_scene_mesh_enu`); None where it names none. A file that is missing, unreadable or made for another
     mesh is a :class:`SceneError` naming scene.json and its ``labels`` entry."""
-    if "labels" not in meta:
-        return None
-    name = meta["labels"]["file"]
-    path, entry = Path(scene_dir) / name, f"{Path(scene_dir) / 'scene.json'}: \"labels\""
-    if not path.is_file():
-        raise SceneError(f"{entry}: its file {name!r} is not found in {scene_dir}")
-    try:
-        labels, labelled_mesh = read_labels(path)
-    except ValueError as error:
-        raise SceneError(f"{entry}: {error}") from None
-    if labelled_mesh != mesh_sha256(vertices, faces):
-        raise SceneError(f"{entry}: {path} labels another mesh than {meta['mesh']} (its SHA-256 differs); label the "
-                         f"scene again (aerostereo-recon labels {scene_dir})")
-    return labels
+    return _read_mesh_file(scene_dir, meta, "labels", read_labels, vertices, faces,
+                           f"labels another mesh than {meta.get('mesh')} (its SHA-256 differs); label the scene again "
+                           f"(aerostereo-recon labels {scene_dir})")
 
 
 def read_scene_face_provenance(scene_dir: Path, meta: dict, vertices: np.ndarray,
@@ -361,21 +350,30 @@ def read_scene_face_provenance(scene_dir: Path, meta: dict, vertices: np.ndarray
     """The face provenance codes ``scene.json`` (``meta``) names, for the mesh ``vertices`` and ``faces`` as read
     (:func:`read_scene_mesh_enu`); None (measured everywhere) where it names none. A file that is missing, unreadable
     or made for another mesh is a :class:`SceneError` naming scene.json and its ``face_provenance`` entry."""
-    if "face_provenance" not in meta:
+    return _read_mesh_file(scene_dir, meta, "face_provenance", read_face_provenance, vertices, faces,
+                           f"describes another mesh than {meta.get('mesh')} (its SHA-256 differs); write the scene "
+                           f"again (aerostereo-recon redoes its scene stage once "
+                           f"{Path(scene_dir) / 'work' / 'stages' / 'scene.json'} is deleted)")
+
+
+def _read_mesh_file(scene_dir: Path, meta: dict, key: str, read, vertices: np.ndarray, faces: np.ndarray,
+                    other_mesh: str):
+    """What the per-face file of ``scene.json``'s entry ``key`` holds, read by ``read(path) -> (content, the SHA-256
+    of the mesh it was made for)``; None where scene.json names none. A missing or unreadable file, or one made for
+    another mesh than ``vertices``/``faces`` (then ``other_mesh`` says what to do), is a :class:`SceneError`."""
+    if key not in meta:
         return None
-    name = meta["face_provenance"]["file"]
-    path, entry = Path(scene_dir) / name, f"{Path(scene_dir) / 'scene.json'}: \"face_provenance\""
+    name = meta[key]["file"]
+    path, entry = Path(scene_dir) / name, f"{Path(scene_dir) / 'scene.json'}: \"{key}\""
     if not path.is_file():
         raise SceneError(f"{entry}: its file {name!r} is not found in {scene_dir}")
     try:
-        codes, coded_mesh = read_face_provenance(path)
+        content, its_mesh = read(path)
     except ValueError as error:
         raise SceneError(f"{entry}: {error}") from None
-    if coded_mesh != mesh_sha256(vertices, faces):
-        raise SceneError(f"{entry}: {path} describes another mesh than {meta['mesh']} (its SHA-256 differs); "
-                         f"write the scene again (aerostereo-recon redoes its scene stage once "
-                         f"{Path(scene_dir) / 'work' / 'stages' / 'scene.json'} is deleted)")
-    return codes
+    if its_mesh != mesh_sha256(vertices, faces):
+        raise SceneError(f"{entry}: {path} {other_mesh}")
+    return content
 
 
 def read_scene_sky_visibility(scene_dir: Path, meta: dict) -> StoredSky | None:
