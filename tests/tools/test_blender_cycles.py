@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
+from scipy import ndimage
 
 from sim.cli import main as cli_main
 from sim.dataset.source import DatasetSource
@@ -39,6 +40,15 @@ def first_frame(scene_dir: Path, out: Path, *options: str):
 
 def read_rgb(path: Path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB"))
+
+
+def within_one_surface(depth: np.ndarray, spread: float = 0.1) -> np.ndarray:
+    """Pixels whose 3x3 neighbourhood sees surface only, its depths within ``spread`` of each other (relative): off
+    the silhouettes, where a sample a hundredth of a pixel away still hits the same surface."""
+    seen = np.where(np.isfinite(depth), depth, np.inf)
+    nearest = ndimage.minimum_filter(seen, size=3, mode="nearest")
+    farthest = ndimage.maximum_filter(seen, size=3, mode="nearest")
+    return np.isfinite(farthest) & (farthest <= (1.0 + spread) * nearest)
 
 
 def test_the_job_is_the_frames_camera_pose_and_recorded_light(small_world, tmp_path):
@@ -77,15 +87,22 @@ def test_cycles_renders_a_dataset_frame_as_we_did_with_the_recorded_blender_stre
     run_cycles(job)
     hit = np.isfinite(ours_depth)  # where the camera sees the sky, our sky gradient is not Blender's grey world
     assert hit.mean() > 0.9
-    # The same camera at the same pose: Cycles' planar depth is ours (its samples spread over 0.01 px: 4e-4 at most).
-    np.testing.assert_allclose(read_depth(tmp_path / "cycles.exr")[hit], ours_depth[hit], rtol=1e-3)
-    recorded = photorealism_error_masked(ours, read_rgb(tmp_path / "cycles.png"), hit)
+    # The same camera at the same pose: Cycles' planar depth is ours (its samples spread over 0.01 px: 4e-4 at most)
+    # off the silhouettes; on them (a wire, a leaf card's edge) such a sample may land on the surface behind.
+    cycles_depth = read_depth(tmp_path / "cycles.exr")
+    inside = within_one_surface(ours_depth)
+    assert inside[hit].mean() > 0.6  # porous crowns, poles and wires: a quarter of the pixels lie on silhouettes
+    np.testing.assert_allclose(cycles_depth[inside], ours_depth[inside], rtol=1e-3)
+    same = np.isclose(cycles_depth[hit], ours_depth[hit], rtol=1e-3, atol=0.0)
+    assert same.mean() > 0.995, f"{np.count_nonzero(~same)} of {hit.sum()} pixels differ"
+    # The light compared where both renders see one surface (a silhouette pixel mixes two in Cycles' samples).
+    recorded = photorealism_error_masked(ours, read_rgb(tmp_path / "cycles.png"), inside)
     # The paper's strength taken for Blender's Strength, as the record used to invite: pi times the sunlight.
     raw = dataclasses.replace(job, sun={**job.sun, "blender_strength": 8.0}, colour_png=str(tmp_path / "raw.png"),
                               depth_exr=None)
     run_cycles(raw)
     too_bright = read_rgb(tmp_path / "raw.png")
-    mistaken = photorealism_error_masked(ours, too_bright, hit)
+    mistaken = photorealism_error_masked(ours, too_bright, inside)
     assert recorded < 3.5 and mistaken > 3 * recorded, (recorded, mistaken)
     assert too_bright[hit].mean() > 1.3 * ours[hit].mean()
 
