@@ -103,6 +103,9 @@ class Scene:
     sky_visibility: SkyVisibility | None = None
     #: The sky visibility the scene folder stores (scene.json's ``sky_visibility``), used only if baked from this mesh.
     stored_sky: StoredSky | None = field(default=None, repr=False)
+    #: Where a bake is stored for the renders after this one (scene.json's ``sky_visibility`` marked ``"cache"``:
+    #: a demo world's folder); None: a bake stays in memory.
+    sky_cache: Path | None = field(default=None, repr=False)
     #: ``(F, 3)`` float32 unit normals of the faces' winding (which side of a face is its front).
     face_normals: np.ndarray = field(init=False, repr=False)
     labels: SceneLabels | None = field(default=None, repr=False)
@@ -332,6 +335,7 @@ def load_scene(scene_dir, device: rtcore.EmbreeDevice | None = None, labels: Sce
     return Scene(vertices, faces, surface, meta["origin_frame"], meta.get("valid_area_m"),
                  str(scene_dir / meta["mesh"]), read_scene_cameras(scene_dir, meta), device=device,
                  observed_area_m=meta.get("observed_area_m"), stored_sky=read_scene_sky_visibility(scene_dir, meta),
+                 sky_cache=scene_sky_cache(scene_dir, meta),
                  labels=labels if labels is not None else read_scene_labels(scene_dir, meta, vertices, faces),
                  face_provenance=read_scene_face_provenance(scene_dir, meta, vertices, faces))
 
@@ -378,7 +382,8 @@ def _read_mesh_file(scene_dir: Path, meta: dict, key: str, read, vertices: np.nd
 
 def read_scene_sky_visibility(scene_dir: Path, meta: dict) -> StoredSky | None:
     """The sky visibility that ``scene.json`` (``meta``) names (:mod:`sim.render.sky_file`); None where it names none
-    or the file is absent (the first lit render bakes it). A file that cannot be read is a :class:`SceneError`."""
+    or the file is absent (the first lit render bakes it). A file that cannot be read is a :class:`SceneError`,
+    except in a cache (:func:`scene_sky_cache`), which the next bake replaces."""
     if "sky_visibility" not in meta:
         return None
     path = Path(scene_dir) / meta["sky_visibility"]["file"]
@@ -387,7 +392,16 @@ def read_scene_sky_visibility(scene_dir: Path, meta: dict) -> StoredSky | None:
     try:
         return read_sky_visibility(path)
     except ValueError as error:
+        if scene_sky_cache(scene_dir, meta) is not None:
+            return None
         raise SceneError(f"{error}; delete it and renders bake the sky visibility themselves") from None
+
+
+def scene_sky_cache(scene_dir: Path, meta: dict) -> Path | None:
+    """The file a render stores its sky visibility bake in: the one ``scene.json`` (``meta``) names where its entry
+    says ``"cache": true`` (the first lit render bakes it, the later ones load it); else None."""
+    entry = meta.get("sky_visibility")
+    return Path(scene_dir) / entry["file"] if entry is not None and entry.get("cache") is True else None
 
 
 def read_scene_capture_light(scene_dir: Path, meta: dict) -> np.ndarray:

@@ -10,7 +10,8 @@ random angle per point so neighbouring points do not share their sampling error'
 occlusion by embree over the whole scene.
 
 A reconstruction stores its bake in the scene folder (:mod:`sim.render.sky_file`); :func:`scene_sky_visibility`
-uses it where it was baked from the very mesh loaded with today's settings (:func:`baked_from`), and bakes otherwise.
+uses it where it was baked from the very mesh loaded with today's settings (:func:`baked_from`), and bakes otherwise,
+storing the bake where the folder keeps it as a cache (a demo world's: ``Scene.sky_cache``).
 
 Meshes are two-sided and their winding is not always consistent, so each point gets two values, one for the side
 its winding normal points to (``front``) and one for the other; a hit takes the side that faces the ray.
@@ -18,6 +19,7 @@ its winding normal points to (``front``) and one for the other; a hit takes the 
 
 from __future__ import annotations
 
+import logging
 import math
 from concurrent.futures import Executor, ThreadPoolExecutor
 from contextlib import nullcontext
@@ -185,7 +187,19 @@ def scene_sky_visibility(scene: Scene) -> SkyVisibility:
         stored, scene.stored_sky = scene.stored_sky, None
         fits = stored is not None and stored.baked_from == baked_from(scene)
         scene.sky_visibility = stored.visibility if fits else bake_sky_visibility(scene)
+        if not fits and scene.sky_cache is not None:
+            _store_in_cache(scene)
     return scene.sky_visibility
+
+
+def _store_in_cache(scene: Scene) -> None:
+    """Store the scene's fresh bake in its cache file (``scene.sky_cache``) for the renders after this one; a folder
+    that cannot be written to only costs them the bake again (said on stderr)."""
+    try:
+        write_sky_visibility(scene.sky_cache, scene.sky_visibility, baked_from(scene))
+    except OSError as error:
+        logging.getLogger(__name__).warning("%s: sky visibility not stored, later renders bake it again (%s)",
+                                            scene.sky_cache, error.strerror or error)
 
 
 def sky_at(scene: Scene, hits: Hits, directions: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ from flightplan.demo_location import DEMO_ORIGIN
 from sim.render.classes import class_table
 from sim.render.labels import FORMAT as LABELS_FORMAT
 from sim.render.labels import LABELS_FILE, SceneLabels, concatenate_labels, write_labels
-from sim.render.sky_file import mesh_sha256
+from sim.render.sky_file import FORMAT as SKY_FORMAT, SKY_FILE, mesh_sha256
 from sim.worlds.atlas import allocate_facades
 from sim.worlds.facades import paint_facades
 from sim.worlds.built import OBJECT_KINDS, built_part, clear_sites, paint_built, place_built
@@ -151,6 +151,7 @@ def scene_description(layout: Layout, mesh: Part, labels: SceneLabels, variant: 
             **{f"{kind}s": sum(o["kind"] == kind for o in objects) for kind in OBJECT_KINDS},
         },
         "labels": {"file": LABELS_FILE, "format": LABELS_FORMAT, "method": LABELS_METHOD},
+        "sky_visibility": {"file": SKY_FILE, "format": SKY_FORMAT, "cache": True},
         "classes": class_table(),
         "objects": objects,
         "vegetation": vegetation_truth(layout, mesh.vertices, mesh.faces, labels.face_instance,
@@ -161,7 +162,8 @@ def scene_description(layout: Layout, mesh: Part, labels: SceneLabels, variant: 
 def build_demo_world(out_dir: str | os.PathLike, variant: str = "default", seed: int = 0) -> Path:
     """Generate the demo world ``variant`` ("default", "small" or "large") for ``seed`` into the scene folder ``out_dir``
     (created if missing; ``world.glb``, ``labels.npz`` and ``scene.json`` are replaced atomically). Same arguments,
-    same bytes. Returns the folder."""
+    same bytes. ``scene.json`` names ``sky_visibility.npz`` as a cache: the first lit render bakes it, the later ones
+    load it. Returns the folder."""
     _spec(variant)
     layout, mesh, atlas, labels, objects = generate_world(variant, seed)
     out = Path(out_dir)

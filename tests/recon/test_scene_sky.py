@@ -1,8 +1,11 @@
 """A reconstruction's scene folder stores its mesh's baked sky visibility (recon/run/scene_out.py,
 sim/render/sky_file.py): a render of that very mesh uses it, one of an edited mesh or of other bake settings bakes
-anew, a damaged file is refused naming it, and rendering never writes into the scene folder."""
+anew, a damaged file is refused naming it, and rendering never writes into the scene folder, except where scene.json marks
+the file a cache (a demo world's): the first lit render stores its bake there and the later ones load it."""
 
+import errno
 import json
+import logging
 
 import numpy as np
 import pytest
@@ -12,8 +15,9 @@ from flightplan.geodesy import LocalFrame
 from recon.run.scene_out import write_scene
 from sim.cli import main as render_main
 from sim.render import sky
-from sim.render.scene import SceneError, load_scene
+from sim.render.scene import SceneError, load_scene, scene_sky_cache
 from sim.render.sky_file import FORMAT, SKY_FILE, read_sky_visibility
+from sim.worlds import demo_scene_dir
 from sim.worlds.synthetic import grid_mesh
 
 
@@ -45,9 +49,9 @@ def rewrite(path, **changes):
 
 
 def fresh_bake(scene_dir) -> sky.SkyVisibility:
-    """The sky visibility a render bakes for the scene folder's mesh, the stored file left aside."""
+    """The sky visibility a render bakes for the scene folder's mesh, the stored file left aside (and not written)."""
     scene = load_scene(scene_dir)
-    scene.stored_sky = None
+    scene.stored_sky, scene.sky_cache = None, None
     return sky.scene_sky_visibility(scene)
 
 
@@ -128,3 +132,67 @@ def test_a_lit_render_writes_nothing_into_the_scene_folder(scene_dir, tmp_path_f
             "--sun=135,40,8", "--margin=2", "--max-sky=1"]
     assert render_main(argv) == 0
     assert {path.name: path.read_bytes() for path in scene_dir.iterdir()} == before
+
+
+# --- a folder that keeps its bake as a cache (a demo world's) --------------------------------------------------------
+
+@pytest.fixture
+def cache_dir(scene_dir):
+    """The scene folder with its bake marked a cache and not yet baked."""
+    meta = json.loads((scene_dir / "scene.json").read_text())
+    meta["sky_visibility"]["cache"] = True
+    (scene_dir / "scene.json").write_text(json.dumps(meta))
+    (scene_dir / SKY_FILE).unlink()
+    return scene_dir
+
+
+def render_one_lit_frame(scene_dir, out):
+    argv = ["--scene", str(scene_dir), "--out", str(out), "--quiet", "--frames=1", "--width=32", "--height=24",
+            "--sun=135,40,8", "--margin=2", "--max-sky=1"]
+    assert render_main(argv) == 0
+
+
+def test_the_demo_world_keeps_its_bake_as_a_cache():
+    folder = demo_scene_dir("small")
+    assert json.loads((folder / "scene.json").read_text())["sky_visibility"] == \
+        {"file": SKY_FILE, "format": FORMAT, "cache": True}
+    assert scene_sky_cache(folder, json.loads((folder / "scene.json").read_text())) == folder / SKY_FILE
+
+
+def test_the_first_lit_render_stores_the_cache_and_the_next_loads_it_unbaked(cache_dir, tmp_path_factory,
+                                                                              monkeypatch):
+    expected = fresh_bake(cache_dir)
+    assert not (cache_dir / SKY_FILE).exists()
+    render_one_lit_frame(cache_dir, tmp_path_factory.mktemp("first") / "dataset")
+    stored = read_sky_visibility(cache_dir / SKY_FILE)
+    np.testing.assert_array_equal(stored.visibility.values, expected.values)
+    assert stored.baked_from == sky.baked_from(load_scene(cache_dir))
+    monkeypatch.setattr(sky, "bake_sky_visibility", lambda *args: pytest.fail("baked although the cache fits"))
+    render_one_lit_frame(cache_dir, tmp_path_factory.mktemp("second") / "dataset")
+
+
+@pytest.mark.parametrize("damage", [
+    lambda path: path.write_bytes(path.read_bytes()[:1000]),
+    lambda path: rewrite(path, rays=np.asarray(64)),
+])
+def test_a_damaged_or_stale_cache_is_baked_again_and_replaced(cache_dir, damage):
+    expected = fresh_bake(cache_dir)
+    sky.scene_sky_visibility(load_scene(cache_dir))
+    damage(cache_dir / SKY_FILE)
+    np.testing.assert_array_equal(sky.scene_sky_visibility(load_scene(cache_dir)).values, expected.values)
+    np.testing.assert_array_equal(read_sky_visibility(cache_dir / SKY_FILE).visibility.values, expected.values)
+
+
+def test_a_cache_that_cannot_be_written_costs_only_the_bake_and_says_so(cache_dir, monkeypatch, caplog):
+    expected = fresh_bake(cache_dir)
+
+    def refuse(path, *args):
+        raise PermissionError(errno.EACCES, "Permission denied", str(path))
+
+    monkeypatch.setattr(sky, "write_sky_visibility", refuse)
+    with caplog.at_level(logging.WARNING, logger=sky.__name__):
+        values = sky.scene_sky_visibility(load_scene(cache_dir)).values
+    np.testing.assert_array_equal(values, expected.values)
+    assert not (cache_dir / SKY_FILE).exists()
+    assert f"{cache_dir / SKY_FILE}: sky visibility not stored, later renders bake it again (Permission denied)" \
+        in caplog.text
