@@ -130,6 +130,11 @@ def surface_points(view: View) -> np.ndarray:
     return points.reshape(*view.depth.shape, 3)
 
 
+def in_area_mask(view: View, polygon: np.ndarray) -> np.ndarray:
+    """Pixels of the true ``view`` whose surface point lies in the observed ``polygon`` (world ENU): those scored."""
+    return view.valid & inside(polygon, surface_points(view))
+
+
 def wall_mask(view: View) -> np.ndarray:
     """Pixels whose surface normal is steeper than 45 deg from vertical (normal up component < cos 45 deg)."""
     return view.valid & (view.normal[..., 2] < WALL_MAX_UP)
@@ -163,7 +168,7 @@ class ViewScores:
 def score_view(true_view: View, twin_view: View, polygon: np.ndarray, depth_scale: float = 1.0) -> ViewScores:
     """Scores of the twin's view against the true one (same pose and sun); ``depth_scale``: world metres per
     twin depth unit (:attr:`TwinFrame.scale`)."""
-    in_area = true_view.valid & inside(polygon, surface_points(true_view))
+    in_area = in_area_mask(true_view, polygon)
     covered = in_area & twin_view.valid
     walls = wall_mask(true_view)
     truth, twin = true_view.rgb, twin_view.rgb
@@ -209,7 +214,7 @@ def score_light(true_view: View, captured_view: View, twin_view: View, twin_as_c
                 polygon: np.ndarray) -> LightScores:
     """:class:`LightScores` of a twin rendered under the drawn sun (``twin_view``) and as captured, against the
     truth under the drawn sun and under the capture sun (``captured_view``), all from one pose."""
-    covered = true_view.valid & twin_view.valid & inside(polygon, surface_points(true_view))
+    covered = in_area_mask(true_view, polygon) & twin_view.valid
     now, then = _luminance(true_view.rgb), _luminance(captured_view.rgb)
     ghost = covered & (then < SHADOW_CONTRAST * now)
     lit_both = covered & ~ghost & (now >= SHADOW_CONTRAST * then)
