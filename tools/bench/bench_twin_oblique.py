@@ -22,6 +22,15 @@ the flight's capture sun (``--capture-sun AZ,EL,STRENGTH``, default truth.json's
 ghost ratio (twin / truth luminance over the pixels in a capture shadow that the drawn sun lights: 1 when the
 capture's shadows are gone, far below 1 for a texture that still holds them), formula 3 over the pixels lit by both
 suns, and the floor: the twin rendered as captured against the truth under the capture sun.
+
+Where the true world has face labels, two more tables (recon.measure.per_class), pooled over the views by pixel
+counts: a row per scene x TRUE class (the coarse groups ground / building / vegetation / objects, then each class
+present): its share of the in-area pixels, the twin's coverage, depth abs rel median and mean over the covered pixels,
+the share off by more than 20 % in depth or a hole, formula 3 where covered; and a row per scene x kind of small
+object of the world's scene.json (chimney, lamp_post, power_pole, car; wire by coverage only): objects whose centre
+is in the observed area, those seen (at least 20 in-area pixels), recovered (at least half of them within 20 % in
+depth), the share of the seen ones recovered, those recovered within 0.5 m (at least half of them within 0.5 m: a
+lost car's ground is within 20 % from 20-100 m away), pixels and coverage.
 """
 
 from __future__ import annotations
@@ -42,6 +51,8 @@ from cliutil.atomic import write_text_atomic  # noqa: E402
 from recon.run.cli_options import positive_int  # noqa: E402
 from recon.measure.oblique import (render_view, sample_views, score_light, score_view, summarise,  # noqa: E402
                                    summarise_light, true_camera_area, twin_frame)
+from recon.measure.per_class import (count_objects, object_kinds, objects_in_area, pool_classes,  # noqa: E402
+                                     score_classes)
 from recon.measure.scene_cameras import scene_camera_poses  # noqa: E402
 from sim.render.camera import PinholeCamera  # noqa: E402
 from sim.dataset.images import write_png  # noqa: E402
@@ -49,7 +60,7 @@ from sim.sampling.light import SunSetting, frame_light, frame_sun, parse_sun  # 
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
 from sim.sampling.sun import random_sun  # noqa: E402
-from sim.render.scene import load_scene  # noqa: E402
+from sim.render.scene import load_scene, read_scene_json  # noqa: E402
 from sim.render.camera import Rig  # noqa: E402
 from sim.render.renderer import render  # noqa: E402
 from sim.render.shade import UNLIT, Sun  # noqa: E402
@@ -88,14 +99,18 @@ def flight_sun(args, truth: dict, origin) -> Sun:
 
 
 def load_inputs(args) -> tuple:
-    """The true world, each twin's scene and frame, and the observed area (world ENU)."""
+    """The true world, the kinds of its small objects (instance -> kind), each twin's scene and frame, the observed
+    area (world ENU) and the capture sun."""
     truth = json.loads(args.truth.read_text(encoding="utf-8"))
-    world = load_scene(resolve_scene_dir(args.world))
+    world_dir = resolve_scene_dir(args.world)
+    world = load_scene(world_dir)
+    kinds = object_kinds(read_scene_json(world_dir).get("objects", []), str(world_dir / "scene.json"))
     twins, registered = {}, set()
     for label, folder in args.scene:
         twins[label] = (load_scene(folder), twin_frame(folder, truth, world.origin))
         registered |= set(scene_camera_poses(folder))
-    return world, twins, true_camera_area(truth, registered, world.origin), flight_sun(args, truth, world.origin)
+    area = true_camera_area(truth, registered, world.origin)
+    return world, kinds, twins, area, flight_sun(args, truth, world.origin)
 
 
 def print_table(summaries: dict, truth_s: float, views: int) -> None:
@@ -137,13 +152,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def measure(args, world, twins: dict, area: np.ndarray, camera: PinholeCamera, poses,
-            capture: Sun) -> tuple[dict, dict, dict, float]:
+def measure(args, world, twins: dict, area: np.ndarray, camera: PinholeCamera, poses, capture: Sun,
+            kinds: dict) -> tuple[dict, dict, dict, dict, float]:
     """Render every pose in the true world and in each twin (same camera, same sun: the dataset renderer's sun
     of frame ``i``) and score them; the truth also under the ``capture`` sun and each twin as captured, for the light
-    scores. Per-view scores and light scores and render seconds per scene, and the true world's seconds."""
-    scores, light, render_s, truth_s = ({label: [] for label in twins}, {label: [] for label in twins},
-                                        dict.fromkeys(twins, 0.0), 0.0)
+    scores; per true class and per object of ``kinds`` where the world has labels. Per-view scores, light scores
+    and class scores (empty lists without labels) and render seconds per scene, and the true world's seconds."""
+    scores, light, classes, render_s, truth_s = ({label: [] for label in twins}, {label: [] for label in twins},
+                                                 {label: [] for label in twins}, dict.fromkeys(twins, 0.0), 0.0)
     with ThreadPoolExecutor(default_workers()) as pool:
         for index, pose in enumerate(poses):
             sun = frame_sun(random_sun(args.seed, index))
@@ -157,13 +173,15 @@ def measure(args, world, twins: dict, area: np.ndarray, camera: PinholeCamera, p
                 twin_view = render_view(scene, camera, twin_pose, frame.sun(sun), pool)
                 render_s[label] += time.perf_counter() - start
                 scores[label].append(score_view(true_view, twin_view, area, frame.scale))
+                if world.labels is not None:
+                    classes[label].append(score_classes(true_view, twin_view, world.labels, area, frame.scale, kinds))
                 as_captured = render(scene, Rig((camera,)), twin_pose, pool=pool, **UNLIT).views[0]
                 light[label].append(score_light(true_view, captured, twin_view, as_captured, area))
                 if args.pictures and index < args.picture_count:
                     write_png(args.pictures / f"view{index:03d}_{label}.png",
                               np.hstack([true_view.rgb, twin_view.rgb]))
             print(f"view {index + 1}/{len(poses)}", file=sys.stderr)
-    return scores, light, render_s, truth_s
+    return scores, light, classes, render_s, truth_s
 
 
 def print_light_table(light: dict) -> None:
@@ -186,7 +204,7 @@ def main(argv=None) -> int:
     except ValueError as error:
         parser.error(f"argument --fov: {error}")
     try:
-        world, twins, area, capture = load_inputs(args)
+        world, kinds, twins, area, capture = load_inputs(args)
         start = time.perf_counter()
         poses = sample_views(world, camera, area, args.views, args.seed)
     except (OSError, ValueError, KeyError, RuntimeError) as error:  # SceneError, RenderInputError: ValueErrors
@@ -195,21 +213,70 @@ def main(argv=None) -> int:
     print(f"{args.views} views {args.size[0]}x{args.size[1]} ({args.fov:g} deg), seed {args.seed}, observed area "
           f"{len(area)}-gon of {ConvexHull(area).volume:.0f} m2; sampled in {time.perf_counter() - start:.1f} s "
           f"({sum(p.rejected for p in poses)} draws rejected)", file=sys.stderr)
-    scores, light, render_s, truth_s = measure(args, world, twins, area, camera, poses, capture)
+    scores, light, classes, render_s, truth_s = measure(args, world, twins, area, camera, poses, capture, kinds)
     summaries = {label: {**summarise(scores[label]), "render_s": render_s[label]} for label in twins}
     light_summaries = {label: summarise_light(light[label]) for label in twins}
     print_table(summaries, truth_s, args.views)
     print_light_table(light_summaries)
     for label in twins:
         summaries[label]["light"] = light_summaries[label]
+    per_class = class_summaries(world, kinds, area, classes)
+    if per_class is None:
+        print("bench_twin_oblique: the true world has no face labels: no per-class or per-object tables",
+              file=sys.stderr)
+    else:
+        print_class_table(per_class)
+        print_object_table(per_class)
     if args.json:
-        write_text_atomic(args.json, json.dumps(report(args, area, poses, twins, summaries, scores, truth_s),
-                                                indent=1, default=str) + "\n")
+        write_text_atomic(args.json, json.dumps(report(args, area, poses, twins, summaries, scores, truth_s,
+                                                       per_class, classes), indent=1, default=str) + "\n")
     return 0
 
 
-def report(args, area, poses, twins, summaries, scores, truth_s) -> dict:
-    """The JSON: settings, the observed area, each scene's alignment, summary and per-view scores, the poses."""
+def class_summaries(world, kinds: dict, area: np.ndarray, classes: dict) -> dict | None:
+    """Per scene, the per-class scores pooled over the views and the per-kind object counts
+    (recon.measure.per_class); None when the true world has no labels."""
+    if world.labels is None:
+        return None
+    in_area = objects_in_area(world, kinds, area)
+    return {label: {**pool_classes(views), "objects": count_objects(views, kinds, in_area)}
+            for label, views in classes.items()}
+
+
+def _percent(value: float) -> str:
+    return "-" if value is None or value != value else f"{100 * value:.1f} %"
+
+
+def print_class_table(per_class: dict) -> None:
+    """One row per scene x true group, then per scene x true class present (pooled over the views)."""
+    header = ["scene", "level", "true class", "share of in-area px", "coverage", "abs rel median", "abs rel mean",
+              "off > 20 % or hole", "f3 covered %"]
+    print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
+    for label, pooled in per_class.items():
+        for level, key in (("group", "groups"), ("class", "classes")):
+            for name, row in pooled[key].items():
+                print(f"| {label} | {level} | {name} | {_percent(row['share'])} | {_percent(row['coverage'])} | "
+                      f"{row['abs_rel_median']:.3f} | {row['abs_rel_mean']:.3f} | {_percent(row['off'])} | "
+                      f"{row['error_covered']:.2f} |")
+
+
+def print_object_table(per_class: dict) -> None:
+    """One row per scene x kind of small object: counts in the observed area, seen, recovered (within 20 %, within
+    0.5 m), pixels and coverage; a wire row has coverage only."""
+    header = ["scene", "kind", "in area", "seen", "recovered", "share recovered", "recovered 0.5 m", "pixels",
+              "coverage"]
+    print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
+    for label, pooled in per_class.items():
+        for kind, row in pooled["objects"]["kinds"].items():
+            counts = ["-" if row[key] is None else str(row[key]) for key in ("seen", "recovered")]
+            print(f"| {label} | {kind} | {row['in_area']} | {' | '.join(counts)} | {_percent(row['share_recovered'])} "
+                  f"| {'-' if row['recovered_near'] is None else row['recovered_near']} | {row['pixels']} | "
+                  f"{_percent(row['coverage'])} |")
+
+
+def report(args, area, poses, twins, summaries, scores, truth_s, per_class, classes) -> dict:
+    """The JSON: settings, the observed area, each scene's alignment, summary and per-view scores, its per-class
+    and per-object scores pooled (None without labels) and per view, the poses."""
     return {
         "world": args.world, "truth": str(args.truth), "views": args.views, "size": list(args.size),
         "fov_deg": args.fov, "seed": args.seed, "observed_area_enu_m": area.tolist(),
@@ -218,7 +285,9 @@ def report(args, area, poses, twins, summaries, scores, truth_s) -> dict:
         "scenes": {label: {"dir": str(dict(args.scene)[label]),
                            "alignment": {"scale": frame.scale, "rotation_deg": frame.rotation_deg,
                                          "T_world_twin": frame.T_world_twin.tolist()},
-                           "summary": summaries[label], "per_view": [s.to_dict() for s in scores[label]]}
+                           "summary": summaries[label], "per_view": [s.to_dict() for s in scores[label]],
+                           "per_class": None if per_class is None else per_class[label],
+                           "per_class_per_view": [view.to_dict() for view in classes[label]]}
                    for label, (_, frame) in twins.items()},
     }
 
