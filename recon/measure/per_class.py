@@ -7,7 +7,8 @@ view and pooled over views by summing pixel counts (never by averaging per-view 
 pixels in one view and 3 in the next): the class's share of the in-area pixels, the twin's coverage (the pixel
 shows twin surface, whatever it is: a twin that lost a car over a lawn covers the car's pixels with the lawn), the
 depth abs rel |z_twin - z_true| / z_true over the covered pixels (median and mean), the share of pixels off, i.e.
-with a depth off by more than :data:`OFF_FRACTION` or a hole, and formula 3 over the covered pixels. Classes are
+with a depth off by more than :data:`OFF_FRACTION` or a hole (and off by more than :data:`NEAR_M`, or a hole), and
+formula 3 over the covered pixels. Classes are
 reported one by one (:data:`sim.render.classes.CLASSES`) and in the coarse :data:`sim.render.classes.GROUPS`.
 
 Per object, for the small things (:data:`SMALL_KINDS`, scene.json's ``"objects"`` kinds): an object whose centre
@@ -53,34 +54,38 @@ COVERAGE_KINDS = ("wire",)
 @dataclass(frozen=True)
 class PixelTally:
     """One class's in-area pixels in one view, or pooled: ``pixels``; ``covered``: those where the twin has surface;
-    ``within``: covered with depth within :data:`OFF_FRACTION`; ``error_sum``: formula 3 (%) over the covered ones
+    ``within``: covered with depth within :data:`OFF_FRACTION`; ``near``: covered with depth within :data:`NEAR_M`;
+    ``error_sum``: formula 3 (%) over the covered ones
     times ``covered`` (so pooled formula 3 is ``error_sum / covered``); ``abs_rel``: float32 |z_twin - z_true| /
     z_true of each covered pixel (for the pooled median)."""
 
     pixels: int
     covered: int
     within: int
+    near: int
     error_sum: float
     abs_rel: np.ndarray = field(repr=False)
 
     def __add__(self, other: PixelTally) -> PixelTally:
         return PixelTally(self.pixels + other.pixels, self.covered + other.covered, self.within + other.within,
-                          self.error_sum + other.error_sum, np.concatenate([self.abs_rel, other.abs_rel]))
+                          self.near + other.near, self.error_sum + other.error_sum,
+                          np.concatenate([self.abs_rel, other.abs_rel]))
 
     def summary(self, in_area: int) -> dict:
         """Share of the ``in_area`` pixels, coverage, abs rel median and mean over the covered pixels, the share off
-        (depth off by more than :data:`OFF_FRACTION` or a hole) and formula 3 (%) over the covered pixels; NaN where
-        a ratio has no pixels."""
+        (depth off by more than :data:`OFF_FRACTION` or a hole), the share off by more than :data:`NEAR_M` or a
+        hole, and formula 3 (%) over the covered pixels; NaN where a ratio has no pixels."""
         covered = self.covered > 0
         return {"pixels": self.pixels, "share": _ratio(self.pixels, in_area),
                 "coverage": _ratio(self.covered, self.pixels),
                 "abs_rel_median": float(np.median(self.abs_rel)) if covered else math.nan,
                 "abs_rel_mean": float(np.mean(self.abs_rel, dtype=np.float64)) if covered else math.nan,
                 "off": _ratio(self.pixels - self.within, self.pixels),
+                "off_near": _ratio(self.pixels - self.near, self.pixels),
                 "error_covered": self.error_sum / self.covered if covered else math.nan}
 
 
-EMPTY = PixelTally(0, 0, 0, 0.0, np.zeros(0, np.float32))
+EMPTY = PixelTally(0, 0, 0, 0, 0.0, np.zeros(0, np.float32))
 
 
 @dataclass(frozen=True)
@@ -109,7 +114,7 @@ def score_classes(true_view: View, twin_view: View, labels: SceneLabels, polygon
     true_depth = np.where(in_area, true_view.depth, 1.0).astype(np.float64)  # finite where scored
     difference = np.abs(np.where(covered, twin_view.depth * np.float64(depth_scale), true_depth) - true_depth)
     abs_rel = difference / true_depth
-    within = covered & (abs_rel <= OFF_FRACTION)
+    within, near = covered & (abs_rel <= OFF_FRACTION), covered & (difference <= NEAR_M)
     classes = {}
     for class_id in np.unique(face_class[in_area]):
         mask = in_area & (face_class == class_id)
@@ -117,9 +122,9 @@ def score_classes(true_view: View, twin_view: View, labels: SceneLabels, polygon
         error = photorealism_error_masked(true_view.rgb, twin_view.rgb, covered_here)
         count = int(covered_here.sum())
         classes[int(class_id)] = PixelTally(int(mask.sum()), count, int((mask & within).sum()),
-                                            error * count if count else 0.0, abs_rel[covered_here].astype(np.float32))
-    flags = (covered, within, covered & (difference <= NEAR_M))
-    return ClassView(int(in_area.sum()), classes, _object_counts(in_area, instance, flags, instances))
+                                            int((mask & near).sum()), error * count if count else 0.0,
+                                            abs_rel[covered_here].astype(np.float32))
+    return ClassView(int(in_area.sum()), classes, _object_counts(in_area, instance, (covered, within, near), instances))
 
 
 def _object_counts(in_area: np.ndarray, instance: np.ndarray, flags: tuple[np.ndarray, ...],

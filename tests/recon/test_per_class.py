@@ -89,8 +89,8 @@ def test_the_truth_against_itself_is_covered_exactly_everywhere_and_every_object
     assert set(pooled["classes"]) == {"ground", "roof", "wall", "pole", "car"}
     assert views[0].in_area == views[1].in_area == CAMERA.width * CAMERA.height  # the nadir views see only the area
     for row in [*pooled["classes"].values(), *(pooled["groups"][g] for g in ("ground", "building", "objects"))]:
-        assert (row["coverage"], row["abs_rel_median"], row["abs_rel_mean"], row["off"], row["error_covered"]) == \
-            (1.0, 0.0, 0.0, 0.0, 0.0)
+        assert (row["coverage"], row["abs_rel_median"], row["abs_rel_mean"], row["off"], row["off_near"],
+                row["error_covered"]) == (1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     assert pooled["groups"]["vegetation"]["pixels"] == 0 and math.isnan(pooled["groups"]["vegetation"]["coverage"])
     assert sum(row["share"] for row in pooled["classes"].values()) == pytest.approx(1.0)
     assert pooled["groups"]["objects"]["pixels"] == pooled["classes"]["pole"]["pixels"] + \
@@ -110,7 +110,8 @@ def test_a_twin_that_lost_the_pole_and_the_car_shows_the_ground_under_them(truth
     lost, kept = [scored(truth, twin, pose) for pose in poses], [scored(truth, truth, pose) for pose in poses]
     pooled = pool_classes(lost)
     car, pole = pooled["classes"]["car"], pooled["classes"]["pole"]
-    assert (car["coverage"], car["off"], pole["coverage"], pole["off"]) == (1.0, 1.0, 1.0, 1.0)
+    for row in (car, pole):
+        assert (row["coverage"], row["off"], row["off_near"]) == (1.0, 1.0, 1.0)
     assert car["abs_rel_median"] == pytest.approx(CAR_TOP / (6.0 - CAR_TOP), rel=1e-5)
     assert pole["abs_rel_mean"] == pytest.approx(POLE_TOP / (10.0 - POLE_TOP), rel=1e-5)
     assert pooled["groups"]["objects"]["off"] == 1.0 and car["error_covered"] > 10.0
@@ -126,7 +127,8 @@ def test_a_lost_car_seen_from_20_m_passes_the_20_percent_test_but_not_the_metric
     pose = look_at((18.0, 0.0, 20.0), (18.0, 0.0, 0.0))
     view = scored(truth, world(car=False), pose)
     car = pool_classes([view])["classes"]["car"]
-    assert car["off"] == 0.0 and car["abs_rel_median"] == pytest.approx(CAR_TOP / (20.0 - CAR_TOP), rel=1e-5)
+    assert car["abs_rel_median"] == pytest.approx(CAR_TOP / (20.0 - CAR_TOP), rel=1e-5)
+    assert (car["off"], car["off_near"]) == (0.0, 1.0)
     counted = count_objects([view], KINDS, objects_in_area(truth, KINDS, AREA))["kinds"]["car"]
     assert counted["pixels"] >= SEEN_PIXELS and CAR_TOP > NEAR_M
     assert (counted["recovered"], counted["recovered_near"]) == (1, 0)
@@ -144,7 +146,7 @@ def test_a_building_20_percent_too_low_leaves_holes_over_the_top_fifth_of_its_wa
     above = wall & (z > 0.8 * BUILDING_TOP)
     building = pool_classes([view])["groups"]["building"]
     assert building["pixels"] == wall.sum() and above.sum() > 0
-    assert building["off"] == pytest.approx(above.sum() / wall.sum())
+    assert building["off"] == building["off_near"] == pytest.approx(above.sum() / wall.sum())
     assert building["coverage"] == pytest.approx(1.0 - above.sum() / wall.sum())
     assert building["abs_rel_mean"] < 1e-6  # what the twin covers is the same wall (float32 depths)
     # pooled with an exact view of the wall, the holes count by pixels, not by views

@@ -26,7 +26,8 @@ suns, and the floor: the twin rendered as captured against the truth under the c
 Where the true world has face labels, two more tables (recon.measure.per_class), pooled over the views by pixel
 counts: a row per scene x TRUE class (the coarse groups ground / building / vegetation / objects, then each class
 present): its share of the in-area pixels, the twin's coverage, depth abs rel median and mean over the covered pixels,
-the share off by more than 20 % in depth or a hole, formula 3 where covered; and a row per scene x kind of small
+the share off by more than 20 % in depth or a hole, the share off by more than 0.5 m or a hole, formula 3 where
+covered; and a row per scene x kind of small
 object of the world's scene.json (chimney, lamp_post, power_pole, car; wire by coverage only): objects whose centre
 is in the observed area, those seen (at least 20 in-area pixels), recovered (at least half of them within 20 % in
 depth), the share of the seen ones recovered, those recovered within 0.5 m (at least half of them within 0.5 m: a
@@ -250,14 +251,14 @@ def _percent(value: float) -> str:
 def print_class_table(per_class: dict) -> None:
     """One row per scene x true group, then per scene x true class present (pooled over the views)."""
     header = ["scene", "level", "true class", "share of in-area px", "coverage", "abs rel median", "abs rel mean",
-              "off > 20 % or hole", "f3 covered %"]
+              "off > 20 % or hole", "off > 0.5 m or hole", "f3 covered %"]
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     for label, pooled in per_class.items():
         for level, key in (("group", "groups"), ("class", "classes")):
             for name, row in pooled[key].items():
                 print(f"| {label} | {level} | {name} | {_percent(row['share'])} | {_percent(row['coverage'])} | "
                       f"{row['abs_rel_median']:.3f} | {row['abs_rel_mean']:.3f} | {_percent(row['off'])} | "
-                      f"{row['error_covered']:.2f} |")
+                      f"{_percent(row['off_near'])} | {row['error_covered']:.2f} |")
 
 
 def print_object_table(per_class: dict) -> None:
