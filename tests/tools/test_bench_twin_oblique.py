@@ -84,7 +84,7 @@ def test_a_labelled_world_gets_the_per_class_and_per_object_tables(flight, tmp_p
     for name in ("group | ground", "group | building", "class | roof", "class | wall"):
         row = next(line for line in out if line.startswith(f"| copy | {name} |"))
         assert "| 100.0 % | 0.000 | 0.000 | 0.0 % | 0.0 % |" in row  # coverage, abs rel median and mean, off
-    assert "| copy | group | vegetation | 0.0 % | - | nan | nan | - | - | nan |" in out
+    assert "| copy | group | vegetation | 0.00 % | - | nan | nan | - | - | nan |" in out
     per_class = json.loads((tmp_path / "out.json").read_text())["scenes"]["copy"]["per_class"]
     car = per_class["objects"]["kinds"]["car"]
     assert [line for line in out if line.startswith("| copy | car |")] == [

@@ -244,8 +244,9 @@ def class_summaries(world, kinds: dict, area: np.ndarray, classes: dict) -> dict
             for label, views in classes.items()}
 
 
-def _percent(value: float) -> str:
-    return "-" if value is None or value != value else f"{100 * value:.1f} %"
+def _percent(value: float | None, digits: int = 1) -> str:
+    """A share as a percentage, "-" where it is undefined (None or NaN)."""
+    return "-" if value is None or value != value else f"{100 * value:.{digits}f} %"
 
 
 def print_class_table(per_class: dict) -> None:
@@ -256,7 +257,7 @@ def print_class_table(per_class: dict) -> None:
     for label, pooled in per_class.items():
         for level, key in (("group", "groups"), ("class", "classes")):
             for name, row in pooled[key].items():
-                print(f"| {label} | {level} | {name} | {_percent(row['share'])} | {_percent(row['coverage'])} | "
+                print(f"| {label} | {level} | {name} | {_percent(row['share'], 2)} | {_percent(row['coverage'])} | "
                       f"{row['abs_rel_median']:.3f} | {row['abs_rel_mean']:.3f} | {_percent(row['off'])} | "
                       f"{_percent(row['off_near'])} | {row['error_covered']:.2f} |")
 
