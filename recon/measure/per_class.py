@@ -7,16 +7,16 @@ view and pooled over views by summing pixel counts (never by averaging per-view 
 pixels in one view and 3 in the next): the class's share of the in-area pixels, the twin's coverage (the pixel
 shows twin surface, whatever it is: a twin that lost a car over a lawn covers the car's pixels with the lawn), the
 depth abs rel |z_twin - z_true| / z_true over the covered pixels (median and mean), the share of pixels off, i.e.
-with a depth off by more than :data:`OFF_FRACTION` or a hole (and off by more than :data:`NEAR_M`, or a hole), and
-formula 3 over the covered pixels. Classes are
+with a depth off by more than :data:`OFF_FRACTION` or a hole (and farther than :data:`NEAR_M` from the true surface,
+or a hole), and formula 3 over the covered pixels. Classes are
 reported one by one (:data:`sim.render.classes.CLASSES`) and in the coarse :data:`sim.render.classes.GROUPS`.
 
 Per object, for the small things (:data:`SMALL_KINDS`, scene.json's ``"objects"`` kinds): an object whose centre
 lies in the observed area is SEEN where it has at least :data:`SEEN_PIXELS` in-area pixels pooled over the views,
 RECOVERED where at least half of them have twin depth within :data:`OFF_FRACTION` (the issue's criterion), and
-recovered NEAR where at least half are within :data:`NEAR_M` metres: at 20-100 m, a 1.5 m car or a 1 m chimney that
-the twin lost leaves the ground or roof behind it within 20 % of its depth, so only the metric test tells a kept car
-from a lost one. Wires (:data:`COVERAGE_KINDS`) are too thin to judge per object: their pixels and coverage only.
+recovered NEAR where at least half are within :data:`NEAR_M` of the true surface (:func:`surface_distance`): at
+20-100 m, a 1.5 m car or a 1 m chimney that the twin lost leaves the ground or roof behind it within 20 % of its depth,
+so only the metric test tells a kept car from a lost one. Wires (:data:`COVERAGE_KINDS`) are too thin to judge per object: their pixels and coverage only.
 
 Frames and units: depths planar metres of the world; the twin's are scaled by ``depth_scale``
 (:attr:`recon.measure.oblique.TwinFrame.scale`); object centres world ENU metres.
@@ -33,6 +33,7 @@ import numpy as np
 from recon.measure.oblique import in_area_mask
 from recon.surface.observed import inside
 from sim.evaluation.realism import photorealism_error_masked
+from sim.render.camera import camera_rays
 from sim.render.classes import CLASSES, GROUPS
 from sim.render.labels import SceneLabels
 from sim.render.renderer import View
@@ -40,8 +41,9 @@ from sim.render.scene import Scene
 
 #: A covered pixel is off where its twin depth differs from the true one by more than this fraction of the true one.
 OFF_FRACTION = 0.2
-#: The metric tolerance of the NEAR count (m): loose against the twin's few-cm shape error, tight against the metre
-#: between a lost car's or chimney's top and the ground or roof under it.
+#: The metric tolerance of the NEAR count (m), on the twin's distance from the true surface's tangent plane
+#: (:func:`surface_distance`): loose against the twin's few-cm shape error, tight against the metre between a lost
+#: car's or chimney's top and the ground or roof under it.
 NEAR_M = 0.5
 #: Pooled in-area pixels an object needs to be judged: below about 20 most of its pixels are silhouette pixels, where
 #: a sub-pixel shift of the twin's edge decides, and "half of them" is a handful of pixels.
@@ -54,7 +56,8 @@ COVERAGE_KINDS = ("wire",)
 @dataclass(frozen=True)
 class PixelTally:
     """One class's in-area pixels in one view, or pooled: ``pixels``; ``covered``: those where the twin has surface;
-    ``within``: covered with depth within :data:`OFF_FRACTION`; ``near``: covered with depth within :data:`NEAR_M`;
+    ``within``: covered with depth within :data:`OFF_FRACTION`; ``near``: covered within :data:`NEAR_M` of the true
+    surface (:func:`surface_distance`);
     ``error_sum``: formula 3 (%) over the covered ones
     times ``covered`` (so pooled formula 3 is ``error_sum / covered``); ``abs_rel``: float32 |z_twin - z_true| /
     z_true of each covered pixel (for the pooled median)."""
@@ -73,8 +76,8 @@ class PixelTally:
 
     def summary(self, in_area: int) -> dict:
         """Share of the ``in_area`` pixels, coverage, abs rel median and mean over the covered pixels, the share off
-        (depth off by more than :data:`OFF_FRACTION` or a hole), the share off by more than :data:`NEAR_M` or a
-        hole, and formula 3 (%) over the covered pixels; NaN where a ratio has no pixels."""
+        (depth off by more than :data:`OFF_FRACTION` or a hole), the share farther than :data:`NEAR_M` from the true
+        surface or a hole, and formula 3 (%) over the covered pixels; NaN where a ratio has no pixels."""
         covered = self.covered > 0
         return {"pixels": self.pixels, "share": _ratio(self.pixels, in_area),
                 "coverage": _ratio(self.covered, self.pixels),
@@ -114,7 +117,7 @@ def score_classes(true_view: View, twin_view: View, labels: SceneLabels, polygon
     true_depth = np.where(in_area, true_view.depth, 1.0).astype(np.float64)  # finite where scored
     difference = np.abs(np.where(covered, twin_view.depth * np.float64(depth_scale), true_depth) - true_depth)
     abs_rel = difference / true_depth
-    within, near = covered & (abs_rel <= OFF_FRACTION), covered & (difference <= NEAR_M)
+    within, near = covered & (abs_rel <= OFF_FRACTION), covered & (surface_distance(true_view, difference) <= NEAR_M)
     classes = {}
     for class_id in np.unique(face_class[in_area]):
         mask = in_area & (face_class == class_id)
@@ -125,6 +128,16 @@ def score_classes(true_view: View, twin_view: View, labels: SceneLabels, polygon
                                             int((mask & near).sum()), error * count if count else 0.0,
                                             abs_rel[covered_here].astype(np.float32))
     return ClassView(int(in_area.sum()), classes, _object_counts(in_area, instance, (covered, within, near), instances))
+
+
+def surface_distance(true_view: View, depth_difference: np.ndarray) -> np.ndarray:
+    """(H, W) metres from the twin's point on each pixel's ray to the plane tangent to the true surface at the true
+    point, given the planar ``depth_difference`` (m) between them: the distance along the ray (depth difference / the
+    ray's cosine to the optical axis) times the ray's cosine to the true normal. A twin surface offset by d along its
+    normal is d away at any viewing angle, where the distance along a grazing ray is many times d."""
+    rays = camera_rays(true_view.camera, true_view.T_world_cam)
+    incidence = np.abs(np.einsum("ij,ij->i", rays.directions, true_view.normal.reshape(-1, 3))) / rays.depth_scale
+    return depth_difference * incidence.reshape(depth_difference.shape)
 
 
 def _object_counts(in_area: np.ndarray, instance: np.ndarray, flags: tuple[np.ndarray, ...],

@@ -40,9 +40,11 @@ def box(x, y, top) -> trimesh.Trimesh:
     return trimesh.creation.box(bounds=[[x[0], y[0], 0.0], [x[1], y[1], top]])
 
 
-def world(building_top: float = BUILDING_TOP, pole: bool = True, car: bool = True) -> Scene:
-    """The labelled world; a twin of it with a lower building or without the pole or the car."""
+def world(building_top: float = BUILDING_TOP, pole: bool = True, car: bool = True, ground_z: float = 0.0) -> Scene:
+    """The labelled world; a twin of it with a lower building, without the pole or the car, or with the ground at
+    ``ground_z``."""
     ground_v, ground_f, _ = grid_mesh(50, 50, (-100.0, 100.0, -100.0, 100.0))
+    ground_v[:, 2] = ground_z
     parts = [(ground_v, ground_f, np.full(len(ground_f), GROUND), 0, (120, 140, 90))]
     house = box(BUILDING_X, BUILDING_Y, building_top)
     roof = np.isclose(house.face_normals[:, 2], 1.0)
@@ -132,6 +134,18 @@ def test_a_lost_car_seen_from_20_m_passes_the_20_percent_test_but_not_the_metric
     counted = count_objects([view], KINDS, objects_in_area(truth, KINDS, AREA))["kinds"]["car"]
     assert counted["pixels"] >= SEEN_PIXELS and CAR_TOP > NEAR_M
     assert (counted["recovered"], counted["recovered_near"]) == (1, 0)
+
+
+def test_a_ground_0_4_m_too_low_is_near_the_truth_even_where_rays_graze_it(truth):
+    """From 5 m up, 60 m south, looking at the origin: every true ground pixel's ray meets the twin's ground 0.4 m
+    under the true one at 0.4 / 5 = 8 % more depth, so 0.08 x its distance (0.9 m or more beyond the area's edge 11 m
+    away) farther along the ray, but 0.4 m from the true plane."""
+    view = scored(truth, world(ground_z=-0.4), look_at((0.0, -60.0, 5.0), (0.0, 0.0, 0.0)))
+    ground = pool_classes([view])["classes"]["ground"]
+    assert ground["pixels"] > 1000 and ground["coverage"] == 1.0
+    assert ground["abs_rel_median"] == pytest.approx(0.4 / 5.0, rel=1e-4)
+    assert ground["abs_rel_mean"] == pytest.approx(0.4 / 5.0, rel=1e-4)
+    assert (ground["off"], ground["off_near"]) == (0.0, 0.0)
 
 
 def test_a_building_20_percent_too_low_leaves_holes_over_the_top_fifth_of_its_wall(truth):

@@ -26,12 +26,12 @@ suns, and the floor: the twin rendered as captured against the truth under the c
 Where the true world has face labels, two more tables (recon.measure.per_class), pooled over the views by pixel
 counts: a row per scene x TRUE class (the coarse groups ground / building / vegetation / objects, then each class
 present): its share of the in-area pixels, the twin's coverage, depth abs rel median and mean over the covered pixels,
-the share off by more than 20 % in depth or a hole, the share off by more than 0.5 m or a hole, formula 3 where
-covered; and a row per scene x kind of small object of the world's scene.json (chimney, lamp_post, power_pole, car;
-wire by coverage only): objects whose centre is in the observed area, those seen (at least 20 in-area pixels),
-recovered (at least half of them within 20 % in depth), the share of the seen ones recovered, those recovered within
-0.5 m (at least half of them within 0.5 m: a lost car's ground is within 20 % from 20-100 m away), pixels and
-coverage.
+the share off by more than 20 % in depth or a hole, the share farther than 0.5 m from the true surface (its tangent
+plane) or a hole, formula 3 where covered; and a row per scene x kind of small object of the world's scene.json
+(chimney, lamp_post, power_pole, car; wire by coverage only): objects whose centre is in the observed area, those seen
+(at least 20 in-area pixels), recovered (at least half of them within 20 % in depth), the share of the seen ones
+recovered, those recovered within 0.5 m (at least half of them within 0.5 m of the true surface: a lost car's ground
+is within 20 % from 20-100 m away), pixels and coverage.
 """
 
 from __future__ import annotations
