@@ -252,7 +252,7 @@ def _percent(value: float | None, digits: int = 1) -> str:
 def print_class_table(per_class: dict) -> None:
     """One row per scene x true group, then per scene x true class present (pooled over the views)."""
     header = ["scene", "level", "true class", "share of in-area px", "coverage", "abs rel median", "abs rel mean",
-              "off > 20 % or hole", "off > 0.5 m or hole", "f3 covered %"]
+              "off > 20 % or hole", "> 0.5 m from surface or hole", "f3 covered %"]
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     for label, pooled in per_class.items():
         for level, key in (("group", "groups"), ("class", "classes")):
