@@ -8,15 +8,16 @@ pixels in one view and 3 in the next): the class's share of the in-area pixels, 
 shows twin surface, whatever it is: a twin that lost a car over a lawn covers the car's pixels with the lawn), the
 depth abs rel |z_twin - z_true| / z_true over the covered pixels (median and mean), the share of pixels off, i.e.
 with a depth off by more than :data:`OFF_FRACTION` or a hole (and farther than :data:`NEAR_M` from the true surface,
-or a hole), and formula 3 over the covered pixels. Classes are
-reported one by one (:data:`sim.render.classes.CLASSES`) and in the coarse :data:`sim.render.classes.GROUPS`.
+or a hole), and formula 3 over the covered pixels. Classes are reported one by one
+(:data:`sim.render.classes.CLASSES`) and in the coarse :data:`sim.render.classes.GROUPS`.
 
 Per object, for the small things (:data:`SMALL_KINDS`, scene.json's ``"objects"`` kinds): an object whose centre
 lies in the observed area is SEEN where it has at least :data:`SEEN_PIXELS` in-area pixels pooled over the views,
 RECOVERED where at least half of them have twin depth within :data:`OFF_FRACTION` (the issue's criterion), and
 recovered NEAR where at least half are within :data:`NEAR_M` of the true surface (:func:`surface_distance`): at
 20-100 m, a 1.5 m car or a 1 m chimney that the twin lost leaves the ground or roof behind it within 20 % of its depth,
-so only the metric test tells a kept car from a lost one. Wires (:data:`COVERAGE_KINDS`) are too thin to judge per object: their pixels and coverage only.
+so only the metric test tells a kept car from a lost one. Wires (:data:`COVERAGE_KINDS`) are too thin to judge per
+object: their pixels and coverage only.
 
 Frames and units: depths planar metres of the world; the twin's are scaled by ``depth_scale``
 (:attr:`recon.measure.oblique.TwinFrame.scale`); object centres world ENU metres.
