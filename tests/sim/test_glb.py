@@ -187,10 +187,10 @@ def test_demo_world_is_upright_in_trimesh_and_valid(small_world):
 
 
 @pytest.mark.slow
-def test_the_default_demo_world_has_no_vertex_outside_every_triangle(tmp_path):
+def test_the_default_demo_world_has_no_vertex_outside_every_triangle():
     """The default world's GLB held 136 vertices no triangle used (the apex of every wall without a gable): valid
     now with every vertex in a triangle, like the small world above."""
-    assert_valid_glb((demo_scene_dir("default", 0, cache_root=tmp_path) / "world.glb").read_bytes())
+    assert_valid_glb((demo_scene_dir("default", 0) / "world.glb").read_bytes())
 
 
 def test_demo_world_loads_back_to_its_generated_enu_mesh(small_world):

@@ -238,10 +238,10 @@ def test_the_new_classes_export_to_their_cityscapes_and_vkitti2_classes_and_grou
 
 
 @pytest.mark.slow
-def test_the_default_world_has_many_of_each_near_the_flight(tmp_path):
+def test_the_default_world_has_many_of_each_near_the_flight():
     """Chimneys on most roofs, dormers on some, lamp posts along both streets, a power line, fences and cars; the
     pond and the power line in sight of the default orbit (50 m around the origin)."""
-    folder = demo.build_demo_world(tmp_path / "default", "default", 0)
+    folder = demo.demo_scene_dir("default", 0)
     meta = json.loads((folder / "scene.json").read_text(encoding="utf-8"))
     count = meta["provenance"]
     assert count["chimneys"] >= 0.6 * count["buildings"] and count["dormers"] >= 3
