@@ -65,7 +65,7 @@ def forest(similarity: np.ndarray | None = None, **tree_a) -> Scene:
     return Scene(vertices, faces, Surface(vertex_colors=colours), labels=labels)
 
 
-def true_trees() -> list[TrueTree]:
+def tree_records() -> list[dict]:
     """The two trees as scene.json's vegetation lists them (footprints: the crown boxes)."""
     records = []
     for instance, ((x0, x1, y0, y1), (_, top)) in CROWNS.items():
@@ -73,7 +73,11 @@ def true_trees() -> list[TrueTree]:
                         "forest": instance == 2, "position_m": [(x0 + x1) / 2, (y0 + y1) / 2],
                         "ground_z_m": GROUND_Z, "top_height_m": top, "crown_radius_m": 2.0,
                         "crown_footprint_m": [[x0, y0], [x1, y0], [x1, y1], [x0, y1]]})
-    return read_true_trees({"vegetation": {"trees": records}}, "scene.json")
+    return records
+
+
+def true_trees() -> list[TrueTree]:
+    return read_true_trees({"vegetation": {"trees": tree_records()}}, "scene.json")
 
 
 def scores_by_tree(twin: Scene, frame: TwinFrame | None = None) -> dict[int, TreeScore]:
