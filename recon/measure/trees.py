@@ -11,8 +11,12 @@ are the world's mapped into its frame by the inverse of the similarity ``T_world
 - the TWIN crown: the cells whose first twin surface stands more than :func:`crown_threshold_m` above the tree's ground,
   leaving out those where the truth shows another object (another tree's crown, a roof, a car): a twin surface there
   belongs to that object, not to this tree;
+- each crown's OUTLINE: its cells closed by a disc of :data:`OUTLINE_CLOSING_M` and their holes filled, as a forester
+  draws a crown's projection round its gaps (a porous crown's cells miss the ground seen through it, which a twin
+  that closes the crown cannot match cell by cell);
 - the top height error: the highest twin surface over the true crown's cells minus the highest true one, both above
-  the tree's ground (signed: negative where the twin's crown is too low); the crown IoU of the two cell sets.
+  the tree's ground (signed: negative where the twin's crown is too low); the crown IoU of the two cell sets, and
+  of their outlines.
 
 Frames: world ENU metres; heights are ENU z minus the tree's ``ground_z_m``.
 """
@@ -25,6 +29,7 @@ from concurrent.futures import Executor
 from dataclasses import asdict, dataclass
 
 import numpy as np
+from scipy import ndimage
 
 from recon.measure.oblique import TwinFrame
 from recon.surface.observed import inside
@@ -43,6 +48,9 @@ CROWN_HEIGHT_SHARE = 0.1
 """... and above this share of the tree's top height. The generator's crowns reach down to 0.15-0.4 of their height
 from above (a conifer's lowest whorl, a broadleaf crown's base) so a perfect twin keeps all of a crown; a twin's
 crown sunk halfway to the ground still counts, flattened to it does not."""
+OUTLINE_CLOSING_M = 0.5
+"""Radius of the disc a crown's cells are closed with to draw its outline, metres: it bridges the gaps between a
+porous crown's leaf clusters and between a conifer's whorl spikes."""
 WITHIN_M = 0.5
 """A tree's top height is right within this many metres (the issue's target)."""
 GROUPS = ("all", "broadleaf", "conifer", "forest", "park")
@@ -134,7 +142,7 @@ class TreeScore:
     crown's cells above the tree's ground (m; NaN where the truth shows none of the tree from above, or the twin has
     no surface there); ``top_error_m``: twin - true; ``listed_top_m``: scene.json's top height (the highest vertex,
     which the cells' rays may pass beside); ``true_cells``/``twin_cells``: the crowns' cell counts; ``iou``: their
-    intersection over union (NaN where both are empty)."""
+    intersection over union (NaN where both are empty); ``outline_iou``: the same of their outlines."""
 
     instance: int
     kind: str
@@ -146,15 +154,31 @@ class TreeScore:
     true_cells: int
     twin_cells: int
     iou: float
+    outline_iou: float
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
-def score_tree(tree: TrueTree, true_height: np.ndarray, true_instance: np.ndarray,
+def crown_outline(crown: np.ndarray, cell_m: float = CELL_M) -> np.ndarray:
+    """A crown's cells (rows, columns) bool closed by a disc of :data:`OUTLINE_CLOSING_M` and with their holes
+    filled."""
+    reach = int(round(OUTLINE_CLOSING_M / cell_m))
+    offsets = np.arange(-reach, reach + 1)
+    disc = np.hypot(offsets[:, None], offsets[None, :]) <= reach
+    closed = ndimage.binary_closing(np.pad(crown, reach), disc)[reach:-reach, reach:-reach] if reach else crown
+    return ndimage.binary_fill_holes(closed)
+
+
+def _iou(first: np.ndarray, second: np.ndarray) -> float:
+    union = int((first | second).sum())
+    return int((first & second).sum()) / union if union else math.nan
+
+
+def score_tree(tree: TrueTree, window: Window, true_height: np.ndarray, true_instance: np.ndarray,
                twin_height: np.ndarray) -> TreeScore:
-    """One tree's :class:`TreeScore` from its window's cells: the first true surface's ENU height and object (0: none)
-    and the twin's height (NaN: a hole), each (cells,)."""
+    """One tree's :class:`TreeScore` from its window's cells (row by row): the first true surface's ENU height and
+    object (0: none) and the twin's height (NaN: a hole), each (cells,)."""
     true_crown = true_instance == tree.instance
     elsewhere = (true_instance != 0) & ~true_crown  # the truth shows another object here
     with np.errstate(invalid="ignore"):
@@ -162,10 +186,10 @@ def score_tree(tree: TrueTree, true_height: np.ndarray, true_instance: np.ndarra
     true_top = float(true_height[true_crown].max()) - tree.ground_z if true_crown.any() else math.nan
     over_crown = twin_height[true_crown]
     twin_top = float(np.nanmax(over_crown)) - tree.ground_z if np.isfinite(over_crown).any() else math.nan
-    union = int((true_crown | twin_crown).sum())
+    outlines = [crown_outline(crown.reshape(window.shape), window.cell_m).ravel() & ~elsewhere
+                for crown in (true_crown, twin_crown)]
     return TreeScore(tree.instance, tree.kind, tree.forest, true_top, twin_top, twin_top - true_top, tree.top_height,
-                     int(true_crown.sum()), int(twin_crown.sum()),
-                     int((true_crown & twin_crown).sum()) / union if union else math.nan)
+                     int(true_crown.sum()), int(twin_crown.sum()), _iou(true_crown, twin_crown), _iou(*outlines))
 
 
 def trees_inside(trees: Sequence[TrueTree], polygon: np.ndarray | None) -> list[TrueTree]:
@@ -190,8 +214,8 @@ def score_trees(world: Scene, twin: Scene, frame: TwinFrame | None, trees: Seque
     true_instance = np.where(true_face >= 0, world.labels.face_instance[np.maximum(true_face, 0)], 0)
     twin_height, _ = surface_from_above(twin, xy, frame, pool)
     bounds = np.cumsum([0] + [window.shape[0] * window.shape[1] for window in windows])
-    return [score_tree(tree, true_height[a:b], true_instance[a:b], twin_height[a:b])
-            for tree, a, b in zip(trees, bounds[:-1], bounds[1:], strict=True)]
+    return [score_tree(tree, window, true_height[a:b], true_instance[a:b], twin_height[a:b])
+            for tree, window, a, b in zip(trees, windows, bounds[:-1], bounds[1:], strict=True)]
 
 
 def group_members(scores: Sequence[TreeScore], group: str) -> list[TreeScore]:
@@ -206,7 +230,7 @@ def group_members(scores: Sequence[TreeScore], group: str) -> list[TreeScore]:
 def summarise_trees(scores: Sequence[TreeScore]) -> dict:
     """Per group of :data:`GROUPS` with trees seen from above (some true crown cells; ``hidden``: how many of the
     group's trees are not): their count, the median |top height error| (m), the share within :data:`WITHIN_M`, and the
-    median and 10th percentile crown IoU. A tree the twin has no surface over counts as infinitely wrong in height."""
+    median and 10th percentile crown IoU and outline IoU. A tree the twin has no surface over counts as infinitely wrong in height."""
     summary = {}
     for group in GROUPS:
         members = group_members(scores, group)
@@ -214,9 +238,11 @@ def summarise_trees(scores: Sequence[TreeScore]) -> dict:
         if not seen:
             continue
         error = np.array([abs(s.top_error_m) if math.isfinite(s.top_error_m) else math.inf for s in seen])
-        iou = np.array([s.iou for s in seen])
+        iou, outline = np.array([s.iou for s in seen]), np.array([s.outline_iou for s in seen])
         summary[group] = {"trees": len(seen), "hidden": len(members) - len(seen),
                           "median_abs_top_error_m": float(np.median(error)),
                           "within_share": float(np.mean(error <= WITHIN_M)),
-                          "median_iou": float(np.median(iou)), "p10_iou": float(np.percentile(iou, 10))}
+                          "median_iou": float(np.median(iou)), "p10_iou": float(np.percentile(iou, 10)),
+                          "median_outline_iou": float(np.median(outline)),
+                          "p10_outline_iou": float(np.percentile(outline, 10))}
     return summary

@@ -9,11 +9,12 @@ bench_twin_oblique). Each ``--scene`` is moved onto the world by the similarity 
 the true ones (recon.measure.oblique.twin_frame). Per tree (recon.measure.trees): nadir rays on a 0.25 m grid over the
 tree's crown footprint grown by 2 m, in the truth and in the twin; the top height error (the twin's highest surface
 over the true crown's cells minus the truth's, above the tree's ground) and the crown IoU (the cells whose first
-surface is the tree, against those where the twin stands above max(1.5 m, 0.1 x the tree's height)).
+surface is the tree, against those where the twin stands above max(1.5 m, 0.1 x the tree's height)), and the IoU of
+the two crowns' outlines (closed by a 0.5 m disc, holes filled: a porous crown's gaps inside its outline).
 
 Printed, a row per scene and group of trees (all, broadleaf, conifer, forest, park): trees seen from above, the
-median |top height error|, the share within 0.5 m, the median and 10th percentile crown IoU, and the seconds the
-scene's rays took. The JSON has every tree's scores.
+median |top height error|, the share within 0.5 m, the median and 10th percentile crown IoU and outline IoU, and the
+seconds the scene's rays took. The JSON has every tree's scores.
 """
 
 from __future__ import annotations
@@ -66,13 +67,14 @@ def measure(args) -> dict:
 
 def print_table(report: dict) -> None:
     """One row per scene and group of trees."""
-    header = ["scene", "trees", "count", "median |top error| m", "within 0.5 m", "median IoU", "p10 IoU", "seconds"]
+    header = ["scene", "trees", "count", "median |top error| m", "within 0.5 m", "median IoU", "p10 IoU",
+              "median outline IoU", "p10 outline IoU", "seconds"]
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     for label, result in report["scenes"].items():
         for group, s in result["summary"].items():
             print(f"| {label} | {group} | {s['trees']} | {s['median_abs_top_error_m']:.2f} | "
                   f"{100 * s['within_share']:.1f} % | {s['median_iou']:.3f} | {s['p10_iou']:.3f} | "
-                  f"{result['seconds']:.1f} |")
+                  f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | {result['seconds']:.1f} |")
 
 
 def main(argv=None) -> int:
