@@ -9,7 +9,7 @@ bench_twin_oblique). Each ``--scene`` is moved onto the world by the similarity 
 the true ones (recon.measure.oblique.twin_frame). Per tree (recon.measure.trees): nadir rays on a 0.25 m grid over the
 tree's crown footprint grown by 2 m, in the truth and in the twin; the top height error (the twin's highest surface
 over the true crown's cells minus the truth's, above the tree's ground) and the crown IoU (the cells whose first
-surface is the tree, against those where the twin stands above max(1.5 m, 0.1 x the tree's height)), and the IoU of
+surface is the tree, against those where the twin stands above max(1.2 m, 0.1 x the tree's height)), and the IoU of
 the two crowns' outlines (closed by a 0.5 m disc, holes filled: a porous crown's gaps inside its outline).
 
 Printed, a row per scene and group of trees (all, broadleaf, conifer, forest, park): trees seen from above, the
