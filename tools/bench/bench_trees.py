@@ -67,14 +67,14 @@ def measure(args) -> dict:
 
 def print_table(report: dict) -> None:
     """One row per scene and group of trees."""
-    header = ["scene", "trees", "count", "median |top error| m", "within 0.5 m", "median IoU", "p10 IoU",
+    header = ["scene", "kind", "trees", "median |top error| m", "within 0.5 m", "median IoU", "p10 IoU",
               "median outline IoU", "p10 outline IoU", "seconds"]
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     for label, result in report["scenes"].items():
         for group, s in result["summary"].items():
             print(f"| {label} | {group} | {s['trees']} | {s['median_abs_top_error_m']:.2f} | "
                   f"{100 * s['within_share']:.1f} % | {s['median_iou']:.3f} | {s['p10_iou']:.3f} | "
-                  f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | {result['seconds']:.1f} |")
+                  f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | {result['seconds']:.2f} |")
 
 
 def main(argv=None) -> int:
