@@ -122,11 +122,10 @@ def surface_from_above(scene: Scene, xy: np.ndarray, frame: TwinFrame | None = N
     """The first surface of ``scene`` straight down (world -z) through each world ``xy`` (N, 2): its world ENU height
     (m, NaN where nothing is hit) and the face hit (-1 there). ``frame``: where the scene's frame lies in the world's
     (None: it is the world's); the rays start above the whole scene."""
-    T_world_scene = np.eye(4) if frame is None else frame.T_world_twin
-    scale = float(np.cbrt(np.linalg.det(T_world_scene[:3, :3])))
-    rotation, shift = T_world_scene[:3, :3] / scale, T_world_scene[:3, 3]
+    frame = frame or TwinFrame(np.eye(4))
+    scale, rotation, shift = frame.scale, frame.rotation, frame.T_world_twin[:3, 3]
     box = np.stack(np.meshgrid(*scene.bounds.T, indexing="ij"), axis=-1).reshape(-1, 3)  # its 8 corners
-    top = float((scale * box @ rotation.T + shift)[:, 2].max()) + 1.0
+    top = float((box @ frame.T_world_twin[:3, :3].T + shift)[:, 2].max()) + 1.0
     origins = np.column_stack([xy, np.full(len(xy), top)])
     hits = intersect(scene, (origins - shift) @ rotation / scale, (rotation.T @ [0.0, 0.0, -1.0])[None], pool)
     return np.where(hits.hit, top - scale * hits.t.astype(np.float64), np.nan), hits.tri
