@@ -99,18 +99,27 @@ def flight_sun(args, truth: dict, origin) -> Sun:
     return frame_light(setting, 0, 0, origin).keywords["sun"]
 
 
-def load_inputs(args) -> tuple:
-    """The true world, the kinds of its small objects (instance -> kind), each twin's scene and frame, the observed
-    area (world ENU) and the capture sun."""
-    truth = json.loads(args.truth.read_text(encoding="utf-8"))
-    world_dir = resolve_scene_dir(args.world)
+def load_twins(args, world_dir: Path) -> tuple:
+    """The true world (the scene folder ``world_dir``), each ``--scene``'s scene and frame (labelled), the observed
+    area (world ENU) and the parsed ``--truth``."""
+    try:
+        truth = json.loads(args.truth.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{args.truth}: not UTF-8 JSON ({error})") from None
     world = load_scene(world_dir)
-    kinds = object_kinds(read_scene_json(world_dir).get("objects", []), str(world_dir / "scene.json"))
     twins, registered = {}, set()
     for label, folder in args.scene:
         twins[label] = (load_scene(folder), twin_frame(folder, truth, world.origin))
         registered |= set(scene_camera_poses(folder))
-    area = true_camera_area(truth, registered, world.origin)
+    return world, twins, true_camera_area(truth, registered, world.origin), truth
+
+
+def load_inputs(args) -> tuple:
+    """The true world, the kinds of its small objects (instance -> kind), each twin's scene and frame, the observed
+    area (world ENU) and the capture sun."""
+    world_dir = resolve_scene_dir(args.world)
+    world, twins, area, truth = load_twins(args, world_dir)
+    kinds = object_kinds(read_scene_json(world_dir).get("objects", []), str(world_dir / "scene.json"))
     return world, kinds, twins, area, flight_sun(args, truth, world.origin)
 
 
@@ -137,12 +146,24 @@ def add_view_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+def add_twin_arguments(parser: argparse.ArgumentParser) -> None:
+    """The true world, the flight's truth.json and the twins to score (:func:`load_twins`)."""
     parser.add_argument("--world", default="demo", help="the true world: demo, demo:small or a scene folder")
     parser.add_argument("--truth", type=Path, required=True, help="the flight's truth.json (aerostereo-render fly)")
     parser.add_argument("--scene", type=labelled_scene, action="append", required=True, metavar="LABEL=DIR",
                         help="a reconstructed scene folder of that flight (repeat to compare)")
+
+
+def check_labels_differ(parser: argparse.ArgumentParser, args) -> None:
+    """Exit 2 (argparse's way) where two ``--scene`` share a label."""
+    labels = [label for label, _ in args.scene]
+    if len(set(labels)) != len(labels):
+        parser.error(f"argument --scene: labels must differ, got {labels}")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    add_twin_arguments(parser)
     parser.add_argument("--capture-sun", type=sun_argument, metavar="AZ,EL,STRENGTH",
                         help="the sun of the flight's photos (default: truth.json's sun, when the flight had a "
                              "fixed one)")
@@ -197,9 +218,7 @@ def print_light_table(light: dict) -> None:
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    labels = [label for label, _ in args.scene]
-    if len(set(labels)) != len(labels):
-        parser.error(f"argument --scene: labels must differ, got {labels}")
+    check_labels_differ(parser, args)
     try:
         camera = PinholeCamera.from_fov(*args.size, args.fov)
     except ValueError as error:

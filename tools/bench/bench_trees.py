@@ -1,0 +1,101 @@
+"""Trees as foresters count them: each twin's trees against the true world's, from above (top height, crown area).
+
+    .venv/bin/python tools/bench/bench_trees.py --truth FLY/truth.json --scene LABEL=DIR [--scene LABEL=DIR ...]
+        [--world demo|demo:small|DIR] [--json OUT.json]
+
+The true world's trees are its scene.json's ``vegetation.trees`` (a demo world's); the ones scored stand in the
+flight's observed area (the convex hull of the true positions of the photos registered by any scene, as in
+bench_twin_oblique). Each ``--scene`` is moved onto the world by the similarity that takes its registered cameras onto
+the true ones (recon.measure.oblique.twin_frame). Per tree (recon.measure.trees): nadir rays on a 0.25 m grid over the
+tree's crown footprint grown by 2 m, in the truth and in the twin; the top height error (the twin's highest surface
+over the true crown's cells minus the truth's, above the tree's ground) and the crown IoU (the cells whose first
+surface is the tree, against those where the twin stands above max(1.2 m, 0.1 x the tree's height)), and the IoU of
+the two crowns' outlines (closed by a 0.5 m disc, holes filled: a porous crown's gaps inside its outline).
+
+Printed, a row per scene and group of trees (all, broadleaf, conifer, forest, park): trees seen from above, the
+median |top height error|, the share within 0.5 m, the median and 10th percentile crown IoU and outline IoU, and the
+seconds the scene's rays took. The JSON has every tree's scores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+from cliutil.atomic import write_text_atomic  # noqa: E402
+from recon.measure.trees import read_true_trees, score_trees, summarise_trees, trees_inside  # noqa: E402
+from sim.cli.evaluate import json_ready  # noqa: E402
+from sim.render.raycast import default_workers  # noqa: E402
+from sim.render.scene import read_scene_json  # noqa: E402
+from sim.run.render_dataset import resolve_scene_dir  # noqa: E402
+from tools.bench.bench_twin_oblique import add_twin_arguments, check_labels_differ, load_twins  # noqa: E402
+
+PROG = "bench_trees"
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.split("\n")[0])
+    add_twin_arguments(parser)
+    parser.add_argument("--json", type=Path, help="write the summaries and every tree's scores here")
+    return parser
+
+
+def measure(args) -> dict:
+    """Per scene: its alignment, every scored tree's scores, their summaries and the seconds its rays took."""
+    world_dir = resolve_scene_dir(args.world)
+    world, twins, area, _ = load_twins(args, world_dir)
+    trees = trees_inside(read_true_trees(read_scene_json(world_dir), str(world_dir / "scene.json")), area)
+    print(f"{len(trees)} trees stand in the observed area ({len(area)}-gon)", file=sys.stderr)
+    results = {}
+    with ThreadPoolExecutor(default_workers()) as pool:
+        for label, (scene, frame) in twins.items():
+            start = time.perf_counter()
+            scores = score_trees(world, scene, frame, trees, pool)
+            results[label] = {"dir": str(dict(args.scene)[label]), "seconds": time.perf_counter() - start,
+                              "alignment": {"scale": frame.scale, "rotation_deg": frame.rotation_deg},
+                              "summary": summarise_trees(scores), "trees": [s.to_dict() for s in scores]}
+            print(f"{label}: {len(scores)} trees in {results[label]['seconds']:.1f} s", file=sys.stderr)
+    return {"world": str(world_dir), "truth": str(args.truth), "observed_area_enu_m": area.tolist(),
+            "scenes": results}
+
+
+def print_table(report: dict) -> None:
+    """One row per scene and group of trees."""
+    header = ["scene", "kind", "trees", "median |top error| m", "within 0.5 m", "median IoU", "p10 IoU",
+              "median outline IoU", "p10 outline IoU", "seconds"]
+    print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
+    for label, result in report["scenes"].items():
+        for group, s in result["summary"].items():
+            print(f"| {label} | {group} | {s['trees']} | {s['median_abs_top_error_m']:.2f} | "
+                  f"{100 * s['within_share']:.1f} % | {s['median_iou']:.3f} | {s['p10_iou']:.3f} | "
+                  f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | {result['seconds']:.2f} |")
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    check_labels_differ(parser, args)
+    if args.json is not None and args.json.resolve() in {args.truth.resolve(), *(d.resolve() for _, d in args.scene)}:
+        parser.error(f"argument --json: {args.json} is an input")
+    try:
+        report = measure(args)
+    except KeyError as error:  # truth.json without a field the flight's truth has
+        print(f"{PROG}: error: {args.truth}: no field {error}", file=sys.stderr)
+        return 2
+    except (OSError, ValueError, RuntimeError) as error:  # SceneError, RenderInputError: ValueErrors
+        print(f"{PROG}: error: {error}", file=sys.stderr)
+        return 2
+    print_table(report)
+    if args.json:
+        write_text_atomic(args.json, json.dumps(json_ready(report), indent=1, allow_nan=False) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
