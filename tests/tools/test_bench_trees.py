@@ -11,7 +11,8 @@ import pytest
 import trimesh
 from PIL import Image
 
-from sim.render.classes import GROUND, TREE
+from recon.surface.observed import inside
+from sim.render.classes import GROUND, TREE, WATER
 from sim.render.labels import FORMAT as LABELS_FORMAT, LABELS_FILE, SceneLabels, write_labels
 from sim.render.scene import read_scene_json, read_scene_mesh_enu
 from sim.render.sky_file import mesh_sha256
@@ -23,6 +24,10 @@ from tools.bench.bench_trees import main
 
 OUTSIDE_TREE = {**tree_records()[0], "instance": 3, "position_m": [45.0, 0.0]}
 """A tree listed beyond the 30 m orbit's observed area: never scored."""
+POND = {"instance": 9, "kind": "pond", "classes": ["water"], "level_z_m": GROUND_Z,
+        "shoreline_m": [[-8.0, -4.0], [-4.0, -4.0], [-4.0, 4.0], [-8.0, 4.0]]}
+"""A pond: the ground's faces inside its shoreline, labelled water, at the ground's height (16 x 32 cells seen, 12 x
+28 inside the 0.5 m shore band)."""
 
 
 def write_forest(folder, **tree_a) -> None:
@@ -43,11 +48,14 @@ def label_forest(folder) -> None:
     vertices, faces, _ = read_scene_mesh_enu(folder, meta)
     centre = vertices[faces].mean(axis=1)
     instance = np.where(centre[:, 2] > GROUND_Z + 1e-6, np.where(centre[:, 0] < 2.5, 1, 2), 0).astype(np.uint32)
-    labels = SceneLabels(np.where(instance > 0, TREE, GROUND).astype(np.uint8), instance, np.ones(len(faces)))
+    classes = np.where(instance > 0, TREE, GROUND).astype(np.uint8)
+    in_pond = (instance == 0) & inside(np.array(POND["shoreline_m"]), centre)
+    instance[in_pond], classes[in_pond] = POND["instance"], WATER
+    labels = SceneLabels(classes, instance, np.ones(len(faces)))
     write_labels(folder / LABELS_FILE, labels, mesh_sha256(vertices, faces))
     stored = json.loads((folder / "scene.json").read_text())
     stored.update(labels={"file": LABELS_FILE, "format": LABELS_FORMAT, "method": "test geometry"},
-                  vegetation={"trees": tree_records() + [OUTSIDE_TREE]})
+                  vegetation={"trees": tree_records() + [OUTSIDE_TREE]}, objects=[POND])
     (folder / "scene.json").write_text(json.dumps(stored))
 
 
@@ -70,12 +78,15 @@ def test_each_twins_trees_against_the_truth(flight, tmp_path, capsys):
     out = tmp_path / "trees.json"
     assert main(["--world", str(world), "--truth", str(truth), "--scene", f"copy={twin}",
                  "--scene", f"moved={moved}", "--json", str(out)]) == 0
-    rows = [line.split(" | ") for line in capsys.readouterr().out.splitlines() if line.startswith("| copy |")]
+    out_lines = capsys.readouterr().out.splitlines()
+    rows = [line.split(" | ") for line in out_lines if line.startswith("| copy |") and "| 9 |" not in line]
     assert [row[1:6] for row in rows] == [["all", "2", "0.00", "100.0 %", "1.000"],
                                           ["broadleaf", "1", "0.00", "100.0 %", "1.000"],
                                           ["conifer", "1", "0.00", "100.0 %", "1.000"],
                                           ["forest", "1", "0.00", "100.0 %", "1.000"],
                                           ["park", "1", "0.00", "100.0 %", "1.000"]]
+    ponds = [line.split(" | ") for line in out_lines if line.startswith("| copy | 9 |")]
+    assert [row[2:6] for row in ponds] == [["336", "100.0 %", "100.0 %", "+0.000 |"]]
     report = json.loads(out.read_text())
     moved_trees = {tree["instance"]: tree for tree in report["scenes"]["moved"]["trees"]}
     assert sorted(moved_trees) == [1, 2]  # the tree outside the flight is left out

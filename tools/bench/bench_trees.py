@@ -1,4 +1,4 @@
-"""Trees as foresters count them: each twin's trees against the true world's, from above (top height, crown area).
+"""Trees as foresters count them, and ponds at their level: each twin against the true world, from above.
 
     .venv/bin/python tools/bench/bench_trees.py --truth FLY/truth.json --scene LABEL=DIR [--scene LABEL=DIR ...]
         [--world demo|demo:small|DIR] [--json OUT.json]
@@ -15,6 +15,11 @@ the two crowns' outlines (closed by a 0.5 m disc, holes filled: a porous crown's
 Printed, a row per scene and group of trees (all, broadleaf, conifer, forest, park): trees seen from above, the
 median |top height error|, the share within 0.5 m, the median and 10th percentile crown IoU and outline IoU, and the
 seconds the scene's rays took. The JSON has every tree's scores.
+
+A second table gives each pond of the world's scene.json ``objects`` whose shoreline's centre lies in the observed
+area (recon.measure.water): over its cells seen from above (the true first surface is the pond's, a 0.5 m shore band
+left out), the share the twin covers, the share where it lies within 0.2 m of the water's level (holes off) and the
+median of twin height minus level.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from cliutil.atomic import write_text_atomic  # noqa: E402
 from recon.measure.trees import read_true_trees, score_trees, summarise_trees, trees_inside  # noqa: E402
+from recon.measure.water import read_true_ponds, score_ponds  # noqa: E402
+from recon.surface.observed import inside  # noqa: E402
 from sim.cli.evaluate import json_ready  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.render.scene import read_scene_json  # noqa: E402
@@ -47,19 +54,24 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def measure(args) -> dict:
-    """Per scene: its alignment, every scored tree's scores, their summaries and the seconds its rays took."""
+    """Per scene: its alignment, every scored tree's scores, their summaries, each pond's score and the seconds its
+    rays took."""
     world_dir = resolve_scene_dir(args.world)
     world, twins, area, _ = load_twins(args, world_dir)
-    trees = trees_inside(read_true_trees(read_scene_json(world_dir), str(world_dir / "scene.json")), area)
-    print(f"{len(trees)} trees stand in the observed area ({len(area)}-gon)", file=sys.stderr)
+    meta, source = read_scene_json(world_dir), str(world_dir / "scene.json")
+    trees = trees_inside(read_true_trees(meta, source), area)
+    ponds = [pond for pond in read_true_ponds(meta, source) if inside(area, pond.shoreline.mean(axis=0)[None])[0]]
+    print(f"{len(trees)} trees and {len(ponds)} ponds lie in the observed area ({len(area)}-gon)", file=sys.stderr)
     results = {}
     with ThreadPoolExecutor(default_workers()) as pool:
         for label, (scene, frame) in twins.items():
             start = time.perf_counter()
             scores = score_trees(world, scene, frame, trees, pool)
+            pond_scores = score_ponds(world, scene, frame, ponds, pool)
             results[label] = {"dir": str(dict(args.scene)[label]), "seconds": time.perf_counter() - start,
                               "alignment": {"scale": frame.scale, "rotation_deg": frame.rotation_deg},
-                              "summary": summarise_trees(scores), "trees": [s.to_dict() for s in scores]}
+                              "summary": summarise_trees(scores), "trees": [s.to_dict() for s in scores],
+                              "ponds": [s.to_dict() for s in pond_scores]}
             print(f"{label}: {len(scores)} trees in {results[label]['seconds']:.1f} s", file=sys.stderr)
     return {"world": str(world_dir), "truth": str(args.truth), "observed_area_enu_m": area.tolist(),
             "scenes": results}
@@ -75,6 +87,12 @@ def print_table(report: dict) -> None:
             print(f"| {label} | {group} | {s['trees']} | {s['median_abs_top_error_m']:.2f} | "
                   f"{100 * s['within_share']:.1f} % | {s['median_iou']:.3f} | {s['p10_iou']:.3f} | "
                   f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | {result['seconds']:.2f} |")
+    pond_header = ["scene", "pond", "cells seen", "covered", "at level (0.2 m)", "median error m"]
+    print("\n| " + " | ".join(pond_header) + " |\n|" + "---|" * len(pond_header))
+    for label, result in report["scenes"].items():
+        for p in result["ponds"]:
+            print(f"| {label} | {p['instance']} | {p['cells']} | {100 * p['covered']:.1f} % | "
+                  f"{100 * p['at_level']:.1f} % | {p['median_error_m']:+.3f} |")
 
 
 def main(argv=None) -> int:
