@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from scipy import ndimage
 
 from sim.cli import main as cli_main
 from sim.dataset.source import DatasetSource
@@ -42,13 +41,21 @@ def read_rgb(path: Path) -> np.ndarray:
     return np.asarray(Image.open(path).convert("RGB"))
 
 
-def within_one_surface(depth: np.ndarray, spread: float = 0.1) -> np.ndarray:
-    """Pixels whose 3x3 neighbourhood sees surface only, its depths within ``spread`` of each other (relative): off
-    the silhouettes, where a sample a hundredth of a pixel away still hits the same surface."""
-    seen = np.where(np.isfinite(depth), depth, np.inf)
-    nearest = ndimage.minimum_filter(seen, size=3, mode="nearest")
-    farthest = ndimage.maximum_filter(seen, size=3, mode="nearest")
-    return np.isfinite(farthest) & (farthest <= (1.0 + spread) * nearest)
+def on_one_plane(depth: np.ndarray, tolerance: float = 0.01) -> np.ndarray:
+    """Pixels off the silhouettes: a plane's inverse depth is affine in the pixel coordinates, so a pixel whose inverse
+    depth is the mean of each opposite pair of its 8 neighbours' (across, along and both diagonals) to within
+    ``tolerance`` (relative) lies on one surface with them, where a sample a hundredth of a pixel away hits it too.
+    A step between two surfaces fails, however close their depths (a leaf card 1 m before a roof 12 m away)."""
+    height, width = depth.shape
+    inverse = np.pad(np.where(np.isfinite(depth), 1.0 / depth, np.nan), 1, constant_values=np.nan)
+    centre = inverse[1:-1, 1:-1]
+    worst = np.zeros(depth.shape)
+    for dy, dx in ((0, 1), (1, 0), (1, 1), (1, -1)):
+        before = inverse[1 - dy:1 - dy + height, 1 - dx:1 - dx + width]
+        after = inverse[1 + dy:1 + dy + height, 1 + dx:1 + dx + width]
+        worst = np.fmax(worst, np.abs((before + after) / 2 - centre) / centre)
+        worst[np.isnan(before) | np.isnan(after)] = np.inf  # beside the sky
+    return np.isfinite(depth) & (worst < tolerance)
 
 
 def test_the_job_is_the_frames_camera_pose_and_recorded_light(small_world, tmp_path):
@@ -90,8 +97,8 @@ def test_cycles_renders_a_dataset_frame_as_we_did_with_the_recorded_blender_stre
     # The same camera at the same pose: Cycles' planar depth is ours (its samples spread over 0.01 px: 4e-4 at most)
     # off the silhouettes; on them (a wire, a leaf card's edge) such a sample may land on the surface behind.
     cycles_depth = read_depth(tmp_path / "cycles.exr")
-    inside = within_one_surface(ours_depth)
-    assert inside[hit].mean() > 0.6  # porous crowns, poles and wires: a quarter of the pixels lie on silhouettes
+    inside = on_one_plane(ours_depth)
+    assert inside[hit].mean() > 0.5  # porous crowns, poles and wires: a third of the pixels lie on silhouettes
     np.testing.assert_allclose(cycles_depth[inside], ours_depth[inside], rtol=1e-3)
     same = np.isclose(cycles_depth[hit], ours_depth[hit], rtol=1e-3, atol=0.0)
     assert same.mean() > 0.995, f"{np.count_nonzero(~same)} of {hit.sum()} pixels differ"
