@@ -91,8 +91,8 @@ class RenderSummary:
 
     def text(self) -> str:
         """Human summary printed by the CLI."""
-        lines = [f"{self.out_dir}: rendered {self.rendered} frames in {self.elapsed_s:.1f} s "
-                 f"({self.frames_per_second:.2f} frames/s), "
+        rate = f" ({self.frames_per_second:.2f} frames/s)" if self.rendered else ""
+        lines = [f"{self.out_dir}: rendered {self.rendered} frames in {self.elapsed_s:.1f} s{rate}, "
                  f"{self.skipped} already complete",
                  f"redrew {self.rejected_poses} sampled poses (sky/miss probe, or a view past the valid area)"]
         if self.finalized:
