@@ -377,7 +377,7 @@ class Recon:
             rec = pycolmap.Reconstruction(self.work / "dense" / "sparse")
             margin = self.options.crop_margin * median_view_depth(rec)
             surface = meshing.surface_3d(self.work / "fused.ply", full, self.observed_area(rec), margin,
-                                         self.options.poisson_depth, self.options.poisson_trim)
+                                         self.cell_size(), self.options.poisson_depth, self.options.poisson_trim)
             self.log(f"[mesh] 3-D surface over the observed area + {margin:.1f} m, {len(surface.faces)} faces")
         elif self.options.mesh == "poisson":
             meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)

@@ -9,8 +9,9 @@ Before that, observed cells that no neighbour supports (none of their 8 neighbou
 columns metres tall once the hole filling spreads them.
 Outside it there are no faces (cropped). Poisson: ``pycolmap.poisson_meshing`` with trim = depth - 3.
 3-D surface (:func:`surface_3d`, keeps walls and overhangs): the fused cloud cropped to the observed area plus a
-margin, screened Poisson of that, faces outside the area dropped and floaters (connected pieces with less than
-``min_piece_fraction`` of the faces) removed.
+margin, screened Poisson of that, faces outside the area dropped and floaters removed: every connected piece but the
+largest that the fused points do not measure (:func:`measured_pieces`). A tree crown that Poisson's density trim cuts
+off its trunk is a piece of its own, and measured: it stays.
 Decimation: ``pycolmap.simplify_mesh`` (QEM) bounded by a target error.
 """
 
@@ -24,6 +25,7 @@ import numpy as np
 import pycolmap
 import trimesh
 from scipy import ndimage, sparse
+from scipy.spatial import cKDTree
 
 from cliutil.atomic import atomic_path, write_failed
 from cliutil.resources import require_memory
@@ -234,14 +236,38 @@ def crop_point_cloud(input_ply: Path, output_ply: Path, polygon: np.ndarray) -> 
     return len(kept)
 
 
-def largest_pieces(mesh: trimesh.Trimesh, min_piece_fraction: float) -> trimesh.Trimesh:
-    """``mesh`` without its edge-connected pieces smaller than ``min_piece_fraction`` of all faces (floaters)."""
+MIN_PIECE_DENSITY_SHARE = 0.5
+"""A piece of the 3-D surface besides the largest is measured when it is the nearest surface of at least this share of
+the fused points per m² that the largest piece is (on the default orbit: tree crowns 70-150 points/m² against the
+ground's 27; the skins Poisson closes under the ground and round the crop's edge under 5)..."""
+MIN_PIECE_EQUIVALENT_M2 = 4.0
+"""... and of at least as many points as this many m² of the largest piece are: a few stray points' blob is not."""
+
+
+def piece_of_face(mesh: trimesh.Trimesh) -> np.ndarray:
+    """(F,) index of the edge-connected piece each face of ``mesh`` belongs to."""
     adjacency = np.asarray(mesh.face_adjacency)
     graph = sparse.coo_matrix((np.ones(len(adjacency)), (adjacency[:, 0], adjacency[:, 1])),
                               shape=(len(mesh.faces), len(mesh.faces)))
-    piece = sparse.csgraph.connected_components(graph, directed=False)[1]
-    sizes = np.bincount(piece)
-    return face_subset(mesh, sizes[piece] >= min_piece_fraction * len(mesh.faces))
+    return sparse.csgraph.connected_components(graph, directed=False)[1]
+
+
+def measured_pieces(mesh: trimesh.Trimesh, points: np.ndarray, cell_m: float) -> trimesh.Trimesh:
+    """``mesh`` (ENU metres) without the pieces the fused ``points`` ((N, 3) ENU metres) do not measure (floaters):
+    its largest edge-connected piece (by area) stays, and every other piece that is the nearest surface, within
+    ``cell_m``, of enough points (:data:`MIN_PIECE_DENSITY_SHARE`, :data:`MIN_PIECE_EQUIVALENT_M2`)."""
+    if len(mesh.faces) == 0:
+        return mesh
+    piece = piece_of_face(mesh)
+    area = np.bincount(piece, weights=mesh.area_faces)
+    distance, nearest = cKDTree(mesh.triangles_center).query(points, distance_upper_bound=cell_m)
+    explained = np.bincount(piece[nearest[np.isfinite(distance)]], minlength=len(area)).astype(np.float64)
+    largest = int(np.argmax(area))
+    density = explained[largest] / max(area[largest], 1e-12)
+    keep = ((explained >= MIN_PIECE_DENSITY_SHARE * density * area)
+            & (explained >= MIN_PIECE_EQUIVALENT_M2 * density))
+    keep[largest] = True
+    return face_subset(mesh, keep[piece])
 
 
 def face_subset(mesh: trimesh.Trimesh, keep: np.ndarray) -> trimesh.Trimesh:
@@ -252,21 +278,22 @@ def face_subset(mesh: trimesh.Trimesh, keep: np.ndarray) -> trimesh.Trimesh:
     return part
 
 
-def surface_3d(fused_ply: Path, output_ply: Path, area: np.ndarray, margin_m: float, depth: int = 10,
-               trim: float | None = None, min_piece_fraction: float = 0.01) -> trimesh.Trimesh:
+def surface_3d(fused_ply: Path, output_ply: Path, area: np.ndarray, margin_m: float, cell_m: float, depth: int = 10,
+               trim: float | None = None) -> trimesh.Trimesh:
     """3-D surface of the fused cloud (ENU metres) over the observed ``area`` ((K, 2) polygon) grown by
-    ``margin_m``: Poisson of the cloud cropped to that, faces with their centroid outside it and floaters dropped.
-    Written to ``output_ply`` and returned."""
+    ``margin_m``: Poisson of the cloud cropped to that, faces with their centroid outside it and the pieces its points
+    do not measure within ``cell_m`` dropped (:func:`measured_pieces`). Written to ``output_ply`` and returned."""
     grown = grow_polygon(area, margin_m)
     cropped = Path(output_ply).with_name(f".{Path(output_ply).stem}.cropped.ply")
     crop_point_cloud(fused_ply, cropped, grown)
     try:
         poisson_mesh(cropped, output_ply, depth, trim)
+        points, _ = read_point_cloud(cropped)
     finally:
         cropped.unlink(missing_ok=True)
     surface = trimesh.load(output_ply, process=False)
     surface = face_subset(surface, inside(grown, np.asarray(surface.triangles_center)))
-    surface = largest_pieces(surface, min_piece_fraction)
+    surface = measured_pieces(surface, points, cell_m)
     with atomic_path(output_ply) as tmp:
         surface.export(tmp)
     return surface
