@@ -443,6 +443,18 @@ def arc_waypoints(text: str) -> int:
     return value
 
 
+def fixed_sun(text: str) -> str:
+    """``--sun``: a fixed sun ``AZ,EL,STRENGTH`` (the tcp link runs on the host clock, so the loop's photos cannot take
+    the sun of their time); argparse's error otherwise."""
+    try:
+        fixed = parse_sun(text).form == "fixed"
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(f"expected a fixed sun AZ,EL,STRENGTH: {error}") from None
+    if not fixed:
+        raise argparse.ArgumentTypeError(f"expected a fixed sun AZ,EL,STRENGTH, got {text!r}")
+    return text
+
+
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -456,6 +468,9 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--link", choices=("tcp", "loop"))
     parser.add_argument("--speedup", type=float, help="flight pace for --link loop (tcp runs in real time)")
     parser.add_argument("--seed", type=int)
+    parser.add_argument("--sun", type=fixed_sun, metavar="AZ,EL,STRENGTH",
+                        help=f"the photos' fixed sun (fly --sun; default {LoopConfig.sun}): e.g. 105,25,10 for a "
+                             "morning's low sun")
     for name, knob in KNOBS.items():
         parser.add_argument(f"--{name.replace('_', '-')}", type=knob.parse, choices=knob.choices, dest=knob.field,
                             help=f"{knob.what} (sweep knob {name})")
@@ -468,7 +483,7 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
 
 def config_from_args(args: argparse.Namespace) -> LoopConfig:
     config = LoopConfig.quick() if args.quick else LoopConfig()
-    for name in ("scene", "arc_waypoints", "link", "speedup", "seed", *(knob.field for knob in KNOBS.values())):
+    for name in ("scene", "arc_waypoints", "link", "speedup", "seed", "sun", *(knob.field for knob in KNOBS.values())):
         if getattr(args, name) is not None:
             setattr(config, name, getattr(args, name))
     if args.photo_size:
