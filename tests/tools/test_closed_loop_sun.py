@@ -14,10 +14,12 @@ def test_the_sun_option_sets_the_photos_sun_and_recon_s_capture_sun(tmp_path):
     assert config_from_args(parse_args(["--out", str(tmp_path), "--quick", "--sun", "200,30,8"])).sun == "200,30,8"
 
 
-@pytest.mark.parametrize("value, expected", [("random", "expected a fixed sun AZ,EL,STRENGTH, got 'random'"),
-                                             ("time:2026-06-01T08:00:00Z", "expected a fixed sun"),
-                                             ("105,25", "expected a fixed sun AZ,EL,STRENGTH"),
-                                             ("105,95,10", "elevation must be in (0, 90]")])
+@pytest.mark.parametrize("value, expected", [
+    ("random", "expected a fixed sun AZ,EL,STRENGTH (three numbers), got 'random'"),
+    ("time:2026-06-01T08:00:00Z", "expected a fixed sun AZ,EL,STRENGTH (three numbers)"),
+    ("105,25", "expected a fixed sun AZ,EL,STRENGTH (three numbers), got '105,25'"),
+    ("105,east,10", "expected a fixed sun AZ,EL,STRENGTH (three numbers), got '105,east,10'"),
+    ("105,95,10", "elevation must be in (0, 90]")])
 def test_a_sun_that_is_not_a_fixed_one_is_refused_in_one_line(tmp_path, capsys, value, expected):
     with pytest.raises(SystemExit) as stop:
         main(["--out", str(tmp_path), "--sun", value])

@@ -447,11 +447,15 @@ def fixed_sun(text: str) -> str:
     """``--sun``: a fixed sun ``AZ,EL,STRENGTH`` (the tcp link runs on the host clock, so the loop's photos cannot take
     the sun of their time); argparse's error otherwise."""
     try:
-        fixed = parse_sun(text).form == "fixed"
+        numbers = [float(value) for value in text.split(",")]
+    except ValueError:
+        numbers = []
+    if len(numbers) != 3:
+        raise argparse.ArgumentTypeError(f"expected a fixed sun AZ,EL,STRENGTH (three numbers), got {text!r}")
+    try:
+        parse_sun(text)
     except ValueError as error:
-        raise argparse.ArgumentTypeError(f"expected a fixed sun AZ,EL,STRENGTH: {error}") from None
-    if not fixed:
-        raise argparse.ArgumentTypeError(f"expected a fixed sun AZ,EL,STRENGTH, got {text!r}")
+        raise argparse.ArgumentTypeError(str(error)) from None
     return text
 
 
