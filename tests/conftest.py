@@ -1,5 +1,4 @@
-"""Shared fixtures: where the real sample files live (``../shared/data`` beside the checkout), and the expensive
-results several test files share (tests/shared_runs.py)."""
+"""Shared fixtures: where the real sample files live (``../shared/data`` beside the checkout)."""
 
 from __future__ import annotations
 
@@ -7,8 +6,6 @@ import os
 from pathlib import Path
 
 import pytest
-
-pytest_plugins = ("tests.shared_runs",)
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 SHARED_DATA = Path(os.environ.get("AEROSTEREO_SHARED_DATA", REPO_ROOT.parent / "shared" / "data"))
