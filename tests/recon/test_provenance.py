@@ -7,14 +7,12 @@ keeps its pieces' codes; and a whole small recon run writes them."""
 import json
 
 import numpy as np
-import pycolmap
 import pytest
 import trimesh
 
 from recon.appearance.atlas import AtlasOptions, texture_atlas
 from recon.appearance.texture import TextureOptions, orthophoto
 from recon.area.pipeline import AreaOptions, merge_area
-from recon.run.pipeline import Recon
 from recon.run.scene_out import write_scene
 from recon.surface.mesh import height_field, height_field_mesh
 from recon.surface.provenance import GAP_CELLS, SurfaceEvidence, face_codes, store_codes, surface_codes
@@ -24,10 +22,7 @@ from sim.render.scene import Scene, Surface, load_scene, read_scene_mesh_enu
 from sim.worlds.synthetic import grid_mesh, noise_texture
 from tests.recon.test_area_merge import LAYOUT, write_piece
 from tests.recon.test_atlas import ORIGIN
-from tests.recon.test_stages import CENTRES, OPTIONS
 from tests.recon.test_texture import take_photos
-from tests.recon.synthetic import make_texture, write_nadir_photos
-from tools.geotag_csv import write_geotags
 
 #: Fused points every SPACING_M on the plane z = 1 over [-10, 10]^2 m, none inside the square hole |x|, |y| < HOLE_M.
 SPACING_M, HOLE_M, CELL_M = 0.1, 4.0, 0.25
@@ -128,17 +123,14 @@ def test_the_scene_folder_carries_the_codes_of_the_written_mesh_through_the_load
 
 
 @pytest.mark.slow
-def test_a_recon_run_writes_the_face_provenance_of_its_scene(tmp_path):
-    """Six nadir views of a textured plane (test_stages' flight): the plane is measured almost everywhere."""
-    rows = write_nadir_photos(tmp_path / "photos", CENTRES, make_texture())
-    pycolmap.logging.minloglevel = 2
-    logs = []
-    Recon(tmp_path / "photos", write_geotags(tmp_path, rows), tmp_path / "scene", OPTIONS, log=logs.append).run()
-    scene = load_scene(tmp_path / "scene")
+def test_a_recon_run_writes_the_face_provenance_of_its_scene(plane_flight):
+    """Six nadir views of a textured plane (the session's plane flight, test_stages' too): the plane is measured
+    almost everywhere."""
+    scene = load_scene(plane_flight["scene"])
     assert scene.face_provenance is not None and len(scene.face_provenance) == len(scene.faces)
-    shares = json.loads((tmp_path / "scene/scene.json").read_text())["face_provenance"]["shares"]
+    shares = json.loads((plane_flight["scene"] / "scene.json").read_text())["face_provenance"]["shares"]
     assert shares["measured"]["area"] > 0.8, shares
-    assert any(line.startswith("[scene] face provenance") for line in logs)
+    assert any(line.startswith("[scene] face provenance") for line in plane_flight["first"].logs)
 
 
 def test_an_area_keeps_each_piece_s_codes_of_the_faces_it_keeps(tmp_path):

@@ -7,61 +7,22 @@ import json
 import os
 import shutil
 
-import pycolmap
 import pytest
 
-from recon.surface.dense import DenseOptions
-from recon.run.pipeline import Recon, ReconOptions
+from recon.run.pipeline import ReconOptions
 from cliutil.progress import StepProgress
-from recon.sfm.options import SfmOptions
 from recon.run.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
 from sim.render import sky
 from sim.render.labels import LABELS_FILE
 from sim.render.scene import load_scene
 from sim.render.sky_file import SKY_FILE, read_sky_visibility
-from tests.recon.synthetic import make_texture, write_nadir_photos
-from tools.geotag_csv import write_geotags
-
-CENTRES = [(x, y, 30.0) for y in (0.0, 4.0) for x in (0.0, 4.0, 8.0)]
-# every 2nd photo mapped (view_0, view_2, view_4 and the last, view_5), view_1 and view_3 registered afterwards
-OPTIONS = ReconOptions(sfm=SfmOptions(max_num_features=2048, every_kth=2, num_threads=2),
-                       dense=DenseOptions(max_image_size=320, num_threads=2))
-
-
-class Run:
-    """A Recon run into ``scene`` that records which stage functions ran, the log and the progress reports."""
-
-    def __init__(self, flight, scene, options=OPTIONS):
-        self.ran, self.logs, self.progress = [], [], []
-        self.recon = Recon(flight["photos"], flight["geotags"], scene, options, log=self.logs.append,
-                           progress=lambda *report: self.progress.append(report))
-        for stage in STAGES:
-            body = getattr(self.recon, f"stage_{stage}")
-            setattr(self.recon, f"stage_{stage}", self.spy(stage, body))
-        self.recon.run()
-
-    def spy(self, stage, body):
-        def run():
-            self.ran.append(stage)
-            body()
-        return run
-
-
-@pytest.fixture(scope="module")
-def flight(tmp_path_factory):
-    """The photos, geotags and a finished scene (with the first run's record)."""
-    folder = tmp_path_factory.mktemp("flight")
-    rows = write_nadir_photos(folder / "photos", CENTRES, make_texture())
-    pycolmap.logging.minloglevel = 2
-    flight = {"photos": folder / "photos", "geotags": write_geotags(folder, rows), "scene": folder / "scene"}
-    flight["first"] = Run(flight, flight["scene"])
-    return flight
+from tests.recon.plane_flight import OPTIONS, Run
 
 
 @pytest.fixture
-def scene(flight, tmp_path):
-    """A copy of the finished scene (modification times kept)."""
-    return shutil.copytree(flight["scene"], tmp_path / "scene")
+def scene(plane_flight, tmp_path):
+    """A copy of the session's finished scene (modification times kept), for the test to change."""
+    return shutil.copytree(plane_flight["scene"], tmp_path / "scene")
 
 
 def snapshot(scene):
@@ -75,10 +36,10 @@ def changed(before, after):
 
 
 @pytest.mark.slow
-def test_first_run_runs_every_stage_and_reports_sfm_progress(flight):
+def test_first_run_runs_every_stage_and_reports_sfm_progress(plane_flight):
     """Counts reach the callback in order and end at the known totals: 4 photos mapped, all 6 pairs of them
     matched (12 neighbours > 3), the 2 others each matched with its 4 mapped neighbours and registered."""
-    first = flight["first"]
+    first = plane_flight["first"]
     assert first.ran == list(STAGES)
     # then a depth map for each of the 6 views (4 m apart from 30 m: 7.6 deg > the 1.5 deg spacing), each
     # textures the orthophoto
@@ -91,24 +52,24 @@ def test_first_run_runs_every_stage_and_reports_sfm_progress(flight):
         assert {n for _, n in reports} == {total}, (step, reports)
         assert counts[0] == 0 and counts[-1] == total and counts == sorted(counts), (step, counts)
     assert list(dict.fromkeys(tuple(name) for *name, _, _ in first.progress)) == list(expected)
-    report = json.loads((flight["scene"] / "work" / "sfm_report.json").read_text())
+    report = json.loads((plane_flight["scene"] / "work" / "sfm_report.json").read_text())
     assert report["registered"] == [f"view_{i}.png" for i in range(6)]
     assert "[depth] running (stage 3/8)" in first.logs
 
 
 @pytest.mark.slow
-def test_unchanged_rerun_does_nothing(flight, scene):
+def test_unchanged_rerun_does_nothing(plane_flight, scene):
     before = snapshot(scene)
-    rerun = Run(flight, scene)
+    rerun = Run(plane_flight, scene)
     assert rerun.ran == [] and rerun.progress == []
     assert [line for line in rerun.logs if "already done" in line] == [f"[{s}] already done" for s in STAGES]
     assert changed(before, snapshot(scene)) == set()
 
 
 @pytest.mark.slow
-def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
+def test_changed_mesh_option_redoes_mesh_and_later_stages_only(plane_flight, scene):
     before = snapshot(scene)
-    rerun = Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
+    rerun = Run(plane_flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
     assert rerun.ran == ["mesh", "texture", "scene", "labels"]
     assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 4
     assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene, labels" in rerun.logs
@@ -116,32 +77,32 @@ def test_changed_mesh_option_redoes_mesh_and_later_stages_only(flight, scene):
     assert {"work/mesh.ply", "work/terrain.glb", "scene.json"} <= differ
     assert not {"work/sfm_report.json", "work/fused.ply", "work/dense/depth_report.json"} & differ
     assert json.loads((scene / "scene.json").read_text())["provenance"]["options"]["grid_m"] == 1.0
-    assert Run(flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0)).ran == []  # and now it is done
+    assert Run(plane_flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0)).ran == []  # and now it is done
 
 
 @pytest.mark.slow
-def test_other_sky_bake_settings_redo_the_scene_stage_only(flight, scene, monkeypatch):
+def test_other_sky_bake_settings_redo_the_scene_stage_only(plane_flight, scene, monkeypatch):
     """The scene's baked sky visibility is an output of the scene stage, stamped with the settings it was baked
     with."""
     assert read_sky_visibility(scene / SKY_FILE).baked_from["bake_version"] == sky.BAKE_VERSION
     monkeypatch.setattr(sky, "BAKE_VERSION", sky.BAKE_VERSION + 1)
     before = snapshot(scene)
-    rerun = Run(flight, scene)
+    rerun = Run(plane_flight, scene)
     assert rerun.ran == ["scene", "labels"]
     assert "[scene] sky_visibility changed (1 modified: bake_version): redoing scene, labels" in rerun.logs
     assert {SKY_FILE, "scene.json"} <= changed(before, snapshot(scene))
     assert read_sky_visibility(scene / SKY_FILE).baked_from["bake_version"] == sky.BAKE_VERSION
-    assert Run(flight, scene).ran == []
+    assert Run(plane_flight, scene).ran == []
 
 
 @pytest.mark.slow
-def test_changed_depth_option_recomputes_every_depth_map(flight, scene):
+def test_changed_depth_option_recomputes_every_depth_map(plane_flight, scene):
     """Maps of the old fingerprint are not reused (compute_depth_maps skips maps that exist)."""
     maps = sorted((scene / "work" / "dense" / "stereo" / "depth_maps").glob("*.bin"))
     assert maps
     before = snapshot(scene)
     options = dataclasses.replace(OPTIONS, dense=dataclasses.replace(OPTIONS.dense, consistency=0.05))
-    rerun = Run(flight, scene, options)
+    rerun = Run(plane_flight, scene, options)
     assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene", "labels"]
     assert ("[depth] options changed (dense.consistency: 0.02 -> 0.05): redoing depth, fusion, mesh, texture, "
             "scene, labels") in rerun.logs
@@ -151,7 +112,7 @@ def test_changed_depth_option_recomputes_every_depth_map(flight, scene):
 
 
 @pytest.mark.slow
-def test_interrupted_depth_stage_resumes_its_finished_maps(flight, scene):
+def test_interrupted_depth_stage_resumes_its_finished_maps(plane_flight, scene):
     stamp_path = scene / "work" / "stages" / "depth.json"
     stamp = json.loads(stamp_path.read_text())
     stamp_path.write_text(json.dumps({**stamp, "finished": False}))
@@ -160,7 +121,7 @@ def test_interrupted_depth_stage_resumes_its_finished_maps(flight, scene):
     for path in lost:
         path.unlink()
     before = snapshot(scene)
-    rerun = Run(flight, scene)
+    rerun = Run(plane_flight, scene)
     assert rerun.ran == ["depth", "fusion", "mesh", "texture", "scene", "labels"]
     assert "[depth] interrupted before it finished: redoing depth, fusion, mesh, texture, scene, labels" in rerun.logs
     assert {str(p.relative_to(scene)) for p in maps} & changed(before, snapshot(scene)) == {
@@ -168,44 +129,44 @@ def test_interrupted_depth_stage_resumes_its_finished_maps(flight, scene):
 
 
 @pytest.mark.slow
-def test_changed_photo_redoes_from_sfm(flight, tmp_path):
-    photos = shutil.copytree(flight["photos"], tmp_path / "photos")
-    scene = shutil.copytree(flight["scene"], tmp_path / "scene")
+def test_changed_photo_redoes_from_sfm(plane_flight, tmp_path):
+    photos = shutil.copytree(plane_flight["photos"], tmp_path / "photos")
+    scene = shutil.copytree(plane_flight["scene"], tmp_path / "scene")
     photo = photos / "view_3.png"
     os.utime(photo, ns=(photo.stat().st_atime_ns, photo.stat().st_mtime_ns + 10**9))
-    rerun = Run({**flight, "photos": photos}, scene)
+    rerun = Run({**plane_flight, "photos": photos}, scene)
     assert rerun.ran == list(STAGES)
     assert "[sfm] photos changed (1 modified: view_3.png): redoing " + ", ".join(STAGES) in rerun.logs
 
 
 @pytest.mark.slow
-def test_outputs_from_before_stamps_are_redone(flight, scene):
+def test_outputs_from_before_stamps_are_redone(plane_flight, scene):
     shutil.rmtree(scene / "work" / "stages")
-    rerun = Run(flight, scene)
+    rerun = Run(plane_flight, scene)
     assert rerun.ran == list(STAGES)
     assert ("[sfm] output without a fingerprint (written before stages recorded their options and inputs): "
             "redoing " + ", ".join(STAGES)) in rerun.logs
 
 
 @pytest.mark.slow
-def test_a_scene_labelled_before_the_labels_stage_existed_redoes_only_that_stage(flight, scene):
+def test_a_scene_labelled_before_the_labels_stage_existed_redoes_only_that_stage(plane_flight, scene):
     """A scene folder finished before the labels stage (no labels stamp, no labels.npz, scene.json naming none)."""
     (scene / "work" / "stages" / "labels.json").unlink()
     (scene / LABELS_FILE).unlink()
     meta = json.loads((scene / "scene.json").read_text())
     del meta["labels"], meta["classes"]
     (scene / "scene.json").write_text(json.dumps(meta))
-    rerun = Run(flight, scene)
+    rerun = Run(plane_flight, scene)
     assert rerun.ran == ["labels"]
     labels = load_scene(scene).labels
     assert labels is not None and labels.face_class.any()  # the textured plane: ground (or unknown), labelled
 
 
 @pytest.mark.slow
-def test_changed_label_option_redoes_the_labels_stage_only(flight, scene):
+def test_changed_label_option_redoes_the_labels_stage_only(plane_flight, scene):
     before = snapshot(scene)
     options = dataclasses.replace(OPTIONS, labels=dataclasses.replace(OPTIONS.labels, min_confidence=0.9))
-    rerun = Run(flight, scene, options)
+    rerun = Run(plane_flight, scene, options)
     assert rerun.ran == ["labels"]
     assert "[labels] options changed (labels.min_confidence: 0.3 -> 0.9): redoing labels" in rerun.logs
     assert changed(before, snapshot(scene)) == {LABELS_FILE, "scene.json"}

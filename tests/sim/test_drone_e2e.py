@@ -33,7 +33,7 @@ from sim.drone.link import PHOTO_EVENT_ERROR_S, MissionClock, duml_frames
 from sim.drone.photos import photo_camera, render_photos
 from sim.drone.session import fly_litchi_mission, stream_to_port
 from sim.render.scene import load_scene
-from sim.worlds.demo import build_demo_world
+from sim.worlds import demo_scene_dir
 from tests.sim.drone_helpers import short_orbit_csv
 
 SPEEDUP = 5.0
@@ -51,7 +51,7 @@ def relay(server: socket.socket) -> None:
 
 @pytest.mark.slow
 def test_virtual_flight_streamed_to_record_geotags_within_the_noise_model(tmp_path, monkeypatch):
-    scene = load_scene(build_demo_world(tmp_path / "world", variant="small", seed=0))
+    scene = load_scene(demo_scene_dir("small"))  # the cached build and its sky bake, not a fresh build of its own
     imperfections = Imperfections.realistic()
     mission = fly_litchi_mission(short_orbit_csv(tmp_path / "mission.csv"), scene, seed=11,
                                  imperfections=imperfections)
