@@ -24,6 +24,20 @@ def positive_int(text: str) -> int:
     return value
 
 
+POISSON_DEPTHS = range(6, 13)
+"""``--poisson-depth`` values: the octree's cell is the surface's extent / 2^depth (10 on the default orbit's 130 m:
+0.13 m); every level more takes about 2-4x the time and memory (brighton_beach: 16 s at 9, 37 s at 10)."""
+
+
+def poisson_depth(text: str) -> int:
+    """``--poisson-depth``: an octree depth in :data:`POISSON_DEPTHS`."""
+    value = int(text) if text.strip().lstrip("+-").isdigit() else None
+    if value not in POISSON_DEPTHS:
+        raise argparse.ArgumentTypeError(f"expected an octree depth from {POISSON_DEPTHS.start} to "
+                                         f"{POISSON_DEPTHS.stop - 1}, got {text}")
+    return value
+
+
 def hold_out_count(text: str) -> int:
     """``--hold-out``: 0 (off) or K >= 2; K = 1 is refused by :class:`ReconOptions` with its reason."""
     value = int(text)
@@ -46,6 +60,9 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
                         help="3d: Poisson surface of the observed area (walls, tree crowns); 2.5d: height field; "
                              "poisson: Poisson of the whole cloud, uncropped (default %(default)s)")
     parser.add_argument("--grid", type=float, help="height-field cell size, m (default: 2 ground pixels)")
+    parser.add_argument("--poisson-depth", type=poisson_depth, default=ReconOptions.poisson_depth,
+                        help="octree depth of the Poisson surface (--mesh 3d, poisson): its cell is the surface's "
+                             "extent / 2^depth; one less is about 2-4x faster and coarser (default %(default)s)")
     parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
     parser.add_argument("--every", type=positive_int, default=None,
                         help="only every k-th photo enters mapping, the rest are registered into its model "
@@ -111,7 +128,7 @@ def recon_options(args: argparse.Namespace) -> ReconOptions:
                        mapper=args.mapper, focal=args.focal, num_threads=args.workers),
         dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
                            num_threads=args.workers),
-        mesh=args.mesh, grid_m=args.grid, decimate_error_m=args.decimate_error,
+        mesh=args.mesh, grid_m=args.grid, poisson_depth=args.poisson_depth, decimate_error_m=args.decimate_error,
         texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
         delight=not args.keep_capture_light, capture_sun=args.capture_sun,

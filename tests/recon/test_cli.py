@@ -9,7 +9,8 @@ import pytest
 from PIL import Image
 
 from recon.area.align import Prior
-from recon.cli import main
+from recon.cli import build_parser, main
+from recon.run.cli_options import recon_options
 from recon.measure.evaluate import scene_photorealism
 from recon.run.pipeline import Recon, ReconOptions, read_rgb
 from recon.sfm.options import SfmOptions
@@ -68,6 +69,12 @@ def test_photos_without_overlap(tmp_path, capsys):
     assert code == 2 and "do not overlap" in err  # u.jpg, untagged by capture, is left out, not an error
 
 
+def test_poisson_depth_reaches_the_mesh_stage():
+    args = build_parser().parse_args(["--photos", "p", "--out", "o", "--poisson-depth", "9"])
+    assert recon_options(args).poisson_depth == 9
+    assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).poisson_depth == 10
+
+
 @pytest.mark.slow
 def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     """18 real DJI photos (nadir, ~40 m): all register, positions agree with EXIF GPS, focal stays at the
@@ -75,7 +82,9 @@ def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
     self-calibrated focal would have put it at ~46 m). Rerunning with the same options redoes no stage."""
     photos = shared_data / "brighton_beach" / "images"
     scene = tmp_path / "scene"
-    argv = ["--photos", photos, "--out", scene, "--image-size", 1000, "--max-features", 4096, "--dense-size", 640]
+    # Poisson one octave coarser than the default (37 s -> 16 s here): the surface's finest 0.2 m is not what this checks
+    argv = ["--photos", photos, "--out", scene, "--image-size", 1000, "--max-features", 4096, "--dense-size", 640,
+            "--poisson-depth", 9]
     code, err = run_cli(argv, capsys)
     assert code == 0, err
     report = json.loads((scene / "work" / "sfm_report.json").read_text())

@@ -145,7 +145,7 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     of CPU (110 s on the shared 2-core machine)."""
     photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
     assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
-                       "--hold-out", "6"]) == 0
+                       "--hold-out", "6", "--poisson-depth", "9"]) == 0  # a coarser surface: not what this checks
     names = sorted(p.name for p in photos.iterdir())
     cameras = {c.name: c for c in load_scene(scene).cameras}
     held_out = sorted(name for name, c in cameras.items() if c.held_out)
