@@ -32,6 +32,7 @@ import numpy as np
 from scipy import ndimage
 
 from recon.measure.oblique import TwinFrame
+from recon.surface.grid import Grid
 from recon.surface.observed import inside
 from sim.render.raycast import intersect
 from sim.render.scene import Scene
@@ -94,27 +95,9 @@ def read_true_trees(meta: dict, source: str) -> list[TrueTree]:
         raise ValueError(f"{source}: vegetation.trees: an entry without a usable {error}") from None
 
 
-@dataclass(frozen=True)
-class Window:
-    """A tree's grid of cells (world ENU): ``corner`` (2,) the low x/y corner, ``shape`` (rows along y, columns
-    along x), cells :data:`CELL_M` square."""
-
-    corner: np.ndarray
-    shape: tuple[int, int]
-    cell_m: float = CELL_M
-
-    @classmethod
-    def around(cls, tree: TrueTree, cell_m: float = CELL_M, margin_m: float = WINDOW_MARGIN_M) -> "Window":
-        """The footprint's bounding box grown by ``margin_m``, in whole cells."""
-        low, high = tree.footprint.min(axis=0) - margin_m, tree.footprint.max(axis=0) + margin_m
-        columns, rows = np.ceil((high - low) / cell_m).astype(int)
-        return cls(low, (int(rows), int(columns)), cell_m)
-
-    def centres(self) -> np.ndarray:
-        """``(rows * columns, 2)`` ENU x/y of the cell centres, row by row."""
-        x = self.corner[0] + (np.arange(self.shape[1]) + 0.5) * self.cell_m
-        y = self.corner[1] + (np.arange(self.shape[0]) + 0.5) * self.cell_m
-        return np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2)
+def tree_grid(tree: TrueTree, cell_m: float = CELL_M) -> Grid:
+    """A tree's window: the cells over its footprint's bounding box grown by :data:`WINDOW_MARGIN_M`."""
+    return Grid.covering(tree.footprint, cell_m, WINDOW_MARGIN_M)
 
 
 def surface_from_above(scene: Scene, xy: np.ndarray, frame: TwinFrame | None = None,
@@ -176,7 +159,7 @@ def _iou(first: np.ndarray, second: np.ndarray) -> float:
     return int((first & second).sum()) / union if union else math.nan
 
 
-def score_tree(tree: TrueTree, window: Window, true_height: np.ndarray, true_instance: np.ndarray,
+def score_tree(tree: TrueTree, window: Grid, true_height: np.ndarray, true_instance: np.ndarray,
                twin_height: np.ndarray) -> TreeScore:
     """One tree's :class:`TreeScore` from its window's cells (row by row): the first true surface's ENU height and
     object (0: none) and the twin's height (NaN: a hole), each (cells,)."""
@@ -187,7 +170,7 @@ def score_tree(tree: TrueTree, window: Window, true_height: np.ndarray, true_ins
     true_top = float(true_height[true_crown].max()) - tree.ground_z if true_crown.any() else math.nan
     over_crown = twin_height[true_crown]
     twin_top = float(np.nanmax(over_crown)) - tree.ground_z if np.isfinite(over_crown).any() else math.nan
-    outlines = [crown_outline(crown.reshape(window.shape), window.cell_m).ravel() & ~elsewhere
+    outlines = [crown_outline(crown.reshape(window.rows, window.cols), window.cell_m).ravel() & ~elsewhere
                 for crown in (true_crown, twin_crown)]
     return TreeScore(tree.instance, tree.kind, tree.forest, true_top, twin_top, twin_top - true_top, tree.top_height,
                      int(true_crown.sum()), int(twin_crown.sum()), _iou(true_crown, twin_crown), _iou(*outlines))
@@ -204,17 +187,17 @@ def trees_inside(trees: Sequence[TrueTree], polygon: np.ndarray | None) -> list[
 def score_trees(world: Scene, twin: Scene, frame: TwinFrame | None, trees: Sequence[TrueTree],
                 pool: Executor | None = None, cell_m: float = CELL_M) -> list[TreeScore]:
     """Every tree's :class:`TreeScore`: the true ``world`` (with labels) and the ``twin`` seen from above over each
-    tree's :class:`Window` (``frame``: the twin's frame in the world's; None: it is the world's)."""
+    tree's window (:func:`tree_grid`; ``frame``: the twin's frame in the world's; None: it is the world's)."""
     if world.labels is None:
         raise ValueError(f"{world.source}: the true world has no face labels (labels.npz): its trees cannot be found")
-    windows = [Window.around(tree, cell_m) for tree in trees]
+    windows = [tree_grid(tree, cell_m) for tree in trees]
     if not windows:
         return []
     xy = np.concatenate([window.centres() for window in windows])
     true_height, true_face = surface_from_above(world, xy, None, pool)
     true_instance = np.where(true_face >= 0, world.labels.face_instance[np.maximum(true_face, 0)], 0)
     twin_height, _ = surface_from_above(twin, xy, frame, pool)
-    bounds = np.cumsum([0] + [window.shape[0] * window.shape[1] for window in windows])
+    bounds = np.cumsum([0] + [window.rows * window.cols for window in windows])
     return [score_tree(tree, window, true_height[a:b], true_instance[a:b], twin_height[a:b])
             for tree, window, a, b in zip(trees, windows, bounds[:-1], bounds[1:], strict=True)]
 

@@ -24,6 +24,7 @@ from scipy import ndimage
 
 from recon.measure.oblique import TwinFrame
 from recon.measure.trees import CELL_M, surface_from_above
+from recon.surface.grid import Grid
 from sim.render.scene import Scene
 
 LEVEL_TOLERANCE_M = 0.2
@@ -72,16 +73,6 @@ class PondScore:
         return asdict(self)
 
 
-def pond_grid(pond: TruePond, cell_m: float = CELL_M) -> tuple[np.ndarray, tuple[int, int]]:
-    """The ENU x/y of the cell centres ``(rows * columns, 2)`` (row by row) over the shoreline's bounding box grown by
-    a cell, and the grid's shape (rows along y, columns along x)."""
-    low, high = pond.shoreline.min(axis=0) - cell_m, pond.shoreline.max(axis=0) + cell_m
-    columns, rows = np.ceil((high - low) / cell_m).astype(int)
-    x = low[0] + (np.arange(columns) + 0.5) * cell_m
-    y = low[1] + (np.arange(rows) + 0.5) * cell_m
-    return np.stack(np.meshgrid(x, y), axis=-1).reshape(-1, 2), (int(rows), int(columns))
-
-
 def score_pond(pond: TruePond, shape: tuple[int, int], true_instance: np.ndarray, twin_height: np.ndarray,
                cell_m: float = CELL_M) -> PondScore:
     """One pond's :class:`PondScore` from its grid's cells (row by row): the object of the first true surface (0:
@@ -108,7 +99,8 @@ def score_ponds(world: Scene, twin: Scene, frame: TwinFrame | None, ponds: Seque
         raise ValueError(f"{world.source}: the true world has no face labels (labels.npz): its ponds cannot be found")
     scores = []
     for pond in ponds:
-        xy, shape = pond_grid(pond, cell_m)
+        grid = Grid.covering(pond.shoreline, cell_m)
+        xy, shape = grid.centres(), (grid.rows, grid.cols)
         _, true_face = surface_from_above(world, xy, None, pool)
         true_instance = np.where(true_face >= 0, world.labels.face_instance[np.maximum(true_face, 0)], 0)
         twin_height, _ = surface_from_above(twin, xy, frame, pool)

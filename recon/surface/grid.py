@@ -20,9 +20,11 @@ class Grid:
     cols: int
 
     @classmethod
-    def covering(cls, points_xy: np.ndarray, cell_m: float) -> "Grid":
-        """The grid whose cells cover every ``(N, 2)`` point, with one cell to spare on each side."""
-        lo, hi = points_xy.min(axis=0) - cell_m, points_xy.max(axis=0) + cell_m
+    def covering(cls, points_xy: np.ndarray, cell_m: float, margin_m: float | None = None) -> "Grid":
+        """The grid whose cells cover every ``(N, 2)`` point, with ``margin_m`` (None: one cell) to spare on each
+        side."""
+        margin_m = cell_m if margin_m is None else margin_m
+        lo, hi = points_xy.min(axis=0) - margin_m, points_xy.max(axis=0) + margin_m
         cols, rows = (int(np.ceil((hi - lo)[k] / cell_m)) for k in (0, 1))
         return cls(float(lo[0]), float(lo[1] + rows * cell_m), cell_m, rows, cols)
 

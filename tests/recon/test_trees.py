@@ -17,8 +17,8 @@ import trimesh
 from scipy.spatial.transform import Rotation
 
 from recon.measure.oblique import TwinFrame
-from recon.measure.trees import (CELL_M, TreeScore, TrueTree, Window, read_true_trees, score_trees, summarise_trees,
-                                 surface_from_above, trees_inside)
+from recon.measure.trees import (CELL_M, TreeScore, TrueTree, read_true_trees, score_trees, summarise_trees,
+                                 surface_from_above, tree_grid, trees_inside)
 from recon.surface.observed import inside
 from sim.render.classes import GROUND, TREE
 from sim.render.labels import SceneLabels
@@ -111,9 +111,9 @@ def test_the_true_crown_is_the_footprint_seen_from_above():
     """Cross-check: the cells whose first surface is the tree are those inside its footprint polygon."""
     world = forest()
     for tree in true_trees():
-        window = Window.around(tree)
-        assert window.shape == (int((np.ptp(tree.footprint[:, 1]) + 4) / CELL_M),
-                                int((np.ptp(tree.footprint[:, 0]) + 4) / CELL_M))
+        window = tree_grid(tree)
+        assert (window.rows, window.cols) == (int((np.ptp(tree.footprint[:, 1]) + 4) / CELL_M),
+                                              int((np.ptp(tree.footprint[:, 0]) + 4) / CELL_M))
         _, face = surface_from_above(world, window.centres())
         seen = world.labels.face_instance[face] == tree.instance
         np.testing.assert_array_equal(seen, inside(tree.footprint, window.centres()))
