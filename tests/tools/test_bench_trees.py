@@ -103,6 +103,19 @@ def test_a_world_without_trees_exits_2_naming_its_scene_json(flight, tmp_path, c
     assert err[-1].startswith(f"bench_trees: error: {bare / 'scene.json'}: no \"vegetation\"")
 
 
+def test_a_flight_over_another_world_exits_2_naming_both(flight, tmp_path, capsys):
+    world, truth, twin, _ = flight
+    other = tmp_path / "other_truth.json"
+    other.write_text(json.dumps({**json.loads(truth.read_text()), "scene": "/cache/worlds/small-0-v10/world.glb"}))
+    assert main(["--world", str(world), "--truth", str(other), "--scene", f"copy={twin}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"bench_trees: error: {other}: the flight flew over /cache/worlds/small-0-v10/world.glb, "
+                       f"not over the --world {world}")
+    same = tmp_path / "same_truth.json"  # the world's own folder, wherever it was when it was flown
+    same.write_text(json.dumps({**json.loads(truth.read_text()), "scene": f"/elsewhere/{world.name}/world.glb"}))
+    assert main(["--world", str(world), "--truth", str(same), "--scene", f"copy={twin}"]) == 0
+
+
 def test_a_truth_that_is_not_json_exits_2_naming_it(flight, tmp_path, capsys):
     world, _, twin, _ = flight
     broken = tmp_path / "broken.json"

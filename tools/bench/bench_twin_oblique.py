@@ -99,6 +99,15 @@ def flight_sun(args, truth: dict, origin) -> Sun:
     return frame_light(setting, 0, 0, origin).keywords["sun"]
 
 
+def check_flown_over(truth: dict, truth_path: Path, world_dir: Path) -> None:
+    """ValueError where ``truth`` (read from ``truth_path``) names the scene its flight flew over (fly writes its mesh
+    file's path) and that lies in a folder of another name than ``world_dir``: scored against another world, every
+    figure would be nonsense."""
+    flown = truth.get("scene")
+    if isinstance(flown, str) and Path(flown).parent.name != Path(world_dir).resolve().name:
+        raise ValueError(f"{truth_path}: the flight flew over {flown}, not over the --world {world_dir}")
+
+
 def load_twins(args, world_dir: Path) -> tuple:
     """The true world (the scene folder ``world_dir``), each ``--scene``'s scene and frame (labelled), the observed
     area (world ENU) and the parsed ``--truth``."""
@@ -106,6 +115,7 @@ def load_twins(args, world_dir: Path) -> tuple:
         truth = json.loads(args.truth.read_text(encoding="utf-8"))
     except (UnicodeDecodeError, json.JSONDecodeError) as error:
         raise ValueError(f"{args.truth}: not UTF-8 JSON ({error})") from None
+    check_flown_over(truth, args.truth, world_dir)
     world = load_scene(world_dir)
     twins, registered = {}, set()
     for label, folder in args.scene:
