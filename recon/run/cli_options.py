@@ -9,7 +9,7 @@ import argparse
 import re
 
 from recon.surface.dense import DenseOptions
-from recon.run.pipeline import MESHES, TEXTURES, ReconOptions
+from recon.run.pipeline import MESHES, TEXTURES, WATER, ReconOptions
 from recon.sfm.options import SfmOptions
 from recon.appearance.atlas import AtlasOptions
 from recon.appearance.texture import TextureOptions
@@ -63,6 +63,10 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--poisson-depth", type=poisson_depth, default=ReconOptions.poisson_depth,
                         help="octree depth of the Poisson surface (--mesh 3d, poisson): its cell is the surface's "
                              "extent / 2^depth; one less is about 2-4x faster and coarser (default %(default)s)")
+    parser.add_argument("--water", choices=WATER, default=ReconOptions.water,
+                        help="plane: open water the fused points show (plain, level, lower than its shore) becomes a "
+                             "plane at its level, marked proxy in the face provenance; none: the raw surface "
+                             "(default %(default)s)")
     parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
     parser.add_argument("--every", type=positive_int, default=None,
                         help="only every k-th photo enters mapping, the rest are registered into its model "
@@ -129,7 +133,7 @@ def recon_options(args: argparse.Namespace) -> ReconOptions:
         dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
                            num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, poisson_depth=args.poisson_depth, decimate_error_m=args.decimate_error,
-        texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
+        water=args.water, texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
         delight=not args.keep_capture_light, capture_sun=args.capture_sun,
         capture_utc_offset_h=args.capture_utc_offset,

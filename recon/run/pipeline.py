@@ -11,7 +11,7 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | undistort | ``dense.max_image_size`` | | ``work/dense`` (images, ``sparse``, ``stereo/fusion.cfg``) |
 | depth | ``dense`` pair choice, SGBM, consistency | | ``work/dense/depth_report.json``, per-image maps (below) |
 | fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
-| mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m`` | | ``work/mesh.ply`` (``mesh_decimated.ply``) |
+| mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m``, ``water`` | | ``work/mesh.ply`` (``mesh_decimated.ply``), ``work/water.json`` (recon/surface/water.py) |
 | texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb``, ``work/texture_faces.npy`` (which faces a photo colours; none with ``texture="none"``) |
 | scene | ``texture`` | the sky visibility's bake settings, the face provenance's | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` + ``face_provenance.npz`` (recon/surface/provenance.py) |
 | labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/semantics/labels.py), named in ``scene.json`` (rewritten) |
@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 
 from capture.geotag_io import sidecar_path
 from recon.appearance import texture as texturing
-from recon.surface import dense, mesh as meshing
+from recon.surface import dense, mesh as meshing, water
 from recon.appearance.atlas import AtlasOptions, texture_atlas
 from recon.appearance.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.surface.observed import viewed_area
@@ -68,6 +68,7 @@ from sim.render.sky import bake_settings
 
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
+WATER = ("plane", "none")
 
 #: What each stage wrote before stages were stamped (relative to the scene folder): such a stage is redone.
 OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fusion.cfg",
@@ -95,7 +96,8 @@ HEIGHT_DATUM = {
 class ReconOptions:
     """All knobs: SfM, dense, surface (``mesh``: "3d" Poisson cropped to the observed area grown by
     ``crop_margin`` x the median viewing distance and trimmed at ``poisson_trim``, "2.5d" height field, or "poisson"
-    of the whole cloud), grid cell (None = 2 GSD), decimation, ``texture`` ("atlas": a texture atlas, each face from
+    of the whole cloud), grid cell (None = 2 GSD), decimation, ``water`` ("plane": open water the fused points show
+    becomes a plane at its level, recon/surface/water.py; "none": the raw surface), ``texture`` ("atlas": a texture atlas, each face from
     its best photo; "ortho": a true orthophoto, for 2.5-D fields; "none": vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
     but left out of depth maps, fusion and texture; 0 = none), ``delight``: an atlas of photos with a UTC time stores
     the albedo and the capture light it divided out (recon/appearance/delight.py), so the twin can be lit by another
@@ -112,6 +114,7 @@ class ReconOptions:
     poisson_trim: float = 5.0
     crop_margin: float = 0.5
     decimate_error_m: float = 0.02
+    water: str = "plane"
     texture: str = "atlas"
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
     atlas_options: AtlasOptions = field(default_factory=AtlasOptions)
@@ -124,6 +127,8 @@ class ReconOptions:
     def __post_init__(self) -> None:
         if self.mesh not in MESHES:
             raise ValueError(f"mesh must be one of {', '.join(MESHES)}, got {self.mesh!r}")
+        if self.water not in WATER:
+            raise ValueError(f"water must be one of {', '.join(WATER)}, got {self.water!r}")
         if self.texture not in TEXTURES:
             raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
         if self.capture_sun is not None and not (-360 <= self.capture_sun[0] <= 360 and
@@ -362,7 +367,7 @@ class Recon:
         points, _ = meshing.read_point_cloud(self.work / "fused.ply")
         cell = self.height_field_cell(points) if self.options.mesh == "2.5d" else self.cell_size()
         face_seen = np.load(self.work / TEXTURE_FACES) if textured else None
-        return SurfaceEvidence(points, GAP_CELLS * cell, face_seen)
+        return SurfaceEvidence(points, GAP_CELLS * cell, face_seen, tuple(water.read_water(self.work / water.WATER_FILE)))
 
     @staticmethod
     def observed_area(rec: pycolmap.Reconstruction) -> np.ndarray:
@@ -388,6 +393,9 @@ class Recon:
             surface = meshing.height_field_mesh(meshing.height_field(points, colors, cell))
             with atomic_path(full) as tmp:
                 surface.export(tmp)
+        bodies = water.flatten_water(full, self.work / "fused.ply") if self.options.water == "plane" else []
+        water.write_water(self.work / water.WATER_FILE, bodies)
+        self.log(f"[mesh] water: {water.describe(bodies)}")
         if self.options.decimate_error_m:
             meshing.decimate(full, small, self.options.decimate_error_m)
 

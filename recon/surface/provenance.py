@@ -13,6 +13,8 @@ What recon makes up, and how it is caught here (ENU metres throughout):
   did see: ``texture_filled`` for the faces no photo colours (the atlas: no photo chosen; the orthophoto: the texel
   under the face's centroid unseen). Without a texture (``--texture none``) the colours are the fused points' own,
   interpolated with the surface, so a face's colour is made up exactly where its surface is.
+- **Proxy**: open water whose surface recon made a plane at its level (:mod:`recon.surface.water`): the faces on
+  the plane are ``proxy``.
 """
 
 from __future__ import annotations
@@ -23,7 +25,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sim.render.provenance import (FAR_M, FORMAT, PROVENANCE_FILE, SURFACE_FAR, SURFACE_FILLED, TEXTURE_FILLED,
+from recon.surface.water import WaterBody, on_water
+from sim.render.provenance import (FAR_M, FORMAT, PROVENANCE_FILE, PROXY, SURFACE_FAR, SURFACE_FILLED, TEXTURE_FILLED,
                                    code_shares, code_table, write_face_provenance)
 from sim.render.scene import read_scene_mesh_enu
 from sim.render.sky_file import mesh_sha256
@@ -36,17 +39,20 @@ GAP_CELLS = 3.0
 class SurfaceEvidence:
     """What a reconstruction measured: the fused dense ``points`` (N, 3) ENU metres, the ``gap_m`` beyond which a face
     is filled, and per face of its mesh (in the mesh's order) whether a photo colours it (``face_seen``; None: the
-    colours are the points' own, no texture)."""
+    colours are the points' own, no texture); the bodies of ``water`` whose surface recon made a plane
+    (recon/surface/water.py)."""
 
     points: np.ndarray
     gap_m: float
     face_seen: np.ndarray | None = None
+    water: tuple[WaterBody, ...] = ()
 
     def settings(self) -> dict:
         """What the codes were found with, as ``scene.json`` records it."""
         return {"gap_m": round(float(self.gap_m), 4), "gap_cells": GAP_CELLS, "far_m": FAR_M,
                 "measured_points": int(len(self.points)),
-                "texture": "photos" if self.face_seen is not None else "vertex colours of the fused points"}
+                "texture": "photos" if self.face_seen is not None else "vertex colours of the fused points",
+                "water_planes": [{"level_z_m": round(b.level_z, 4), "area_m2": round(b.area_m2, 2)} for b in self.water]}
 
 
 def surface_codes(centroids: np.ndarray, points: np.ndarray, gap_m: float, far_m: float = FAR_M) -> np.ndarray:
@@ -78,6 +84,7 @@ def face_codes(vertices: np.ndarray, faces: np.ndarray, evidence: SurfaceEvidenc
                              f"has {len(codes)}")
         unseen = ~np.asarray(evidence.face_seen, dtype=bool)
     codes[unseen] |= TEXTURE_FILLED
+    codes[on_water(vertices, faces, evidence.water)] |= PROXY
     return codes
 
 
@@ -92,7 +99,7 @@ def store_face_provenance(scene_dir: Path, meta: dict, evidence: SurfaceEvidence
     loader reads it, from ``evidence``, and store the codes (:func:`store_codes`); their shares."""
     vertices, faces, _ = read_scene_mesh_enu(scene_dir, meta)
     return store_codes(scene_dir, meta, face_codes(vertices, faces, evidence),
-                       "recon: fused-point distance and photo coverage per face", evidence.settings())
+                       "recon: fused-point distance, photo coverage and water planes per face", evidence.settings())
 
 
 def store_codes(scene_dir: Path, meta: dict, codes: np.ndarray, method: str, settings: dict) -> dict:

@@ -170,6 +170,8 @@ CASES = [
          r"argument --poisson-depth: expected an octree depth from 6 to 12, got 14", PHOTOS),
     Case("recon-poisson-depth-word", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--poisson-depth", "ten"],
          r"argument --poisson-depth: expected an octree depth from 6 to 12, got ten", PHOTOS),
+    Case("recon-bad-water", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--water", "lake"],
+         r"--water: invalid choice: 'lake'", PHOTOS),
     Case("recon-image-size-word", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--image-size", "big"],
          r"--image-size: invalid positive_int value: 'big'", PHOTOS),
     Case("recon-capture-sun-too-high", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--capture-sun", "150,95"],
