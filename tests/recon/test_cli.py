@@ -19,6 +19,7 @@ from sim.cli import main as render_main
 from sim.dataset.images import read_exr
 from sim.render.scene import read_scene_mesh_enu
 from tools.geotag_csv import geotag_row, write_geotags
+from tests.recon.real_sets import BRIGHTON_RECON_ARGS
 from tests.recon.synthetic import HEIGHT, WIDTH, make_texture, write_nadir_photos
 
 
@@ -75,18 +76,22 @@ def test_poisson_depth_reaches_the_mesh_stage():
     assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).poisson_depth == 10
 
 
+def test_water_reaches_the_mesh_stage():
+    assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).water == "plane"
+    assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o", "--water", "none"])).water == "none"
+    with pytest.raises(ValueError, match="water must be one of plane, none, got 'lake'"):
+        ReconOptions(water="lake")
+
+
 @pytest.mark.slow
-def test_brighton_beach_end_to_end(shared_data, tmp_path, capsys):
+def test_brighton_beach_end_to_end(brighton_scene, tmp_path, capsys):
     """18 real DJI photos (nadir, ~40 m): all register, positions agree with EXIF GPS, focal stays at the
     profile value, and the surface lies ~37-40 m under the cameras (DJI XMP RelativeAltitude is 40 m; the
     self-calibrated focal would have put it at ~46 m). Rerunning with the same options redoes no stage."""
-    photos = shared_data / "brighton_beach" / "images"
+    assert brighton_scene["code"] == 0  # its log is in this test's captured setup output
     scene = tmp_path / "scene"
-    # Poisson one octave coarser than the default (37 s -> 16 s here): the surface's finest 0.2 m is not what this checks
-    argv = ["--photos", photos, "--out", scene, "--image-size", 1000, "--max-features", 4096, "--dense-size", 640,
-            "--poisson-depth", 9]
-    code, err = run_cli(argv, capsys)
-    assert code == 0, err
+    shutil.copytree(brighton_scene["scene"], scene)
+    argv = ["--photos", brighton_scene["photos"], "--out", scene, *BRIGHTON_RECON_ARGS]
     report = json.loads((scene / "work" / "sfm_report.json").read_text())
     assert len(report["registered"]) == 18 and report["unregistered"] == []
     assert report["mean_reprojection_error_px"] < 1.5

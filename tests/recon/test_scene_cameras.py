@@ -3,6 +3,7 @@ known SfM model read back by the sim scene loader, and (slow) held-out photos of
 
 import datetime as dt
 import json
+import shutil
 
 import numpy as np
 import pycolmap
@@ -13,12 +14,14 @@ from flightplan.geodesy import LocalFrame
 from recon.cli import main as recon_main
 from recon.run.pipeline import ReconOptions
 from recon.run.scene_out import scene_cameras, write_scene
+from recon.run.stages import STAGES
 from recon.sfm.cameras import camera_from_colmap, camera_poses
 from sim.cli import main as render_main
 from sim.dataset.images import read_exr
 from sim.evaluation.realism import compare_folders
 from sim.render.scene import SceneError, load_scene, read_scene_json
 from sim.sampling.sun import solar_position
+from tests.recon.real_sets import BRIGHTON_RECON_ARGS
 
 RNG = np.random.default_rng(11)
 #: COLMAP model -> parameters (focal(s), principal point, extra), all used by sim's OpenCV lens.
@@ -136,16 +139,17 @@ def assert_kept_light(scene, reason: str) -> None:
 
 
 @pytest.mark.slow
-def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_data, tmp_path, capsys):
-    """brighton_beach (18 DJI photos) with --hold-out 6: photos 6, 12, 18 are in cameras.json as held out, with
-    their SfM pose, not in the depth/texture workspace, but with their exposure gain measured against the texture;
-    cameras.json's full-size
+def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(brighton_scene, tmp_path, capsys):
+    """brighton_beach (18 DJI photos), reconstructed, then again with --hold-out 6: SfM is kept (the option shapes
+    the stages after it); photos 6, 12, 18 are in cameras.json as held out, with their SfM pose, not in the
+    depth/texture workspace, but with their exposure gain measured against the texture; cameras.json's full-size
     lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
-    photos by name; untimed, the texture keeps its capture light, and given its zone each photo gets its sun. ~50 s
-    of CPU (110 s on the shared 2-core machine)."""
-    photos, scene, replay = shared_data / "brighton_beach" / "images", tmp_path / "scene", tmp_path / "replay"
-    assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
-                       "--hold-out", "6", "--poisson-depth", "9"]) == 0  # a coarser surface: not what this checks
+    photos by name; untimed, the texture keeps its capture light, and given its zone each photo gets its sun."""
+    photos, scene, replay = brighton_scene["photos"], tmp_path / "scene", tmp_path / "replay"
+    shutil.copytree(brighton_scene["scene"], scene)
+    capsys.readouterr()
+    assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6"]) == 0
+    assert capsys.readouterr().err.count("already done") == 1  # sfm
     names = sorted(p.name for p in photos.iterdir())
     cameras = {c.name: c for c in load_scene(scene).cameras}
     held_out = sorted(name for name, c in cameras.items() if c.held_out)
@@ -159,14 +163,14 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
     poses = camera_poses(model)
     for image in model.images.values():
         camera = cameras[image.name]
-        assert (camera.camera.width, camera.camera.height) == (4000, 2250)  # the photo's size, not SfM's 800 px
+        assert (camera.camera.width, camera.camera.height) == (4000, 2250)  # the photo's size, not SfM's 1000 px
         np.testing.assert_allclose(camera.T_world_cam, poses[image.name], atol=1e-9)
         seen = [p for p in image.points2D if p.has_point3D()]
         xyz = np.array([model.points3D[p.point3D_id].xyz for p in seen])
         T_cam_world = np.linalg.inv(camera.T_world_cam)
         pixels, _ = camera.camera.project(xyz @ T_cam_world[:3, :3].T + T_cam_world[:3, 3])
         residual = np.linalg.norm(pixels - (np.array([p.xy for p in seen]) - 0.5), axis=1)
-        assert np.median(residual) < 4.0, image.name  # SfM's reprojection error (~1 px at 800 px) at 4000 px
+        assert np.median(residual) < 4.0, image.name  # SfM's reprojection error (~1 px at 1000 px) at 4000 px
     assert render_main(["--scene", str(scene), "--out", str(replay), "--mode", "replay", "--width", "400",
                         "--quiet"]) == 0
     results = {r.name: r for r in compare_folders(photos, replay / "sequences" / "00" / "replay_2")}
@@ -181,8 +185,10 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(shared_
         results[names[5].rsplit(".", 1)[0]].covered)
     # its photos say 16:32 local on 23 June 2016 (Minnesota, UTC-05:00): untimed (above), the road's shadows, cast by
     # a forest the dense stereo did not reconstruct, told no zone; given the zone, each photo gets that sun
-    assert recon_main(["--photos", str(photos), "--out", str(scene), "--image-size", "800", "--dense-size", "640",
-                       "--hold-out", "6", "--capture-utc-offset=-05:00"]) == 0
+    capsys.readouterr()
+    assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6",
+                       "--capture-utc-offset=-05:00"]) == 0
+    assert capsys.readouterr().err.count("already done") == STAGES.index("texture")  # the zone shapes the texture on
     light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
     assert light["capture_sun"]["time_source"] == "EXIF clock at UTC-05:00"
     fit = light["capture_sun"]["shadow_fit"]  # too few of its shadows in the twin (IoU < 0.1) to refine the clock
