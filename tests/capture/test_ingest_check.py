@@ -125,15 +125,16 @@ BLUR_WINDOW, SKIP_WINDOW = "21,24,3", "50,51"
 
 @pytest.fixture(scope="module")
 def flights(tmp_path_factory):
-    """The three-leg short orbit flown clean and with faults (320x240 photos), each checked: folder -> (truth,
-    report, exit code)."""
+    """The three-leg short orbit flown clean and with faults (320x240 photos) over the small world (whose sky bake
+    the other flights share), each checked: folder -> (truth, report, exit code)."""
     root = tmp_path_factory.mktemp("check")
     mission = short_orbit_csv(root / "mission.csv", waypoints=4)
     runs = {"clean": [], "faulty": ["--blur", BLUR_WINDOW, "--skip-shots", SKIP_WINDOW]}
     results = {}
     for name, faults in runs.items():
         folder = root / name
-        assert render_main(["fly", "--mission", str(mission), "--out", str(folder), "--photo-size", "320", "240",
+        assert render_main(["fly", "--mission", str(mission), "--scene", "demo:small", "--out", str(folder),
+                            "--photo-size", "320", "240",
                             "--seed", "0", *faults]) == 0
         code = ingest_main(["check", "--photos", str(folder / "photos"), "--log", str(folder / "flight.duml"),
                             "--mission", str(mission), "--out", str(folder / "check")])
@@ -235,8 +236,8 @@ def test_the_refly_csv_flown_by_the_virtual_drone_fills_the_gap_arcs(flights, ca
     truth, report, _, folder = results["faulty"]
     origin = truth["origin"]
     refly = folder / "refly_flight"
-    assert render_main(["fly", "--mission", str(folder / "check" / "refly.csv"), "--out", str(refly),
-                        "--photo-size", "160", "120", "--seed", "1",
+    assert render_main(["fly", "--mission", str(folder / "check" / "refly.csv"), "--scene", "demo:small",
+                        "--out", str(refly), "--photo-size", "160", "120", "--seed", "1",
                         "--home", str(origin["lat0_deg"]), str(origin["lon0_deg"])]) == 0
     capsys.readouterr()
     assert ingest_main(["check", "--photos", str(refly / "photos"), "--log", str(refly / "flight.duml"),

@@ -84,7 +84,7 @@ def test_a_flight_with_photo_faults_has_them_on_its_card_and_in_its_truth(tmp_pa
     """The skipped shots fire (a shutter event each in the DUML capture) but are not on the card; the blurred photos
     are blurred against the same flight flown clean; truth.json lists both."""
     mission = short_orbit_csv(tmp_path / "m.csv")
-    common = ["fly", "--mission", str(mission), "--photo-size", "80", "60", "--seed", "0"]
+    common = ["fly", "--mission", str(mission), "--scene", "demo:small", "--photo-size", "80", "60", "--seed", "0"]
     assert render_main([*common, "--out", str(tmp_path / "clean")]) == 0
     assert render_main([*common, "--out", str(tmp_path / "faulty"), "--skip-shots", "30,31.5",
                         "--blur", "40,43,4"]) == 0
