@@ -16,9 +16,10 @@ of its points and, over it and its 8 neighbours, their luminance's standard devi
    :data:`GROW_CELLS` cells over neighbours also within the band (the shore's cells, where the window takes in the
    bank's texture), with the holes it encloses (cells without points, a crown's) and the cells without points in
    the notches of its edge.
-3. **Basin**: water lies below its shore. Of the observed cells in the ring :data:`RING_CELLS` cells wide round the
-   body, at least :data:`MIN_BANK_SHARE` lie :data:`BANK_RISE_M` or more above the level (a flat roof stands above
-   the ground round it; a car park or a shadowed lawn is level with it).
+3. **Basin**: water lies below its shore. At least :data:`MIN_RING_SEEN` of the ring :data:`RING_CELLS` cells wide
+   round the body is observed (a plain patch at the edge of what the photos cover has no shore to judge by), and of
+   its observed cells at least :data:`MIN_BANK_SHARE` lie :data:`BANK_RISE_M` or more above the level (a flat roof
+   stands above the ground round it; a car park or a shadowed lawn is level with it).
 
 The mesh's vertices over a body's cells within :data:`SNAP_BAND_M` of its level are moved onto it
 (:func:`flatten_onto`): a crown over the water, or a wall, keeps its height. The faces on the plane are a ``proxy``
@@ -62,7 +63,10 @@ RING_CELLS = 3
 BANK_RISE_M = 0.1
 """A ring cell is bank when its median height is at least this many metres above the level ..."""
 MIN_BANK_SHARE = 0.75
-"""... and a body lies in a basin when at least this share of its observed ring cells are bank."""
+"""... and a body lies in a basin when at least this share of its observed ring cells are bank ..."""
+MIN_RING_SEEN = 0.8
+"""... and at least this share of its ring is observed (the default orbit's pond: 95 %; a plain patch in shadow at the
+edge of p4m_rtk's reconstruction, beside a row of trees: 34 %, and 93 % of that bank)."""
 SNAP_BAND_M = 0.6
 """Mesh vertices over a body within this many metres of its level are moved onto it."""
 ON_PLANE_M = 0.005
@@ -123,7 +127,7 @@ def luma(colors: np.ndarray) -> np.ndarray:
 
 def cell_stats(points: np.ndarray, colors: np.ndarray, cell_m: float) -> CellStats:
     """:class:`CellStats` of the fused ``points`` ((N, 3) ENU metres) and their ``colors`` ((N, 3) sRGB)."""
-    grid = Grid.covering(points[:, :2], cell_m)
+    grid = Grid.covering(points[:, :2], cell_m, margin_m=(RING_CELLS + 2) * cell_m)  # a ring round every body
     row, col = grid.cell_of(points[:, :2])
     flat = row * grid.cols + col
     size = grid.rows * grid.cols
@@ -172,8 +176,9 @@ def level_body(stats: CellStats, group: np.ndarray, min_cells: float) -> WaterBo
     grown = ndimage.binary_dilation(core, np.ones((3, 3)), iterations=GROW_CELLS, mask=at_level)
     notches = ndimage.binary_closing(grown, np.ones((3, 3))) & ~np.isfinite(stats.height)
     body = ndimage.binary_fill_holes(grown | notches)
-    ring = ndimage.binary_dilation(body, np.ones((3, 3)), iterations=RING_CELLS) & ~body & np.isfinite(stats.height)
-    if not ring.any() or np.mean(stats.height[ring] >= level + BANK_RISE_M) < MIN_BANK_SHARE:
+    ring = ndimage.binary_dilation(body, np.ones((3, 3)), iterations=RING_CELLS) & ~body
+    seen = ring & np.isfinite(stats.height)
+    if seen.sum() < MIN_RING_SEEN * ring.sum() or np.mean(stats.height[seen] >= level + BANK_RISE_M) < MIN_BANK_SHARE:
         return None
     return WaterBody(level, stats.grid, body)
 

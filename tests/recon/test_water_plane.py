@@ -131,3 +131,11 @@ def test_the_mesh_over_a_pond_becomes_its_plane_and_says_so(tmp_path):
     proxy = (codes & PROXY) > 0
     assert proxy[in_pond(centroids, RADIUS_M - 0.5)].all() and not proxy[~in_pond(centroids, RADIUS_M + 1.0)].any()
     assert not (face_codes(flat.vertices, faces, SurfaceEvidence(points, 0.3)) & PROXY).any()
+
+
+def test_a_plain_hollow_at_the_edge_of_the_cloud_has_no_shore_to_judge_by():
+    """The pond with the cloud cut 1 m east of its centre, as at the edge of what the photos cover: its west bank
+    alone rises above it, and that is not enough."""
+    points, colors = cloud(np.random.default_rng(7), pond_height, in_pond)
+    keep = points[:, 0] < 1.0
+    assert find_water(points[keep], colors[keep], CELL_M) == []
