@@ -393,9 +393,11 @@ class Recon:
             surface = meshing.height_field_mesh(meshing.height_field(points, colors, cell))
             with atomic_path(full) as tmp:
                 surface.export(tmp)
-        bodies = water.flatten_water(full, self.work / "fused.ply") if self.options.water == "plane" else []
+        bodies = []
+        if self.options.water == "plane":
+            bodies = water.flatten_water(full, self.work / "fused.ply")
+            self.log(f"[mesh] water: {water.describe(bodies)}")
         water.write_water(self.work / water.WATER_FILE, bodies)
-        self.log(f"[mesh] water: {water.describe(bodies)}")
         if self.options.decimate_error_m:
             meshing.decimate(full, small, self.options.decimate_error_m)
 

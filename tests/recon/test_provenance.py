@@ -16,6 +16,7 @@ from recon.area.pipeline import AreaOptions, merge_area
 from recon.run.scene_out import write_scene
 from recon.surface.mesh import height_field, height_field_mesh
 from recon.surface.provenance import GAP_CELLS, SurfaceEvidence, face_codes, store_codes, surface_codes
+from recon.surface.water import WATER_FILE, read_water
 from sim.render.camera import look_at
 from sim.render.provenance import FAR_M, PROVENANCE_FILE, SURFACE_FAR, SURFACE_FILLED, TEXTURE_FILLED
 from sim.render.scene import Scene, Surface, load_scene, read_scene_mesh_enu
@@ -125,11 +126,14 @@ def test_the_scene_folder_carries_the_codes_of_the_written_mesh_through_the_load
 @pytest.mark.slow
 def test_a_recon_run_writes_the_face_provenance_of_its_scene(plane_flight):
     """Six nadir views of a textured plane (the session's plane flight, test_stages' too): the plane is measured
-    almost everywhere."""
+    almost everywhere, and its texture is not water: nothing is a proxy."""
     scene = load_scene(plane_flight["scene"])
     assert scene.face_provenance is not None and len(scene.face_provenance) == len(scene.faces)
-    shares = json.loads((plane_flight["scene"] / "scene.json").read_text())["face_provenance"]["shares"]
-    assert shares["measured"]["area"] > 0.8, shares
+    entry = json.loads((plane_flight["scene"] / "scene.json").read_text())["face_provenance"]
+    assert entry["shares"]["measured"]["area"] > 0.8, entry["shares"]
+    assert entry["shares"]["proxy"]["faces"] == 0 and entry["settings"]["water_planes"] == []
+    assert read_water(plane_flight["scene"] / "work" / WATER_FILE) == []
+    assert "[mesh] water: none found" in plane_flight["first"].logs
     assert any(line.startswith("[scene] face provenance") for line in plane_flight["first"].logs)
 
 
