@@ -100,7 +100,7 @@ def test_a_twin_that_is_the_truth_has_every_crown_right():
     scores = scores_by_tree(forest())
     assert scores[1].iou == 1.0 and scores[2].iou == 1.0
     assert scores[1].outline_iou == 1.0 and scores[2].outline_iou == 1.0
-    assert scores[1].top_error_m == 0.0 and scores[2].top_error_m == 0.0
+    assert scores[1].top_error_m == pytest.approx(0.0, abs=1e-5) and scores[2].top_error_m == pytest.approx(0.0, abs=1e-5)
     assert scores[1].true_top_m == pytest.approx(8.0) and scores[2].true_top_m == pytest.approx(6.0)
     # B's crown in A's window is B's, not A's: A's crown is its own 12 m2 only
     assert (scores[1].true_cells, scores[1].twin_cells) == (cells(12.0), cells(12.0))
@@ -134,7 +134,7 @@ def test_a_crown_flattened_to_the_ground_is_lost():
     scores = scores_by_tree(forest(flatten=True))
     assert scores[1].iou == 0.0 and scores[1].twin_cells == 0 and scores[1].outline_iou == 0.0
     assert scores[1].top_error_m == pytest.approx(-8.0, abs=1e-5) and scores[1].twin_top_m == pytest.approx(0.0, abs=1e-5)
-    assert scores[2].iou == 1.0 and scores[2].top_error_m == 0.0
+    assert scores[2].iou == 1.0 and scores[2].top_error_m == pytest.approx(0.0, abs=1e-5)  # float32 ray hits
 
 
 @pytest.mark.parametrize("scale, rotvec_deg", [(1.3, (0.0, 0.0, 30.0)), (0.7, (3.0, -2.0, 200.0))])

@@ -25,6 +25,8 @@ POND, CROWN = 7, 8
 SHORE = [[-4.0, -4.0], [4.0, -4.0], [4.0, 4.0], [-4.0, 4.0]]
 POND_RECORD = {"instance": POND, "kind": "pond", "classes": ["water"], "level_z_m": LEVEL_Z, "shoreline_m": SHORE}
 SEEN_CELLS = 20 * 28
+FLOAT32_M = 1e-5
+"""Heights come from float32 ray hits: their last bits differ between CPUs (5e-7 m seen on one, 0 on another)."""
 
 
 def pond_world(water_z: float | None = LEVEL_Z, similarity_matrix: np.ndarray | None = None) -> Scene:
@@ -56,20 +58,21 @@ def score(twin: Scene, frame: TwinFrame | None = None):
 def test_the_truth_is_at_its_level_over_the_water_seen_from_above():
     result = score(pond_world())
     assert result.cells == SEEN_CELLS  # the crown hides the east end, the shore band is left out
-    assert (result.covered, result.at_level, result.median_error_m) == (1.0, 1.0, 0.0)
+    assert (result.covered, result.at_level) == (1.0, 1.0)
+    assert result.median_error_m == pytest.approx(0.0, abs=FLOAT32_M)
 
 
 @pytest.mark.parametrize("water_z, expected_error", [(LEVEL_Z - 0.3, -0.3), (LEVEL_Z + 0.15, 0.15)])
 def test_water_off_its_level_counts_by_the_tolerance(water_z, expected_error):
     result = score(pond_world(water_z))
     assert result.cells == SEEN_CELLS and result.covered == 1.0
-    assert result.median_error_m == pytest.approx(expected_error)
+    assert result.median_error_m == pytest.approx(expected_error, abs=FLOAT32_M)
     assert result.at_level == float(abs(expected_error) <= LEVEL_TOLERANCE_M)
 
 
 def test_a_twin_without_the_water_shows_its_bed_off_the_level():
     result = score(pond_world(None))
-    assert result.covered == 1.0 and result.at_level == 0.0 and result.median_error_m == pytest.approx(-LEVEL_Z)
+    assert result.covered == 1.0 and result.at_level == 0.0 and result.median_error_m == pytest.approx(-LEVEL_Z, abs=FLOAT32_M)
 
 
 def test_a_twin_in_its_own_frame_gives_the_same_answers():
@@ -90,7 +93,7 @@ def test_a_hole_in_the_twin_counts_as_off():
     result = score(Scene(vertices, faces, Surface(vertex_colors=np.full((8, 3), 90, np.uint8))))
     assert result.cells == SEEN_CELLS
     assert result.covered == result.at_level == pytest.approx(20 * 20 / SEEN_CELLS)
-    assert result.median_error_m == 0.0
+    assert result.median_error_m == pytest.approx(0.0, abs=FLOAT32_M)
 
 
 def test_ponds_are_read_from_the_objects_and_a_broken_entry_is_named():
