@@ -33,9 +33,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import ndimage
-
 import trimesh
+from scipy import ndimage
 
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.jsonfile import read_json
@@ -152,16 +151,11 @@ def find_water(points: np.ndarray, colors: np.ndarray, cell_m: float) -> list[Wa
     stats = cell_stats(np.asarray(points, np.float64), colors, cell_m)
     observed = np.isfinite(stats.height)
     plain = observed & (stats.texture < MAX_TEXTURE)
-    groups, count = ndimage.label(plain, structure=np.ones((3, 3)))
+    groups, _ = ndimage.label(plain, structure=np.ones((3, 3)))
     min_cells = MIN_AREA_M2 / cell_m ** 2
-    bodies = []
-    for index in range(1, count + 1):
-        group = groups == index
-        if group.sum() >= min_cells:
-            body = level_body(stats, group, min_cells)
-            if body is not None:
-                bodies.append(body)
-    return bodies
+    large = np.flatnonzero(np.bincount(groups.ravel()) >= min_cells)
+    bodies = [level_body(stats, groups == index, min_cells) for index in large[large > 0]]
+    return [body for body in bodies if body is not None]
 
 
 def level_body(stats: CellStats, group: np.ndarray, min_cells: float) -> WaterBody | None:
