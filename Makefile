@@ -4,6 +4,9 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP_RUN := $(VENV)/.installed-run
 STAMP_TEST := $(VENV)/.installed-test
+# pytest-xdist workers for make test (0: one process); tests/conftest.py groups the tests and puts the long ones first.
+TEST_WORKERS ?= 2
+PYTEST_PARALLEL := -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
 
 .PHONY: demo test test-fast clean
 
@@ -34,11 +37,11 @@ area-loop: $(STAMP_RUN)
 	$(BIN)/python tools/loops/area_loop.py --out area_loop
 
 test: $(STAMP_TEST)
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(PYTEST_PARALLEL)
 
 # Skips the slow end-to-end tests (CI runs everything).
 test-fast: $(STAMP_TEST)
-	$(BIN)/python -m pytest -m "not slow"
+	$(BIN)/python -m pytest $(PYTEST_PARALLEL) -m "not slow"
 
 clean:
 	rm -rf $(VENV) demo .pytest_cache
