@@ -17,6 +17,9 @@ Frames and units: the scene's ENU metres (z up); colours are the texture's albed
    crowns by a watershed of their top heights from the crowns' peaks. Objects smaller than ``min_object_m2`` get
    no instance.
 5. Faces whose confidence is below ``min_confidence`` are ``unknown``: better no class than a wrong one.
+6. Faces on a plane recon made of open water (:mod:`recon.surface.water`; a scene folder's ``work/water.json``) are
+   ``water``, confidence 1 and no instance: the water finder found the body from the fused points (plain, level,
+   lying in a basin) before meshing, so the colour and height rules above need not guess it.
 """
 
 from __future__ import annotations
@@ -34,9 +37,10 @@ from skimage.segmentation import watershed
 from cliutil.atomic import write_text_atomic
 from cliutil.errors import BadInput
 from cliutil.jsonfile import read_json
-from recon.semantics.ground import GroundFilter, GroundSurface, fit_ground
 from cliutil.progress import log_stderr
-from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL, class_table
+from recon.semantics.ground import GroundFilter, GroundSurface, fit_ground
+from recon.surface.water import WATER_FILE, WaterBody, on_water, read_water
+from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL, WATER, class_table
 from sim.render.color import linear_to_srgb
 from sim.render.labels import FORMAT, LABELS_FILE, SceneLabels, write_labels
 from sim.render.scene import Surface, read_scene_json, read_scene_mesh_enu
@@ -73,7 +77,7 @@ class LabelOptions:
                 f"{self.crown_planarity:g}..{self.roof_planarity:g}) say so, else roof (normal z > "
                 f"{self.wall_max_up:g}) or wall; instances: connected building cells, tree crowns by watershed "
                 f"({self.crown_spacing_m:g} m apart), none under {self.min_object_m2:g} m2; unknown below confidence "
-                f"{self.min_confidence:g}")
+                f"{self.min_confidence:g}; water where recon made a plane of it (work/water.json)")
 
 
 @dataclass(frozen=True)
@@ -147,9 +151,10 @@ def objects(occupied: np.ndarray, tree: np.ndarray, top_m: np.ndarray, cell_m: f
     return np.where(sizes[ids] >= options.min_object_m2, ids, 0)
 
 
-def label_faces(vertices: np.ndarray, faces: np.ndarray, surface: Surface,
-                options: LabelOptions = LabelOptions()) -> SceneLabels:
-    """:class:`SceneLabels` of every face of a mesh (ENU metres; module docstring)."""
+def label_faces(vertices: np.ndarray, faces: np.ndarray, surface: Surface, options: LabelOptions = LabelOptions(),
+                water: tuple[WaterBody, ...] = ()) -> SceneLabels:
+    """:class:`SceneLabels` of every face of a mesh (ENU metres; module docstring); ``water``: the bodies recon made
+    planes of, in the mesh's frame."""
     faces = np.asarray(faces)
     ground = fit_ground(vertices[np.unique(faces)], options.ground)  # the faces' corners: no stray vertex
     features = face_features(vertices, faces, surface, ground)
@@ -175,7 +180,9 @@ def label_faces(vertices: np.ndarray, faces: np.ndarray, surface: Surface,
     low_confidence = margin * np.where(low_class == ROAD, road, 1.0)  # not sure of the road: ground
     confidence = np.where(raised, margin * np.abs(2 * face_score - 1), low_confidence)
     face_class[confidence < options.min_confidence] = UNKNOWN
-    instance = np.where(raised & (face_class != UNKNOWN), ids.ravel()[cells], 0)
+    on_plane = on_water(vertices, faces, water)
+    face_class[on_plane], confidence[on_plane] = WATER, 1.0
+    instance = np.where(raised & (face_class != UNKNOWN) & ~on_plane, ids.ravel()[cells], 0)
     return SceneLabels(face_class, instance.astype(np.uint32), confidence.astype(np.float32))
 
 
@@ -191,10 +198,11 @@ def label_report(labels: SceneLabels, seconds: float) -> dict:
 def label_scene(scene_dir: Path, options: LabelOptions = LabelOptions(),
                 meta: dict | None = None) -> tuple[SceneLabels, dict]:
     """Labels of every face of a scene folder's mesh as :func:`~sim.render.scene.read_scene_mesh_enu` reads it (the
-    one its scene.json names, or ``meta``'s), and :func:`label_report` with the mesh's ``mesh_sha256``."""
+    one its scene.json names, or ``meta``'s), with the water planes of the recon that made it (``work/water.json``,
+    none where the folder has no such file), and :func:`label_report` with the mesh's ``mesh_sha256``."""
     start = time.perf_counter()
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta or read_scene_json(scene_dir))
-    labels = label_faces(vertices, faces, surface, options)
+    labels = label_faces(vertices, faces, surface, options, tuple(read_water(Path(scene_dir) / "work" / WATER_FILE)))
     return labels, {**label_report(labels, time.perf_counter() - start), "mesh_sha256": mesh_sha256(vertices, faces)}
 
 

@@ -37,6 +37,7 @@ import trimesh
 from scipy import ndimage
 
 from cliutil.atomic import atomic_path, write_text_atomic
+from cliutil.errors import BadInput
 from cliutil.jsonfile import read_json
 from recon.surface.grid import Grid
 from recon.surface.mesh import cell_size_for_density, per_cell_percentile, read_point_cloud
@@ -229,10 +230,15 @@ def write_water(path: Path, bodies: list[WaterBody]) -> None:
 
 
 def read_water(path: Path) -> list[WaterBody]:
-    """The bodies stored at ``path`` by :func:`write_water` (none where it does not exist)."""
+    """The bodies stored at ``path`` by :func:`write_water` (none where it does not exist); :class:`BadInput` naming
+    the file where it is not one."""
     if not Path(path).exists():
         return []
     record = read_json(path)
-    if record.get("format") != FORMAT:
-        raise ValueError(f"{path}: not {FORMAT}")
-    return [WaterBody.from_dict(body) for body in record["bodies"]]
+    try:
+        if record["format"] != FORMAT:
+            raise ValueError(f"format {record['format']!r}")
+        return [WaterBody.from_dict(body) for body in record["bodies"]]
+    except (KeyError, TypeError, ValueError, IndexError) as error:
+        raise BadInput(f"{path}: not a water file as recon writes it ({FORMAT}: {error!r}); rerun recon's mesh stage "
+                       f"to rewrite it") from None

@@ -10,7 +10,9 @@ import trimesh
 from recon.cli import main
 from recon.semantics.ground import GroundFilter, fit_ground
 from recon.semantics.labels import LabelOptions, label_faces, label_scene
-from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL
+from recon.surface.grid import Grid
+from recon.surface.water import WATER_FILE, WaterBody, write_water
+from sim.render.classes import GROUND, ROAD, ROOF, TREE, UNKNOWN, WALL, WATER
 from sim.render.labels import LABELS_FILE
 from sim.render.scene import Surface, load_scene, read_scene_mesh_enu, read_scene_json
 
@@ -22,6 +24,7 @@ COLOURS = {"lawn": (95, 150, 60), "road": (118, 118, 115), "roof": (150, 75, 60)
 FOOTPRINTS = (((20.0, 20.0), (12.0, 8.0)), ((-20.0, -20.0), (1.0, 1.0)), ((20.0, -20.0), (2.0, 2.0)))
 HOUSE = FOOTPRINTS[0]
 CROWN = ((-20.0, 20.0), 3.0, 5.0)  # centre (x, y), radius, centre height above the ground, m
+POND = ((8.0, -25.0), 6.0, 0.3)  # centre (x, y), radius, depth of its level under the ground at its centre, m
 
 
 def ground_z(x):
@@ -152,10 +155,42 @@ def test_vertex_colours_label_like_the_texture(labelled):
     assert np.mean(label_faces(vertices, faces, surface).face_class == labelled[3].face_class) > 0.99
 
 
-def write_twin(folder):
-    """The synthetic twin as a scene folder (terrain.ply with vertex colours, ENU)."""
+def with_pond(vertices: np.ndarray) -> tuple[np.ndarray, WaterBody]:
+    """``vertices`` with the lawn within :data:`POND`'s radius flattened at its level, and the body recon's water
+    finder would make of it: the 0.5 m cells whose centres lie a metre inside the shore."""
+    (centre, radius, depth), flat = POND, vertices.copy()
+    level = float(ground_z(centre[0]) - depth)
+    flat[np.hypot(*(flat[:, :2] - centre).T) <= radius, 2] = level
+    grid = Grid.covering(np.array(centre) + [(-radius, -radius), (radius, radius)], 0.5)
+    inside = np.hypot(*(grid.centres() - centre).T) <= radius - 1.0
+    return flat, WaterBody(level, grid, inside.reshape(grid.rows, grid.cols))
+
+
+def test_faces_on_a_water_plane_are_water_and_nothing_else_changes():
+    vertices, faces, surface, part = twin(textured=True)
+    vertices, body = with_pond(vertices)
+    labels, without = label_faces(vertices, faces, surface, water=(body,)), label_faces(vertices, faces, surface)
+    centroid = vertices[faces].mean(axis=1)
+    from_centre = np.hypot(*(centroid[:, :2] - POND[0]).T)
+    water = labels.face_class == WATER
+    assert np.all(from_centre[water] < POND[1]) and np.all(vertices[faces[water]][..., 2] == body.level_z)
+    assert np.all(water[(part == "ground") & (from_centre < POND[1] - 1.5)])  # all open water, to the cells' edge
+    assert np.all(labels.face_confidence[water] == 1.0) and not labels.face_instance[water].any()
+    assert not np.any(without.face_class == WATER)  # colour and height alone never say water
+    assert np.all(without.face_class[water] == GROUND)
+    np.testing.assert_array_equal(labels.face_class[~water], without.face_class[~water])
+    np.testing.assert_array_equal(labels.face_instance, without.face_instance)
+
+
+def write_twin(folder, pond: bool = False):
+    """The synthetic twin as a scene folder (terrain.ply with vertex colours, ENU); with ``pond``, flattened at the
+    pond's level and with the recon's water file for it (``work/water.json``)."""
     vertices, faces, surface, _ = twin(textured=False)
     folder.mkdir()
+    if pond:
+        vertices, body = with_pond(vertices)
+        (folder / "work").mkdir()
+        write_water(folder / "work" / WATER_FILE, [body])
     trimesh.Trimesh(vertices, faces, vertex_colors=surface.vertex_colors, process=False).export(folder / "terrain.ply")
     meta = {"format": "aerostereo-scene/1", "mesh": "terrain.ply", "units": "m", "frame": "enu", "up_axis": "z",
             "origin": {"lat0_deg": 47.0, "lon0_deg": 8.0, "h0_ellipsoid_m": 400.0}}
@@ -179,6 +214,21 @@ def test_the_labels_command_labels_a_scene_folder_that_then_loads_them(tmp_path,
     assert report["classes"]["roof"] == int(np.sum(expected.face_class == ROOF))
     vertices, faces, _ = read_scene_mesh_enu(folder, meta)
     assert report["faces"] == len(faces)
+
+
+def test_the_labels_command_labels_the_recons_water_planes_and_names_a_bad_water_file(tmp_path, capsys):
+    folder = write_twin(tmp_path / "scene", pond=True)
+    assert main(["labels", str(folder)]) == 0
+    report = json.loads(capsys.readouterr().out)
+    vertices, faces, surface = read_scene_mesh_enu(folder, read_scene_json(folder))
+    body = with_pond(vertices)[1]
+    expected = label_faces(vertices, faces, surface, water=(body,))
+    assert report["classes"]["water"] == np.sum(expected.face_class == WATER) > 100
+    np.testing.assert_array_equal(load_scene(folder).labels.face_class, expected.face_class)
+    (folder / "work" / WATER_FILE).write_text('{"format": "aerostereo-water/1", "bodies": [{"level_z_m": 0}]}')
+    assert main(["labels", str(folder)]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and len(err.strip().splitlines()) == 1 and f"{folder / 'work' / WATER_FILE}: not a water" in err
 
 
 @pytest.mark.parametrize("make", [lambda p: p / "missing", lambda p: p,

@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from sim.render.classes import CAR, CHIMNEY, CLASSES, GROUND, OTHER, POLE, ROAD, ROOF, TREE, UNKNOWN, WALL
-from tools.bench.bench_labels import group_scores, stage_seconds
+from sim.render.classes import (CAR, CHIMNEY, CLASSES, GROUND, OTHER, POLE, ROAD, ROOF, SKY, TREE, UNKNOWN, WALL,
+                                WATER)
+from tools.bench.bench_labels import class_scores, group_scores, stage_seconds
 
 
 def test_group_iou_pools_classes_into_groups_and_counts_unknown_against_the_truth():
@@ -33,6 +34,17 @@ def test_a_group_the_truth_does_not_show_has_no_iou_and_stays_out_of_the_mean():
     scores = group_scores(matrix)
     assert np.isnan(scores["iou"]["objects"]) and scores["iou"]["vegetation"] == 0.0
     assert scores["miou"] == pytest.approx(np.mean([50 / 60, 1.0, 0.0]))
+
+
+def test_a_class_scores_the_share_of_its_truth_found_and_of_its_labels_right():
+    matrix = np.zeros((len(CLASSES), len(CLASSES)), np.int64)
+    matrix[WATER, WATER], matrix[WATER, GROUND], matrix[WATER, UNKNOWN] = 70, 20, 10
+    matrix[GROUND, WATER], matrix[ROAD, WATER], matrix[SKY, WATER] = 20, 10, 50  # sky: truth in no group, left out
+    assert class_scores(matrix, WATER) == pytest.approx({"pixels": 100, "recall": 0.7, "precision": 0.7})
+    matrix[:, WATER] = 0
+    scores = class_scores(matrix, WATER)
+    assert scores["recall"] == 0.0 and np.isnan(scores["precision"])
+    assert np.isnan(class_scores(np.zeros_like(matrix), WATER)["recall"])
 
 
 def test_stage_seconds_are_read_from_the_done_lines_of_a_recon_log(tmp_path):

@@ -13,8 +13,9 @@ geodetic pose, so its georeferencing error counts; with ``--truth``, the flight'
 its cameras instead, which removes that error: recon.measure.oblique.twin_frame), and class images are looked up from
 the triangle hit (SceneLabels.class_image). Over the in-area pixels (the true surface point inside the observed area,
 both hit, the truth in a group) it prints per-group IoU (sim.render.classes.GROUPS), their mean (mIoU), the unknown
-share, the confusion matrix (rows: truth group; columns: the twin's group, or unknown/other), and the labelling time
-beside the recon run's stage times (``--recon-log``: its ``[stage] done (S s)`` lines).
+share, the confusion matrix (rows: truth group; columns: the twin's group, or unknown/other), the water class on its
+own where the truth shows water (the ground group holds it, so the group scores cannot tell a water plane from
+lawn), and the labelling time beside the recon run's stage times (``--recon-log``: its ``[stage] done (S s)`` lines).
 
 Without ``--world`` (a real twin with no truth) the poses are drawn in the twin and nothing is scored: only
 ``--pictures`` are drawn. ``--pictures OUT.jpg``: one row per view, the twin as captured | its class image (the
@@ -42,7 +43,7 @@ from recon.measure.oblique import TwinFrame, sample_views, surface_points, twin_
 from recon.surface.observed import inside  # noqa: E402
 from sim.render.camera import PinholeCamera, Rig  # noqa: E402
 from sim.evaluation import semantic  # noqa: E402
-from sim.render.classes import CLASSES, GROUPS  # noqa: E402
+from sim.render.classes import CLASSES, GROUPS, WATER  # noqa: E402
 from sim.render.raycast import default_workers  # noqa: E402
 from sim.render.renderer import render  # noqa: E402
 from sim.render.scene import load_scene  # noqa: E402
@@ -102,6 +103,16 @@ def group_scores(matrix: np.ndarray) -> dict:
             "unknown_share": float(grouped[:, NO_GROUP].sum() / grouped.sum()), "group_confusion": grouped.tolist()}
 
 
+def class_scores(matrix: np.ndarray, class_id: int) -> dict:
+    """One class of the ``(classes, classes)`` confusion (rows: truth): its true ``pixels``, the share of them the twin
+    gives the class (``recall``) and the share of the twin's pixels of the class whose truth is it (``precision``; the
+    pixels whose truth is in no group are left out, as in :func:`group_scores`); NaN where there is nothing to share."""
+    hits, truth = matrix[class_id, class_id], matrix[class_id].sum()
+    given = matrix[group_of_class() < NO_GROUP, class_id].sum()
+    return {"pixels": int(truth), "recall": float(hits / truth) if truth else float("nan"),
+            "precision": float(hits / given) if given else float("nan")}
+
+
 def stage_seconds(log: Path) -> dict[str, float]:
     """``stage -> seconds`` from a recon log's ``[stage] done (S s)`` lines."""
     found = re.findall(r"^\[(\w+)\] done \(([\d.]+) s\)", log.read_text(encoding="utf-8"), re.MULTILINE)
@@ -119,6 +130,10 @@ def print_scores(scores: dict) -> None:
     for name, row in zip(GROUP_NAMES, scores["group_confusion"]):
         total = max(sum(row), 1)
         print(f"| {name} | " + " | ".join(f"{100 * n / total:.1f} %" for n in row) + " |")
+    water = scores["water"]
+    if water["pixels"]:
+        print(f"\nwater (a class of the ground group): {100 * water['recall']:.1f} % of its {water['pixels']} true "
+              f"pixels labelled water, {100 * water['precision']:.1f} % of the twin's water pixels truly water")
 
 
 def print_times(label_s: float, stages: dict[str, float]) -> None:
@@ -199,7 +214,7 @@ def main(argv=None) -> int:
               "views": args.views, "size": list(args.size), "seed": args.seed, "labels": report,
               "recon_stage_seconds": stages}
     if world is not None:
-        scores = group_scores(matrix)
+        scores = {**group_scores(matrix), "water": class_scores(matrix, WATER)}
         print_scores(scores)
         result.update(scores, class_confusion=matrix.tolist())
     print_times(report["seconds"], stages)
