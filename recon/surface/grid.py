@@ -36,9 +36,19 @@ class Grid:
 
     def cell_of(self, points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Row and column of the cell holding each ``(N, 2)`` point (clipped to the grid)."""
-        col = np.clip(((points_xy[:, 0] - self.x0_m) / self.cell_m).astype(np.int64), 0, self.cols - 1)
-        row = np.clip(((self.y0_m - points_xy[:, 1]) / self.cell_m).astype(np.int64), 0, self.rows - 1)
+        row, col = self.index_of(points_xy)
+        return np.clip(row, 0, self.rows - 1), np.clip(col, 0, self.cols - 1)
+
+    def index_of(self, points_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Row and column of the cell each ``(N, 2)`` point falls in, negative or past the last one for a point off
+        the grid (:meth:`holds` tells)."""
+        col = np.floor((points_xy[:, 0] - self.x0_m) / self.cell_m).astype(np.int64)
+        row = np.floor((self.y0_m - points_xy[:, 1]) / self.cell_m).astype(np.int64)
         return row, col
+
+    def holds(self, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+        """Whether each (``row``, ``col``) is a cell of the grid."""
+        return (row >= 0) & (row < self.rows) & (col >= 0) & (col < self.cols)
 
     def to_dict(self) -> dict:
         return {"x0_m": self.x0_m, "y0_m": self.y0_m, "cell_m": self.cell_m, "rows": self.rows, "cols": self.cols}

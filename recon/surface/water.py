@@ -89,9 +89,8 @@ class WaterBody:
 
     def over(self, points_xy: np.ndarray) -> np.ndarray:
         """Whether each ``(N, 2)`` ENU point lies over one of the body's cells."""
-        col = np.floor((points_xy[:, 0] - self.grid.x0_m) / self.grid.cell_m).astype(np.int64)
-        row = np.floor((self.grid.y0_m - points_xy[:, 1]) / self.grid.cell_m).astype(np.int64)
-        inside = (row >= 0) & (row < self.grid.rows) & (col >= 0) & (col < self.grid.cols)
+        row, col = self.grid.index_of(points_xy)
+        inside = self.grid.holds(row, col)
         result = np.zeros(len(points_xy), bool)
         result[inside] = self.cells[row[inside], col[inside]]
         return result
