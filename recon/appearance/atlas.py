@@ -39,9 +39,10 @@ from recon.appearance.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve
 from sim.render.camera import project_world_points, row_dots
 from sim.render.raycast import occluded
 from sim.render.scene import Scene
+from sim.render.sky_file import SkyVisibility
 from sim.render.texture import linear_texture, sample_linear
 from sim.render.color import to_srgb8
-from sim.render.glb import encode_textured_glb
+from sim.render.glb import encode_textured_glb, stored_positions
 
 #: Sub-pixel bits of the face rasteriser (OpenCV ``shift``).
 RASTER_SHIFT = 4
@@ -91,7 +92,10 @@ class Atlas:
     photo ``labels`` (index into the photos, -1: none saw it); per photo name its exposure ``gains`` (texture =
     gain x photo, linear light; held-out photos included); ``coverage`` the fraction of the surface area some photo
     sees. With the capture suns: ``image`` is the albedo, ``capture_light`` (H, W, 3) float32 linear the light it was
-    divided by (None: nothing was divided out), ``delighting`` what was done."""
+    divided by (None: nothing was divided out), ``delighting`` what was done, and ``sky`` the sky visibility baked to
+    do it with what it was baked from: the bake of the scene this atlas's GLB makes
+    (:meth:`~recon.appearance.delight.CaptureSetup.scene_bake`), which the scene folder stores rather than bake it
+    again. The ``vertices`` are what the GLB stores (float32 values, sim.render.glb.stored_positions)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -103,6 +107,7 @@ class Atlas:
     texel_m: float
     capture_light: np.ndarray | None = None
     delighting: Delighting | None = None
+    sky: tuple[SkyVisibility, dict] | None = None
 
     def glb(self, origin: LocalFrame, generator: str = "recon.atlas") -> bytes:
         """Binary glTF of the textured mesh (ENU metres at ``origin``, stored +Y up and georeferenced by
@@ -441,7 +446,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     texel_m = options.texel_m or photo_pixel_m(views)
     vmapping, faces, packed_uv, width, height, texels_per_m = pack(
         vertices[source], split_faces, uv, 1.0 / texel_m, options.max_texture_px, options.padding_px)
-    packed_vertices = vertices[source[vmapping]]
+    packed_vertices = stored_positions(vertices[source[vmapping]])  # the GLB's: the delight's bake is the scene's
     uv_px = packed_uv * np.array([width, height]) - 0.5
     ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
     capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels))
@@ -457,4 +462,4 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
                  {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}, coverage,
                  1.0 / texels_per_m, capture_light if delighting is not None and delighting.applied else None,
-                 delighting)
+                 delighting, None if capture is None else capture.scene_bake())

@@ -30,7 +30,7 @@ from sim.render.raycast import occluded
 from recon.appearance.shadow_timing import untextured_scene
 from sim.render.scene import Scene, unit_face_normals
 from sim.render.shade import Lighting
-from sim.render.sky import bake_corner_visibility
+from sim.render.sky import bake_sky_visibility, baked_from
 from sim.render.sky_file import SkyVisibility
 
 #: The sky's irradiance of the capture, in the renderer's units (its default sky): what an albedo is relative to.
@@ -97,12 +97,14 @@ class Delighting:
 @dataclass(frozen=True)
 class CaptureSetup:
     """What taking the capture light out of an atlas needs: the twin as a ``scene`` (shadow rays), the atlas faces'
-    winding ``face_normals`` (F, 3) and ``sky`` visibility (a sim.render.sky_file.SkyVisibility of those faces), the
-    capture sun of each photo ``sun_enu`` (K, 3) (unit ENU, towards the sun) and the ``chart`` of each face (texels of
-    two charts never share a shadow edge)."""
+    winding ``face_normals`` (F, 3), the scene's own sky visibility ``scene_sky`` (a sim.render.sky_file
+    .SkyVisibility of ``scene.faces``, as sim.render.sky.bake_sky_visibility bakes it) and ``sky``, the same over
+    every atlas face (:func:`every_face`), the capture sun of each photo ``sun_enu`` (K, 3) (unit ENU, towards the
+    sun) and the ``chart`` of each face (texels of two charts never share a shadow edge)."""
 
     scene: Scene
     face_normals: np.ndarray
+    scene_sky: SkyVisibility
     sky: SkyVisibility
     sun_enu: np.ndarray
     chart: np.ndarray
@@ -113,8 +115,14 @@ class CaptureSetup:
         scene = untextured_scene(vertices, faces)
         normals = unit_face_normals(vertices, faces)
         normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)  # a zero-area face: no side to tell
-        return cls(scene, normals, bake_corner_visibility(scene, vertices, faces), np.asarray(sun_enu, float),
-                   np.asarray(chart))
+        scene_sky = bake_sky_visibility(scene)
+        return cls(scene, normals, scene_sky, every_face(scene_sky, scene.kept_faces, np.asarray(faces)),
+                   np.asarray(sun_enu, float), np.asarray(chart))
+
+    def scene_bake(self) -> tuple[SkyVisibility, dict]:
+        """The scene's sky visibility and what it was baked from (sim.render.sky.baked_from): what a scene folder
+        of this very mesh stores (recon/run/scene_out.py), the numbers a bake of it gives."""
+        return self.scene_sky, baked_from(self.scene)
 
     def texel_light(self, face: np.ndarray, weights: np.ndarray, points: np.ndarray, label: np.ndarray,
                     photos) -> TexelLight:
@@ -127,6 +135,17 @@ class CaptureSetup:
         corners = self.sky.corner.take(face, axis=0)
         sky = sum(weights[:, k] * self.sky.values[corners[:, k], back.astype(np.intp)] for k in range(3))
         return texel_light(self.scene, points, normals, self.sun_enu[label], sky)
+
+
+def every_face(sky: SkyVisibility, kept: np.ndarray, faces: np.ndarray) -> SkyVisibility:
+    """A scene's ``sky`` visibility (of the ``kept`` ones of ``faces``, (F, 3) vertex indices) over all ``faces``: a
+    zero-area face the scene left out takes, at each corner, the point of a kept corner at the same vertex (the
+    first point where its vertex is in no kept face)."""
+    point_of_vertex = np.zeros(int(faces.max()) + 1, np.int32)
+    point_of_vertex[faces[kept].ravel()] = sky.corner.ravel()
+    corner = point_of_vertex[faces]
+    corner[kept] = sky.corner
+    return SkyVisibility(corner, sky.values)
 
 
 def texel_light(scene: Scene, points: np.ndarray, normals: np.ndarray, sun_enu: np.ndarray,

@@ -12,7 +12,7 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | depth | ``dense`` pair choice, SGBM, consistency | | ``work/dense/depth_report.json``, per-image maps (below) |
 | fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
 | mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m``, ``water`` | | ``work/mesh.ply`` (``mesh_decimated.ply``), ``work/water.json`` (recon/surface/water.py) |
-| texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb``, ``work/texture_faces.npy`` (which faces a photo colours; none with ``texture="none"``) |
+| texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb``, ``work/texture_faces.npy`` (which faces a photo colours; none with ``texture="none"``), ``work/texture_sky_visibility.npz`` (the delight's sky bake, which the scene stage stores where it is its mesh's) |
 | scene | ``texture`` | the sky visibility's bake settings, the face provenance's | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` + ``face_provenance.npz`` (recon/surface/provenance.py) |
 | labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/semantics/labels.py), named in ``scene.json`` (rewritten) |
 
@@ -65,6 +65,7 @@ from sim.render.glb import GEOREF_FORMAT
 from sim.render.labels import LABELS_FILE
 from sim.render.provenance import FAR_M, FORMAT as PROVENANCE_FORMAT
 from sim.render.sky import bake_settings
+from sim.render.sky_file import SkyVisibility, write_sky_visibility
 
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
@@ -77,6 +78,9 @@ OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fu
 
 #: Which faces of the surface mesh a photo colours (texture stage, read by the scene stage's face provenance).
 TEXTURE_FACES = "texture_faces.npy"
+#: The sky visibility the texture stage baked to take the capture light out (sim/render/sky_file.py), kept for the
+#: scene stage, which stores it rather than bake the same mesh again (recon/run/scene_out.py: store_sky_visibility).
+ATLAS_SKY_FILE = "texture_sky_visibility.npz"
 
 #: Partial outputs (relative to ``work``) that a stage reuses when it resumes its own interrupted run, and that are
 #: deleted before it is redone for another fingerprint.
@@ -443,13 +447,13 @@ class Recon:
                                          sun_enu=None if suns is None else
                                          suns.for_names([photo.name for photo in photos]).directions_enu)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
-                face_seen = textured.labels >= 0
+                face_seen, sky_bake = textured.labels >= 0, textured.sky
             else:
                 suns, kept = None, "an orthophoto keeps the capture day's light (--texture atlas takes it out)"
                 textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)
                 encoded, texel_m, coverage = texturing.textured_glb(surface, textured, self.priors.origin), textured.texels.texel_m, \
                     textured.coverage
-                face_seen = textured.face_seen(surface)
+                face_seen, sky_bake = textured.face_seen(surface), None
         if kept:
             self.log(f"[texture] capture light kept: {kept}")
         with atomic_path(self.work / "terrain.glb") as tmp:
@@ -457,6 +461,7 @@ class Recon:
         with atomic_path(self.work / TEXTURE_FACES) as tmp:
             with open(tmp, "wb") as stream:
                 np.save(stream, face_seen)
+        self.keep_sky_bake(sky_bake)
         height, width = textured.image.shape[:2]
         self.log(f"[texture] {self.options.texture}: {width}x{height} texels of {texel_m:.3f} m, coverage "
                  f"{100 * coverage:.1f} %, exposure gains {min(textured.gains.values()):.3f}.."
@@ -465,6 +470,14 @@ class Recon:
                   "coverage": coverage, "gains": textured.gains,
                   "capture_light": self.write_capture_light(textured, suns, kept)}
         write_text_atomic(marker, json.dumps(report, indent=2))
+
+    def keep_sky_bake(self, bake: tuple[SkyVisibility, dict] | None) -> None:
+        """Store the texture's sky ``bake`` (visibility, what it was baked from) for the scene stage, or remove one of
+        an earlier run where there is none."""
+        if bake is None:
+            (self.work / ATLAS_SKY_FILE).unlink(missing_ok=True)
+        else:
+            write_sky_visibility(self.work / ATLAS_SKY_FILE, *bake)
 
     def capture_suns(self, photos, surface: trimesh.Trimesh) -> tuple[CaptureSuns | None, str]:
         """The capture sun of every photo (of ``photos`` where given as one sun; of every prior photo where timed),
@@ -555,7 +568,8 @@ class Recon:
         capture_light = (light.read_bytes(), provenance["texture"]["capture_light"]) if textured_now and \
             light.is_file() else None
         scene_json = write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras,
-                                 capture_light, self.surface_evidence(surface, textured_now))
+                                 capture_light, self.surface_evidence(surface, textured_now),
+                                 self.work / ATLAS_SKY_FILE if textured_now else None)
         shares = read_json(scene_json)["face_provenance"]["shares"]
         self.log("[scene] face provenance, share of faces: " + ", ".join(
             f"{name} {100 * share['faces']:.1f} %" for name, share in shares.items()))

@@ -29,8 +29,8 @@ from sim.render.capture_light import ENCODING
 from sim.render.provenance import PROVENANCE_FILE
 from sim.render.scene import Scene, read_scene_mesh_enu
 from sim.render.scene_cameras import SceneCamera, write_cameras
-from sim.render.sky import write_scene_sky_visibility
-from sim.render.sky_file import FORMAT as SKY_FORMAT, SKY_FILE
+from sim.render.sky import bake_fits, write_scene_sky_visibility
+from sim.render.sky_file import FORMAT as SKY_FORMAT, SKY_FILE, StoredSky, read_sky_visibility, write_sky_visibility
 
 SCENE_FORMAT = "aerostereo-scene/1"
 CAMERAS_FILE = "cameras.json"
@@ -69,23 +69,44 @@ def scene_metadata(mesh: trimesh.Trimesh, mesh_name: str, origin: LocalFrame, pr
     }
 
 
-def store_sky_visibility(scene_dir: Path, meta: dict) -> None:
+def store_sky_visibility(scene_dir: Path, meta: dict, baked: Path | None = None) -> None:
     """Bake the sky visibility of the mesh that ``meta`` (scene.json's content, the mesh already written) names, read
-    as the scene loader reads it, into ``scene_dir/sky_visibility.npz``, and name it in ``meta``."""
+    as the scene loader reads it, into ``scene_dir/sky_visibility.npz``, and name it in ``meta``. ``baked``: a sky
+    visibility file (sim/render/sky_file.py) baked earlier, the texture stage's (:attr:`~recon.appearance.atlas.Atlas
+    .sky`), stored instead of a new bake where it was baked from this very mesh with today's settings (the same
+    numbers); any other, or an unreadable one, is baked anew."""
     vertices, faces, surface = read_scene_mesh_enu(scene_dir, meta)
-    write_scene_sky_visibility(scene_dir / SKY_FILE, Scene(vertices, faces, surface, source=str(scene_dir)))
+    scene = Scene(vertices, faces, surface, source=str(scene_dir))
+    earlier = earlier_bake(baked, scene)
+    if earlier is None:
+        write_scene_sky_visibility(scene_dir / SKY_FILE, scene)
+    else:
+        write_sky_visibility(scene_dir / SKY_FILE, earlier.visibility, earlier.baked_from)
     meta["sky_visibility"] = {"file": SKY_FILE, "format": SKY_FORMAT}
+
+
+def earlier_bake(path: Path | None, scene: Scene) -> StoredSky | None:
+    """The sky visibility stored at ``path`` where it was baked from ``scene``'s very mesh with today's settings
+    (sim.render.sky.bake_fits), else None (no path, no file, another mesh, or a file that cannot be read)."""
+    if path is None or not Path(path).is_file():
+        return None
+    try:
+        stored = read_sky_visibility(path)
+    except ValueError:
+        return None
+    return stored if bake_fits(stored, scene) else None
 
 
 def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, provenance: dict,
                 mesh_name: str = "terrain.ply", encoded: bytes | None = None,
                 cameras: Sequence[SceneCamera] = (), capture_light: tuple[bytes, dict] | None = None,
-                evidence: SurfaceEvidence | None = None) -> Path:
+                evidence: SurfaceEvidence | None = None, sky_bake: Path | None = None) -> Path:
     """Write ``mesh_name`` (the ``encoded`` file bytes if given, else ``mesh`` exported by trimesh), ``cameras.json``
     when there are ``cameras``, the ``capture_light`` (PNG bytes, what to say of it) of a delit texture, the mesh's
-    sky visibility (:func:`store_sky_visibility`), its faces' provenance found from ``evidence`` (None: the mesh is
-    taken as measured everywhere, and no file is left) and ``scene.json`` (last, so its presence means the scene is
-    complete). A mesh the scene loader refuses (no texture and no vertex colours) is a ``SceneError`` naming it."""
+    sky visibility (:func:`store_sky_visibility`, from the bake in the file ``sky_bake`` where that fits), its faces'
+    provenance found from ``evidence`` (None: the mesh is taken as measured everywhere, and no file is left) and
+    ``scene.json`` (last, so its presence means the scene is complete). A mesh the scene loader refuses (no texture
+    and no vertex colours) is a ``SceneError`` naming it."""
     scene_dir = Path(scene_dir)
     with atomic_path(scene_dir / mesh_name) as tmp:
         if encoded is None:
@@ -107,7 +128,7 @@ def write_scene(scene_dir: Path, mesh: trimesh.Trimesh, origin: LocalFrame, prov
             ground_z = float(np.median(np.asarray(mesh.vertices)[:, 2]))
             area = viewed_area(np.array([camera.T_world_cam for camera in cameras]), ground_z)
             meta["observed_area_m"] = area.round(3).tolist()
-    store_sky_visibility(scene_dir, meta)
+    store_sky_visibility(scene_dir, meta, sky_bake)
     if evidence is not None:
         store_face_provenance(scene_dir, meta, evidence)
     else:

@@ -40,6 +40,12 @@ def gltf_from_enu(points_enu: np.ndarray) -> np.ndarray:
     return np.stack([points[:, 0], points[:, 2], -points[:, 1]], axis=1)
 
 
+def stored_positions(points_enu: np.ndarray) -> np.ndarray:
+    """(N, 3) ENU metres as a GLB of this module stores them and the scene loader reads them back: float32 values,
+    as float64 (what a mesh's SHA-256 in sim/render/sky_file.py is taken over)."""
+    return np.asarray(points_enu, dtype=np.float32).astype(np.float64)
+
+
 def enu_from_gltf(points_gltf: np.ndarray) -> np.ndarray:
     """(N, 3) glTF +Y-up metres -> ENU metres (the exact inverse of :func:`gltf_from_enu`)."""
     points = np.asarray(points_gltf)

@@ -108,6 +108,8 @@ class Scene:
     sky_cache: Path | None = field(default=None, repr=False)
     #: ``(F, 3)`` float32 unit normals of the faces' winding (which side of a face is its front).
     face_normals: np.ndarray = field(init=False, repr=False)
+    #: Which of the faces given the scene kept (bool, one per face given): the zero-area ones are left out.
+    kept_faces: np.ndarray = field(init=False, repr=False)
     labels: SceneLabels | None = field(default=None, repr=False)
     face_provenance: np.ndarray | None = field(default=None, repr=False)
 
@@ -121,7 +123,7 @@ class Scene:
         lo, hi = self.vertices.min(axis=0), self.vertices.max(axis=0)
         self.centre_m = (lo + hi) / 2.0
         local32 = (self.vertices - self.centre_m).astype(np.float32)
-        kept = _non_degenerate(local32, faces)
+        kept = self.kept_faces = _non_degenerate(local32, faces)
         self.faces = faces[kept].astype(np.int32)
         if len(self.faces) == 0:
             raise SceneError(f"{self.source}: every triangle is degenerate (zero area)")

@@ -30,7 +30,7 @@ import numpy as np
 from sim.render.camera import row_dots
 from sim.render.raycast import Hits, default_workers, occluded_local
 from sim.render.scene import Scene, unit_face_normals
-from sim.render.sky_file import SkyVisibility, mesh_sha256, write_sky_visibility
+from sim.render.sky_file import SkyVisibility, StoredSky, mesh_sha256, write_sky_visibility
 
 #: Bump when the bake computes other values from the same mesh and settings: stored bakes are then baked again.
 BAKE_VERSION = 1
@@ -102,14 +102,7 @@ def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = SKY_SEED
                         pool: Executor | None = None) -> SkyVisibility:
     """The sky visibility of every face corner of ``scene`` (:class:`SkyVisibility`), baked once per surface point:
     a vertex with each of its corner normals (:func:`corner_normals`). Reproducible from ``seed``."""
-    return bake_corner_visibility(scene, scene.vertices, scene.faces, rays, seed, pool)
-
-
-def bake_corner_visibility(scene: Scene, vertices: np.ndarray, faces: np.ndarray, rays: int = SKY_RAYS,
-                           seed: int = SKY_SEED, pool: Executor | None = None) -> SkyVisibility:
-    """The sky visibility of the face corners of a mesh (``vertices`` ENU, ``faces``) lying in ``scene``, occluded by
-    ``scene``: :func:`bake_sky_visibility` for faces that are not the scene's own (e.g. all of a mesh's faces where
-    the scene dropped its degenerate ones; those get an upward normal)."""
+    vertices, faces = scene.vertices, scene.faces
     normals = corner_normals(vertices, faces).reshape(-1, 3)
     normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)
     keys = np.column_stack([faces.ravel(), np.round(normals * 1e4).astype(np.int64)])
@@ -173,6 +166,12 @@ def baked_from(scene: Scene) -> dict:
     return {"faces": len(scene.faces), "mesh_sha256": mesh_sha256(scene.vertices, scene.faces), **bake_settings()}
 
 
+def bake_fits(stored: StoredSky | None, scene: Scene) -> bool:
+    """Whether the ``stored`` sky visibility was baked from ``scene``'s very mesh with today's settings
+    (:func:`baked_from`): then it holds the numbers a bake of ``scene`` gives."""
+    return stored is not None and stored.baked_from == baked_from(scene)
+
+
 def write_scene_sky_visibility(path: Path, scene: Scene) -> None:
     """Bake the sky visibility of ``scene`` as a render would (:func:`scene_sky_visibility`) and store it at ``path``
     with what it was baked from."""
@@ -185,7 +184,7 @@ def scene_sky_visibility(scene: Scene) -> SkyVisibility:
     baked now (:func:`bake_sky_visibility`)."""
     if scene.sky_visibility is None:
         stored, scene.stored_sky = scene.stored_sky, None
-        fits = stored is not None and stored.baked_from == baked_from(scene)
+        fits = bake_fits(stored, scene)
         scene.sky_visibility = stored.visibility if fits else bake_sky_visibility(scene)
         if not fits and scene.sky_cache is not None:
             _store_in_cache(scene)

@@ -4,14 +4,19 @@ with a tower photographed by sim under a known sun; the true mesh and poses are 
 import numpy as np
 import pytest
 
+from flightplan.geodesy import LocalFrame
 from recon.appearance.atlas import texture_atlas
+from recon.appearance.delight import CaptureSetup
 from recon.appearance.texture import Photo
+from recon.run.scene_out import write_scene
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.camera import Rig
 from sim.render.color import SRGB8_TO_LINEAR
 from sim.render.renderer import render
-from sim.render.scene import Scene, Surface
+from sim.render import sky
+from sim.render.scene import Scene, Surface, load_scene
 from sim.render.shade import UNLIT, Lighting, Sun
+from sim.render.sky_file import SKY_FILE, read_sky_visibility, write_sky_visibility
 import trimesh
 
 from tests.recon.test_atlas import oblique_poses, town
@@ -165,3 +170,51 @@ def test_photos_whose_sun_was_down_keep_their_colours(scenes):
     _, _, lit, _ = scenes
     assert not night.delighting.applied and night.delighting.blocks == 0 and night.capture_light is None
     np.testing.assert_array_equal(night.image, lit.image)
+
+
+def another_mesh(path, bake):
+    write_sky_visibility(path, bake[0], {**bake[1], "mesh_sha256": "0" * 64})
+
+
+@pytest.mark.parametrize("earlier, bakes", [
+    (lambda path, bake: write_sky_visibility(path, *bake), 0),
+    (another_mesh, 1),
+    (lambda path, bake: path.write_bytes(b"not a sky visibility file"), 1),
+    (lambda path, bake: None, 1),
+], ids=["the-delights", "another-meshs", "damaged", "none"])
+def test_the_scene_folder_stores_the_delights_sky_bake_where_it_is_its_meshs(scenes, tmp_path, monkeypatch, earlier,
+                                                                              bakes):
+    """The atlas's vertices are what its GLB stores, so the sky bake the delight made is the scene's own: the scene
+    folder stores it as is, the very numbers a bake of the written scene gives; a bake of another mesh, a damaged
+    file or none: the scene is baked."""
+    _, delit, lit, _ = scenes
+    assert lit.sky is None and delit.sky is not None
+    earlier(tmp_path / "bake.npz", delit.sky)
+    baked, bake = [], sky.bake_sky_visibility
+    monkeypatch.setattr(sky, "bake_sky_visibility", lambda scene: baked.append(scene) or bake(scene))
+    folder, origin = tmp_path / "scene", LocalFrame(46.0, 7.0, 500.0)
+    folder.mkdir()
+    write_scene(folder, trimesh.Trimesh(delit.vertices, delit.faces, process=False), origin, {}, "terrain.glb",
+                delit.glb(origin), sky_bake=tmp_path / "bake.npz")
+    assert len(baked) == bakes
+    scene = load_scene(folder)
+    stored, scene.stored_sky = scene.stored_sky, None
+    fresh = bake(scene)
+    np.testing.assert_array_equal(stored.visibility.values, fresh.values)
+    np.testing.assert_array_equal(stored.visibility.corner, fresh.corner)
+
+
+def test_a_zero_area_face_the_scene_leaves_out_takes_the_sky_of_a_kept_corner_at_its_vertex():
+    """The delight bakes the scene's own faces (what the scene folder stores); an atlas face of zero area, which the
+    scene leaves out, reads each corner's sky from a kept face's corner at the same vertex."""
+    box = trimesh.creation.box(extents=(4.0, 4.0, 2.0))
+    faces = np.vstack([box.faces, [[0, 1, 0], [2, 2, 2]]])  # two faces of zero area
+    setup = CaptureSetup.of(np.asarray(box.vertices), faces, SUN.direction_enu[None], np.zeros(len(faces)))
+    kept = setup.scene.kept_faces
+    assert kept.tolist() == [True] * len(box.faces) + [False, False]
+    visibility, baked = setup.scene_bake()
+    assert baked == sky.baked_from(setup.scene)
+    np.testing.assert_array_equal(visibility.values, sky.bake_sky_visibility(setup.scene).values)
+    np.testing.assert_array_equal(setup.sky.corner[kept], visibility.corner)
+    point_vertex = {point: vertex for vertex, point in zip(box.faces.ravel(), visibility.corner.ravel())}
+    assert [point_vertex[point] for point in setup.sky.corner[~kept].ravel()] == [0, 1, 0, 2, 2, 2]
