@@ -4,9 +4,9 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP_RUN := $(VENV)/.installed-run
 STAMP_TEST := $(VENV)/.installed-test
-# pytest-xdist workers for make test (0: one process); tests/conftest.py groups the tests and puts the long ones first.
+# pytest-xdist workers for make test (0: one process), each given whole modules; tests/conftest.py puts the long ones first.
 TEST_WORKERS ?= 2
-PYTEST_PARALLEL := -n $(TEST_WORKERS) --dist loadgroup --no-loadscope-reorder
+PYTEST_PARALLEL := -n $(TEST_WORKERS) --dist loadscope --no-loadscope-reorder
 
 .PHONY: demo test test-fast clean
 

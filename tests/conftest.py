@@ -22,32 +22,18 @@ def shared_data() -> Path:
     return SHARED_DATA
 
 
-#: Session fixtures that reconstruct something once for tests in several modules: their users run on one worker.
-SHARED_RECONSTRUCTIONS = ("brighton_scene", "plane_flight")
+def module_of(item: pytest.Item) -> str:
+    """The test module's path, as pytest-xdist's ``--dist loadscope`` groups a test."""
+    return item.nodeid.split("::")[0]
 
 
-def worker_group(item: pytest.Item) -> str:
-    """The ``xdist_group`` a test runs in (:func:`pytest_collection_modifyitems`)."""
-    return item.get_closest_marker("xdist_group").args[0]
-
-
-@pytest.hookimpl(tryfirst=True)
+@pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(items):
-    """Group the tests for ``pytest -n N --dist loadgroup`` (``make test``): a test that uses one of
-    :data:`SHARED_RECONSTRUCTIONS` joins that fixture's group, every other test its module's group, so each worker
-    builds a module- or session-scoped fixture once instead of once per test it happens to receive. Runs before
-    pytest-xdist reads the ``xdist_group`` marks; without xdist the marks do nothing."""
-    for item in items:
-        if item.get_closest_marker("xdist_group") is None:
-            shared = [name for name in SHARED_RECONSTRUCTIONS if name in item.fixturenames]
-            item.add_marker(pytest.mark.xdist_group("+".join(shared) or item.nodeid.split("::")[0]))
-
-
-@pytest.hookimpl(trylast=True, specname="pytest_collection_modifyitems")
-def pytest_collection_modifyitems_slow_groups_first(items):
-    """Put the groups that hold a ``slow`` test first (stable otherwise), so the workers start on the long end-to-end
-    runs and the many short tests fill in behind them: run with ``--no-loadscope-reorder``, xdist hands out the
-    groups in this order (by default it would send the groups with the most tests first, the long single-test
-    runs last)."""
-    slow_groups = {worker_group(item) for item in items if item.get_closest_marker("slow")}
-    items.sort(key=lambda item: worker_group(item) not in slow_groups)
+    """Order the tests for ``pytest -n N --dist loadscope --no-loadscope-reorder`` (``make test``), which hands each
+    worker whole modules (a module's fixtures are built once) in collection order: the modules that hold a ``slow``
+    test first (stable otherwise), so the workers start on the long end-to-end runs and the many short tests fill
+    in behind them. By default xdist would send the modules with the most tests first, the long single-test ones
+    last. (``--dist loadgroup`` would also keep the users of a session fixture of several modules together, but with
+    pytest 9.2 it silently stops grouping: pytest-xdist issue #1386.)"""
+    slow = {module_of(item) for item in items if item.get_closest_marker("slow")}
+    items.sort(key=lambda item: module_of(item) not in slow)
