@@ -29,6 +29,7 @@ in the scene's face provenance (:func:`on_water`), so a dataset says where its d
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -102,11 +103,41 @@ class WaterBody:
 
     @classmethod
     def from_dict(cls, record: dict) -> "WaterBody":
-        grid = Grid(**record["grid"])
+        """The body :meth:`to_dict` stored; ValueError (or KeyError, TypeError) saying what is not as it wrote it."""
+        level_z, grid = record["level_z_m"], stored_grid(record["grid"])
+        if not finite_number(level_z):
+            raise ValueError(f"level_z_m: expected a finite height in metres, got {level_z!r}")
+        index = np.asarray(record["cells"])
+        if index.ndim != 2 or index.shape[1:] != (2,) or not len(index) or index.dtype.kind not in "iu":
+            raise ValueError("cells: expected a non-empty list of [row, col] integer pairs")
+        if not np.all(grid.holds(index[:, 0], index[:, 1])):
+            raise ValueError(f"cells: a [row, col] off the {grid.rows} x {grid.cols} grid")
         cells = np.zeros((grid.rows, grid.cols), bool)
-        index = np.asarray(record["cells"], np.int64).reshape(-1, 2)
         cells[index[:, 0], index[:, 1]] = True
-        return cls(float(record["level_z_m"]), grid, cells)
+        return cls(float(level_z), grid, cells)
+
+
+def finite_number(value) -> bool:
+    """Whether a JSON value is a finite number (not a string or a boolean)."""
+    return type(value) in (int, float) and math.isfinite(value)
+
+
+MAX_STORED_CELLS = 400_000_000
+"""Most cells a stored body's grid may have (400 MB of mask: a 10 km square at 0.5 m)."""
+
+
+def stored_grid(record: dict) -> Grid:
+    """The :class:`Grid` a water file stores; ValueError where its origin or cell size is not finite, its cell size
+    not positive, or its rows and columns not whole numbers from 1 with at most :data:`MAX_STORED_CELLS` cells."""
+    if not isinstance(record, dict):
+        raise TypeError(f"grid: expected a JSON object, got {record!r}")
+    grid = Grid(**record)
+    if not all(map(finite_number, (grid.x0_m, grid.y0_m, grid.cell_m))) or grid.cell_m <= 0:
+        raise ValueError(f"grid: expected a finite corner and a cell size > 0 m, got {record}")
+    counts = (grid.rows, grid.cols)
+    if not all(type(n) is int and n >= 1 for n in counts) or grid.rows * grid.cols > MAX_STORED_CELLS:
+        raise ValueError(f"grid: expected 1 to {MAX_STORED_CELLS} cells in whole rows and columns, got {counts}")
+    return grid
 
 
 @dataclass(frozen=True)
@@ -235,9 +266,17 @@ def read_water(path: Path) -> list[WaterBody]:
         return []
     record = read_json(path)
     try:
-        if record["format"] != FORMAT:
-            raise ValueError(f"format {record['format']!r}")
+        if not isinstance(record, dict) or record.get("format") != FORMAT:
+            raise ValueError(f"expected a JSON object whose format is {FORMAT!r}")
+        if not isinstance(record["bodies"], list) or not all(isinstance(body, dict) for body in record["bodies"]):
+            raise ValueError("bodies: expected a list of JSON objects")
         return [WaterBody.from_dict(body) for body in record["bodies"]]
-    except (KeyError, TypeError, ValueError, IndexError) as error:
-        raise BadInput(f"{path}: not a water file as recon writes it ({FORMAT}: {error!r}); rerun recon's mesh stage "
-                       f"to rewrite it") from None
+    except KeyError as error:
+        raise unreadable_water(path, f"no {error.args[0]!r} field") from None
+    except (TypeError, ValueError) as error:
+        raise unreadable_water(path, str(error)) from None
+
+
+def unreadable_water(path: Path, reason: str) -> BadInput:
+    """The refusal of a water file at ``path`` that is not as :func:`write_water` writes it, and why."""
+    return BadInput(f"{path}: not a water file as recon writes it: {reason}; rerun recon's mesh stage to rewrite it")
