@@ -80,7 +80,7 @@ OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fu
 TEXTURE_FACES = "texture_faces.npy"
 #: The sky visibility the texture stage baked to take the capture light out (sim/render/sky_file.py), kept for the
 #: scene stage, which stores it rather than bake the same mesh again (recon/run/scene_out.py: store_sky_visibility).
-ATLAS_SKY_FILE = "texture_sky_visibility.npz"
+TEXTURE_SKY_FILE = "texture_sky_visibility.npz"
 
 #: Partial outputs (relative to ``work``) that a stage reuses when it resumes its own interrupted run, and that are
 #: deleted before it is redone for another fingerprint.
@@ -475,9 +475,9 @@ class Recon:
         """Store the texture's sky ``bake`` (visibility, what it was baked from) for the scene stage, or remove one of
         an earlier run where there is none."""
         if bake is None:
-            (self.work / ATLAS_SKY_FILE).unlink(missing_ok=True)
+            (self.work / TEXTURE_SKY_FILE).unlink(missing_ok=True)
         else:
-            write_sky_visibility(self.work / ATLAS_SKY_FILE, *bake)
+            write_sky_visibility(self.work / TEXTURE_SKY_FILE, *bake)
 
     def capture_suns(self, photos, surface: trimesh.Trimesh) -> tuple[CaptureSuns | None, str]:
         """The capture sun of every photo (of ``photos`` where given as one sun; of every prior photo where timed),
@@ -569,7 +569,7 @@ class Recon:
             light.is_file() else None
         scene_json = write_scene(self.scene_dir, surface, self.priors.origin, provenance, mesh_name, encoded, cameras,
                                  capture_light, self.surface_evidence(surface, textured_now),
-                                 self.work / ATLAS_SKY_FILE if textured_now else None)
+                                 self.work / TEXTURE_SKY_FILE if textured_now else None)
         shares = read_json(scene_json)["face_provenance"]["shares"]
         self.log("[scene] face provenance, share of faces: " + ", ".join(
             f"{name} {100 * share['faces']:.1f} %" for name, share in shares.items()))
