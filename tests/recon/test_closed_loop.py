@@ -2,7 +2,6 @@
 surface and texture scored against the world they came from."""
 
 import json
-import shutil
 
 import numpy as np
 import pycolmap
@@ -57,13 +56,3 @@ def test_orbit_over_the_small_demo_world(tmp_path, capsys):
     assert reconstructed.bounds[1, 2] < world.bounds[1, 2] + 1.0
     assert np.median([r.error_percent for r in realism]) < 7.0  # measured ~4 % (JPEG photos, 2.5-D walls)
 
-    # the fallback: the same run without texture gives a vertex-coloured scene that sim loads (decimation drops
-    # the colours; the pipeline carries them over), resumed from the finished stages: only texture and scene rerun
-    plain = tmp_path / "plain"
-    shutil.copytree(scene_dir / "work", plain / "work", ignore=shutil.ignore_patterns("texture_report.json", "*.glb"))
-    capsys.readouterr()
-    assert main([str(a) for a in ("--photos", flight.photo_dir, "--geotags", flight.geotags_csv, "--out", plain,
-                                  *sizes, "--texture", "none")]) == 0
-    assert capsys.readouterr().err.count("already done") == 5
-    fallback = load_scene(plain)
-    assert fallback.surface.texture is None and fallback.surface.vertex_colors.std() > 10

@@ -163,6 +163,18 @@ def test_a_scene_labelled_before_the_labels_stage_existed_redoes_only_that_stage
 
 
 @pytest.mark.slow
+def test_without_texture_a_rerun_redoes_texture_onward_and_gives_a_vertex_coloured_scene(plane_flight, scene):
+    """The fallback (``--texture none``): decimation drops the fused colours, the pipeline carries them over onto the
+    surface's vertices, and sim loads a scene coloured by them."""
+    rerun = Run(plane_flight, scene, dataclasses.replace(OPTIONS, texture="none"))
+    assert rerun.ran == ["texture", "scene", "labels"]
+    assert "[texture] options changed (texture: atlas -> none): redoing texture, scene, labels" in rerun.logs
+    fallback = load_scene(scene)
+    assert fallback.surface.texture is None and fallback.surface.vertex_colors.std() > 10
+    assert len(fallback.labels) == len(fallback.faces)
+
+
+@pytest.mark.slow
 def test_changed_label_option_redoes_the_labels_stage_only(plane_flight, scene):
     before = snapshot(scene)
     options = dataclasses.replace(OPTIONS, labels=dataclasses.replace(OPTIONS.labels, min_confidence=0.9))
