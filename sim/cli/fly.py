@@ -28,11 +28,11 @@ from sim.run.render_dataset import is_demo_scene, resolve_scene_dir
 NOW = "now"
 
 
-def utc_time(text: str) -> dt.datetime:
+def utc_time(text: str) -> dt.datetime | str:
     """``--start-utc``: ISO 8601 (``2024-05-01T10:00:00Z``) read by :func:`capture.track.parse_utc` (naive = UTC), or
-    :data:`NOW`, this machine's clock."""
+    :data:`NOW` as it is (the flight takes this machine's clock when its telemetry starts: ``FlyOptions.start_now``)."""
     if text == NOW:
-        return dt.datetime.now(dt.timezone.utc)
+        return NOW
     try:
         return dt.datetime.fromtimestamp(parse_utc(text), dt.timezone.utc)
     except ValueError:
@@ -193,8 +193,10 @@ def run_fly(args) -> int:
     refuse_clobbering_fly(args)
     several = len(args.mission) > 1
     noise = args.noise or ("area" if several else "realistic")
+    start_now = args.start_utc == NOW
+    start_utc = dt.datetime.now(dt.timezone.utc) if start_now else args.start_utc
     options = FlyOptions(photo_size=tuple(args.photo_size), link=args.link, port=args.port, speedup=args.speedup,
-                         imperfections=NOISE[noise](), seed=args.seed, start_utc=args.start_utc,
+                         imperfections=NOISE[noise](), seed=args.seed, start_utc=start_utc, start_now=start_now,
                          photo_limit=args.photo_limit, logs=args.logs, geoid_undulation_m=args.geoid_undulation,
                          home=tuple(args.home) if args.home else None, sun=args.sun, overwrite=args.overwrite,
                          photo_faults=PhotoFaults(tuple(args.skip_shots + args.blur)),

@@ -135,19 +135,26 @@ def write_raw_capture(frames: list[Frame], path, start_utc: dt.datetime) -> None
 
 class MissionClock(Clock):
     """Flight time at ``speedup`` times real time since construction (or :meth:`restart`), and UTC from
-    ``start_utc`` (default: now). Implements :class:`capture.transports.Clock` (``utc``, ``monotonic``,
-    ``sleep``) on the flight's time line, so a recorder using it stamps chunks in flight time."""
+    ``start_utc`` (None: this machine's clock, :attr:`follows_host`). Implements :class:`capture.transports.Clock`
+    (``utc``, ``monotonic``, ``sleep``) on the flight's time line, so a recorder using it stamps chunks in flight
+    time."""
 
     def __init__(self, speedup: float = 1.0, start_utc: dt.datetime | None = None):
         if not (math.isfinite(speedup) and speedup > 0):
             raise ValueError(f"speed-up must be a positive number, got {speedup}")
         self.speedup = speedup
+        #: Whether the flight started "now": its UTC is this machine's at every (re)start, as a recorder in another
+        #: process stamps it.
+        self.follows_host = start_utc is None
         self.start_utc = start_utc or dt.datetime.now(dt.timezone.utc)
         self._anchor = time.monotonic()
 
     def restart(self, at_s: float = 0.0) -> None:
-        """Flight time ``at_s`` is now (a stream that starts mid-flight)."""
+        """Flight time ``at_s`` is now (a stream that starts mid-flight); a clock that :attr:`follows_host` moves its
+        ``start_utc`` with it, so that flight time ``at_s`` is this machine's UTC now."""
         self._anchor = time.monotonic() - at_s / self.speedup
+        if self.follows_host:
+            self.start_utc = dt.datetime.now(dt.timezone.utc) - dt.timedelta(seconds=at_s)
 
     def flight_time_s(self) -> float:
         """Seconds of flight time since the start."""

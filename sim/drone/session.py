@@ -89,7 +89,10 @@ class FlyOptions:
     flight's ellipsoidal heights into the heights above sea level the photos and logs carry (h - N). ``seed`` is
     an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`). ``start_utc``:
     motors on (an aware datetime); None: :func:`sim.drone.sunlight.default_start_utc` over the scene, the same
-    instant whenever it is flown (a live link's clock too). ``sun``: the
+    instant whenever it is flown (a live link's clock too). ``start_now`` (``--start-utc now``): motors on when the
+    telemetry starts, on this machine's clock, which a recorder in another process stamps (``start_utc`` is then the
+    time the flight was asked for: the sun and time checks use it, and the flight's clock moves it to the stream's
+    start, before the photos and truth.json take it). ``sun``: the
     photos' light (:class:`~sim.sampling.light.SunSetting`, not the random form); None: the real sun over the scene
     at each photo's UTC time (:mod:`sim.drone.sunlight`). ``faults``: the flight and link faults asked for
     (:mod:`sim.drone.flight_faults`; each flight of an area plan gets them, on its own flight time)."""
@@ -101,6 +104,7 @@ class FlyOptions:
     imperfections: Imperfections = field(default_factory=Imperfections.realistic)
     seed: int | tuple[int, int] = 0
     start_utc: dt.datetime | None = None
+    start_now: bool = False  # motors on when the telemetry stream starts, on this machine's clock (--start-utc now)
     photo_limit: int | None = None
     logs: bool = False
     progress: bool = True
@@ -220,6 +224,8 @@ def start_utc_of(options: FlyOptions, scene: Scene) -> dt.datetime:
 
 def start_utc_from(options: FlyOptions) -> str:
     """What ``truth.json`` says of where ``start_utc`` comes from."""
+    if options.start_now:
+        return "this machine's clock when the flight's telemetry started (--start-utc now)"
     return "given" if options.start_utc is not None else f"the default: {DEFAULT_START_NOTE}"
 
 
@@ -269,7 +275,7 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
     refuse_earlier_flight(out_dir, options.overwrite)
     mission = mission or fly_litchi_mission(mission_csv, scene, options.seed, options.imperfections, options.home,
                                            options.faults)
-    clock = MissionClock(options.speedup, start_utc_of(options, scene))
+    clock = MissionClock(options.speedup, None if options.start_now else start_utc_of(options, scene))
     light, faults = check_session(mission, clock.start_utc, options, scene)
     if options.overwrite:
         remove_earlier_flight(out_dir)
@@ -280,6 +286,7 @@ def run_session(mission_csv, scene: Scene, out_dir, options: FlyOptions, mission
         sent = record_loopback(frames, capture, clock, options.progress)
     else:
         if options.link == "tcp":
+            clock.restart()  # motors on now: the recorder at the other end stamps from here
             stream_to_port(frames, options.port, clock, options.progress)
         write_raw_capture(frames, capture, clock.start_utc)
         sent = sum(len(frame.data) for frame in frames)

@@ -6,6 +6,7 @@ import datetime as dt
 import json
 import socket
 import threading
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -23,7 +24,7 @@ from capture.transports import UsbBulkSource
 from flightplan import litchi
 from flightplan.geodesy import LocalFrame, geodesic_direct
 from sim.cli import main
-from sim.drone import Imperfections, fly
+from sim.drone import Imperfections, fly, session
 from sim.drone.link import MissionClock, duml_frames, stream, telemetry_messages, write_raw_capture
 from sim.drone.logs import write_flight_logs
 from sim.drone.mission import home_below_first_waypoint, waypoints_from_litchi
@@ -170,6 +171,38 @@ def test_socket_link_delivers_every_byte(mission_csv):
     thread.join(timeout=10)
     server.close()
     assert bytes(received) == b"".join(f.data for f in frames) and sent == len(received)
+
+
+def test_a_tcp_flight_started_now_takes_off_when_its_telemetry_reaches_the_recorder(mission_csv, tmp_path,
+                                                                                       monkeypatch):
+    """``fly --link tcp --start-utc now``: a recorder in another process stamps this machine's clock, so the flight's
+    UTC must be that clock from its first packet on, however long the flight took to prepare (here 1.5 s more). The
+    default orbit's closed loop took 3 s to load its world, and every packet arrived 3.04 s after the UTC the truth
+    gave it: the geotagger's clock offset came out 2.9 s from the truth's."""
+    server = socket.create_server(("127.0.0.1", 0))
+    first_arrival = []
+
+    def serve():
+        connection, _ = server.accept()
+        with connection:
+            while chunk := connection.recv(65536):
+                first_arrival[:] = first_arrival or [dt.datetime.now(dt.timezone.utc)]
+
+    thread = threading.Thread(target=serve)
+    thread.start()
+    prepare = session.duml_frames
+    monkeypatch.setattr(session, "duml_frames", lambda mission: time.sleep(1.5) or prepare(mission))
+    argv = ["fly", "--mission", str(mission_csv), "--scene", "demo:small", "--out", str(tmp_path / "fly"), "--photos",
+            "0", "--link", "tcp", "--port", f"socket://127.0.0.1:{server.getsockname()[1]}", "--speedup", "1000",
+            "--start-utc", "now"]
+    assert main(argv) == 0
+    thread.join(timeout=10)
+    server.close()
+    truth = json.loads((tmp_path / "fly" / "truth.json").read_text(encoding="utf-8"))
+    start = dt.datetime.fromisoformat(truth["start_utc"])
+    assert abs((first_arrival[0] - start).total_seconds()) < 0.25  # the first packet is sent at flight time 0
+    assert truth["start_utc_from"] == "this machine's clock when the flight's telemetry started (--start-utc now)"
+    assert read_index(tmp_path / "fly" / "flight.duml.idx").utc_unix_s[0] == pytest.approx(start.timestamp())
 
 
 def test_fake_usb_link_delivers_every_byte_through_pyusb(mission_csv):
