@@ -329,8 +329,11 @@ def run_flights(mission_csvs, scene: Scene, out_dir, options: FlyOptions) -> lis
     ``(options.seed, k)`` (its own gusts, sensor errors and GPS fix offset), flight 1 at ``options.start_utc`` (or
     the default, :func:`start_utc_of`) and each next one :data:`BATTERY_SWAP_S` after the previous one landed. Every
     flight is flown as a model and checked (:func:`check_session`: hours later the sun may have set) before the first
-    writes anything; an earlier flight in ``out_dir`` is refused or, with ``options.overwrite``, removed then."""
+    writes anything; an earlier flight in ``out_dir`` is refused or, with ``options.overwrite``, removed then. The
+    flights are a time table from the first one's start, so ``options.start_now`` is the moment they were asked for
+    (a clock that followed this machine's would start each flight when it is written, off the time table)."""
     refuse_earlier_flight(out_dir, options.overwrite)
+    options = replace(options, start_now=False)
     flights, start = [], start_utc_of(options, scene)
     for number, mission_csv in enumerate(mission_csvs, start=1):
         flight_options = replace(options, seed=(int(options.seed), number), start_utc=start)

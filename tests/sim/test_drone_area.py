@@ -60,12 +60,15 @@ def test_each_flight_draws_its_own_offset_from_seed_and_number_and_nothing_else_
     assert 0.6 < many[:, :2].std() < 1.4 and 1.2 < many[:, 2].std() < 2.8
 
 
-def test_cli_flies_every_mission_into_its_own_folder(mission_csv, tmp_path, capsys):
+# "now" with a fixed sun: the real one may be down when the test runs. The flights stay a time table from the first
+# one's start: a clock following this machine's would start each when it is written.
+@pytest.mark.parametrize("start", [["--start-utc", "2024-05-01T10:00:00Z"],
+                                   ["--start-utc", "now", "--sun", "150,50,10"]], ids=["given", "now"])
+def test_cli_flies_every_mission_into_its_own_folder(mission_csv, tmp_path, capsys, start):
     scene_dir = build_demo_world(tmp_path / "world", variant="small", seed=0)
     out = tmp_path / "out"
     argv = ["fly", "--mission", str(mission_csv), "--mission", str(mission_csv), "--scene", str(scene_dir),
-            "--out", str(out), "--photo-size", "64", "48", "--photos", "1", "--seed", "5",
-            "--start-utc", "2024-05-01T10:00:00Z"]
+            "--out", str(out), "--photo-size", "64", "48", "--photos", "1", "--seed", "5", *start]
     assert main(argv) == 0
     assert capsys.readouterr().out.count("GPS fix offset") == 2
     truths = [json.loads((out / f"flight_0{k}" / "truth.json").read_text(encoding="utf-8")) for k in (1, 2)]
