@@ -90,9 +90,9 @@ class FlyOptions:
     an integer, or ``(seed, flight number)`` for one flight of an area plan (:func:`run_flights`). ``start_utc``:
     motors on (an aware datetime); None: :func:`sim.drone.sunlight.default_start_utc` over the scene, the same
     instant whenever it is flown (a live link's clock too). ``start_now`` (``--start-utc now``): motors on when the
-    telemetry starts, on this machine's clock, which a recorder in another process stamps (``start_utc`` is then the
-    time the flight was asked for: the sun and time checks use it, and the flight's clock moves it to the stream's
-    start, before the photos and truth.json take it). ``sun``: the
+    telemetry starts, on this machine's clock, which a recorder in another process stamps (``start_utc`` is then
+    only when the flight was asked for: the flight's clock takes this machine's UTC when it is made, for the sun and
+    time checks, and again as a ``tcp`` stream starts, before the photos and truth.json take it). ``sun``: the
     photos' light (:class:`~sim.sampling.light.SunSetting`, not the random form); None: the real sun over the scene
     at each photo's UTC time (:mod:`sim.drone.sunlight`). ``faults``: the flight and link faults asked for
     (:mod:`sim.drone.flight_faults`; each flight of an area plan gets them, on its own flight time)."""
