@@ -3,12 +3,14 @@
 Python's ``json`` parser recurses once per nesting level, so ``[[[[...]]]]`` a few thousand levels deep raises
 ``RecursionError`` (which no reader expects) instead of ``json.JSONDecodeError``. :func:`loads_json` turns it into
 a ``json.JSONDecodeError``, so every reader's existing handling of malformed JSON applies; :func:`read_json` reads a
-file and reports any malformed JSON as :class:`~cliutil.errors.BadInput` naming the file and line.
+file and reports any malformed JSON as :class:`~cliutil.errors.BadInput` naming the file and line;
+:func:`is_finite_number` tells a JSON value that is a number from text, a boolean or NaN.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 
@@ -33,3 +35,9 @@ def read_json(path: Path):
         raise BadInput(f"{path}: not UTF-8 text (byte {error.start}: {error.reason})") from None
     except json.JSONDecodeError as error:
         raise BadInput(f"{path}: invalid JSON at line {error.lineno}: {error.msg}") from None
+
+
+def is_finite_number(value) -> bool:
+    """Whether a parsed JSON value is a finite number: not a string (``"1.5"``), a boolean (Python's ``True`` is an
+    int), NaN or an infinity (which Python's parser accepts)."""
+    return type(value) in (int, float) and math.isfinite(value)

@@ -29,7 +29,6 @@ in the scene's face provenance (:func:`on_water`), so a dataset says where its d
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -39,7 +38,7 @@ from scipy import ndimage
 
 from cliutil.atomic import atomic_path, write_text_atomic
 from cliutil.errors import BadInput
-from cliutil.jsonfile import read_json
+from cliutil.jsonfile import is_finite_number, read_json
 from recon.surface.grid import Grid
 from recon.surface.mesh import cell_size_for_density, per_cell_percentile, read_point_cloud
 
@@ -105,7 +104,7 @@ class WaterBody:
     def from_dict(cls, record: dict) -> "WaterBody":
         """The body :meth:`to_dict` stored; ValueError (or KeyError, TypeError) saying what is not as it wrote it."""
         level_z, grid = record["level_z_m"], stored_grid(record["grid"])
-        if not finite_number(level_z):
+        if not is_finite_number(level_z):
             raise ValueError(f"level_z_m: expected a finite height in metres, got {level_z!r}")
         index = np.asarray(record["cells"])
         if index.ndim != 2 or index.shape[1:] != (2,) or not len(index) or index.dtype.kind not in "iu":
@@ -115,11 +114,6 @@ class WaterBody:
         cells = np.zeros((grid.rows, grid.cols), bool)
         cells[index[:, 0], index[:, 1]] = True
         return cls(float(level_z), grid, cells)
-
-
-def finite_number(value) -> bool:
-    """Whether a JSON value is a finite number (not a string or a boolean)."""
-    return type(value) in (int, float) and math.isfinite(value)
 
 
 MAX_STORED_CELLS = 400_000_000
@@ -132,7 +126,7 @@ def stored_grid(record: dict) -> Grid:
     if not isinstance(record, dict):
         raise TypeError(f"grid: expected a JSON object, got {record!r}")
     grid = Grid(**record)
-    if not all(map(finite_number, (grid.x0_m, grid.y0_m, grid.cell_m))) or grid.cell_m <= 0:
+    if not all(map(is_finite_number, (grid.x0_m, grid.y0_m, grid.cell_m))) or grid.cell_m <= 0:
         raise ValueError(f"grid: expected a finite corner and a cell size > 0 m, got {record}")
     counts = (grid.rows, grid.cols)
     if not all(type(n) is int and n >= 1 for n in counts) or grid.rows * grid.cols > MAX_STORED_CELLS:

@@ -11,7 +11,6 @@ recon writes the file (:func:`write_cameras`), the scene loader reads it (:func:
 from __future__ import annotations
 
 import json
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from cliutil.atomic import write_text_atomic
-from cliutil.jsonfile import loads_json
+from cliutil.jsonfile import is_finite_number, loads_json
 from sim.render.camera import PinholeCamera, check_pose
 
 CAMERAS_FORMAT = "aerostereo-cameras/1"
@@ -88,8 +87,7 @@ def read_cameras(path: Path) -> tuple[SceneCamera, ...]:
 
 def _number(entry: dict, key: str, where: str, positive: bool = False) -> float:
     value = entry.get(key)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-            or (positive and value <= 0):
+    if not is_finite_number(value) or (positive and value <= 0):
         kind = "a positive number" if positive else "a finite number"
         raise CamerasError(f"{where}: \"{key}\" must be {kind}, got {value!r}")
     return float(value)

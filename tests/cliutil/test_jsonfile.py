@@ -5,7 +5,7 @@ import json
 import pytest
 
 from cliutil.errors import BadInput
-from cliutil.jsonfile import loads_json, read_json
+from cliutil.jsonfile import is_finite_number, loads_json, read_json
 
 
 def test_nesting_python_can_read_reads_and_deeper_is_a_decode_error():
@@ -26,3 +26,8 @@ def test_read_json_names_the_file_and_line(tmp_path, content, message):
         read_json(path)
     path.write_text('{"origin": {"lat0_deg": 1}}')
     assert read_json(path) == {"origin": {"lat0_deg": 1}}
+
+
+def test_a_finite_number_is_what_the_parser_gives_for_a_finite_number_only():
+    parsed = loads_json('[0, -3, 1.5, 1e308, "1.5", true, false, null, NaN, Infinity, -Infinity, [1], {"a": 1}]')
+    assert [is_finite_number(value) for value in parsed] == [True] * 4 + [False] * 9
