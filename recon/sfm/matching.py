@@ -15,12 +15,21 @@ from recon.sfm.options import SfmOptions
 from recon.sfm.progress import DatabaseProgress, images_with_keypoints, no_progress
 
 LOOP_MIN_INLIERS = 15
+#: SIFT's first octave for the photos that are mapped: -1 (COLMAP's default) doubles the image first, so the finest
+#: and most precisely located features are found.
+MAPPED_FIRST_OCTAVE = -1
+#: ... and for the photos left out of mapping, which are only located against the mapped model's points and
+#: triangulated with their neighbours: 0, the image at its own size. On 160 photos of the default orbit (800x600) it
+#: found 30 % of the features in a third of the time; registering the 120 left out took 50 s against 118 s, their
+#: positions 15 mm against 13 mm off the truth (median), their rotations 0.067 deg against 0.051 deg.
+LEFT_OUT_FIRST_OCTAVE = 0
 
 
 def create_database(database_path: Path, photo_dir: Path, names, seed: CameraSeed, options: SfmOptions,
-                    progress=no_progress) -> None:
-    """Import ``names`` with one shared camera seeded at ``seed`` (its model and parameters) and extract CPU SIFT;
-    ``progress("extract", n, N)`` counts the photos done."""
+                    progress=no_progress, first_octave: int = MAPPED_FIRST_OCTAVE) -> None:
+    """Import ``names`` with one shared camera seeded at ``seed`` (its model and parameters) and extract CPU SIFT
+    from ``first_octave`` (-1: the image doubled, 0: at its size); ``progress("extract", n, N)`` counts the photos
+    done."""
     reader = pycolmap.ImageReaderOptions()
     reader.camera_model = seed.model
     reader.camera_params = ",".join(repr(float(p)) for p in seed.params)
@@ -28,6 +37,7 @@ def create_database(database_path: Path, photo_dir: Path, names, seed: CameraSee
     extraction.max_image_size = options.max_image_size
     extraction.num_threads = options.num_threads
     extraction.sift.max_num_features = options.max_num_features
+    extraction.sift.first_octave = first_octave
     with DatabaseProgress(database_path, "extract", len(names), images_with_keypoints, progress):
         pycolmap.extract_features(
             database_path,

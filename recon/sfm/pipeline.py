@@ -29,8 +29,8 @@ from recon.sfm.cameras import camera_poses
 from recon.sfm.georegistration import apply_similarity, georegister, position_tilt_sigma_deg
 from recon.sfm.mapping import (REGISTER_NEIGHBOURS, map_photos, refine_focal, register_remaining, robust_prior_loss,
                                viewing_spread_deg)
-from recon.sfm.matching import (LOOP_MIN_INLIERS, create_database, ensure_loop_matched, loop_pair, match_pairs,
-                                 match_photos, nearest_mapped_pairs, write_pose_priors)
+from recon.sfm.matching import (LEFT_OUT_FIRST_OCTAVE, LOOP_MIN_INLIERS, create_database, ensure_loop_matched,
+                                 loop_pair, match_pairs, match_photos, nearest_mapped_pairs, write_pose_priors)
 from recon.sfm.options import SfmError, SfmOptions
 from recon.sfm.progress import no_progress, renamed
 from recon.inputs.tag_offset import fit_tag_offset, travel_directions
@@ -200,7 +200,8 @@ def run_sfm(photo_dir: Path, photo_names, priors: PosePriors, seed: CameraSeed, 
     new = [n for n in photo_names if n not in core]
     if new:
         def register_rest():
-            create_database(database, photo_dir, new, seed, options, renamed(progress, "extract rest"))
+            create_database(database, photo_dir, new, seed, options, renamed(progress, "extract rest"),
+                            first_octave=LEFT_OUT_FIRST_OCTAVE)
             write_pose_priors(database, priors)
             posed = camera_poses(rec)
             mapped = [n for n in core if n in posed]

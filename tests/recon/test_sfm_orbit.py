@@ -102,3 +102,17 @@ def test_photos_left_out_of_mapping_register_by_absolute_pose(orbit, tmp_path):
     assert np.degrees((errors.mean().inv() * errors).magnitude()).max() < 0.1  # about their common yaw offset
     left_out = [rec.find_image_with_name(n) for n in priors.names[1::3]]
     assert all(image.num_points3D >= 100 for image in left_out)  # they observe points: dense can pair them
+    finest = finest_keypoint_scales(tmp_path / "database.db")
+    mapped = [name for i, name in enumerate(priors.names) if i % 3 == 0 or i == NUM_PHOTOS - 1]
+    # SIFT on the doubled image finds scales from 0.8 px (the 2048-feature cap drops the finest); at the photo's own
+    # size, from 1.6 px
+    assert max(finest[name] for name in mapped) < 1.5
+    assert min(scale for name, scale in finest.items() if name not in mapped) > 1.55
+
+
+def finest_keypoint_scales(database) -> dict[str, float]:
+    """Each photo's smallest SIFT keypoint scale in ``database`` (px of the photo: the root of the affine shape's
+    determinant)."""
+    with pycolmap.Database.open(database) as db:
+        shapes = {image.name: db.read_keypoints(image.image_id)[:, 2:] for image in db.read_all_images()}
+    return {name: float(np.sqrt(np.abs(s[:, 0] * s[:, 3] - s[:, 1] * s[:, 2])).min()) for name, s in shapes.items()}
