@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation
 
 from flightplan.geodesy import LocalFrame
 from recon.run.scene_out import write_scene
+from recon.surface.grid import Grid
 from sim.render.camera import PinholeCamera
 from sim.dataset.source import DatasetSource
 from sim.run.options import PoseOptions, RenderOptions, RigOptions
@@ -35,11 +36,12 @@ def two_pieces(cell_m: float = 2.0) -> Ownership:
     owner = np.zeros((20, 20), dtype=np.uint16)
     owner[:, 10:] = 1
     owner[:3] = NO_OWNER
-    return Ownership(owner, cell_m, 0.0, 20 * cell_m)
+    return Ownership(owner, Grid(0.0, 20 * cell_m, cell_m, 20, 20))
 
 
 def cell_centre(ownership: Ownership, row: int, column: int) -> tuple[float, float]:
-    return (ownership.x0_m + (column + 0.5) * ownership.cell_m, ownership.y0_m - (row + 0.5) * ownership.cell_m)
+    grid = ownership.grid
+    return (grid.x0_m + (column + 0.5) * grid.cell_m, grid.y0_m - (row + 0.5) * grid.cell_m)
 
 
 def test_seam_distance_is_the_distance_from_the_cell_centre_to_the_seam_line():
@@ -55,7 +57,7 @@ def test_seam_distance_is_the_distance_from_the_cell_centre_to_the_seam_line():
 def test_a_single_owner_has_no_seam():
     owner = np.zeros((4, 4), dtype=np.uint16)
     owner[0] = NO_OWNER
-    assert np.isinf(Ownership(owner, 1.0, 0.0, 4.0).seam_distance_m()[1:]).all()
+    assert np.isinf(Ownership(owner, Grid(0.0, 4.0, 1.0, 4, 4)).seam_distance_m()[1:]).all()
 
 
 def test_seam_split_puts_points_by_their_cells_distance_to_the_seam():
@@ -81,6 +83,7 @@ def test_ownership_reads_the_16_bit_png(tmp_path):
     assert cv2.imwrite(str(tmp_path / "ownership.png"), ownership.owner)
     read = Ownership.read(tmp_path, {"file": "ownership.png", "cell_m": 2.0, "x0_m": 0.0, "y0_m": 40.0})
     assert read.owner.dtype == np.uint16 and np.array_equal(read.owner, ownership.owner)
+    assert read.grid == ownership.grid
     assert cv2.imwrite(str(tmp_path / "eight_bit.png"), ownership.owner.astype(np.uint8))
     with pytest.raises(ValueError, match="16-bit"):
         Ownership.read(tmp_path, {"file": "eight_bit.png", "cell_m": 2.0, "x0_m": 0.0, "y0_m": 40.0})

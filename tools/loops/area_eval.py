@@ -25,6 +25,7 @@ from flightplan.geodesy import LocalFrame
 from recon.measure.accuracy import distances_to_surface, pose_errors, scene_mesh_enu, transform_poses
 from recon.area.merge import distance_to_owner
 from recon.area.pipeline import NO_OWNER_PIXEL as NO_OWNER  # ownership.png's "no piece has surface here"
+from recon.surface.grid import Grid
 from recon.surface.observed import inside
 from recon.measure.oblique import TwinFrame, render_view, sample_views, score_view, summarise
 from recon.measure.scene_cameras import area_shape_alignment, scene_camera_poses, truth_poses
@@ -179,14 +180,12 @@ def thinning_metrics(thinned: tuple[Path, Path], fuller: tuple[Path, Path], worl
 
 @dataclass(frozen=True)
 class Ownership:
-    """The area's ownership grid: ``owner[r, c]`` is the piece owning the ground cell centred at ENU
-    ``x = x0_m + (c + 0.5) cell_m``, ``y = y0_m - (r + 0.5) cell_m`` (row 0 north), ``no_owner`` (the report's,
-    else :data:`NO_OWNER`) where no piece has surface."""
+    """The area's ownership grid: ``owner[r, c]`` is the piece owning the ground cell (r, c) of ``grid``
+    (:class:`recon.surface.grid.Grid`, the merge's own), ``no_owner`` (the report's, else :data:`NO_OWNER`) where no
+    piece has surface."""
 
     owner: np.ndarray
-    cell_m: float
-    x0_m: float
-    y0_m: float
+    grid: Grid
     no_owner: int = NO_OWNER
 
     @classmethod
@@ -196,14 +195,13 @@ class Ownership:
         owner = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if owner is None or owner.dtype != np.uint16 or owner.ndim != 2:
             raise ValueError(f"{path}: expected a 16-bit single-channel PNG (piece index per ground cell)")
-        return cls(owner, float(spec["cell_m"]), float(spec["x0_m"]), float(spec["y0_m"]),
-                   int(spec.get("no_owner", NO_OWNER)))
+        grid = Grid(float(spec["x0_m"]), float(spec["y0_m"]), float(spec["cell_m"]), *owner.shape)
+        return cls(owner, grid, int(spec.get("no_owner", NO_OWNER)))
 
     def cells(self, xy: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Row and column of the cell under each point ``(N, 2)`` (area ENU m), and whether it lies on the grid."""
-        column = np.floor((xy[:, 0] - self.x0_m) / self.cell_m).astype(np.int64)
-        row = np.floor((self.y0_m - xy[:, 1]) / self.cell_m).astype(np.int64)
-        on_grid = (row >= 0) & (row < self.owner.shape[0]) & (column >= 0) & (column < self.owner.shape[1])
+        row, column = self.grid.index_of(xy)
+        on_grid = self.grid.holds(row, column)
         return np.where(on_grid, row, 0), np.where(on_grid, column, 0), on_grid
 
     def seam_distance_m(self) -> np.ndarray:
@@ -215,7 +213,7 @@ class Ownership:
             if piece != self.no_owner:
                 others = self.owner != piece
                 distance[others] = np.minimum(distance[others],
-                                              distance_to_owner(self.owner, int(piece), self.cell_m)[others])
+                                              distance_to_owner(self.owner, int(piece), self.grid.cell_m)[others])
         return distance
 
 
