@@ -137,13 +137,14 @@ def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, phot
     distance = np.sqrt(row_dots(to_camera, to_camera))
     direction = to_camera / distance[:, None]
     cosine = np.abs(row_dots(direction, normals[inside]))
+    quality = cosine * (cam.fx / distance) ** 2
     facing = cosine > 0.05
     if wanted_above is not None:
-        facing &= cosine * (cam.fx / distance) ** 2 > wanted_above[inside]
-    inside, distance, direction, cosine = inside[facing], distance[facing], direction[facing], cosine[facing]
+        facing &= quality > wanted_above[inside]
+    inside, distance, direction, quality = inside[facing], distance[facing], direction[facing], quality[facing]
     tolerance = np.maximum(0.05, 2e-3 * distance)  # the face's own surface must not hide it
     seen = ~occluded(scene, T[None, :3, 3], -direction, distance - tolerance)
-    return inside[seen], (cosine * (cam.fx / distance) ** 2)[seen]
+    return inside[seen], quality[seen]
 
 
 def face_candidates(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions,

@@ -3,8 +3,9 @@ occlusion, cosine-weighted), baked once per scene at its face corners and interp
 
 ``V = (1/pi) * integral over the hemisphere of visible(w) * cos(w, n) dw``: 1 on open flat ground, about 0.5 on a
 wall standing on open ground (the ground hides the lower half of its sky), less in courtyards, under eaves and
-crowns. A corner's point is its vertex with the corner's normal (:func:`corner_normals`: a box corner keeps one
-normal per side, a smooth surface one per vertex); each distinct point is estimated once, with :data:`SKY_RAYS`
+crowns. A corner's point is its vertex's position with the corner's normal (:func:`corner_normals`: a box corner
+keeps one normal per side, a smooth surface one per vertex, and an atlas's copies of a vertex at a chart seam are one
+point); each distinct point is estimated once, with :data:`SKY_RAYS`
 cosine-weighted rays per side (the stratified directions of a Fibonacci disk lifted to the hemisphere, turned by a
 random angle per point so neighbouring points do not share their sampling error's pattern), each tested for
 occlusion by embree over the whole scene.
@@ -33,7 +34,8 @@ from sim.render.scene import Scene, unit_face_normals
 from sim.render.sky_file import SkyVisibility, StoredSky, mesh_sha256, write_sky_visibility
 
 #: Bump when the bake computes other values from the same mesh and settings: stored bakes are then baked again.
-BAKE_VERSION = 1
+#: 2: points are told apart by position, not vertex index (an atlas's seam vertices are one point).
+BAKE_VERSION = 2
 #: Rays per point and side; the standard error of V is at most 0.5 / sqrt(SKY_RAYS) (0.044 at 128).
 SKY_RAYS = 128
 #: Ray origins start this far off the surface along the corner normal (metres), past float32 noise and the
@@ -53,7 +55,8 @@ SKY_SEED = 0
 def corner_normals(vertices: np.ndarray, faces: np.ndarray, crease_deg: float = CREASE_DEG) -> np.ndarray:
     """Unit normals ``(F, 3, 3)`` of every face corner: the area-weighted mean of the winding normals of the faces
     around its vertex that turn less than ``crease_deg`` from its own face (a box's corner keeps three normals, one
-    per side; a smooth surface one per vertex)."""
+    per side; a smooth surface one per vertex). Vertices are told apart by index: weld those that share a position
+    first (:func:`weld_by_position`) for the faces around a point."""
     corners = vertices[faces]
     weighted = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])  # length: twice the area
     unit = unit_face_normals(vertices, faces)
@@ -101,8 +104,11 @@ def _tangent_frames(normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = SKY_SEED,
                         pool: Executor | None = None) -> SkyVisibility:
     """The sky visibility of every face corner of ``scene`` (:class:`SkyVisibility`), baked once per surface point:
-    a vertex with each of its corner normals (:func:`corner_normals`). Reproducible from ``seed``."""
-    vertices, faces = scene.vertices, scene.faces
+    a vertex position with each of its corner normals (:func:`corner_normals` over the faces around the position, so
+    the copies of a vertex that a texture atlas splits at its chart seams are one point). Reproducible from
+    ``seed``."""
+    vertices = scene.vertices
+    faces = weld_by_position(vertices)[scene.faces]
     normals = corner_normals(vertices, faces).reshape(-1, 3)
     normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)
     keys = np.column_stack([faces.ravel(), np.round(normals * 1e4).astype(np.int64)])
@@ -124,6 +130,12 @@ def bake_sky_visibility(scene: Scene, rays: int = SKY_RAYS, seed: int = SKY_SEED
     with context as executor:
         list(executor.map(bake, chunks))
     return SkyVisibility(inverse.reshape(-1, 3).astype(np.int32), values)
+
+
+def weld_by_position(vertices: np.ndarray) -> np.ndarray:
+    """``(V,)`` the first index of each vertex's exact position: vertices that share a position map to one index."""
+    _, first, inverse = np.unique(vertices, axis=0, return_index=True, return_inverse=True)
+    return first[inverse.ravel()]
 
 
 def _inset(vertices: np.ndarray, faces: np.ndarray, corners: np.ndarray) -> np.ndarray:
