@@ -107,3 +107,31 @@ def test_a_point_in_a_wells_shade_is_lit_by_the_sky_it_sees():
     expected = albedo * 0.3 * parallel_square_view_factor(side, depth)
     measured = np.mean(view.rgb[4, 4].astype(float) / 255) ** 2.2
     assert abs(measured - expected) < 0.01 + albedo * 0.3 * TOLERANCE
+
+
+def split_at_seam(scene: Scene) -> Scene:
+    """The same surface with every vertex of the faces right of x = 0 copied, as a texture atlas splits its charts'
+    vertices at a seam."""
+    right = np.flatnonzero(scene.vertices[scene.faces].mean(axis=1)[:, 0] > 0)
+    copied = np.unique(scene.faces[right])
+    copy_of = np.full(len(scene.vertices), -1)
+    copy_of[copied] = len(scene.vertices) + np.arange(len(copied))
+    faces = scene.faces.copy()
+    faces[right] = copy_of[faces[right]]
+    return grey(np.vstack([scene.vertices, scene.vertices[copied]]), faces)
+
+
+def test_an_atlas_seam_splits_no_point_of_the_bake():
+    """Copies of a vertex at a chart seam are one surface point: baked once, so both sides of the seam read one
+    value (baked per vertex index, each copy got its own sampling error)."""
+    welded = well(10.0, 5.0)
+    split = split_at_seam(welded)
+    welded_sky, split_sky = bake_sky_visibility(welded), bake_sky_visibility(split)
+    assert len(split_sky.values) == len(welded_sky.values)
+    point = welded_sky.corner.ravel()  # the same face order: one point per corner as the welded mesh has it
+    _, first, group = np.unique(point, return_index=True, return_inverse=True)
+    seam = np.flatnonzero(np.bincount(group, weights=split.faces.ravel() >= len(welded.vertices))
+                          * np.bincount(group, weights=split.faces.ravel() < len(welded.vertices)))
+    assert len(seam) > 5  # points with corners on both sides of the seam
+    values = split_sky.values[split_sky.corner.ravel()]
+    np.testing.assert_array_equal(values, values[first][group])
