@@ -125,8 +125,9 @@ class TreeScore:
     """One tree, twin against truth. ``true_top_m``/``twin_top_m``: the highest true / twin surface over the true
     crown's cells above the tree's ground (m; NaN where the truth shows none of the tree from above, or the twin has
     no surface there); ``top_error_m``: twin - true; ``listed_top_m``: scene.json's top height (the highest vertex,
-    which the cells' rays may pass beside); ``true_cells``/``twin_cells``: the crowns' cell counts; ``iou``: their
-    intersection over union (NaN where both are empty); ``outline_iou``: the same of their outlines."""
+    which the cells' rays may pass beside); ``true_cells``/``twin_cells``: the crowns' cell counts, ``agreeing_cells``
+    the cells in both; ``iou``: their intersection over union (NaN where both are empty); ``outline_iou``: the same of
+    their outlines."""
 
     instance: int
     kind: str
@@ -137,6 +138,7 @@ class TreeScore:
     listed_top_m: float
     true_cells: int
     twin_cells: int
+    agreeing_cells: int
     iou: float
     outline_iou: float
 
@@ -173,7 +175,8 @@ def score_tree(tree: TrueTree, window: Grid, true_height: np.ndarray, true_insta
     outlines = [crown_outline(crown.reshape(window.rows, window.cols), window.cell_m).ravel() & ~elsewhere
                 for crown in (true_crown, twin_crown)]
     return TreeScore(tree.instance, tree.kind, tree.forest, true_top, twin_top, twin_top - true_top, tree.top_height,
-                     int(true_crown.sum()), int(twin_crown.sum()), _iou(true_crown, twin_crown), _iou(*outlines))
+                     int(true_crown.sum()), int(twin_crown.sum()), int((true_crown & twin_crown).sum()),
+                     _iou(true_crown, twin_crown), _iou(*outlines))
 
 
 def trees_inside(trees: Sequence[TrueTree], polygon: np.ndarray | None) -> list[TrueTree]:
@@ -214,7 +217,10 @@ def group_members(scores: Sequence[TreeScore], group: str) -> list[TreeScore]:
 def summarise_trees(scores: Sequence[TreeScore]) -> dict:
     """Per group of :data:`GROUPS` with trees seen from above (some true crown cells; ``hidden``: how many of the
     group's trees are not): their count, the median |top height error| (m), the share within :data:`WITHIN_M`, and the
-    median and 10th percentile crown IoU and outline IoU. A tree the twin has no surface over counts as infinitely wrong in height."""
+    median and 10th percentile crown IoU and outline IoU, and over all their cells together the crowns' agreeing
+    cells, the twin's extra ones (its crown where the truth shows open ground), the missed ones (the true crown where
+    the twin has none) and the pooled IoU they make. A tree the twin has no surface over counts as infinitely wrong in
+    height."""
     summary = {}
     for group in GROUPS:
         members = group_members(scores, group)
@@ -228,5 +234,16 @@ def summarise_trees(scores: Sequence[TreeScore]) -> dict:
                           "within_share": float(np.mean(error <= WITHIN_M)),
                           "median_iou": float(np.median(iou)), "p10_iou": float(np.percentile(iou, 10)),
                           "median_outline_iou": float(np.median(outline)),
-                          "p10_outline_iou": float(np.percentile(outline, 10))}
+                          "p10_outline_iou": float(np.percentile(outline, 10)), **pooled_cells(seen)}
     return summary
+
+
+def pooled_cells(scores: Sequence[TreeScore]) -> dict:
+    """The crowns' cells over all ``scores`` together: agreeing, extra (the twin's only), missed (the truth's only)
+    and their pooled IoU (NaN where there are none)."""
+    agreeing = sum(s.agreeing_cells for s in scores)
+    extra = sum(s.twin_cells for s in scores) - agreeing
+    missed = sum(s.true_cells for s in scores) - agreeing
+    union = agreeing + extra + missed
+    return {"agreeing_cells": agreeing, "extra_cells": extra, "missed_cells": missed,
+            "pooled_iou": agreeing / union if union else math.nan}

@@ -123,11 +123,15 @@ def test_a_crown_moved_1_m_east_overlaps_as_the_rectangles_do():
     scores = scores_by_tree(forest(shift_m=(1.0, 0.0)))
     # A: crown x -1..3 against -2..2 (3 m high): overlap 9 m2, union 15 m2
     assert scores[1].iou == pytest.approx(9.0 / 15.0)
+    assert scores[1].agreeing_cells == cells(9.0)
     assert scores[1].outline_iou == pytest.approx(9.0 / 15.0)  # a box's outline is the box
     assert scores[1].top_error_m == pytest.approx(0.0, abs=1e-5)
     # B: A's crown now stands over 1 m x 3 m of B's window where the truth shows ground
     assert scores[2].iou == pytest.approx(8.0 / 11.0)
     assert scores[2].top_error_m == pytest.approx(0.0, abs=1e-5)
+    pooled = summarise_trees([scores[1], scores[2]])["all"]
+    assert (pooled["agreeing_cells"], pooled["extra_cells"], pooled["missed_cells"]) == (cells(17.0), cells(6.0), cells(3.0))
+    assert pooled["pooled_iou"] == pytest.approx(17.0 / 26.0)
 
 
 def test_a_crown_flattened_to_the_ground_is_lost():
@@ -163,7 +167,7 @@ def test_a_closed_twin_of_a_porous_crown_misses_its_gaps_but_not_its_outline():
 
 
 def score(kind: str, forest_tree: bool, error: float, iou: float, true_cells: int = 10) -> TreeScore:
-    return TreeScore(0, kind, forest_tree, 5.0, 5.0 + error, error, 5.0, true_cells, 10, iou, iou / 2)
+    return TreeScore(0, kind, forest_tree, 5.0, 5.0 + error, error, 5.0, true_cells, 10, round(iou * 10), iou, iou / 2)
 
 
 def test_summaries_per_group():
@@ -172,7 +176,8 @@ def test_summaries_per_group():
     summary = summarise_trees(scores)
     assert summary["all"] == {"trees": 3, "hidden": 1, "median_abs_top_error_m": 0.6, "within_share": 1 / 3,
                               "median_iou": 0.6, "p10_iou": pytest.approx(0.28), "median_outline_iou": 0.3,
-                              "p10_outline_iou": pytest.approx(0.14)}
+                              "p10_outline_iou": pytest.approx(0.14), "agreeing_cells": 18, "extra_cells": 12,
+                              "missed_cells": 12, "pooled_iou": 18 / 42}
     assert summary["broadleaf"]["median_abs_top_error_m"] == pytest.approx(0.35)
     assert summary["broadleaf"]["within_share"] == 0.5
     assert summary["conifer"]["median_abs_top_error_m"] == math.inf  # no twin surface over its crown

@@ -13,8 +13,9 @@ surface is the tree, against those where the twin stands above max(1.2 m, 0.1 x 
 the two crowns' outlines (closed by a 0.5 m disc, holes filled: a porous crown's gaps inside its outline).
 
 Printed, a row per scene and group of trees (all, broadleaf, conifer, forest, park): trees seen from above, the
-median |top height error|, the share within 0.5 m, the median and 10th percentile crown IoU and outline IoU, and the
-seconds the scene's rays took. The JSON has every tree's scores.
+median |top height error|, the share within 0.5 m, the median and 10th percentile crown IoU and outline IoU, the
+crowns' cells pooled over the group's trees (agreeing / the twin's extra ones over open ground / the true ones it
+missed) with the IoU they make, and the seconds the scene's rays took. The JSON has every tree's scores.
 
 A second table gives each pond of the world's scene.json ``objects`` whose shoreline's centre lies in the observed
 area (recon.measure.water): over its cells seen from above (the true first surface is the pond's, a 0.5 m shore band
@@ -80,13 +81,15 @@ def measure(args) -> dict:
 def print_table(report: dict) -> None:
     """One row per scene and group of trees."""
     header = ["scene", "kind", "trees", "median |top error| m", "within 0.5 m", "median IoU", "p10 IoU",
-              "median outline IoU", "p10 outline IoU", "seconds"]
+              "median outline IoU", "p10 outline IoU", "cells agreeing / extra / missed", "pooled IoU", "seconds"]
     print("| " + " | ".join(header) + " |\n|" + "---|" * len(header))
     for label, result in report["scenes"].items():
         for group, s in result["summary"].items():
             print(f"| {label} | {group} | {s['trees']} | {s['median_abs_top_error_m']:.2f} | "
                   f"{100 * s['within_share']:.1f} % | {s['median_iou']:.3f} | {s['p10_iou']:.3f} | "
-                  f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | {result['seconds']:.2f} |")
+                  f"{s['median_outline_iou']:.3f} | {s['p10_outline_iou']:.3f} | "
+                  f"{s['agreeing_cells']} / {s['extra_cells']} / {s['missed_cells']} | {s['pooled_iou']:.3f} | "
+                  f"{result['seconds']:.2f} |")
     pond_header = ["scene", "pond", "cells seen", "covered", "at level (0.2 m)", "median error m"]
     print("\n| " + " | ".join(pond_header) + " |\n|" + "---|" * len(pond_header))
     for label, result in report["scenes"].items():
