@@ -35,7 +35,8 @@ STAGE_OPTIONS = {
               "dense.min_texture_std", "dense.consistency"),
     "fusion": ("dense.fusion_min_pixels", "dense.fusion_max_normal_error_deg"),
     "mesh": ("mesh", "grid_m", "poisson_depth", "poisson_trim", "crop_margin", "decimate_error_m", "water"),
-    "texture": ("texture", "texture_options", "atlas_options", "delight", "capture_sun", "capture_utc_offset_h"),
+    "texture": ("texture", "texture_options", "atlas_options", "delight", "capture_sun", "capture_sun_sky_ratio",
+                "capture_utc_offset_h"),
     "scene": ("texture",),
     "labels": ("labels",),
 }
@@ -101,11 +102,13 @@ def photo_inputs(photo_dir: Path, names) -> dict[str, list[int]]:
 
 
 def describe_change(old: dict, new: dict) -> str:
-    """What differs between a stage's stored record and its current one, in a few words."""
+    """What differs between a stage's stored record and its current one, in a few words. The current options are
+    compared as the stored ones read back from JSON (a tuple is stored as a list)."""
     changes = []
-    options = sorted(set(old["options"]) | set(new["options"]))
-    changed = [f"{p}: {old['options'].get(p)} -> {new['options'].get(p)}" for p in options
-               if old["options"].get(p) != new["options"].get(p)]
+    new_options = json.loads(json.dumps(new["options"]))
+    options = sorted(set(old["options"]) | set(new_options))
+    changed = [f"{p}: {old['options'].get(p)} -> {new_options.get(p)}" for p in options
+               if old["options"].get(p) != new_options.get(p)]
     if changed:
         changes.append(f"options changed ({', '.join(changed)})")
     inputs = sorted(set(old["inputs"]) | set(new["inputs"]))

@@ -11,7 +11,8 @@ import pytest
 
 from recon.run.pipeline import ReconOptions
 from cliutil.progress import StepProgress
-from recon.run.stages import NOT_SHAPING, STAGE_OPTIONS, STAGES, option_fields, stage_records, unclaimed_options
+from recon.run.stages import (NOT_SHAPING, STAGE_OPTIONS, STAGES, describe_change, option_fields, stage_records,
+                              unclaimed_options)
 from sim.render import sky
 from sim.render.labels import LABELS_FILE
 from sim.render.scene import load_scene
@@ -237,3 +238,11 @@ def test_progress_bars_on_a_terminal():
             progress("map", done, 24)
         assert (progress.bar.n, progress.bar.total) == (24, 24)  # tqdm draws at most every 0.1 s
     assert lines == [] and "[sfm] map:   0%" in terminal.getvalue()
+
+
+def test_a_changed_option_is_named_alone_though_the_stamp_stores_tuples_as_lists():
+    """A stamp is JSON: the capture sun given as (150, 50) reads back as [150, 50] and is no change; the measured
+    sun/sky ratio that was not given before is."""
+    old = {"options": {"capture_sun": [150.0, 50.0], "capture_sun_sky_ratio": None}, "inputs": {}}
+    new = {"options": {"capture_sun": (150.0, 50.0), "capture_sun_sky_ratio": (3.3, 3.3, 3.3)}, "inputs": {}}
+    assert describe_change(old, new) == "options changed (capture_sun_sky_ratio: None -> [3.3, 3.3, 3.3])"
