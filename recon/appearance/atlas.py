@@ -417,7 +417,7 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
     light, result = None, None
     if capture is not None and len(texels):
         light, result = delight_atlas(colour, texels, TexelLight.joined(parts), capture.chart[np.maximum(flat, 0)],
-                                      ids.shape)
+                                      ids.shape, capture.sun_sky_ratio)
     image = to_srgb8(colour).reshape(height, width, 3)
     if len(texels) == 0:
         return np.full_like(image, 128), None, result
@@ -438,11 +438,12 @@ def _nearest_painted(texels: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, n
 
 def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOptions = AtlasOptions(),
                   progress=lambda it: it, log=lambda message: None, held_out: list[Photo] = (),
-                  sun_enu: np.ndarray | None = None) -> Atlas:
+                  sun_enu: np.ndarray | None = None, sun_sky_ratio: tuple[float, float, float] | None = None) -> Atlas:
     """The textured atlas of an ENU ``mesh`` from undistorted ``photos`` (see the module docstring); the gains also
     name the ``held_out`` photos, which colour nothing (:func:`held_out_gains`). With ``sun_enu`` (K, 3), each photo's
     capture sun (unit ENU, towards the sun), the atlas holds the albedo and the capture light
-    (:mod:`recon.appearance.delight`)."""
+    (:mod:`recon.appearance.delight`), whose sun/sky ratio per channel is ``sun_sky_ratio`` where it was measured,
+    else fitted from the atlas's shadow edges."""
     if not photos:
         raise ValueError("texturing needs at least one photo")
     scene = scene_from_mesh(mesh)
@@ -460,11 +461,13 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     packed_vertices = stored_positions(vertices[source[vmapping]])  # the GLB's: the delight's bake is the scene's
     uv_px = packed_uv * np.array([width, height]) - 0.5
     ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
-    capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels))
+    capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels),
+                                                           sun_sky_ratio)
     image, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains, capture)
     if delighting is not None:
-        log(f"capture light: sun/sky ratio {np.round(delighting.ratio, 2).tolist()} from {delighting.blocks} "
-            f"shadow-edge blocks; {delighting.relit} texels predicted in shadow were lit")
+        source = "as measured" if sun_sky_ratio is not None else f"from {delighting.blocks} shadow-edge blocks"
+        log(f"capture light: sun/sky ratio {np.round(delighting.ratio, 2).tolist()} {source}; {delighting.relit} "
+            f"texels predicted in shadow were lit")
     area = np.asarray(mesh.area_faces)
     coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "

@@ -102,7 +102,8 @@ class CaptureSetup:
     winding ``face_normals`` (F, 3), the scene's own sky visibility ``scene_sky`` (a sim.render.sky_file
     .SkyVisibility of ``scene.faces``, as sim.render.sky.bake_sky_visibility bakes it) and ``sky``, the same over
     every atlas face (:func:`every_face`), the capture sun of each photo ``sun_enu`` (K, 3) (unit ENU, towards the
-    sun) and the ``chart`` of each face (texels of two charts never share a shadow edge)."""
+    sun), the ``chart`` of each face (texels of two charts never share a shadow edge) and the ``sun_sky_ratio`` (3,)
+    where it was measured (None: fitted from the atlas)."""
 
     scene: Scene
     face_normals: np.ndarray
@@ -110,16 +111,20 @@ class CaptureSetup:
     sky: SkyVisibility
     sun_enu: np.ndarray
     chart: np.ndarray
+    sun_sky_ratio: np.ndarray | None = None
 
     @classmethod
-    def of(cls, vertices: np.ndarray, faces: np.ndarray, sun_enu: np.ndarray, chart: np.ndarray) -> "CaptureSetup":
-        """The setup of an atlas mesh (``vertices`` ENU, ``faces``) and its photos' capture suns."""
+    def of(cls, vertices: np.ndarray, faces: np.ndarray, sun_enu: np.ndarray, chart: np.ndarray,
+           sun_sky_ratio=None) -> "CaptureSetup":
+        """The setup of an atlas mesh (``vertices`` ENU, ``faces``), its photos' capture suns and, where measured,
+        their light's sun/sky ratio."""
         scene = untextured_scene(vertices, faces)
         normals = unit_face_normals(vertices, faces)
         normals[~np.any(normals, axis=1)] = (0.0, 0.0, 1.0)  # a zero-area face: no side to tell
         scene_sky = bake_sky_visibility(scene)
         return cls(scene, normals, scene_sky, every_face(scene_sky, scene.kept_faces, np.asarray(faces)),
-                   np.asarray(sun_enu, float), np.asarray(chart))
+                   np.asarray(sun_enu, float), np.asarray(chart),
+                   None if sun_sky_ratio is None else np.asarray(sun_sky_ratio, np.float32))
 
     def scene_bake(self) -> tuple[SkyVisibility, dict]:
         """The scene's sky visibility and what it was baked from (sim.render.sky.baked_from): what a scene folder
@@ -325,10 +330,11 @@ def _blocks(flat_index: np.ndarray, shape: tuple[int, int], chart: np.ndarray | 
 
 
 def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, chart: np.ndarray,
-                  shape: tuple[int, int]) -> tuple[np.ndarray | None, Delighting]:
+                  shape: tuple[int, int], measured_ratio: np.ndarray | None = None) -> tuple[np.ndarray | None, Delighting]:
     """Divide the capture light out of an atlas in place: ``colour`` (H * W, 3) linear, its painted ``texels`` (flat
-    indices) with their ``light``, the ``chart`` of every texel (flat). Returns the capture light of every texel (1
-    where unpainted; None when nothing was divided out: no shadow edge to fit, the colours stay) and what was done.
+    indices) with their ``light``, the ``chart`` of every texel (flat), the sun/sky ratio (3,) where it was
+    ``measured`` (else fitted: :func:`refined_ratio`). Returns the capture light of every texel (1 where unpainted;
+    None when nothing was divided out: no shadow edge to fit, the colours stay) and what was done.
 
     Texels in the penumbra band of a predicted edge (the twin's edges are off by a little, the photos blur across
     them) get the fraction of the sun that their colour says reached them, against the albedo just beyond the band
@@ -338,7 +344,8 @@ def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, cha
     sun_visible = np.zeros(len(colour), bool)
     sun_visible[texels] = light.sun_visible
     near_edge, band = edge_texels(sun_visible.reshape(shape), chart.reshape(shape), painted.reshape(shape))
-    ratio, blocks = refined_ratio(colour[texels], light, near_edge, shape, texels)
+    ratio, blocks = (refined_ratio(colour[texels], light, near_edge, shape, texels) if measured_ratio is None
+                     else (np.asarray(measured_ratio, np.float32), 0))
     result = Delighting(ratio, blocks, 0)
     if not result.applied:
         return None, result

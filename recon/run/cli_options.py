@@ -90,6 +90,11 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
                         help="the time zone of the photos' EXIF clocks where they did not write it, e.g. +01:00 "
                              "(a negative one as --capture-utc-offset=-05:00; default: the UTC offset their shadows on "
                              "the twin show, if clear; else the texture keeps its light)")
+    parser.add_argument("--capture-sun-sky-ratio", type=sun_sky_ratio, metavar="R[,G,B]",
+                        help="the capture light's sun/sky ratio where it was measured, one value or one per channel: "
+                             "a level grey card photographed in the sun and in the shade of a small object under the "
+                             "open sky gives (sun / shade - 1) / sin(sun elevation) (default: fitted from the "
+                             "texture's shadow edges)")
     parser.add_argument("--keep-capture-light", action="store_true",
                         help="leave the capture day's light in the atlas (by default photos with a UTC time have it "
                              "divided out: the texture is the albedo and capture_light.png the light, so the twin "
@@ -115,6 +120,19 @@ def sun_direction(text: str) -> tuple[float, float]:
     return azimuth, elevation
 
 
+def sun_sky_ratio(text: str) -> tuple[float, float, float]:
+    """``--capture-sun-sky-ratio R[,G,B]``: the sun's irradiance over the sky's, one positive value for every channel
+    or one per channel."""
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) not in (1, 3) or not all(0 < value < 1000 for value in values):  # also refuses NaN
+        raise argparse.ArgumentTypeError(f"expected one sun/sky ratio or three (R,G,B), each above 0 and below 1000 "
+                                         f"(e.g. 3.3), got {text!r}")
+    return values * 3 if len(values) == 1 else values
+
+
 def utc_offset(text: str) -> float:
     """``--capture-utc-offset +HH:MM``: hours east of UTC, in [-14, +14]."""
     match = re.fullmatch(r"([+-])(\d{2}):([0-5]\d)", text.strip())
@@ -136,5 +154,6 @@ def recon_options(args: argparse.Namespace) -> ReconOptions:
         water=args.water, texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
         delight=not args.keep_capture_light, capture_sun=args.capture_sun,
+        capture_sun_sky_ratio=args.capture_sun_sky_ratio,
         capture_utc_offset_h=args.capture_utc_offset,
     )

@@ -106,7 +106,9 @@ class ReconOptions:
     but left out of depth maps, fusion and texture; 0 = none), ``delight``: an atlas of photos with a UTC time stores
     the albedo and the capture light it divided out (recon/appearance/delight.py), so the twin can be lit by another
     sun; ``capture_sun``: (azimuth, elevation) degrees of the sun of every photo when it is known better than their
-    times say (a virtual flight lit by a fixed sun), None: from each photo's UTC time; ``capture_utc_offset_h``: the
+    times say (a virtual flight lit by a fixed sun), None: from each photo's UTC time; ``capture_sun_sky_ratio``: the
+    capture light's sun/sky irradiance ratio per channel where it was measured, None: fitted from the texture's
+    shadow edges; ``capture_utc_offset_h``: the
     zone of the photos' EXIF clocks (hours east of UTC) where they did not write it, None: found from their shadows;
     ``labels``: the thresholds the faces are labelled with (recon/semantics/labels.py)."""
 
@@ -125,6 +127,7 @@ class ReconOptions:
     hold_out: int = 0
     delight: bool = True
     capture_sun: tuple[float, float] | None = None
+    capture_sun_sky_ratio: tuple[float, float, float] | None = None
     capture_utc_offset_h: float | None = None
     labels: LabelOptions = field(default_factory=LabelOptions)
 
@@ -139,6 +142,10 @@ class ReconOptions:
                                                  0 < self.capture_sun[1] <= 90):
             raise ValueError(f"capture sun must be an azimuth in [-360, 360] and an elevation in (0, 90] degrees, "
                              f"got {self.capture_sun}")
+        if self.capture_sun_sky_ratio is not None and not (len(self.capture_sun_sky_ratio) == 3 and
+                                                           all(0 < r < 1000 for r in self.capture_sun_sky_ratio)):
+            raise ValueError(f"capture sun/sky ratio must be three values above 0 and below 1000, "
+                             f"got {self.capture_sun_sky_ratio}")
         if self.capture_utc_offset_h is not None and not -14.0 <= self.capture_utc_offset_h <= 14.0:
             raise ValueError(f"capture UTC offset must be in [-14, +14] hours, got {self.capture_utc_offset_h}")
         if not (np.isfinite(self.crop_margin) and self.crop_margin >= 0):
@@ -445,7 +452,8 @@ class Recon:
                                          log=lambda message: self.log(f"[texture] {message}"),
                                          held_out=self.held_out_photos(),
                                          sun_enu=None if suns is None else
-                                         suns.for_names([photo.name for photo in photos]).directions_enu)
+                                         suns.for_names([photo.name for photo in photos]).directions_enu,
+                                         sun_sky_ratio=self.options.capture_sun_sky_ratio)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
                 face_seen, sky_bake = textured.labels >= 0, textured.sky
             else:

@@ -86,6 +86,26 @@ def test_the_fitted_sun_to_sky_ratio_is_the_capture_days(scenes):
     assert lit.capture_light is None and lit.delighting is None
 
 
+def test_a_measured_sun_sky_ratio_is_the_one_divided_out(scenes):
+    """The light measured in the field (``--capture-sun-sky-ratio``) replaces the fit: the atlas is divided by the
+    model's light at that ratio, so a ratio twice the true one leaves the sunlit texels darker than the fitted atlas
+    by the model's factor, and the shadowed ones as they were."""
+    _, fitted, _, _ = scenes
+    mesh, truth = village()
+    photos = take_photos(truth, oblique_poses(8, 30.0, 28.0))
+    sun_enu = np.tile(SUN.direction_enu, (len(photos), 1))
+    true = SUN.intensity / SKY
+    measured = texture_atlas(mesh, photos, sun_enu=sun_enu, sun_sky_ratio=(2 * true,) * 3)
+    np.testing.assert_array_equal(measured.delighting.ratio, np.float32(2 * true))
+    assert measured.delighting.blocks == 0
+    light = measured.capture_light.reshape(-1, 3).mean(axis=1)
+    sunlit = light > 4 * CAPTURE_SKY  # at twice the true ratio, lit flat ground takes about 6 x E_sky
+    shade = (light < 1.5 * CAPTURE_SKY) & (fitted.capture_light.reshape(-1, 3).mean(axis=1) < 1.5 * CAPTURE_SKY)
+    darker = luminance(measured.image).ravel() / np.maximum(luminance(fitted.image).ravel(), 1e-6)
+    assert np.median(darker[sunlit]) == pytest.approx(0.55, abs=0.1)
+    assert np.median(darker[shade]) == pytest.approx(1.0, abs=0.03)
+
+
 def test_a_bluer_sky_gives_each_channel_its_own_ratio():
     """The same village under a sky bluer than the sun (irradiance 0.24/0.30/0.42): sun/sky 4.17/3.33/2.38."""
     mesh, truth = village()
