@@ -543,6 +543,7 @@ class Recon:
             return {"applied": False, "reason": kept}
         report = {"applied": textured.capture_light is not None, "capture_sun": suns.description(),
                   "sun_sky_ratio": np.round(textured.delighting.ratio, 4).tolist(),
+                  "sun_sky_ratio_from": "fitted" if self.options.capture_sun_sky_ratio is None else "measured",
                   "shadow_edge_blocks": textured.delighting.blocks, "relit_texels": textured.delighting.relit}
         if textured.capture_light is None:
             report["reason"] = "no shadow edge to fit a sun on (an overcast capture keeps its colours)"
