@@ -6,7 +6,7 @@ import pytest
 
 from flightplan.geodesy import LocalFrame
 from recon.appearance.atlas import texture_atlas
-from recon.appearance.delight import CAPTURE_SKY, CaptureSetup
+from recon.appearance.delight import CAPTURE_SKY, CaptureSetup, TexelLight, edge_texels, refined_ratio
 from recon.appearance.texture import Photo
 from recon.run.scene_out import write_scene
 from sim.evaluation.realism import photorealism_error_percent
@@ -238,3 +238,27 @@ def test_a_zero_area_face_the_scene_leaves_out_takes_the_sky_of_a_kept_corner_at
     np.testing.assert_array_equal(setup.sky.corner[kept], visibility.corner)
     point_vertex = {point: vertex for vertex, point in zip(box.faces.ravel(), visibility.corner.ravel())}
     assert [point_vertex[point] for point in setup.sky.corner[~kept].ravel()] == [0, 1, 0, 2, 2, 2]
+
+
+
+#: An atlas of one chart for the fit's array-level tests, and flat ground's cosine to the sun at 50 deg.
+ATLAS_SHAPE, GROUND_COS = (160, 160), float(np.sin(np.radians(50.0)))
+
+
+def test_a_surface_facing_away_from_the_sun_is_no_side_of_a_shadow_edge():
+    """Strips of roof (albedo 0.3) with strips of cast shadow across them, between walls that face away from the sun
+    (an attached shadow, cos 0) painted twice as bright: every block holds both kinds of edge. Only the cast
+    shadows' edges are fitted, so the walls' brighter paint cannot pass for a weaker sun (fitted across both kinds,
+    1.62 against the true 3.33). Without a cast shadow there is no edge to fit: nothing is divided out."""
+    columns, rows = np.meshgrid(np.arange(ATLAS_SHAPE[1]), np.arange(ATLAS_SHAPE[0]))
+    wall = columns % 40 >= 24
+    albedo = np.where(wall, 0.6, 0.3) * np.exp(np.random.default_rng(5).normal(0.0, 0.1, ATLAS_SHAPE))
+    cos = np.where(wall, 0.0, GROUND_COS)
+    sky = 0.8
+    true_ratio = SUN.intensity / SKY
+    for shadowed, ratio in ((wall | (rows % 40 < 12), true_ratio), (wall, 0.0)):
+        colour = (albedo * CAPTURE_SKY * (true_ratio * cos * ~shadowed + sky)).reshape(-1, 1).repeat(3, axis=1)
+        light = TexelLight(cos.ravel().astype(np.float32), ~shadowed.ravel(), np.full(albedo.size, sky, np.float32))
+        near_edge = edge_texels(~shadowed, np.zeros(ATLAS_SHAPE, np.int64), np.ones(ATLAS_SHAPE, bool))[0]
+        fitted, _ = refined_ratio(colour.astype(np.float32), light, near_edge, ATLAS_SHAPE, np.arange(albedo.size))
+        np.testing.assert_allclose(fitted, ratio, rtol=0.03)

@@ -197,8 +197,8 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(brighto
     origin = read_scene_json(scene)["origin_frame"]
     expected = solar_position(origin.lat0_deg, origin.lon0_deg, taken)
     assert {c.name: c.capture_sun for c in load_scene(scene).cameras}["DJI_0018.JPG"] == pytest.approx(expected, abs=0.01)
-    # its texture shows no edge of the shadows the twin predicts (kept as overcast); a measured sun/sky ratio needs none
-    assert not light["applied"] and light["sun_sky_ratio_from"] == "fitted"
+    # the sun/sky ratio was fitted from the texture's shadow edges; a measured one replaces the fit
+    assert light["sun_sky_ratio_from"] == "fitted"
     assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6",
                        "--capture-utc-offset=-05:00", "--capture-sun-sky-ratio", "4,3.5,3"]) == 0
     assert "capture_sun_sky_ratio: None -> [4.0, 3.5, 3.0]" in capsys.readouterr().err
