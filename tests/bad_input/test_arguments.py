@@ -178,18 +178,11 @@ CASES = [
          r"argument --capture-sun: expected an azimuth in \[-360, 360\] and an elevation in \(0, 90\] degrees, got '150,95'"),
     Case("recon-capture-sun-one-number", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--capture-sun", "150"],
          r"argument --capture-sun: expected AZ,EL in degrees \(e.g. 150,50\), got '150'"),
-    Case("recon-capture-sun-sky-ratio-two-numbers", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
-                                                             "--capture-sun-sky-ratio", "3,4"],
-         r"argument --capture-sun-sky-ratio: expected one sun/sky ratio or three \(R,G,B\), each above 0 and below "
-         r"1000 \(e.g. 3.3\), got '3,4'"),
-    Case("recon-capture-sun-sky-ratio-zero", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
-                                                     "--capture-sun-sky-ratio", "4,0,3"],
-         r"argument --capture-sun-sky-ratio: expected one sun/sky ratio or three \(R,G,B\), each above 0 and below "
-         r"1000 \(e.g. 3.3\), got '4,0,3'"),
-    Case("recon-capture-sun-sky-ratio-nan", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
-                                                    "--capture-sun-sky-ratio", "nan"],
-         r"argument --capture-sun-sky-ratio: expected one sun/sky ratio or three \(R,G,B\), each above 0 and below "
-         r"1000 \(e.g. 3.3\), got 'nan'"),
+    *[Case(f"recon-capture-sun-sky-ratio-{name}", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
+                                                           "--capture-sun-sky-ratio", value],
+           r"argument --capture-sun-sky-ratio: expected one sun/sky ratio or three \(R,G,B\), each above 0 and below "
+           rf"1000 \(e.g. 3.3\), got '{value}'") for name, value in (("two-numbers", "3,4"), ("zero", "4,0,3"),
+                                                                  ("nan", "nan"))],
     Case("recon-capture-utc-offset-not-hhmm", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
                                                        "--capture-utc-offset", "1"],
          r"argument --capture-utc-offset: expected a UTC offset \+HH:MM in \[-14:00, \+14:00\] \(e.g. -05:00\), got '1'"),
