@@ -9,8 +9,9 @@ photos and under any other sun shows only that sun's shadows:
 the twin's baked sky visibility (:mod:`sim.render.sky`), ``n`` the face normal on the side its photo saw. ``ratio``
 (sun over sky irradiance, per channel: skylight is bluer) is fitted from the texture itself, across the edges of
 the shadows the model predicts cast on sun-facing surfaces: near such an edge the same surface is seen lit and
-shadowed, so the ratio of the two sides' colours is the ratio of their light (:func:`fit_sun_sky_ratio`). ``E_sky`` is the renderer's default sky irradiance (the
-exposure, already balanced between photos, takes the rest). A texture with no shadow edge to fit (an overcast day,
+shadowed, so the ratio of the two sides' colours is the ratio of their light (:func:`fit_sun_sky_ratio`); or it
+is given where it was measured. ``E_sky`` is the renderer's default sky irradiance (the exposure, already balanced
+between photos, takes the rest). A texture with no shadow edge to fit (an overcast day,
 or a sun below the scene) keeps its colours: nothing is divided out.
 
 Where the model is wrong (a shadow of something the mesh lacks, foliage, a mesh edge off by decimetres) a texel's
@@ -115,7 +116,7 @@ class CaptureSetup:
 
     @classmethod
     def of(cls, vertices: np.ndarray, faces: np.ndarray, sun_enu: np.ndarray, chart: np.ndarray,
-           sun_sky_ratio=None) -> "CaptureSetup":
+           sun_sky_ratio: tuple[float, float, float] | None = None) -> "CaptureSetup":
         """The setup of an atlas mesh (``vertices`` ENU, ``faces``), its photos' capture suns and, where measured,
         their light's sun/sky ratio."""
         scene = untextured_scene(vertices, faces)
@@ -329,8 +330,8 @@ def _blocks(flat_index: np.ndarray, shape: tuple[int, int], chart: np.ndarray | 
     return np.split(order, starts[1:])
 
 
-def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, chart: np.ndarray,
-                  shape: tuple[int, int], measured_ratio: np.ndarray | None = None) -> tuple[np.ndarray | None, Delighting]:
+def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, chart: np.ndarray, shape: tuple[int, int],
+                  measured_ratio: np.ndarray | None = None) -> tuple[np.ndarray | None, Delighting]:
     """Divide the capture light out of an atlas in place: ``colour`` (H * W, 3) linear, its painted ``texels`` (flat
     indices) with their ``light``, the ``chart`` of every texel (flat), the sun/sky ratio (3,) where it was
     ``measured`` (else fitted: :func:`refined_ratio`). Returns the capture light of every texel (1 where unpainted;
