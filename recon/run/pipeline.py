@@ -146,6 +146,9 @@ class ReconOptions:
                                                            all(0 < r < 1000 for r in self.capture_sun_sky_ratio)):
             raise ValueError(f"capture sun/sky ratio must be three values above 0 and below 1000, "
                              f"got {self.capture_sun_sky_ratio}")
+        if self.capture_sun_sky_ratio is not None and not (self.delight and self.texture == "atlas"):
+            keeps = "--keep-capture-light" if not self.delight else f"--texture {self.texture}"
+            raise ValueError(f"a capture sun/sky ratio is divided out of an atlas only, not with {keeps}")
         if self.capture_utc_offset_h is not None and not -14.0 <= self.capture_utc_offset_h <= 14.0:
             raise ValueError(f"capture UTC offset must be in [-14, +14] hours, got {self.capture_utc_offset_h}")
         if not (np.isfinite(self.crop_margin) and self.crop_margin >= 0):

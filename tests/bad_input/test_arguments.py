@@ -183,6 +183,10 @@ CASES = [
            r"argument --capture-sun-sky-ratio: expected one sun/sky ratio or three \(R,G,B\), each above 0 and below "
            rf"1000 \(e.g. 3.3\), got '{value}'") for name, value in (("two-numbers", "3,4"), ("zero", "4,0,3"),
                                                                   ("nan", "nan"))],
+    *[Case(f"recon-capture-sun-sky-ratio-with-{name}", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
+                                                               "--capture-sun-sky-ratio", "3", *keeps],
+           rf"a capture sun/sky ratio is divided out of an atlas only, not with {' '.join(keeps)}", PHOTOS)
+      for name, keeps in (("light-kept", ["--keep-capture-light"]), ("orthophoto", ["--texture", "ortho"]))],
     Case("recon-capture-utc-offset-not-hhmm", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s",
                                                        "--capture-utc-offset", "1"],
          r"argument --capture-utc-offset: expected a UTC offset \+HH:MM in \[-14:00, \+14:00\] \(e.g. -05:00\), got '1'"),
