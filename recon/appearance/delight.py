@@ -21,6 +21,7 @@ errors stay at the brightness they had instead of being amplified.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -331,10 +332,13 @@ def _blocks(flat_index: np.ndarray, shape: tuple[int, int], chart: np.ndarray | 
 
 
 def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, chart: np.ndarray, shape: tuple[int, int],
-                  measured_ratio: np.ndarray | None = None) -> tuple[np.ndarray | None, Delighting]:
+                  measured_ratio: np.ndarray | None = None, colour_to_fit: Callable[[np.ndarray], np.ndarray] | None = None
+                  ) -> tuple[np.ndarray | None, Delighting]:
     """Divide the capture light out of an atlas in place: ``colour`` (H * W, 3) linear, its painted ``texels`` (flat
     indices) with their ``light``, the ``chart`` of every texel (flat), the sun/sky ratio (3,) where it was
-    ``measured`` (else fitted: :func:`refined_ratio`). Returns the capture light of every texel (1 where unpainted;
+    ``measured`` (else fitted: :func:`refined_ratio`, on ``colour_to_fit`` of the texels near a predicted edge where
+    given: flat indices -> linear RGB (N, 3), e.g. one photo's where ``colour`` blends several, whose small
+    misregistrations soften the edges the fit measures). Returns the capture light of every texel (1 where unpainted;
     None when nothing was divided out: no shadow edge to fit, the colours stay) and what was done.
 
     Texels in the penumbra band of a predicted edge (the twin's edges are off by a little, the photos blur across
@@ -345,8 +349,8 @@ def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, cha
     sun_visible = np.zeros(len(colour), bool)
     sun_visible[texels] = light.sun_visible
     near_edge, band = edge_texels(sun_visible.reshape(shape), chart.reshape(shape), painted.reshape(shape))
-    ratio, blocks = (refined_ratio(colour[texels], light, near_edge, shape, texels) if measured_ratio is None
-                     else (np.asarray(measured_ratio, np.float32), 0))
+    ratio, blocks = (refined_ratio(_fit_colours(colour, texels, near_edge, colour_to_fit), light, near_edge, shape,
+                                   texels) if measured_ratio is None else (np.asarray(measured_ratio, np.float32), 0))
     result = Delighting(ratio, blocks, 0)
     if not result.applied:
         return None, result
@@ -367,6 +371,17 @@ def delight_atlas(colour: np.ndarray, texels: np.ndarray, light: TexelLight, cha
     full = np.ones_like(colour)
     full[texels] = capture
     return full, Delighting(ratio, blocks, int(relit.sum()))
+
+
+def _fit_colours(colour: np.ndarray, texels: np.ndarray, near_edge: np.ndarray,
+                 colour_to_fit: Callable[[np.ndarray], np.ndarray] | None) -> np.ndarray:
+    """The painted texels' colours for the ratio fit: ``colour``'s, with ``colour_to_fit``'s near the predicted
+    edges (``near_edge`` >= 0) where given."""
+    observed = colour[texels]
+    if colour_to_fit is not None:
+        near = near_edge.ravel()[texels] >= 0
+        observed[near] = colour_to_fit(texels[near])
+    return observed
 
 
 def _fold_overflow(colour: np.ndarray, texels: np.ndarray, capture: np.ndarray) -> None:

@@ -3,10 +3,12 @@ with a tower photographed by sim under a known sun; the true mesh and poses are 
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
 from flightplan.geodesy import LocalFrame
 from recon.appearance.atlas import texture_atlas
-from recon.appearance.delight import CAPTURE_SKY, CaptureSetup, TexelLight, edge_texels, refined_ratio
+from recon.appearance.delight import (CAPTURE_SKY, CaptureSetup, TexelLight, delight_atlas, edge_texels,
+                                      refined_ratio)
 from recon.appearance.texture import Photo
 from recon.run.scene_out import write_scene
 from sim.evaluation.realism import photorealism_error_percent
@@ -262,3 +264,26 @@ def test_a_surface_facing_away_from_the_sun_is_no_side_of_a_shadow_edge():
         near_edge = edge_texels(~shadowed, np.zeros(ATLAS_SHAPE, np.int64), np.ones(ATLAS_SHAPE, bool))[0]
         fitted, _ = refined_ratio(colour.astype(np.float32), light, near_edge, ATLAS_SHAPE, np.arange(albedo.size))
         np.testing.assert_allclose(fitted, ratio, rtol=0.03)
+
+
+def test_the_ratio_is_fitted_on_the_colours_given_for_the_fit():
+    """Flat ground (albedo 0.3, noisy) with strips of cast shadow, whose atlas colours are softened across the edges
+    (a blend of slightly misregistered photos: a 9-texel box across the strips): fitted on them the ratio comes out
+    low; fitted on the sharp colours of one photo, given for the fit, it is the true one, and the albedo is still
+    the blend's colour divided by the capture light."""
+    rows = np.arange(ATLAS_SHAPE[0])[:, None].repeat(ATLAS_SHAPE[1], axis=1)
+    albedo = 0.3 * np.exp(np.random.default_rng(7).normal(0.0, 0.1, ATLAS_SHAPE))
+    shadowed = rows % 40 < 16
+    true_ratio = SUN.intensity / SKY
+    sharp = (albedo * CAPTURE_SKY * (true_ratio * GROUND_COS * ~shadowed + 0.8)).reshape(-1, 1).repeat(3, axis=1)
+    soft = ndimage.uniform_filter1d(sharp.reshape(*ATLAS_SHAPE, 3), 9, axis=0).reshape(-1, 3)
+    light = TexelLight(np.full(albedo.size, GROUND_COS, np.float32), ~shadowed.ravel(),
+                       np.full(albedo.size, 0.8, np.float32))
+    texels, chart = np.arange(albedo.size), np.zeros(albedo.size, np.int64)
+    blurred = delight_atlas(soft.astype(np.float32), texels, light, chart, ATLAS_SHAPE)[1]
+    colour = soft.astype(np.float32)
+    capture, fitted = delight_atlas(colour, texels, light, chart, ATLAS_SHAPE,
+                                    colour_to_fit=lambda flat: sharp[flat].astype(np.float32))
+    assert np.mean(blurred.ratio) < 0.85 * true_ratio
+    np.testing.assert_allclose(fitted.ratio, true_ratio, rtol=0.03)
+    np.testing.assert_allclose(colour * capture, soft, rtol=1e-4)
