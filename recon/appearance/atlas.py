@@ -17,8 +17,11 @@ ENU metres for the mesh and undistorted pinhole photos (:class:`recon.appearance
 4. **Exposure**: per-photo gains (linear light, geometric mean 1) solved globally from the candidates' colours at
    shared face centroids (:func:`recon.appearance.texture.solve_log_gains`) and applied to every sample.
 5. **Texels**: each texel inside a face (or in the gutter beside it) gets that face's 3-D point (barycentric,
-   clamped to the triangle), projected into the face's photo and sampled bilinearly in linear light, times the
-   photo's gain. Texels of faces no photo sees take the nearest coloured texel.
+   clamped to the triangle), projected into the face's candidate photos that see all three of its corners (its own
+   photo always) and sampled bilinearly in linear light, times each photo's gain; the texel is their mean weighted
+   by ``(quality / best quality)^blend_power``. The best view dominates, and the others average out the sensor
+   noise and the view-dependent look that a new view would not share (held-out real photos: p4m_rtk 4.45 -> 4.14 %,
+   docs/recon.md). Texels of faces no photo sees take the nearest coloured texel.
 """
 
 from __future__ import annotations
@@ -56,7 +59,8 @@ class AtlasOptions:
     uniformly when that would exceed ``max_texture_px`` on a side); ``candidates`` best views kept per face; ``smoothness`` Potts penalty per
     neighbour on another photo (data costs are in [0, 1]); ``border_px`` how far inside the image a face's centroid
     must project; ``gain_faces`` faces sampled for the exposure gains, ``min_overlap`` of them shared for a photo
-    pair to count; ``padding_px`` gutter between charts."""
+    pair to count; ``padding_px`` gutter between charts; ``blend_power`` sharpens the blend of a face's views
+    (``inf``: its own photo alone)."""
 
     texel_m: float | None = None
     max_texture_px: int = 8192
@@ -68,6 +72,7 @@ class AtlasOptions:
     gain_faces: int = 20000
     min_overlap: int = 30
     padding_px: int = 2
+    blend_power: float = 4.0
 
     def __post_init__(self) -> None:
         if self.texel_m is not None and not (np.isfinite(self.texel_m) and self.texel_m > 0):
@@ -165,6 +170,38 @@ def face_candidates(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], op
         weakest_quality[faces] = quality[faces].min(axis=1)
     order = np.argsort(-quality, axis=1, kind="stable")
     return FaceViews(np.take_along_axis(view, order, axis=1), np.take_along_axis(quality, order, axis=1))
+
+
+def corners_seen(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], views: FaceViews) -> np.ndarray:
+    """(F, K) True where candidate ``views.view[f, k]`` sees all three corners of face ``f``: in front of it, inside
+    its image and unoccluded (an occlusion ray from the camera centre per photo and corner, with
+    :func:`visible_faces`'s tolerance). A candidate is picked by its centroid alone, and a photo that sees a face only
+    in part would blend the occluder's colour, or its image's edge, into it."""
+    vertices, faces = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
+    seen = np.zeros(views.view.shape, bool)
+    for k, photo in enumerate(photos):
+        face, slot = np.nonzero(views.view == k)
+        if not len(face):
+            continue
+        corners, where = np.unique(faces[face], return_inverse=True)
+        cam = photo.camera
+        pixels, depth = project_world_points(cam, photo.T_world_cam, vertices[corners])
+        free = ((depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] <= cam.width - 1) & (pixels[:, 1] >= 0)
+                & (pixels[:, 1] <= cam.height - 1))
+        centre = np.asarray(photo.T_world_cam, dtype=np.float64)[:3, 3]
+        to_corner = vertices[corners[free]] - centre
+        distance = np.sqrt(row_dots(to_corner, to_corner))
+        tolerance = np.maximum(0.05, 2e-3 * distance)
+        free[free] = ~occluded(scene, centre[None, :], to_corner / distance[:, None], distance - tolerance)
+        seen[face, slot] = free[where.reshape(-1, 3)].all(axis=1)
+    return seen
+
+
+def blend_views(views: FaceViews, labels: np.ndarray, seen: np.ndarray) -> FaceViews:
+    """The candidates that may colour a face: its ``labels`` photo and the others that see all its corners (``seen``
+    (F, K), :func:`corners_seen`)."""
+    keep = seen | (views.view == labels[:, None])
+    return FaceViews(np.where(keep, views.view, -1), np.where(keep, views.quality, 0.0))
 
 
 def photo_pixel_m(views: FaceViews) -> float:
@@ -314,12 +351,12 @@ def atlas_gains(views: FaceViews, centroids: np.ndarray, photos: list[Photo], li
     return np.exp(solve_log_gains(log_luminance, options.min_overlap))
 
 
-def held_out_gains(scene: Scene, mesh: trimesh.Trimesh, labels: np.ndarray, photos: list[Photo],
+def held_out_gains(scene: Scene, mesh: trimesh.Trimesh, labels: np.ndarray, blend: FaceViews, photos: list[Photo],
                    linear: list[np.ndarray], gains: np.ndarray, held_out: list[Photo],
                    options: AtlasOptions) -> np.ndarray:
     """Exposure gains of photos left out of the texture (``held_out``), against the finished texture: the mean over
     up to ``gain_faces`` textured faces each sees (:func:`visible_faces`) of log(texture luminance) - log(its own
-    luminance), the texture's luminance being its face photo's gain x that photo's luminance at the centroid.
+    luminance), the texture's luminance being the blend of the face's views at its centroid (:func:`blended_colour`).
 
     A held-out photo's exposure (auto-exposure, white balance) is a property of that photo that no twin can predict;
     one number per photo, measured the way the texture's own photos' gains are, so that ``compare`` can score the
@@ -333,10 +370,8 @@ def held_out_gains(scene: Scene, mesh: trimesh.Trimesh, labels: np.ndarray, phot
         if len(faces) < options.min_overlap:
             continue
         faces = faces[np.linspace(0, len(faces) - 1, min(options.gain_faces, len(faces))).astype(np.int64)]
-        texture = np.empty(len(faces))
-        for k in np.unique(labels[faces]):
-            own = labels[faces] == k
-            texture[own] = gains[k] * sample_photo(photos[k], linear[k], centroids[faces[own]]).mean(axis=1)
+        texture = blended_colour(blend, faces, centroids[faces], labels[faces], photos, linear, gains,
+                                 options.blend_power).mean(axis=1)
         own_luminance = sample_photo(photo, linear_texture(photo.image), centroids[faces]).mean(axis=1)
         log_ratio = np.log(np.maximum(texture, 1e-4)) - np.log(np.maximum(own_luminance, 1e-4))
         result[index] = float(np.exp(log_ratio.mean()))
@@ -352,6 +387,33 @@ def sample_photo(photo: Photo, linear: np.ndarray, points: np.ndarray) -> np.nda
     cam = photo.camera
     uv = np.column_stack([(pixels[:, 0] + 0.5) / cam.width, 1.0 - (pixels[:, 1] + 0.5) / cam.height])
     return sample_linear(linear, np.nan_to_num(uv).astype(np.float32))
+
+
+#: Blend weights below this share of the best are left out.
+MIN_BLEND_WEIGHT = 0.02
+
+
+def blended_colour(views: FaceViews, face: np.ndarray, points: np.ndarray, label: np.ndarray, photos: list[Photo],
+                   linear: list[np.ndarray], gains: np.ndarray, blend_power: float) -> np.ndarray:
+    """Linear RGB (N, 3) at ``points`` on ``face``: the gain-balanced mean of the face's candidate photos weighted by
+    (quality / best quality)^``blend_power`` (inf: the face's ``label`` photo alone)."""
+    if not np.isfinite(blend_power):
+        view = label[:, None]
+        weight = np.ones((len(face), 1))
+    else:
+        view, quality = views.view[face], views.quality[face]
+        best = np.maximum(quality.max(axis=1, keepdims=True), 1e-30)
+        weight = np.where(view >= 0, (quality / best) ** blend_power, 0.0)
+        weight[weight < MIN_BLEND_WEIGHT] = 0.0
+    rows, slots = np.nonzero(weight > 0)
+    photo = view[rows, slots]
+    weighted = np.empty((len(rows), 3))
+    for k in np.unique(photo):
+        own = photo == k
+        weighted[own] = gains[k] * sample_photo(photos[k], linear[k], points[rows[own]])
+    weighted *= weight[rows, slots, None]
+    total = np.column_stack([np.bincount(rows, weights=weighted[:, c], minlength=len(face)) for c in range(3)])
+    return total / np.maximum(weight.sum(axis=1), 1e-30)[:, None]
 
 
 def rasterise_faces(uv_px: np.ndarray, faces: np.ndarray, width: int, height: int, padding_px: int) -> np.ndarray:
@@ -390,13 +452,24 @@ def texel_weights(uv_px: np.ndarray, texel_xy: np.ndarray) -> np.ndarray:
     return weights / np.maximum(weights.sum(axis=1), 1e-12)[:, None]
 
 
+def texel_points(chunk: np.ndarray, flat_ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray,
+                 vertices: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For texels ``chunk`` (flat indices into an atlas ``width`` wide whose texel faces are ``flat_ids``): their face
+    (N,), barycentric weights in it (N, 3) (:func:`texel_weights`) and 3-D points (N, 3), ENU metres."""
+    face = flat_ids[chunk]
+    rows, cols = np.divmod(chunk, width)
+    weights = texel_weights(uv_px[faces[face]], np.column_stack([cols, rows]).astype(float))
+    return face, weights, np.einsum("nk,nkj->nj", weights, vertices[faces[face]])
+
+
 def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
-          photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray,
+          photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray, blend: FaceViews, blend_power: float,
           capture: CaptureSetup | None = None) -> tuple[np.ndarray, np.ndarray | None, Delighting | None]:
-    """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face sampled from the face's photo times its
-    gain; the rest take the nearest painted texel (grey if none). With ``capture`` (the capture suns): the albedo
-    instead, the capture light (H, W, 3) float32 it was divided by, and what was done
-    (:mod:`recon.appearance.delight`)."""
+    """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face the blend of the face's ``blend`` views
+    (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). With ``capture`` (the capture
+    suns): the albedo instead, the capture light (H, W, 3) float32 it was divided by, and what was done
+    (:mod:`recon.appearance.delight`; its sun/sky ratio fitted on each face's own photo, whose shadow edges no blend
+    has softened)."""
     height, width = ids.shape
     colour = np.zeros((height * width, 3), np.float32)
     flat = ids.ravel()
@@ -404,20 +477,19 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
     parts = []
     for start in range(0, len(texels), TEXEL_CHUNK):
         chunk = texels[start:start + TEXEL_CHUNK]
-        face = flat[chunk]
-        rows, cols = np.divmod(chunk, width)
-        weights = texel_weights(uv_px[faces[face]], np.column_stack([cols, rows]).astype(float))
-        points = np.einsum("nk,nkj->nj", weights, vertices[faces[face]])
-        label = labels[face]
-        for k in np.unique(label):
-            own = label == k
-            colour[chunk[own]] = gains[k] * sample_photo(photos[k], linear[k], points[own])
+        face, weights, points = texel_points(chunk, flat, uv_px, faces, vertices, width)
+        colour[chunk] = blended_colour(blend, face, points, labels[face], photos, linear, gains, blend_power)
         if capture is not None:
-            parts.append(capture.texel_light(face, weights, points, label, photos))
+            parts.append(capture.texel_light(face, weights, points, labels[face], photos))
+
+    def own_photo_colour(chunk: np.ndarray) -> np.ndarray:
+        face, _, points = texel_points(chunk, flat, uv_px, faces, vertices, width)
+        return blended_colour(blend, face, points, labels[face], photos, linear, gains, np.inf)
+
     light, result = None, None
     if capture is not None and len(texels):
         light, result = delight_atlas(colour, texels, TexelLight.joined(parts), capture.chart[np.maximum(flat, 0)],
-                                      ids.shape, capture.sun_sky_ratio)
+                                      ids.shape, capture.sun_sky_ratio, own_photo_colour)
     image = to_srgb8(colour).reshape(height, width, 3)
     if len(texels) == 0:
         return np.full_like(image, 128), None, result
@@ -449,6 +521,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     scene = scene_from_mesh(mesh)
     views = face_candidates(scene, mesh, photos, options, progress)
     labels = label_faces(views, face_neighbours(mesh), options.smoothness, options.iterations)
+    blend = blend_views(views, labels, corners_seen(scene, mesh, photos, views))
     linear = [linear_texture(photo.image) for photo in photos]
     centroids = np.asarray(mesh.triangles_center)
     gains = (atlas_gains(views, centroids, photos, linear, options) if options.balance_exposure
@@ -463,7 +536,8 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
     capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels),
                                                            sun_sky_ratio)
-    image, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains, capture)
+    image, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains, blend,
+                                                     options.blend_power, capture)
     if delighting is not None:
         source = "as measured" if sun_sky_ratio is not None else f"from {delighting.blocks} shadow-edge blocks"
         log(f"capture light: sun/sky ratio {np.round(delighting.ratio, 2).tolist()} {source}; {delighting.relit} "
@@ -472,7 +546,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     coverage = float(area[labels >= 0].sum() / max(area.sum(), 1e-12))
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
         f"patches")
-    held_gains = held_out_gains(scene, mesh, labels, photos, linear, gains, list(held_out), options)
+    held_gains = held_out_gains(scene, mesh, labels, blend, photos, linear, gains, list(held_out), options)
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
                  {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}, coverage,
                  1.0 / texels_per_m, capture_light if delighting is not None and delighting.applied else None,

@@ -6,16 +6,17 @@ import pytest
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from recon.appearance.atlas import AtlasOptions, FaceViews, face_neighbours, label_faces, texture_atlas
+from recon.appearance.atlas import (AtlasOptions, FaceViews, corners_seen, face_neighbours, label_faces,
+                                   texture_atlas)
 from recon.measure.evaluate import render_unlit
 from recon.run.scene_out import write_scene
-from recon.appearance.texture import Photo, orthophoto, textured_glb
+from recon.appearance.texture import Photo, orthophoto, scene_from_mesh, textured_glb
 from sim.render.camera import Rig, look_at
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render
 from sim.render.scene import Scene, Surface, load_scene
 from sim.worlds.synthetic import grid_mesh, noise_texture
-from tests.recon.test_texture import SUN, hills, take_photos
+from tests.recon.test_texture import CAMERA, SUN, hills, take_photos
 
 TOWER = (4.0, 8.0, 6.0, 14.0)  # x, y, half width, height (m)
 
@@ -174,3 +175,38 @@ def test_labelling_keeps_neighbours_on_one_photo_where_quality_allows():
     views.view[5] = -1
     views.quality[5] = 0.0
     assert label_faces(views, neighbours, 0.3, 5)[5] == -1
+
+
+def test_blending_the_views_of_a_face_averages_out_their_noise(world, tmp_path):
+    """Photos with independent sensor noise (sd 10 of 255): rendered from views between theirs, the atlas that blends
+    each face's photos is nearer the noise-free truth than the atlas that takes one photo per face."""
+    mesh, truth, photos = world
+    rng = np.random.default_rng(3)
+    noisy = [Photo(p.name, np.clip(p.image + rng.normal(0.0, 10.0, p.image.shape), 0, 255).astype(np.uint8),
+                   p.camera, p.T_world_cam) for p in photos]
+    errors = {}
+    for label, power in (("blend", AtlasOptions().blend_power), ("single", np.inf)):
+        atlas = texture_atlas(mesh, noisy, AtlasOptions(blend_power=power))
+        twin = write_textured(tmp_path / label, mesh, atlas.glb(ORIGIN))
+        errors[label] = []
+        for photo in take_photos(truth, oblique_poses(3, 26.0, 22.0, phase_deg=20.0)):
+            rgb, valid = render_unlit(twin, photo)
+            errors[label].append(photorealism_error_percent(photo.image[valid], rgb[valid]))
+    assert all(blend < 0.95 * single for blend, single in zip(errors["blend"], errors["single"])), errors
+
+
+def test_a_view_that_sees_a_face_only_in_part_may_not_colour_it():
+    """A ground square seen by two cameras straight above two of its corners, a post standing on a third corner:
+    the camera whose rays to the far corner pass the post sees the face's centroid but not every corner."""
+    ground = trimesh.Trimesh([[0, 0, 0], [4, 0, 0], [4, 4, 0], [0, 4, 0]], [[0, 1, 2], [0, 2, 3]], process=False)
+    post = trimesh.creation.box(extents=(0.4, 0.4, 6.0))
+    post.apply_translation((4.5, 4.5, 3.0))  # beside corner (4, 4), tall enough to hide it from the low camera
+    mesh = trimesh.util.concatenate([ground, post])
+    low = look_at((9.0, 9.0, 3.0), (2.0, 2.0, 0.0))  # its line of sight to (4, 4, 0) passes through the post
+    high = look_at((-2.0, -2.0, 30.0), (2.0, 2.0, 0.0))
+    blank = np.zeros((CAMERA.height, CAMERA.width, 3), np.uint8)
+    photos = [Photo("low", blank, CAMERA, low), Photo("high", blank, CAMERA, high)]
+    views = FaceViews(np.array([[0, 1], [0, 1]] + [[-1, -1]] * 12), np.ones((14, 2)))
+    seen = corners_seen(scene_from_mesh(mesh), mesh, photos, views)
+    assert seen[:2, 1].all()  # the high camera sees both ground triangles whole
+    assert not seen[0, 0] and not seen[1, 0]  # both ground triangles have corner (4, 4): hidden from the low one
