@@ -79,6 +79,8 @@ class AtlasOptions:
             raise ValueError(f"texel size must be a positive number of metres, got {self.texel_m}")
         if self.candidates < 1:
             raise ValueError(f"candidates must be at least 1, got {self.candidates}")
+        if not self.blend_power > 0:
+            raise ValueError(f"blend power must be positive (inf: one photo per face), got {self.blend_power}")
 
 
 @dataclass(frozen=True)
@@ -482,9 +484,13 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
         if capture is not None:
             parts.append(capture.texel_light(face, weights, points, labels[face], photos))
 
-    def own_photo_colour(chunk: np.ndarray) -> np.ndarray:
-        face, _, points = texel_points(chunk, flat, uv_px, faces, vertices, width)
-        return blended_colour(blend, face, points, labels[face], photos, linear, gains, np.inf)
+    def own_photo_colour(wanted: np.ndarray) -> np.ndarray:
+        own = np.empty((len(wanted), 3))
+        for start in range(0, len(wanted), TEXEL_CHUNK):
+            face, _, points = texel_points(wanted[start:start + TEXEL_CHUNK], flat, uv_px, faces, vertices, width)
+            own[start:start + TEXEL_CHUNK] = blended_colour(blend, face, points, labels[face], photos, linear, gains,
+                                                            np.inf)
+        return own
 
     light, result = None, None
     if capture is not None and len(texels):
@@ -537,7 +543,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels),
                                                            sun_sky_ratio)
     image, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains, blend,
-                                                     options.blend_power, capture)
+                                             options.blend_power, capture)
     if delighting is not None:
         source = "as measured" if sun_sky_ratio is not None else f"from {delighting.blocks} shadow-edge blocks"
         log(f"capture light: sun/sky ratio {np.round(delighting.ratio, 2).tolist()} {source}; {delighting.relit} "

@@ -193,6 +193,9 @@ def test_blending_the_views_of_a_face_averages_out_their_noise(world, tmp_path):
             rgb, valid = render_unlit(twin, photo)
             errors[label].append(photorealism_error_percent(photo.image[valid], rgb[valid]))
     assert all(blend < 0.95 * single for blend, single in zip(errors["blend"], errors["single"])), errors
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="blend power must be positive"):
+            AtlasOptions(blend_power=bad)
 
 
 def test_a_view_that_sees_a_face_only_in_part_may_not_colour_it():
