@@ -1,4 +1,4 @@
-"""Texture a 3-D mesh with an atlas: each face coloured from the best photo that sees it.
+"""Texture a 3-D mesh with an atlas: each face charted in the best photo that sees it, coloured from all that see it.
 
 The approach of Waechter, Moehrle and Goesele, "Let there be color!" (mvs-texturing), small: frames are the scene's
 ENU metres for the mesh and undistorted pinhole photos (:class:`recon.appearance.texture.Photo`, OpenCV axes,
