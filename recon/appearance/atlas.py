@@ -39,7 +39,7 @@ from scipy import ndimage, sparse
 from flightplan.geodesy import LocalFrame
 from recon.appearance.delight import CaptureSetup, Delighting, TexelLight, delight_atlas
 from recon.appearance.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
-from sim.render.camera import project_world_points, row_dots
+from sim.render.camera import PinholeCamera, project_world_points, row_dots
 from sim.render.raycast import occluded
 from sim.render.scene import Scene
 from sim.render.sky_file import SkyVisibility
@@ -127,6 +127,22 @@ class Atlas:
 # ---------------------------------------------------------------- 1. candidate views
 
 
+def in_image(camera: PinholeCamera, pixels: np.ndarray, depth: np.ndarray, border_px: float = 0.0) -> np.ndarray:
+    """True where projected points (``pixels`` (N, 2), ``depth`` (N,): :func:`project_world_points`) lie in front of
+    ``camera`` and at least ``border_px`` inside its image."""
+    x, y = pixels[:, 0], pixels[:, 1]
+    return ((depth > 0) & (x >= border_px) & (x <= camera.width - 1 - border_px) & (y >= border_px)
+            & (y <= camera.height - 1 - border_px))
+
+
+def unoccluded(scene: Scene, centre: np.ndarray, towards: np.ndarray, distance: np.ndarray) -> np.ndarray:
+    """True where nothing lies between a camera ``centre`` (3,) and the points ``distance`` (N,) metres along the unit
+    rays ``towards`` (N, 3) from it (ENU), short of each point by max(5 cm, 0.2 % of its distance): the point's own
+    surface must not hide it."""
+    tolerance = np.maximum(0.05, 2e-3 * distance)
+    return ~occluded(scene, np.asarray(centre, dtype=np.float64)[None, :], towards, distance - tolerance)
+
+
 def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, photo: Photo,
                   border_px: float, wanted_above: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Faces whose centroid ``photo`` sees (in front, ``border_px`` inside the image, not edge-on, not occluded)
@@ -135,9 +151,7 @@ def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, phot
     occlusion ray."""
     cam, T = photo.camera, np.asarray(photo.T_world_cam, dtype=np.float64)
     pixels, depth = project_world_points(cam, T, centroids)
-    px, py = pixels[:, 0], pixels[:, 1]
-    inside = np.flatnonzero((depth > 0) & (px >= border_px) & (px <= cam.width - 1 - border_px)
-                            & (py >= border_px) & (py <= cam.height - 1 - border_px))
+    inside = np.flatnonzero(in_image(cam, pixels, depth, border_px))
     if wanted_above is not None:  # a quality is at most (f / z)^2: the distance is at least the planar depth z
         inside = inside[(cam.fx / depth[inside]) ** 2 > wanted_above[inside]]
     to_camera = T[:3, 3] - centroids[inside]
@@ -149,8 +163,7 @@ def visible_faces(scene: Scene, centroids: np.ndarray, normals: np.ndarray, phot
     if wanted_above is not None:
         facing &= quality > wanted_above[inside]
     inside, distance, direction, quality = inside[facing], distance[facing], direction[facing], quality[facing]
-    tolerance = np.maximum(0.05, 2e-3 * distance)  # the face's own surface must not hide it
-    seen = ~occluded(scene, T[None, :3, 3], -direction, distance - tolerance)
+    seen = unoccluded(scene, T[:3, 3], -direction, distance)
     return inside[seen], quality[seen]
 
 
@@ -177,7 +190,7 @@ def face_candidates(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], op
 def corners_seen(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], views: FaceViews) -> np.ndarray:
     """(F, K) True where candidate ``views.view[f, k]`` sees all three corners of face ``f``: in front of it, inside
     its image and unoccluded (an occlusion ray from the camera centre per photo and corner, with
-    :func:`visible_faces`'s tolerance). A candidate is picked by its centroid alone, and a photo that sees a face only
+    :func:`unoccluded`). A candidate is picked by its centroid alone, and a photo that sees a face only
     in part would blend the occluder's colour, or its image's edge, into it."""
     vertices, faces = np.asarray(mesh.vertices, dtype=np.float64), np.asarray(mesh.faces)
     seen = np.zeros(views.view.shape, bool)
@@ -186,15 +199,11 @@ def corners_seen(scene: Scene, mesh: trimesh.Trimesh, photos: list[Photo], views
         if not len(face):
             continue
         corners, where = np.unique(faces[face], return_inverse=True)
-        cam = photo.camera
-        pixels, depth = project_world_points(cam, photo.T_world_cam, vertices[corners])
-        free = ((depth > 0) & (pixels[:, 0] >= 0) & (pixels[:, 0] <= cam.width - 1) & (pixels[:, 1] >= 0)
-                & (pixels[:, 1] <= cam.height - 1))
+        free = in_image(photo.camera, *project_world_points(photo.camera, photo.T_world_cam, vertices[corners]))
         centre = np.asarray(photo.T_world_cam, dtype=np.float64)[:3, 3]
         to_corner = vertices[corners[free]] - centre
         distance = np.sqrt(row_dots(to_corner, to_corner))
-        tolerance = np.maximum(0.05, 2e-3 * distance)
-        free[free] = ~occluded(scene, centre[None, :], to_corner / distance[:, None], distance - tolerance)
+        free[free] = unoccluded(scene, centre, to_corner / distance[:, None], distance)
         seen[face, slot] = free[where.reshape(-1, 3)].all(axis=1)
     return seen
 
