@@ -242,7 +242,6 @@ def test_a_zero_area_face_the_scene_leaves_out_takes_the_sky_of_a_kept_corner_at
     assert [point_vertex[point] for point in setup.sky.corner[~kept].ravel()] == [0, 1, 0, 2, 2, 2]
 
 
-
 #: An atlas of one chart for the fit's array-level tests, and flat ground's cosine to the sun at 50 deg.
 ATLAS_SHAPE, GROUND_COS = (160, 160), float(np.sin(np.radians(50.0)))
 
