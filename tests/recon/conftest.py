@@ -1,14 +1,12 @@
-"""Fixtures several recon test files share: the plane flight and brighton_beach, each reconstructed once per session."""
+"""Fixtures several recon test files share: the plane flight, reconstructed once per session (per xdist worker)."""
 
 from __future__ import annotations
 
 import pycolmap
 import pytest
 
-from recon.cli import main as recon_main
 from tests.read_only import assert_unchanged, folder_digest
 from tests.recon.plane_flight import CENTRES, Run
-from tests.recon.real_sets import BRIGHTON_RECON_ARGS
 from tests.recon.synthetic import make_texture, write_nadir_photos
 from tools.geotag_csv import write_geotags
 
@@ -26,17 +24,4 @@ def plane_flight(tmp_path_factory):
     flight["first"] = Run(flight, flight["scene"])
     before = folder_digest(folder)
     yield flight
-    assert_unchanged(folder, before)
-
-
-@pytest.fixture(scope="session")
-def brighton_scene(shared_data, tmp_path_factory):
-    """brighton_beach's 18 real DJI photos reconstructed once (:data:`BRIGHTON_RECON_ARGS`, every other option at its
-    default), by the first test that asks: ``{"photos", "scene", "code"}`` (``code``: the CLI's exit status).
-    Read-only, like :func:`plane_flight`: a test that reruns recon copies the scene into its own ``tmp_path``."""
-    photos = shared_data / "brighton_beach" / "images"
-    folder = tmp_path_factory.mktemp("brighton")
-    code = recon_main(["--photos", str(photos), "--out", str(folder / "scene"), *BRIGHTON_RECON_ARGS])
-    before = folder_digest(folder)
-    yield {"photos": photos, "scene": folder / "scene", "code": code}
     assert_unchanged(folder, before)

@@ -1,9 +1,7 @@
 """The scene's cameras: COLMAP lenses as OpenCV lenses (against pycolmap's own projection), cameras.json from a
-known SfM model read back by the sim scene loader, and (slow) held-out photos of a real reconstruction."""
+known SfM model read back by the sim scene loader (held-out photos of a real set: test_brighton_beach.py)."""
 
-import datetime as dt
 import json
-import shutil
 
 import numpy as np
 import pycolmap
@@ -14,14 +12,8 @@ from flightplan.geodesy import LocalFrame
 from recon.cli import main as recon_main
 from recon.run.pipeline import ReconOptions
 from recon.run.scene_out import scene_cameras, write_scene
-from recon.run.stages import STAGES
-from recon.sfm.cameras import camera_from_colmap, camera_poses
-from sim.cli import main as render_main
-from sim.dataset.images import read_exr
-from sim.evaluation.realism import compare_folders
-from sim.render.scene import SceneError, load_scene, read_scene_json
-from sim.sampling.sun import solar_position
-from tests.recon.real_sets import BRIGHTON_RECON_ARGS
+from recon.sfm.cameras import camera_from_colmap
+from sim.render.scene import SceneError, load_scene
 
 RNG = np.random.default_rng(11)
 #: COLMAP model -> parameters (focal(s), principal point, extra), all used by sim's OpenCV lens.
@@ -128,80 +120,3 @@ def test_hold_out_of_one_would_leave_out_every_photo(tmp_path, capsys):
     assert recon_main(["--photos", str(tmp_path), "--out", str(tmp_path / "scene"), "--hold-out", "1"]) == 2
     assert "hold-out must be 0 (off) or K >= 2 (every K-th photo), got 1" in capsys.readouterr().err
     assert not (tmp_path / "scene").exists()
-
-
-def assert_kept_light(scene, reason: str) -> None:
-    """The scene's texture kept its capture light, for ``reason``, and its cameras carry no capture sun."""
-    light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
-    assert not light["applied"] and reason in light["reason"]
-    assert not (scene / "capture_light.png").exists()
-    assert all(camera.capture_sun is None for camera in load_scene(scene).cameras)
-
-
-@pytest.mark.slow
-def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(brighton_scene, tmp_path, capsys):
-    """brighton_beach (18 DJI photos), reconstructed, then again with --hold-out 6: SfM is kept (the option shapes
-    the stages after it); photos 6, 12, 18 are in cameras.json as held out, with their SfM pose, not in the
-    depth/texture workspace, but with their exposure gain measured against the texture; cameras.json's full-size
-    lenses reproject the sparse points onto their observations; the replay through the CLI pairs with the
-    photos by name; untimed, the texture keeps its capture light, and given its zone each photo gets its sun."""
-    photos, scene, replay = brighton_scene["photos"], tmp_path / "scene", tmp_path / "replay"
-    shutil.copytree(brighton_scene["scene"], scene)
-    capsys.readouterr()
-    assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6"]) == 0
-    assert capsys.readouterr().err.count("already done") == 1  # sfm
-    names = sorted(p.name for p in photos.iterdir())
-    cameras = {c.name: c for c in load_scene(scene).cameras}
-    held_out = sorted(name for name, c in cameras.items() if c.held_out)
-    assert held_out == names[5::6] and len(cameras) == 18
-    assert sorted(p.name for p in (scene / "work" / "dense" / "images").iterdir()) == sorted(set(names) - set(held_out))
-    gains = json.loads((scene / "work" / "texture_report.json").read_text())["gains"]
-    assert sorted(gains) == names  # the held-out photos' exposure is measured against the texture
-    assert all(cameras[name].exposure_gain == pytest.approx(gains.get(name, 1.0)) for name in names)
-    assert_kept_light(scene, "no UTC offset explains their shadows")
-    model = pycolmap.Reconstruction(scene / "work" / "sparse")
-    poses = camera_poses(model)
-    for image in model.images.values():
-        camera = cameras[image.name]
-        assert (camera.camera.width, camera.camera.height) == (4000, 2250)  # the photo's size, not SfM's 1000 px
-        np.testing.assert_allclose(camera.T_world_cam, poses[image.name], atol=1e-9)
-        seen = [p for p in image.points2D if p.has_point3D()]
-        xyz = np.array([model.points3D[p.point3D_id].xyz for p in seen])
-        T_cam_world = np.linalg.inv(camera.T_world_cam)
-        pixels, _ = camera.camera.project(xyz @ T_cam_world[:3, :3].T + T_cam_world[:3, 3])
-        residual = np.linalg.norm(pixels - (np.array([p.xy for p in seen]) - 0.5), axis=1)
-        assert np.median(residual) < 4.0, image.name  # SfM's reprojection error (~1 px at 1000 px) at 4000 px
-    assert render_main(["--scene", str(scene), "--out", str(replay), "--mode", "replay", "--width", "400",
-                        "--quiet"]) == 0
-    results = {r.name: r for r in compare_folders(photos, replay / "sequences" / "00" / "replay_2")}
-    assert sorted(results) == sorted(name.rsplit(".", 1)[0] for name in names)
-    for name in held_out:
-        result = results[name.rsplit(".", 1)[0]]
-        assert result.gain_error_percent != result.error_percent  # its own exposure, measured, is applied
-        assert 0.02 < result.covered < 1 and result.covered_error_percent < result.error_percent  # 5-30 % here
-    frame = json.loads((replay / "sequences/00/frame_meta/000005.json").read_text())
-    assert frame["sampler"]["image_name"] == names[5] and frame["sampler"]["held_out"] is True
-    assert np.isfinite(read_exr(replay / "sequences/00/depth_2/000005.exr")).mean() == pytest.approx(
-        results[names[5].rsplit(".", 1)[0]].covered)
-    # its photos say 16:32 local on 23 June 2016 (Minnesota, UTC-05:00): untimed (above), the road's shadows, cast by
-    # a forest the dense stereo did not reconstruct, told no zone; given the zone, each photo gets that sun
-    capsys.readouterr()
-    assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6",
-                       "--capture-utc-offset=-05:00"]) == 0
-    assert capsys.readouterr().err.count("already done") == STAGES.index("texture")  # the zone shapes the texture on
-    light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
-    assert light["capture_sun"]["time_source"] == "EXIF clock at UTC-05:00"
-    fit = light["capture_sun"]["shadow_fit"]  # too few of its shadows in the twin (IoU < 0.1) to refine the clock
-    assert fit["shadow_iou"] < 0.1 and (fit["zone_h"], fit["clock_correction_min"], fit["yaw_deg"]) == (-5.0, 0.0, 0.0)
-    taken = dt.datetime(2016, 6, 23, 21, 31, 59)  # 16:31:59 local
-    origin = read_scene_json(scene)["origin_frame"]
-    expected = solar_position(origin.lat0_deg, origin.lon0_deg, taken)
-    assert {c.name: c.capture_sun for c in load_scene(scene).cameras}["DJI_0018.JPG"] == pytest.approx(expected, abs=0.01)
-    # the sun/sky ratio was fitted from the texture's shadow edges; a measured one replaces the fit
-    assert light["sun_sky_ratio_from"] == "fitted"
-    assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6",
-                       "--capture-utc-offset=-05:00", "--capture-sun-sky-ratio", "4,3.5,3"]) == 0
-    assert "capture_sun_sky_ratio: None -> [4.0, 3.5, 3.0]" in capsys.readouterr().err
-    light = json.loads((scene / "work" / "texture_report.json").read_text())["capture_light"]
-    assert light["applied"] and light["sun_sky_ratio_from"] == "measured" and light["sun_sky_ratio"] == [4.0, 3.5, 3.0]
-    assert light["shadow_edge_blocks"] == 0 and (scene / "capture_light.png").exists()
