@@ -7,9 +7,10 @@ from recon.sfm.options import SfmOptions
 from recon.surface.dense import DenseOptions
 
 CENTRES = [(x, y, 30.0) for y in (0.0, 4.0) for x in (0.0, 4.0, 8.0)]
-# every 2nd photo mapped (view_0, view_2, view_4 and the last, view_5), view_1 and view_3 registered afterwards
+# every 2nd photo mapped (view_0, view_2, view_4 and the last, view_5), view_1 and view_3 registered afterwards; a
+# Poisson octree of depth 8 (default 10) is fine enough for a plane seen at 320 px, and 5x faster (1.5 s, not 7 s)
 OPTIONS = ReconOptions(sfm=SfmOptions(max_num_features=2048, every_kth=2, num_threads=2),
-                       dense=DenseOptions(max_image_size=320, num_threads=2))
+                       dense=DenseOptions(max_image_size=320, num_threads=2), poisson_depth=8)
 
 
 class Run:
