@@ -116,7 +116,7 @@ def test_recon_on_a_disk_that_fills_up_resumes_after_space_is_freed(flight, tmp_
     photos, geotags = flight
     case = Case("recon-disk-fills-up", "aerostereo-recon",
                 ["--photos", str(photos), "--geotags", str(geotags), "--out", "{tmp}/scene", "--max-features", "2048",
-                 "--every", "2", "--workers", "2", "--dense-size", "320"], r"/scene/work/\S+: No space left on device$")
+                 "--every", "2", "--workers", "2", "--dense-size", "320", "--poisson-depth", "8"], r"/scene/work/\S+: No space left on device$")
     with small_disk(tmp_path / "disk", "20m") as disk:
         result = run_case(case, disk)
         *progress, last = result.err.splitlines()
