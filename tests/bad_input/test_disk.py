@@ -102,7 +102,7 @@ def test_recon_without_room_for_sfm_is_refused_before_it_starts(blank_flight, tm
 
 @pytest.fixture(scope="module")
 def flight(tmp_path_factory) -> tuple[Path, Path]:
-    """Six nadir photos of a textured plane and their exact geotags (a tiny reconstruction, ~35 s)."""
+    """Six nadir photos of a textured plane and their exact geotags (a tiny reconstruction, ~7 s at Poisson depth 8)."""
     folder = tmp_path_factory.mktemp("flight")
     centres = [(x, y, 30.0) for y in (0.0, 4.0) for x in (0.0, 4.0, 8.0)]
     rows = write_nadir_photos(folder / "photos", centres, make_texture())
@@ -116,7 +116,8 @@ def test_recon_on_a_disk_that_fills_up_resumes_after_space_is_freed(flight, tmp_
     photos, geotags = flight
     case = Case("recon-disk-fills-up", "aerostereo-recon",
                 ["--photos", str(photos), "--geotags", str(geotags), "--out", "{tmp}/scene", "--max-features", "2048",
-                 "--every", "2", "--workers", "2", "--dense-size", "320", "--poisson-depth", "8"], r"/scene/work/\S+: No space left on device$")
+                 "--every", "2", "--workers", "2", "--dense-size", "320", "--poisson-depth", "8"],
+                r"/scene/work/\S+: No space left on device$")
     with small_disk(tmp_path / "disk", "20m") as disk:
         result = run_case(case, disk)
         *progress, last = result.err.splitlines()

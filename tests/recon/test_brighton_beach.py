@@ -160,7 +160,8 @@ def test_held_out_photos_of_a_real_set_are_registered_but_never_textured(brighto
     taken = dt.datetime(2016, 6, 23, 21, 31, 59)  # 16:31:59 local
     origin = read_scene_json(scene)["origin_frame"]
     expected = solar_position(origin.lat0_deg, origin.lon0_deg, taken)
-    assert {c.name: c.capture_sun for c in load_scene(scene).cameras}["DJI_0018.JPG"] == pytest.approx(expected, abs=0.01)
+    suns = {c.name: c.capture_sun for c in load_scene(scene).cameras}
+    assert suns["DJI_0018.JPG"] == pytest.approx(expected, abs=0.01)
     # the sun/sky ratio was fitted from the texture's shadow edges; a measured one replaces the fit
     assert light["sun_sky_ratio_from"] == "fitted"
     assert recon_main(["--photos", str(photos), "--out", str(scene), *BRIGHTON_RECON_ARGS, "--hold-out", "6",
