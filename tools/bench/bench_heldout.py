@@ -22,9 +22,11 @@ their ``--mesh``/``--texture`` change are redone (the stage stamps say which), a
 those stages.
 
 Table: one row per variant and group (held-out, used, all photos): mean formula 3 raw / with gain, whole image / covered
-pixels, mean coverage; then, with several variants, formula 3 raw over the pixels EVERY variant covers (each variant
+pixels, mean coverage; then, with several variants, formula 3 over the pixels EVERY variant covers (each variant
 covers a different part of a photo, the 3-D surface the harder far field too: only common pixels compare the
-surfaces' looks); then the seconds of each step. A held-out photo's "gain" is its own exposure measured
+surfaces' looks), raw and "err/fit" (one gain per channel fitted to the photo over those pixels: the camera's
+auto exposure swings the raw figure by points from photo to photo, and raw rewards a texture that keeps each
+region's capture exposure rather than the scene's look); then the seconds of each step. A held-out photo's "gain" is its own exposure measured
 against the finished texture (``recon.appearance.atlas.held_out_gains``: one number per photo, the way the texture's
 photos' gains are measured; atlas texture only); its colours never enter the texture. A rerun with the same ``--work``
 resumes both runs.
@@ -45,8 +47,8 @@ import numpy as np  # noqa: E402
 
 from sim.dataset.images import read_exr  # noqa: E402
 from sim.dataset.source import replay_frames  # noqa: E402
-from sim.evaluation.realism import (compare_folders, fit_reference, mean_comparison, photorealism_error_masked,  # noqa: E402
-                                    read_rgb)
+from sim.evaluation.realism import (compare_folders, fit_channel_gains, fit_reference, mean_comparison,  # noqa: E402
+                                    photorealism_error_masked, photorealism_error_percent, read_rgb)
 from sim.render.scene import load_scene  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -96,31 +98,40 @@ def bench_folder(photos: Path, work: Path, args, label: str, mesh: str, texture:
             "seconds": seconds, "size": f"{args.image_size}/{args.dense_size}/{args.width or 'photo'}"}
 
 
-def common_pixel_errors(rows: list[dict]) -> dict[str, dict[str, float]]:
-    """Per variant of one photo folder (``rows``), mean formula 3 raw per group (held-out, used) over the pixels every
-    variant's replay covers."""
+COMMON_COLUMNS = (("held-out", "raw"), ("held-out", "fit"), ("used", "raw"), ("used", "fit"))
+
+
+def common_pixel_errors(rows: list[dict]) -> dict[str, dict[tuple[str, str], float]]:
+    """Per variant of one photo folder (``rows``), mean formula 3 per group (held-out, used) over the pixels every
+    variant's replay covers: ``raw``, and ``fit`` with one gain per channel fitted to the photo there (its camera's
+    exposure and white balance taken out: :func:`sim.evaluation.realism.fit_channel_gains`)."""
     frames = [replay_frames(row["replay"]) for row in rows]
     photos = {path.stem: path for path in rows[0]["folder"].iterdir() if path.stem in frames[0]}
-    errors = {row["label"]: {"held-out": [], "used": []} for row in rows}
+    errors = {row["label"]: {column: [] for column in COMMON_COLUMNS} for row in rows}
     for stem, path in sorted(photos.items()):
         renders = [read_rgb(row["replay"] / f"{stem}.png") for row in rows]
         covered = np.logical_and.reduce([np.isfinite(read_exr(frame[stem].depth)) for frame in frames])
+        if not covered.any():
+            continue
         photo = fit_reference(read_rgb(path), renders[0].shape, str(path))
         group = "held-out" if stem in rows[0]["held_out"] else "used"
         for row, render in zip(rows, renders):
-            errors[row["label"]][group].append(photorealism_error_masked(photo, render, covered))
-    return {label: {group: float(np.nanmean(values)) for group, values in groups.items()}
-            for label, groups in errors.items()}
+            fitted = fit_channel_gains(photo[covered], render[covered])
+            errors[row["label"]][group, "raw"].append(photorealism_error_masked(photo, render, covered))
+            errors[row["label"]][group, "fit"].append(photorealism_error_percent(photo[covered], fitted))
+    return {label: {column: float(np.mean(values)) if values else float("nan") for column, values in columns.items()}
+            for label, columns in errors.items()}
 
 
 def print_common_table(rows: list[dict]) -> None:
     folders = sorted({row["folder"] for row in rows}, key=str)
-    print("| set | variant | err % held-out, common pixels | err % used, common pixels |")
-    print("|---|---|---|---|")
+    print("| set | variant | err % held-out, common pixels | err/fit % held-out, common | err % used, common | "
+          "err/fit % used, common |")
+    print("|---|---|---|---|---|---|")
     for folder in folders:
         variants = [row for row in rows if row["folder"] == folder]
-        for label, groups in common_pixel_errors(variants).items():
-            print(f"| {folder.parent.name} | {label} | {groups['held-out']:.2f} | {groups['used']:.2f} |")
+        for label, columns in common_pixel_errors(variants).items():
+            print(f"| {folder.parent.name} | {label} | {' | '.join(f'{columns[c]:.2f}' for c in COMMON_COLUMNS)} |")
     print()
 
 
