@@ -9,7 +9,7 @@ import argparse
 import re
 
 from recon.surface.dense import DenseOptions
-from recon.run.pipeline import MESHES, TEXTURES, WATER, ReconOptions
+from recon.run.pipeline import MESHES, STANDING, TEXTURES, WATER, ReconOptions
 from recon.sfm.options import SfmOptions
 from recon.appearance.atlas import AtlasOptions
 from recon.appearance.texture import TextureOptions
@@ -67,6 +67,10 @@ def add_recon_options(parser: argparse.ArgumentParser) -> None:
                         help="plane: open water the fused points show (plain, level, lower than its shore) becomes a "
                              "plane at its level, marked proxy in the face provenance; none: the raw surface "
                              "(default %(default)s)")
+    parser.add_argument("--standing", choices=STANDING, default=ReconOptions.standing,
+                        help="heightfield: where the fused points' height field stands more than 1 m over the 3-D "
+                             "surface (a shelter, a young tree Poisson smoothed away), its surface is added there; "
+                             "none: the 3-D surface alone (--mesh 3d; default %(default)s)")
     parser.add_argument("--workers", type=int, default=-1, help="threads (-1: all cores)")
     parser.add_argument("--every", type=positive_int, default=None,
                         help="only every k-th photo enters mapping, the rest are registered into its model "
@@ -151,7 +155,7 @@ def recon_options(args: argparse.Namespace) -> ReconOptions:
         dense=DenseOptions(max_image_size=args.dense_size, view_spacing_deg=args.depth_spacing,
                            num_threads=args.workers),
         mesh=args.mesh, grid_m=args.grid, poisson_depth=args.poisson_depth, decimate_error_m=args.decimate_error,
-        water=args.water, texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
+        water=args.water, standing=args.standing, texture=args.texture, texture_options=TextureOptions(texel_m=args.texel),
         atlas_options=AtlasOptions(texel_m=args.texel), hold_out=args.hold_out,
         delight=not args.keep_capture_light, capture_sun=args.capture_sun,
         capture_sun_sky_ratio=args.capture_sun_sky_ratio,

@@ -11,7 +11,7 @@ with the same fingerprint, and redoes the first other one and every stage after 
 | undistort | ``dense.max_image_size`` | | ``work/dense`` (images, ``sparse``, ``stereo/fusion.cfg``) |
 | depth | ``dense`` pair choice, SGBM, consistency | | ``work/dense/depth_report.json``, per-image maps (below) |
 | fusion | ``dense.fusion_*`` | | ``work/fused.ply`` |
-| mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m``, ``water`` | | ``work/mesh.ply`` (``mesh_decimated.ply``), ``work/water.json`` (recon/surface/water.py) |
+| mesh | ``mesh``, ``grid_m``, ``poisson_depth``, ``poisson_trim``, ``crop_margin``, ``decimate_error_m``, ``water``, ``standing`` | | ``work/mesh.ply`` (``mesh_decimated.ply``), ``work/water.json`` (recon/surface/water.py) |
 | texture | ``texture``, ``texture_options.*``, ``atlas_options.*`` | | ``work/texture_report.json``, ``work/terrain.glb``, ``work/texture_faces.npy`` (which faces a photo colours; none with ``texture="none"``), ``work/texture_sky_visibility.npz`` (the delight's sky bake, which the scene stage stores where it is its mesh's) |
 | scene | ``texture`` | the sky visibility's bake settings, the face provenance's | ``SCENE_DIR/scene.json`` + ``terrain.glb`` (or ``terrain.ply``, vertex colours) + ``cameras.json`` + ``capture_light.png`` (delit) + ``sky_visibility.npz`` + ``face_provenance.npz`` (recon/surface/provenance.py) |
 | labels | ``labels.*`` | | ``SCENE_DIR/labels.npz`` (per face: recon/semantics/labels.py), named in ``scene.json`` (rewritten) |
@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 
 from capture.geotag_io import sidecar_path
 from recon.appearance import texture as texturing
-from recon.surface import dense, mesh as meshing, water
+from recon.surface import dense, mesh as meshing, standing, water
 from recon.appearance.atlas import AtlasOptions, texture_atlas
 from recon.appearance.capture_sun import CaptureSuns, capture_suns, is_timed, utc_offset_text
 from recon.surface.observed import viewed_area
@@ -70,6 +70,7 @@ from sim.render.sky_file import SkyVisibility, write_sky_visibility
 MESHES = ("3d", "2.5d", "poisson")
 TEXTURES = ("atlas", "ortho", "none")
 WATER = ("plane", "none")
+STANDING = ("heightfield", "none")
 
 #: What each stage wrote before stages were stamped (relative to the scene folder): such a stage is redone.
 OLD_MARKERS = {"sfm": "work/sfm_report.json", "undistort": "work/dense/stereo/fusion.cfg",
@@ -101,7 +102,9 @@ class ReconOptions:
     """All knobs: SfM, dense, surface (``mesh``: "3d" Poisson cropped to the observed area grown by
     ``crop_margin`` x the median viewing distance and trimmed at ``poisson_trim``, "2.5d" height field, or "poisson"
     of the whole cloud), grid cell (None = 2 GSD), decimation, ``water`` ("plane": open water the fused points show
-    becomes a plane at its level, recon/surface/water.py; "none": the raw surface), ``texture`` ("atlas": a texture atlas, each face from
+    becomes a plane at its level, recon/surface/water.py; "none": the raw surface), ``standing`` ("heightfield": the
+    standing objects the 3-D surface smoothed away put back from the fused points' height field,
+    recon/surface/standing.py; "none": not), ``texture`` ("atlas": a texture atlas, each face from
     its best photo; "ortho": a true orthophoto, for 2.5-D fields; "none": vertex colours only), ``hold_out`` K (every K-th photo in name order is registered by SfM
     but left out of depth maps, fusion and texture; 0 = none), ``delight``: an atlas of photos with a UTC time stores
     the albedo and the capture light it divided out (recon/appearance/delight.py), so the twin can be lit by another
@@ -121,6 +124,7 @@ class ReconOptions:
     crop_margin: float = 0.5
     decimate_error_m: float = 0.02
     water: str = "plane"
+    standing: str = "heightfield"
     texture: str = "atlas"
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
     atlas_options: AtlasOptions = field(default_factory=AtlasOptions)
@@ -136,6 +140,8 @@ class ReconOptions:
             raise ValueError(f"mesh must be one of {', '.join(MESHES)}, got {self.mesh!r}")
         if self.water not in WATER:
             raise ValueError(f"water must be one of {', '.join(WATER)}, got {self.water!r}")
+        if self.standing not in STANDING:
+            raise ValueError(f"standing must be one of {', '.join(STANDING)}, got {self.standing!r}")
         if self.texture not in TEXTURES:
             raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
         if self.capture_sun is not None and not (-360 <= self.capture_sun[0] <= 360 and
@@ -398,6 +404,8 @@ class Recon:
             surface = meshing.surface_3d(self.work / "fused.ply", full, self.observed_area(rec), margin,
                                          self.cell_size(), self.options.poisson_depth, self.options.poisson_trim)
             self.log(f"[mesh] 3-D surface over the observed area + {margin:.1f} m, {len(surface.faces)} faces")
+            if self.options.standing == "heightfield":
+                self.put_back_standing_objects(surface, full)
         elif self.options.mesh == "poisson":
             meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)
         else:
@@ -414,6 +422,18 @@ class Recon:
         water.write_water(self.work / water.WATER_FILE, bodies)
         if self.options.decimate_error_m:
             meshing.decimate(full, small, self.options.decimate_error_m)
+
+    def put_back_standing_objects(self, surface: trimesh.Trimesh, full: Path) -> None:
+        """Add to the 3-D ``surface`` (written at ``full``) the standing objects it smoothed away, from the fused
+        points' height field at the 2.5-D field's cell (:mod:`recon.surface.standing`)."""
+        points, colors = meshing.read_point_cloud(self.work / "fused.ply")
+        cell = self.height_field_cell(points)
+        surface, cells = standing.with_standing_objects(surface, points, colors, cell)
+        self.log(f"[mesh] standing objects put back from the height field: {cells} cells of {cell:.3f} m "
+                 f"({cells * cell * cell:.1f} m²)")
+        if cells:
+            with atomic_path(full) as tmp:
+                surface.export(tmp)
 
     def surface_mesh(self) -> trimesh.Trimesh:
         """The final (decimated if asked) surface mesh, ENU metres, with vertex colours (decimation drops them:

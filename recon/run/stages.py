@@ -34,7 +34,7 @@ STAGE_OPTIONS = {
               "dense.max_angle_deg", "dense.min_shared_points", "dense.block_size", "dense.texture_window",
               "dense.min_texture_std", "dense.consistency"),
     "fusion": ("dense.fusion_min_pixels", "dense.fusion_max_normal_error_deg"),
-    "mesh": ("mesh", "grid_m", "poisson_depth", "poisson_trim", "crop_margin", "decimate_error_m", "water"),
+    "mesh": ("mesh", "grid_m", "poisson_depth", "poisson_trim", "crop_margin", "decimate_error_m", "water", "standing"),
     "texture": ("texture", "texture_options", "atlas_options", "delight", "capture_sun", "capture_sun_sky_ratio",
                 "capture_utc_offset_h"),
     "scene": ("texture",),

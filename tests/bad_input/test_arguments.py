@@ -170,6 +170,8 @@ CASES = [
          r"argument --poisson-depth: expected an octree depth from 6 to 12, got 14", PHOTOS),
     Case("recon-poisson-depth-word", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--poisson-depth", "ten"],
          r"argument --poisson-depth: expected an octree depth from 6 to 12, got ten", PHOTOS),
+    Case("recon-bad-standing", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--standing", "poles"],
+         r"--standing: invalid choice: 'poles'", PHOTOS),
     Case("recon-bad-water", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--water", "lake"],
          r"--water: invalid choice: 'lake'", PHOTOS),
     Case("recon-image-size-word", RECON, ["--photos", "{tmp}/photos", "--out", "{tmp}/s", "--image-size", "big"],

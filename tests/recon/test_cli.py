@@ -70,6 +70,14 @@ def test_poisson_depth_reaches_the_mesh_stage():
     assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).poisson_depth == 10
 
 
+def test_standing_reaches_the_mesh_stage():
+    assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).standing == "heightfield"
+    argv = ["--photos", "p", "--out", "o", "--standing", "none"]
+    assert recon_options(build_parser().parse_args(argv)).standing == "none"
+    with pytest.raises(ValueError, match="standing must be one of heightfield, none, got 'poles'"):
+        ReconOptions(standing="poles")
+
+
 def test_water_reaches_the_mesh_stage():
     assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).water == "plane"
     assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o", "--water", "none"])).water == "none"
