@@ -40,7 +40,8 @@ from scipy import ndimage, sparse
 
 from flightplan.geodesy import LocalFrame
 from recon.appearance.delight import CaptureSetup, Delighting, TexelLight, delight_atlas
-from recon.appearance.texture import JPEG_QUALITY, Photo, scene_from_mesh, solve_log_gains
+from recon.appearance.texture import JPEG_QUALITY, Photo, solve_log_gains
+from recon.surface.mesh import scene_from_mesh
 from sim.render.camera import PinholeCamera, project_world_points, row_dots
 from sim.render.raycast import occluded
 from sim.render.scene import Scene

@@ -33,9 +33,10 @@ from scipy import ndimage
 
 from flightplan.geodesy import LocalFrame
 from recon.sfm.cameras import camera_from_colmap, camera_poses
+from recon.surface.mesh import scene_from_mesh
 from sim.render.camera import PinholeCamera, project_world_points
 from sim.render.raycast import default_workers, intersect, occluded
-from sim.render.scene import Scene, Surface
+from sim.render.scene import Scene
 from sim.render.texture import sample_bilinear
 from sim.render.color import to_srgb8
 from sim.render.glb import encode_textured_glb
@@ -167,12 +168,6 @@ class Samples:
     index: np.ndarray
     rgb: np.ndarray
     weight: np.ndarray
-
-
-def scene_from_mesh(mesh: trimesh.Trimesh) -> Scene:
-    """A ray-castable sim scene of an ENU mesh (grey vertex colours: only the geometry matters here)."""
-    grey = np.full((len(mesh.vertices), 3), 128, np.uint8)
-    return Scene(np.asarray(mesh.vertices), np.asarray(mesh.faces), Surface(vertex_colors=grey), source="<recon mesh>")
 
 
 def ground_sample_distance(scene: Scene, photos: list[Photo]) -> float:

@@ -136,14 +136,9 @@ class ReconOptions:
     labels: LabelOptions = field(default_factory=LabelOptions)
 
     def __post_init__(self) -> None:
-        if self.mesh not in MESHES:
-            raise ValueError(f"mesh must be one of {', '.join(MESHES)}, got {self.mesh!r}")
-        if self.water not in WATER:
-            raise ValueError(f"water must be one of {', '.join(WATER)}, got {self.water!r}")
-        if self.standing not in STANDING:
-            raise ValueError(f"standing must be one of {', '.join(STANDING)}, got {self.standing!r}")
-        if self.texture not in TEXTURES:
-            raise ValueError(f"texture must be one of {', '.join(TEXTURES)}, got {self.texture!r}")
+        for name, choices in (("mesh", MESHES), ("water", WATER), ("standing", STANDING), ("texture", TEXTURES)):
+            if getattr(self, name) not in choices:
+                raise ValueError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
         if self.capture_sun is not None and not (-360 <= self.capture_sun[0] <= 360 and
                                                  0 < self.capture_sun[1] <= 90):
             raise ValueError(f"capture sun must be an azimuth in [-360, 360] and an elevation in (0, 90] degrees, "
@@ -405,7 +400,10 @@ class Recon:
                                          self.cell_size(), self.options.poisson_depth, self.options.poisson_trim)
             self.log(f"[mesh] 3-D surface over the observed area + {margin:.1f} m, {len(surface.faces)} faces")
             if self.options.standing == "heightfield":
-                self.put_back_standing_objects(surface, full)
+                points, colors = meshing.read_point_cloud(self.work / "fused.ply")
+                cell = self.height_field_cell(points)
+                cells = standing.put_back(surface, full, points, colors, cell)
+                self.log(f"[mesh] standing objects put back from the height field: {cells} cells of {cell:.3f} m")
         elif self.options.mesh == "poisson":
             meshing.poisson_mesh(self.work / "fused.ply", full, self.options.poisson_depth)
         else:
@@ -422,18 +420,6 @@ class Recon:
         water.write_water(self.work / water.WATER_FILE, bodies)
         if self.options.decimate_error_m:
             meshing.decimate(full, small, self.options.decimate_error_m)
-
-    def put_back_standing_objects(self, surface: trimesh.Trimesh, full: Path) -> None:
-        """Add to the 3-D ``surface`` (written at ``full``) the standing objects it smoothed away, from the fused
-        points' height field at the 2.5-D field's cell (:mod:`recon.surface.standing`)."""
-        points, colors = meshing.read_point_cloud(self.work / "fused.ply")
-        cell = self.height_field_cell(points)
-        surface, cells = standing.with_standing_objects(surface, points, colors, cell)
-        self.log(f"[mesh] standing objects put back from the height field: {cells} cells of {cell:.3f} m "
-                 f"({cells * cell * cell:.1f} m²)")
-        if cells:
-            with atomic_path(full) as tmp:
-                surface.export(tmp)
 
     def surface_mesh(self) -> trimesh.Trimesh:
         """The final (decimated if asked) surface mesh, ENU metres, with vertex colours (decimation drops them:

@@ -30,6 +30,7 @@ from scipy.spatial import cKDTree
 from cliutil.atomic import atomic_path, write_failed
 from cliutil.resources import require_memory
 from recon.surface.observed import inside, observed_area
+from sim.render.scene import Scene, Surface
 
 
 #: Peak bytes per cell of gridding a height field (127 measured with tracemalloc on a million cells with a point each:
@@ -155,6 +156,12 @@ def height_field_mesh(field: HeightField) -> trimesh.Trimesh:
     mesh = trimesh.Trimesh(np.nan_to_num(vertices), faces, vertex_colors=colors, process=False)
     mesh.remove_unreferenced_vertices()
     return mesh
+
+
+def scene_from_mesh(mesh: trimesh.Trimesh) -> Scene:
+    """A ray-castable sim scene of an ENU mesh (grey vertex colours: only the geometry matters here)."""
+    grey = np.full((len(mesh.vertices), 3), 128, np.uint8)
+    return Scene(np.asarray(mesh.vertices), np.asarray(mesh.faces), Surface(vertex_colors=grey), source="<recon mesh>")
 
 
 def poisson_mesh(fused_ply: Path, output_ply: Path, depth: int = 10, trim: float | None = None) -> None:

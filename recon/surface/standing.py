@@ -15,12 +15,14 @@ holes, are ``surface_filled``.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import trimesh
 from scipy import ndimage
 
-from recon.appearance.texture import scene_from_mesh
-from recon.surface.mesh import HeightField, height_field, height_field_mesh
+from cliutil.atomic import atomic_path
+from recon.surface.mesh import HeightField, height_field, height_field_mesh, scene_from_mesh
 from sim.render.raycast import intersect
 
 #: The height field over the 3-D surface by more than this (m) marks a standing object Poisson lost: above the
@@ -90,6 +92,17 @@ def standing_patches(surface: trimesh.Trimesh, points: np.ndarray, colors: np.nd
     grown = ndimage.binary_dilation(lost, structure=np.ones((3, 3), bool))
     patch = HeightField(np.where(grown, field.z, np.nan), field.colors, field.x0, field.y0, cell_m)
     return height_field_mesh(patch), int(lost.sum())
+
+
+def put_back(surface: trimesh.Trimesh, ply: Path, points: np.ndarray, colors: np.ndarray | None,
+             cell_m: float) -> int:
+    """Add :func:`standing_patches` to ``surface`` (the 3-D surface written at ``ply``), rewriting ``ply``
+    atomically when any cell was lost; the cells put back."""
+    restored, cells = with_standing_objects(surface, points, colors, cell_m)
+    if cells:
+        with atomic_path(ply) as tmp:
+            restored.export(tmp)
+    return cells
 
 
 def with_standing_objects(surface: trimesh.Trimesh, points: np.ndarray, colors: np.ndarray | None,

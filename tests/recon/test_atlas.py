@@ -10,7 +10,8 @@ from recon.appearance.atlas import (AtlasOptions, FaceViews, corners_seen, face_
                                    texture_atlas)
 from recon.measure.evaluate import render_unlit
 from recon.run.scene_out import write_scene
-from recon.appearance.texture import Photo, orthophoto, scene_from_mesh, textured_glb
+from recon.appearance.texture import Photo, orthophoto, textured_glb
+from recon.surface.mesh import scene_from_mesh
 from sim.render.camera import Rig, look_at
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render

@@ -8,8 +8,9 @@ import trimesh
 from flightplan.geodesy import LocalFrame
 from recon.measure.evaluate import render_unlit
 from recon.run.scene_out import write_scene
-from recon.appearance.texture import Photo, TextureOptions, Tiles, orthophoto, photo_samples, scene_from_mesh, \
-    solve_log_gains, textured_glb, texel_grid
+from recon.appearance.texture import Photo, TextureOptions, Tiles, orthophoto, photo_samples, solve_log_gains, \
+    textured_glb, texel_grid
+from recon.surface.mesh import scene_from_mesh
 from sim.render.camera import PinholeCamera, Rig, look_at
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render
