@@ -22,8 +22,7 @@ import trimesh
 from scipy import ndimage
 
 from cliutil.atomic import atomic_path
-from recon.surface.mesh import HeightField, height_field, height_field_mesh, scene_from_mesh
-from sim.render.raycast import intersect
+from recon.surface.mesh import HeightField, first_surface_from_above, height_field, height_field_mesh, scene_from_mesh
 
 #: The height field over the 3-D surface by more than this (m) marks a standing object Poisson lost: above the
 #: 75th percentile's own spread on open ground and the fattening at a crown's rim (a few tenths of a metre).
@@ -32,16 +31,6 @@ MIN_RISE_M = 1.0
 MIN_CELLS = 4
 #: Fewest fused points in a cell for it to count as observed.
 MIN_POINTS = 2
-
-
-def first_surface_from_above(surface: trimesh.Trimesh, xy: np.ndarray) -> np.ndarray:
-    """Height (m) of ``surface``'s first surface straight down through each ``xy`` (N, 2); NaN where none."""
-    if len(surface.faces) == 0:
-        return np.full(len(xy), np.nan)
-    top = float(surface.vertices[:, 2].max()) + 1.0
-    hits = intersect(scene_from_mesh(surface), np.column_stack([xy, np.full(len(xy), top)]),
-                     np.array([[0.0, 0.0, -1.0]]))
-    return np.where(hits.hit, top - hits.t.astype(np.float64), np.nan)
 
 
 def highest_around(heights: np.ndarray) -> np.ndarray:
@@ -85,7 +74,8 @@ def standing_patches(surface: trimesh.Trimesh, points: np.ndarray, colors: np.nd
     rows, cols = field.z.shape
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     xy = np.column_stack([field.x0 + c.ravel() * cell_m, field.y0 + r.ravel() * cell_m])
-    below = highest_around(first_surface_from_above(surface, xy).reshape(rows, cols))
+    heights = first_surface_from_above(scene_from_mesh(surface), xy) if len(surface.faces) else np.full(len(xy), np.nan)
+    below = highest_around(heights.reshape(rows, cols))
     lost = lost_cells(field, observed_cells(field, points), below)
     if not lost.any():
         return trimesh.Trimesh(), 0

@@ -4,9 +4,8 @@
 import numpy as np
 import trimesh
 
-from recon.surface.mesh import HeightField
-from recon.surface.standing import (MIN_RISE_M, first_surface_from_above, highest_around, lost_cells,
-                                    with_standing_objects)
+from recon.surface.mesh import HeightField, first_surface_from_above, scene_from_mesh
+from recon.surface.standing import MIN_RISE_M, highest_around, lost_cells, with_standing_objects
 from tests.recon.test_mesh_pieces import GROUND_POINTS_PER_M2, ground, on_surface
 
 CELL_M = 0.25
@@ -23,7 +22,7 @@ def block_points(centre_xy, side_m: float, height_m: float, per_m2: float, seed:
 
 
 def heights_over(mesh: trimesh.Trimesh, xy) -> np.ndarray:
-    return first_surface_from_above(mesh, np.asarray(xy, dtype=float))
+    return first_surface_from_above(scene_from_mesh(mesh), np.asarray(xy, dtype=float))
 
 
 def test_a_block_the_points_hold_comes_back_at_its_height_and_the_ground_stays():

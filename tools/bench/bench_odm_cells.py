@@ -53,7 +53,7 @@ from recon.run.cli_options import add_recon_options, recon_options  # noqa: E402
 from recon.run.pipeline import Recon, ReconOptions  # noqa: E402
 from recon.semantics.ground import GroundFilter, fit_ground  # noqa: E402
 from recon.surface.grid import Grid  # noqa: E402
-from recon.surface.mesh import per_cell_percentile  # noqa: E402
+from recon.surface.mesh import first_surface_from_above, per_cell_percentile  # noqa: E402
 from recon.surface.observed import inside  # noqa: E402
 from sim.render.raycast import Hits, intersect  # noqa: E402
 from sim.render.shade import surface_albedo  # noqa: E402
@@ -137,12 +137,6 @@ def cast_down(scene: Scene, xy: np.ndarray) -> tuple[Hits, float]:
     """Rays straight down at each ``(N, 2)`` ENU point from 10 m above the twin: the hits and the rays' height."""
     above = float(scene.bounds[1, 2]) + 10.0
     return intersect(scene, np.column_stack([xy, np.full(len(xy), above)]), np.array([[0.0, 0.0, -1.0]])), above
-
-
-def first_surface_from_above(scene: Scene, xy: np.ndarray) -> np.ndarray:
-    """Height (ENU z, m) of the first surface a ray straight down meets at each ``(N, 2)`` point; NaN on a miss."""
-    hits, above = cast_down(scene, xy)
-    return np.where(hits.hit, above - hits.t.astype(np.float64), np.nan)
 
 
 def observed_polygon(scene: Scene) -> np.ndarray:
