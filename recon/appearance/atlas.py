@@ -22,7 +22,7 @@ ENU metres for the mesh and undistorted pinhole photos (:class:`recon.appearance
    by ``(quality / best quality)^blend_power`` (default 1: in proportion to the pixels each photo puts on the face).
    The best view weighs most, and the others average out the sensor noise and the view-dependent look that a new
    view would not share (held-out real photos: p4m_rtk 4.45 -> 4.14 % with power 4; brighton_beach, every third
-   photo held out, 5.06 -> 4.84 % with power 1; docs/recon.md). Texels of faces no photo sees take the nearest
+   photo held out, 5.06 -> 4.86 % with power 1; docs/recon.md). Texels of faces no photo sees take the nearest
    coloured texel.
 """
 
