@@ -85,8 +85,9 @@ def bench_folder(photos: Path, work: Path, args, label: str, mesh: str, texture:
                                            "--dense-size", str(args.dense_size), "--mesh", mesh,
                                            "--texture", texture])}
     width = ["--width", str(args.width)] if args.width else []
+    # --overwrite: a rerun whose recon redid a stage (another default) changed the scene, so the old replay is stale
     seconds["replay"] = run_tool("sim", ["--scene", str(scene), "--out", str(replay), "--mode", "replay",
-                                         "--quiet", *width])
+                                         "--quiet", "--overwrite", *width])
     start = time.perf_counter()
     results = compare_folders(photos, replay / "sequences" / "00" / "replay_2")
     seconds["compare"] = time.perf_counter() - start
