@@ -124,7 +124,7 @@ class ReconOptions:
     crop_margin: float = 0.5
     decimate_error_m: float = 0.02
     water: str = "plane"
-    standing: str = "heightfield"
+    standing: str = "none"
     texture: str = "atlas"
     texture_options: texturing.TextureOptions = field(default_factory=texturing.TextureOptions)
     atlas_options: AtlasOptions = field(default_factory=AtlasOptions)

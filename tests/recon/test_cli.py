@@ -71,9 +71,9 @@ def test_poisson_depth_reaches_the_mesh_stage():
 
 
 def test_standing_reaches_the_mesh_stage():
-    assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).standing == "heightfield"
-    argv = ["--photos", "p", "--out", "o", "--standing", "none"]
-    assert recon_options(build_parser().parse_args(argv)).standing == "none"
+    assert recon_options(build_parser().parse_args(["--photos", "p", "--out", "o"])).standing == "none"
+    argv = ["--photos", "p", "--out", "o", "--standing", "heightfield"]
+    assert recon_options(build_parser().parse_args(argv)).standing == "heightfield"
     with pytest.raises(ValueError, match="standing must be one of heightfield, none, got 'poles'"):
         ReconOptions(standing="poles")
 
