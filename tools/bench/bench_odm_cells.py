@@ -88,7 +88,7 @@ LOOSE_FUSION = {"fusion_min_pixels": 2, "fusion_max_normal_error_deg": 45.0}
 #: ``--candidate`` rows (docs/recon.md has their table): name -> (what changes, the defaults -> its options).
 CANDIDATES: dict[str, tuple[str, object]] = {
     "2.5d": ("--mesh 2.5d (height field)", with_options(mesh="2.5d")),
-    "standing-none": ("--standing none (no standing objects put back)", with_options(standing="none")),
+    "standing": ("--standing heightfield (standing objects put back)", with_options(standing="heightfield")),
     "trim3": ("Poisson trim 3", with_options(poisson_trim=3.0)),
     "neighbours8": ("8 stereo neighbours", with_dense(num_neighbors=8)),
     "fusion2": ("fusion min 2 pixels, normal error 45 deg", with_dense(**LOOSE_FUSION)),
