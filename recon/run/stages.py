@@ -41,6 +41,11 @@ STAGE_OPTIONS = {
     "labels": ("labels",),
 }
 
+#: The mesh stage's fields each surface (``ReconOptions.mesh``) reads; the others it leaves alone
+#: (:func:`inert_options`).
+SURFACE_READS = {"3d": ("crop_margin", "poisson_depth", "poisson_trim", "standing"), "2.5d": ("grid_m",),
+                 "poisson": ("poisson_depth",)}
+
 #: Option fields that change how fast a stage runs, not what it writes: changing them redoes nothing.
 NOT_SHAPING = ("sfm.num_threads", "dense.num_threads")
 
@@ -72,8 +77,19 @@ def fingerprint(record: dict) -> str:
     return hashlib.sha256(json.dumps(record, sort_keys=True).encode("utf-8")).hexdigest()
 
 
+def inert_options(options) -> set[str]:
+    """The fields of :data:`SURFACE_READS` the chosen surface (``options.mesh``) does not read; the 3-D surface
+    reads ``grid_m`` only for the height field of its standing patches (``standing="heightfield"``)."""
+    reads = set(SURFACE_READS[options.mesh])
+    if options.mesh == "3d" and options.standing == "heightfield":
+        reads.add("grid_m")
+    return set().union(*SURFACE_READS.values()) - reads
+
+
 def stage_records(options, inputs: dict[str, dict]) -> dict[str, tuple[dict, str]]:
-    """``stage -> (record, fingerprint)`` for all :data:`STAGES`; ``inputs`` by stage (missing: none).
+    """``stage -> (record, fingerprint)`` for all :data:`STAGES`; ``inputs`` by stage (missing: none). The
+    options the chosen surface does not read (:func:`inert_options`) are recorded at their defaults: changing one
+    redoes nothing, and a stamp written before they were told apart keeps its fingerprint.
 
     Raises ``RuntimeError`` naming option fields that no stage claims (so a new option cannot be forgotten).
     """
@@ -81,7 +97,9 @@ def stage_records(options, inputs: dict[str, dict]) -> dict[str, tuple[dict, str
     if missing:
         raise RuntimeError(f"option field(s) {', '.join(missing)} claimed by no stage in "
                            "recon.run.stages.STAGE_OPTIONS")
-    fields = option_fields(options)
+    defaults = option_fields(type(options)())
+    inert = inert_options(options)
+    fields = {path: defaults[path] if path in inert else value for path, value in option_fields(options).items()}
     records, previous = {}, None
     for stage in STAGES:
         record = {"stage": stage, "options": {p: v for p, v in fields.items() if claims(p, STAGE_OPTIONS[stage])},

@@ -11,8 +11,8 @@ import pytest
 
 from recon.run.pipeline import ReconOptions
 from cliutil.progress import StepProgress
-from recon.run.stages import (NOT_SHAPING, STAGE_OPTIONS, STAGES, describe_change, option_fields, stage_records,
-                              unclaimed_options)
+from recon.run.stages import (NOT_SHAPING, STAGE_OPTIONS, STAGES, describe_change, inert_options, option_fields,
+                              stage_records, unclaimed_options)
 from sim.render import sky
 from sim.render.labels import LABELS_FILE
 from sim.render.scene import load_scene
@@ -70,15 +70,17 @@ def test_unchanged_rerun_does_nothing(plane_flight, scene):
 @pytest.mark.slow
 def test_changed_mesh_option_redoes_mesh_and_later_stages_only(plane_flight, scene):
     before = snapshot(scene)
-    rerun = Run(plane_flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0))
+    assert Run(plane_flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0)).ran == []  # the 3-D surface's no cell
+    assert changed(before, snapshot(scene)) == set()
+    rerun = Run(plane_flight, scene, dataclasses.replace(OPTIONS, poisson_trim=4.0))
     assert rerun.ran == ["mesh", "texture", "scene", "labels"]
     assert [rerun.recon.seconds[s] == 0 for s in STAGES] == [True] * 4 + [False] * 4
-    assert "[mesh] options changed (grid_m: None -> 1.0): redoing mesh, texture, scene, labels" in rerun.logs
+    assert "[mesh] options changed (poisson_trim: 5.0 -> 4.0): redoing mesh, texture, scene, labels" in rerun.logs
     differ = changed(before, snapshot(scene))
     assert {"work/mesh.ply", "work/terrain.glb", "scene.json"} <= differ
     assert not {"work/sfm_report.json", "work/fused.ply", "work/dense/depth_report.json"} & differ
-    assert json.loads((scene / "scene.json").read_text())["provenance"]["options"]["grid_m"] == 1.0
-    assert Run(plane_flight, scene, dataclasses.replace(OPTIONS, grid_m=1.0)).ran == []  # and now it is done
+    assert json.loads((scene / "scene.json").read_text())["provenance"]["options"]["poisson_trim"] == 4.0
+    assert Run(plane_flight, scene, dataclasses.replace(OPTIONS, poisson_trim=4.0)).ran == []  # and now it is done
 
 
 @pytest.mark.slow
@@ -215,6 +217,35 @@ def test_fingerprints_chain_from_the_changed_stage_on():
     assert [base[s][1] == faster[s][1] for s in STAGES] == [True] * 8  # threads shape nothing
     assert [base[s][1] == mesh[s][1] for s in STAGES] == [True] * 4 + [False] * 4
     assert [base[s][1] == labels[s][1] for s in STAGES] == [True] * 7 + [False]
+
+
+def mesh_fingerprint(**changes) -> str:
+    return stage_records(dataclasses.replace(ReconOptions(), **changes), {})["mesh"][1]
+
+
+def test_options_the_chosen_surface_does_not_read_redo_nothing():
+    """The 3-D surface reads no height-field cell unless it puts standing patches back; the height field reads
+    no Poisson depth, trim, crop margin or patches; Poisson of the whole cloud reads only its depth."""
+    same = [({"grid_m": 0.5}, {}), ({"mesh": "2.5d", "standing": "heightfield", "poisson_depth": 8},
+                                     {"mesh": "2.5d"}),
+            ({"mesh": "poisson", "grid_m": 0.5, "crop_margin": 1.0, "poisson_trim": 3.0}, {"mesh": "poisson"})]
+    for changes, base in same:
+        assert mesh_fingerprint(**changes) == mesh_fingerprint(**base), changes
+    differ = [({"standing": "heightfield", "grid_m": 0.5}, {"standing": "heightfield"}),
+              ({"mesh": "2.5d", "grid_m": 0.5}, {"mesh": "2.5d"}), ({"poisson_depth": 9}, {}),
+              ({"mesh": "poisson", "poisson_depth": 9}, {"mesh": "poisson"}), ({"mesh": "2.5d", "water": "none"},
+                                                                              {"mesh": "2.5d"})]
+    for changes, base in differ:
+        assert mesh_fingerprint(**changes) != mesh_fingerprint(**base), changes
+    assert inert_options(ReconOptions(mesh="2.5d")) == {"crop_margin", "poisson_depth", "poisson_trim", "standing"}
+
+
+def test_inert_options_are_recorded_at_their_defaults_so_earlier_stamps_keep_their_fingerprint():
+    """Stamps written before inert options were told apart recorded every mesh field as given: a default run
+    records the same."""
+    defaults = option_fields(ReconOptions())
+    record = stage_records(ReconOptions(mesh="2.5d", poisson_depth=12), {})["mesh"][0]
+    assert record["options"] == {path: defaults[path] for path in STAGE_OPTIONS["mesh"]} | {"mesh": "2.5d"}
 
 
 def test_progress_lines_when_stderr_is_not_a_terminal():
