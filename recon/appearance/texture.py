@@ -35,7 +35,7 @@ from flightplan.geodesy import LocalFrame
 from recon.sfm.cameras import camera_from_colmap, camera_poses
 from recon.surface.mesh import scene_from_mesh
 from sim.render.camera import PinholeCamera, project_world_points
-from sim.render.raycast import default_workers, intersect, occluded
+from sim.render.raycast import default_workers, from_above, intersect, occluded
 from sim.render.scene import Scene
 from sim.render.texture import sample_bilinear
 from sim.render.color import to_srgb8
@@ -185,18 +185,15 @@ def ground_sample_distance(scene: Scene, photos: list[Photo]) -> float:
 
 def texel_grid(scene: Scene, texel_m: float, max_texture_px: int) -> Texels:
     """Texels over the mesh's x/y bounds, with points and normals from vertical rays (topmost surface)."""
-    (xmin, ymin, _), (xmax, ymax, ztop) = scene.bounds
+    (xmin, ymin, _), (xmax, ymax, _) = scene.bounds
     texel_m = max(texel_m, (xmax - xmin) / max_texture_px, (ymax - ymin) / max_texture_px)
     cols, rows = max(1, int(np.ceil((xmax - xmin) / texel_m))), max(1, int(np.ceil((ymax - ymin) / texel_m)))
     x = xmin + (np.arange(cols) + 0.5) * texel_m
     y = ymax - (np.arange(rows) + 0.5) * texel_m
     gx, gy = np.meshgrid(x, y)
-    top = ztop + 1.0
-    origins = np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, top)])
-    hits = intersect(scene, origins, np.array([[0.0, 0.0, -1.0]]))
-    points = origins.copy()
-    points[:, 2] = np.where(hits.hit, top - hits.t.astype(np.float64), np.nan)
-    return Texels(rows, cols, float(xmin), float(ymax - rows * texel_m), float(texel_m), points,
+    xy = np.column_stack([gx.ravel(), gy.ravel()])
+    heights, hits = from_above(scene, xy)
+    return Texels(rows, cols, float(xmin), float(ymax - rows * texel_m), float(texel_m), np.column_stack([xy, heights]),
                   hits.normal.astype(np.float64))
 
 

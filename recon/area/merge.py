@@ -30,7 +30,7 @@ from recon.area.align import SurfaceQuery
 from recon.surface.grid import Grid
 from sim.render.scene import Scene, Surface
 from sim.render.shade import surface_albedo
-from sim.render.raycast import intersect
+from sim.render.raycast import from_above
 
 NO_OWNER = -1
 #: Look-at points of cameras whose optical axis rises or meets the ground beyond this many metres are left out.
@@ -132,9 +132,7 @@ def seam_neighbours(owner: np.ndarray) -> dict[int, set[int]]:
 
 def albedo_under(scene: Scene, xy: np.ndarray) -> np.ndarray:
     """Linear albedo ``(N, 3)`` of the topmost surface under each ENU ``(x, y)``; NaN rows where there is none."""
-    top = scene.bounds[1, 2] + 1.0
-    origins = np.column_stack([xy, np.full(len(xy), top)])
-    hits = intersect(scene, origins, np.tile([0.0, 0.0, -1.0], (len(xy), 1)))
+    hits = from_above(scene, xy)[1]
     albedo = np.full((len(xy), 3), np.nan, np.float32)
     hit = hits.tri >= 0
     albedo[hit] = surface_albedo(scene, hits.tri[hit], hits.u[hit], hits.v[hit])

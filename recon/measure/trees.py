@@ -34,7 +34,7 @@ from scipy import ndimage
 from recon.measure.oblique import TwinFrame
 from recon.surface.grid import Grid
 from recon.surface.observed import inside
-from sim.render.raycast import intersect
+from sim.render.raycast import from_above
 from sim.render.scene import Scene
 
 CELL_M = 0.25
@@ -98,20 +98,6 @@ def read_true_trees(meta: dict, source: str) -> list[TrueTree]:
 def tree_grid(tree: TrueTree, cell_m: float = CELL_M) -> Grid:
     """A tree's window: the cells over its footprint's bounding box grown by :data:`WINDOW_MARGIN_M`."""
     return Grid.covering(tree.footprint, cell_m, WINDOW_MARGIN_M)
-
-
-def surface_from_above(scene: Scene, xy: np.ndarray, frame: TwinFrame | None = None,
-                       pool: Executor | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The first surface of ``scene`` straight down (world -z) through each world ``xy`` (N, 2): its world ENU height
-    (m, NaN where nothing is hit) and the face hit (-1 there). ``frame``: where the scene's frame lies in the world's
-    (None: it is the world's); the rays start above the whole scene."""
-    frame = frame or TwinFrame(np.eye(4))
-    scale, rotation, shift = frame.scale, frame.rotation, frame.T_world_twin[:3, 3]
-    box = np.stack(np.meshgrid(*scene.bounds.T, indexing="ij"), axis=-1).reshape(-1, 3)  # its 8 corners
-    top = float((box @ frame.T_world_twin[:3, :3].T + shift)[:, 2].max()) + 1.0
-    origins = np.column_stack([xy, np.full(len(xy), top)])
-    hits = intersect(scene, (origins - shift) @ rotation / scale, (rotation.T @ [0.0, 0.0, -1.0])[None], pool)
-    return np.where(hits.hit, top - scale * hits.t.astype(np.float64), np.nan), hits.tri
 
 
 def crown_threshold_m(tree: TrueTree) -> float:
@@ -197,9 +183,9 @@ def score_trees(world: Scene, twin: Scene, frame: TwinFrame | None, trees: Seque
     if not windows:
         return []
     xy = np.concatenate([window.centres() for window in windows])
-    true_height, true_face = surface_from_above(world, xy, None, pool)
-    true_instance = np.where(true_face >= 0, world.labels.face_instance[np.maximum(true_face, 0)], 0)
-    twin_height, _ = surface_from_above(twin, xy, frame, pool)
+    true_height, true_hits = from_above(world, xy, pool=pool)
+    true_instance = np.where(true_hits.hit, world.labels.face_instance[np.maximum(true_hits.tri, 0)], 0)
+    twin_height, _ = from_above(twin, xy, frame and frame.T_world_twin, pool)
     bounds = np.cumsum([0] + [window.rows * window.cols for window in windows])
     return [score_tree(tree, window, true_height[a:b], true_instance[a:b], twin_height[a:b])
             for tree, window, a, b in zip(trees, windows, bounds[:-1], bounds[1:], strict=True)]

@@ -4,7 +4,7 @@
 Every pond (the world's ``scene.json`` ``"objects"`` of kind ``pond``, written by sim/worlds/water.py: its object
 ``instance``, ``level_z_m`` and ``shoreline_m``) gets the grid of :data:`recon.measure.trees.CELL_M` cells over its
 shoreline's bounding box. A nadir ray through each cell's centre finds the first surface from above in the true world
-and in the twin (:func:`recon.measure.trees.surface_from_above`, which undoes the twin's similarity). The pond's cells
+and in the twin (:func:`sim.render.raycast.from_above`, through the twin's similarity). The pond's cells
 are those whose first TRUE surface is a face of the pond (an overhanging crown hides the water under it), less a
 :data:`SHORE_INSET_M` band along their edge, where a bank and the water share a cell. A cell where the twin has no
 surface counts as off.
@@ -23,8 +23,9 @@ import numpy as np
 from scipy import ndimage
 
 from recon.measure.oblique import TwinFrame
-from recon.measure.trees import CELL_M, surface_from_above
+from recon.measure.trees import CELL_M
 from recon.surface.grid import Grid
+from sim.render.raycast import from_above
 from sim.render.scene import Scene
 
 LEVEL_TOLERANCE_M = 0.2
@@ -101,8 +102,8 @@ def score_ponds(world: Scene, twin: Scene, frame: TwinFrame | None, ponds: Seque
     for pond in ponds:
         grid = Grid.covering(pond.shoreline, cell_m)
         xy, shape = grid.centres(), (grid.rows, grid.cols)
-        _, true_face = surface_from_above(world, xy, None, pool)
-        true_instance = np.where(true_face >= 0, world.labels.face_instance[np.maximum(true_face, 0)], 0)
-        twin_height, _ = surface_from_above(twin, xy, frame, pool)
+        _, true_hits = from_above(world, xy, pool=pool)
+        true_instance = np.where(true_hits.hit, world.labels.face_instance[np.maximum(true_hits.tri, 0)], 0)
+        twin_height, _ = from_above(twin, xy, frame and frame.T_world_twin, pool)
         scores.append(score_pond(pond, shape, true_instance, twin_height, cell_m))
     return scores

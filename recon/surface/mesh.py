@@ -30,7 +30,6 @@ from scipy.spatial import cKDTree
 from cliutil.atomic import atomic_path, write_failed
 from cliutil.resources import require_memory
 from recon.surface.observed import inside, observed_area
-from sim.render.raycast import intersect
 from sim.render.scene import Scene, Surface
 
 
@@ -163,14 +162,6 @@ def scene_from_mesh(mesh: trimesh.Trimesh) -> Scene:
     """A ray-castable sim scene of an ENU mesh (grey vertex colours: only the geometry matters here)."""
     grey = np.full((len(mesh.vertices), 3), 128, np.uint8)
     return Scene(np.asarray(mesh.vertices), np.asarray(mesh.faces), Surface(vertex_colors=grey), source="<recon mesh>")
-
-
-def first_surface_from_above(scene: Scene, xy: np.ndarray) -> np.ndarray:
-    """Height (ENU z, m) of the first surface of ``scene`` a ray straight down meets at each ``(N, 2)`` point; NaN
-    on a miss."""
-    above = float(scene.bounds[1, 2]) + 10.0
-    hits = intersect(scene, np.column_stack([xy, np.full(len(xy), above)]), np.array([[0.0, 0.0, -1.0]]))
-    return np.where(hits.hit, above - hits.t.astype(np.float64), np.nan)
 
 
 def poisson_mesh(fused_ply: Path, output_ply: Path, depth: int = 10, trim: float | None = None) -> None:

@@ -117,6 +117,22 @@ def intersect(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray, poo
     return Hits(t, tri, u, v, normal, back)
 
 
+def from_above(scene: Scene, xy: np.ndarray, T_world_scene: np.ndarray | None = None,
+               pool: Executor | None = None) -> tuple[np.ndarray, Hits]:
+    """The first surface of ``scene`` straight down (world -z) through each world ``(x, y)`` (``(N, 2)``, m): its
+    world height (ENU z, m; NaN where nothing is hit) and the hits (in the scene's frame; ``t`` in scene units).
+    ``T_world_scene``: the similarity ``[s R | t]`` (4x4) placing the scene's ENU frame in the world's (None: the
+    scene is in the world's frame). The rays start 1 m above the whole scene."""
+    T = np.eye(4) if T_world_scene is None else np.asarray(T_world_scene, dtype=np.float64)
+    scale = float(np.cbrt(np.linalg.det(T[:3, :3])))
+    rotation, shift = T[:3, :3] / scale, T[:3, 3]
+    corners = np.stack(np.meshgrid(*scene.bounds.T, indexing="ij"), axis=-1).reshape(-1, 3)
+    top = float((corners @ T[:3, :3].T + shift)[:, 2].max()) + 1.0
+    origins = np.column_stack([np.asarray(xy, dtype=np.float64).reshape(-1, 2), np.full(len(xy), top)])
+    hits = intersect(scene, (origins - shift) @ rotation / scale, (rotation.T @ [0.0, 0.0, -1.0])[None], pool)
+    return np.where(hits.hit, top - scale * hits.t.astype(np.float64), np.nan), hits
+
+
 def intersect_local(scene: Scene, origins32: np.ndarray, directions32: np.ndarray) -> Hits:
     """Single-threaded :func:`intersect` on recentred float32 inputs (:meth:`Scene.to_local`), both ``(N, 3)``
     (a shared row may be broadcast to ``(N, 3)``)."""

@@ -18,10 +18,11 @@ from scipy.spatial.transform import Rotation
 
 from recon.measure.oblique import TwinFrame
 from recon.measure.trees import (CELL_M, TreeScore, TrueTree, read_true_trees, score_trees, summarise_trees,
-                                 surface_from_above, tree_grid, trees_inside)
+                                 tree_grid, trees_inside)
 from recon.surface.observed import inside
 from sim.render.classes import GROUND, TREE
 from sim.render.labels import SceneLabels
+from sim.render.raycast import from_above
 from sim.render.scene import Scene, Surface
 from sim.worlds.synthetic import grid_mesh
 
@@ -114,8 +115,8 @@ def test_the_true_crown_is_the_footprint_seen_from_above():
         window = tree_grid(tree)
         assert (window.rows, window.cols) == (int((np.ptp(tree.footprint[:, 1]) + 4) / CELL_M),
                                               int((np.ptp(tree.footprint[:, 0]) + 4) / CELL_M))
-        _, face = surface_from_above(world, window.centres())
-        seen = world.labels.face_instance[face] == tree.instance
+        _, hits = from_above(world, window.centres())
+        seen = world.labels.face_instance[hits.tri] == tree.instance
         np.testing.assert_array_equal(seen, inside(tree.footprint, window.centres()))
 
 

@@ -6,9 +6,10 @@ import cv2
 import numpy as np
 import pytest
 import trimesh
+from scipy.spatial.transform import Rotation
 
 from sim.render.camera import PinholeCamera, Rig, camera_rays, look_at, project_world_points
-from sim.render.raycast import intersect, occluded
+from sim.render.raycast import from_above, intersect, occluded
 from sim.render.renderer import Lighting, Sun, miss_fraction, render
 from sim.render.scene import Scene, Surface
 from sim.render.color import SRGB8_TO_LINEAR, linear_to_srgb, to_srgb8
@@ -71,6 +72,25 @@ def test_box_from_outside_and_from_inside():
         facing = np.einsum("ij,ij->i", view.normal.reshape(-1, 3)[hit], d_world[hit])
         assert (facing < 0).all()
     assert view.valid.all()  # inside: every ray hits a wall
+
+
+def test_from_above_finds_a_boxs_top_and_the_ground_in_the_world_frame_of_a_scaled_rotated_scene():
+    """A 4 m box on a 100 m plane, seen straight down in world z: in its own frame, then placed in a world by a
+    similarity (scale 2, 30 deg about z with a 5 deg tilt, shifted): heights come back in world metres, misses NaN."""
+    ground_v, ground_f, _ = grid_mesh(4, 4, (-50.0, 50.0, -50.0, 50.0))
+    box = trimesh.creation.box(extents=(8.0, 6.0, 4.0))
+    box.apply_translation([0.0, 0.0, 2.0])
+    scene = colored_scene(trimesh.util.concatenate([trimesh.Trimesh(ground_v, ground_f), box]))
+    heights, hits = from_above(scene, np.array([[0.0, 0.0], [3.9, -2.9], [10.0, 10.0], [80.0, 0.0]]))
+    np.testing.assert_allclose(heights[:3], [4.0, 4.0, 0.0], atol=1e-4)
+    assert np.isnan(heights[3]) and hits.tri[3] == -1 and (hits.tri[:3] >= 0).all()
+    T = np.eye(4)
+    T[:3, :3] = 2.0 * Rotation.from_euler("zx", [30.0, 5.0], degrees=True).as_matrix()
+    T[:3, 3] = [100.0, -40.0, 12.0]
+    world_top = T[:3, :3] @ [0.0, 0.0, 4.0] + T[:3, 3]  # the box top's centre, in the world
+    heights, hits = from_above(scene, np.array([world_top[:2]]), T)
+    np.testing.assert_allclose(heights, [world_top[2]], atol=1e-3)
+    assert hits.tri[0] in range(len(ground_f), len(ground_f) + len(box.faces))  # a face of the box
 
 
 def test_sphere_hits_lie_on_the_hit_triangle_within_the_tessellation():

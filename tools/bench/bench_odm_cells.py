@@ -53,9 +53,9 @@ from recon.run.cli_options import add_recon_options, recon_options  # noqa: E402
 from recon.run.pipeline import Recon, ReconOptions  # noqa: E402
 from recon.semantics.ground import GroundFilter, fit_ground  # noqa: E402
 from recon.surface.grid import Grid  # noqa: E402
-from recon.surface.mesh import first_surface_from_above, per_cell_percentile  # noqa: E402
+from recon.surface.mesh import per_cell_percentile  # noqa: E402
 from recon.surface.observed import inside  # noqa: E402
-from sim.render.raycast import Hits, intersect  # noqa: E402
+from sim.render.raycast import from_above  # noqa: E402
 from sim.render.shade import surface_albedo  # noqa: E402
 from sim.render.scene import Scene, SceneError, load_scene  # noqa: E402
 from tools.bench.bench_recon import YawShift, read_odm_cloud, yaw_icp  # noqa: E402
@@ -133,12 +133,6 @@ def odm_cells(points: np.ndarray, cell_m: float = 1.0, percentile: float = 95.0,
     return OdmCells(grid, top.reshape(grid.rows, grid.cols), ground.height_m)
 
 
-def cast_down(scene: Scene, xy: np.ndarray) -> tuple[Hits, float]:
-    """Rays straight down at each ``(N, 2)`` ENU point from 10 m above the twin: the hits and the rays' height."""
-    above = float(scene.bounds[1, 2]) + 10.0
-    return intersect(scene, np.column_stack([xy, np.full(len(xy), above)]), np.array([[0.0, 0.0, -1.0]])), above
-
-
 def observed_polygon(scene: Scene) -> np.ndarray:
     """The twin's observed area (ENU ``(K, 2)``), as ``scene.json`` stores it."""
     if scene.observed_area_m is None:
@@ -160,10 +154,10 @@ def twin_samples(scene: Scene, spacing_m: float) -> TwinSamples:
     polygon = observed_polygon(scene)
     xy = Grid.covering(polygon, spacing_m).centres()
     xy = xy[inside(polygon, xy)]
-    hits, above = cast_down(scene, xy)
+    heights, hits = from_above(scene, xy)
     hit = hits.hit
     grey = surface_albedo(scene, hits.tri[hit], hits.u[hit], hits.v[hit]).mean(axis=1)
-    return TwinSamples(np.column_stack([xy[hit], above - hits.t[hit].astype(np.float64)]), grey)
+    return TwinSamples(np.column_stack([xy[hit], heights[hit]]), grey)
 
 
 def read_odm_colours(path: Path) -> np.ndarray:
@@ -254,7 +248,7 @@ def cell_distances(scene: Scene, odm: OdmCells, fit: YawShift) -> tuple[np.ndarr
     twin_xyz = fit.invert(np.column_stack([centres, top]))  # the cell's vertical line in the twin's frame
     keep = inside(observed_polygon(scene), twin_xyz[:, :2])
     twin_xyz = twin_xyz[keep]
-    height = first_surface_from_above(scene, twin_xyz[:, :2])
+    height = from_above(scene, twin_xyz[:, :2])[0]
     on_odm = fit.apply(np.column_stack([twin_xyz[:, :2], np.nan_to_num(height)]))[:, 2]
     return odm.classes()[rows, cols][keep], np.where(np.isfinite(height), on_odm - top[keep], np.nan)
 
