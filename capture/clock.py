@@ -41,7 +41,8 @@ LOCAL_STEP_FRACTION = 0.05  # extra refinement starts across the best plateaus' 
 LOCAL_CENTRES = 3
 MISFIT_FLOOR_M = 0.05  # photo GPS vs track misfit allowed above twice the best candidate's
 PATTERN_SLACK_PAIRS = 2  # agreeing pairs a candidate may lack against the pattern's best and still win by its GPS
-GPS_MAJORITY = 0.75  # share of the photos both place on which the GPS must put one candidate nearer the track
+GPS_SIGN_Z = 2.5  # the GPS puts one candidate nearer the track on so many of the photos both place that a fair coin
+#                   would do so less than once in 160 (a one-sided sign test, in standard deviations)
 MIN_PAIRED_PHOTOS = 8  # ... of at least this many photos
 GPS_MARGIN = 0.25  # ... and by a median of at least this share of its own misfit (a datum shift moves both alike)
 MAX_VOTES_SCANNED = 200_000
@@ -359,17 +360,18 @@ def gps_preferred(candidates: list[Candidate]) -> Candidate:
 
 def gps_closer(a: Candidate, b: Candidate) -> bool:
     """Whether the photos' own GPS lies nearer the track at ``a``'s matched events than at ``b``'s, photo by photo:
-    on at least :data:`GPS_MAJORITY` of the (at least :data:`MIN_PAIRED_PHOTOS`) photos both place, and by a
-    median of at least :data:`GPS_MARGIN` times ``a``'s own median misfit there. A paired comparison, so an error
-    the two share (the receiver's bias) cancels; the margin keeps a GPS far off the logs (a datum shift, where every
-    offset leaves about the same misfit) from choosing."""
+    on so many of the (at least :data:`MIN_PAIRED_PHOTOS`) photos both place that chance would not explain it
+    (:data:`GPS_SIGN_Z`), and by a median of at least :data:`GPS_MARGIN` times ``a``'s own median misfit there. A
+    paired comparison, so an error the two share (the receiver's bias) cancels; the margin keeps a GPS far off the
+    logs (a datum shift, where every offset leaves about the same misfit) from choosing."""
     if a.photo_misfit_m is None or b.photo_misfit_m is None:
         return False
     both = np.isfinite(a.photo_misfit_m) & np.isfinite(b.photo_misfit_m)
     if both.sum() < MIN_PAIRED_PHOTOS:
         return False
     nearer, farther = a.photo_misfit_m[both], b.photo_misfit_m[both]
-    return bool(np.mean(nearer < farther) >= GPS_MAJORITY
+    photos = len(nearer)
+    return bool(np.sum(nearer < farther) - photos / 2 >= GPS_SIGN_Z * math.sqrt(photos) / 2
                 and np.median(farther - nearer) >= GPS_MARGIN * np.median(nearer))
 
 
