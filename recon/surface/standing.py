@@ -23,7 +23,6 @@ from scipy import ndimage
 
 from cliutil.atomic import atomic_path
 from recon.surface.mesh import HeightField, height_field, height_field_mesh, scene_from_mesh
-from sim.render.raycast import from_above
 
 #: The height field over the 3-D surface by more than this (m) marks a standing object Poisson lost: above the
 #: 75th percentile's own spread on open ground and the fattening at a crown's rim (a few tenths of a metre).
@@ -75,7 +74,7 @@ def standing_patches(surface: trimesh.Trimesh, points: np.ndarray, colors: np.nd
     rows, cols = field.z.shape
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     xy = np.column_stack([field.x0 + c.ravel() * cell_m, field.y0 + r.ravel() * cell_m])
-    heights = from_above(scene_from_mesh(surface), xy)[0] if len(surface.faces) else np.full(len(xy), np.nan)
+    heights = scene_from_mesh(surface).ground_height(xy[:, 0], xy[:, 1]) if len(surface.faces) else np.full(len(xy), np.nan)
     below = highest_around(heights.reshape(rows, cols))
     lost = lost_cells(field, observed_cells(field, points), below)
     if not lost.any():

@@ -5,7 +5,6 @@ import numpy as np
 import trimesh
 
 from recon.surface.mesh import HeightField, scene_from_mesh
-from sim.render.raycast import from_above
 from recon.surface.standing import MIN_RISE_M, highest_around, lost_cells, with_standing_objects
 from tests.recon.test_mesh_pieces import GROUND_POINTS_PER_M2, ground, on_surface
 
@@ -23,7 +22,8 @@ def block_points(centre_xy, side_m: float, height_m: float, per_m2: float, seed:
 
 
 def heights_over(mesh: trimesh.Trimesh, xy) -> np.ndarray:
-    return from_above(scene_from_mesh(mesh), np.asarray(xy, dtype=float))[0]
+    xy = np.asarray(xy, dtype=float)
+    return scene_from_mesh(mesh).ground_height(xy[:, 0], xy[:, 1])
 
 
 def test_a_block_the_points_hold_comes_back_at_its_height_and_the_ground_stays():

@@ -248,7 +248,7 @@ def cell_distances(scene: Scene, odm: OdmCells, fit: YawShift) -> tuple[np.ndarr
     twin_xyz = fit.invert(np.column_stack([centres, top]))  # the cell's vertical line in the twin's frame
     keep = inside(observed_polygon(scene), twin_xyz[:, :2])
     twin_xyz = twin_xyz[keep]
-    height = from_above(scene, twin_xyz[:, :2])[0]
+    height = scene.ground_height(twin_xyz[:, 0], twin_xyz[:, 1])
     on_odm = fit.apply(np.column_stack([twin_xyz[:, :2], np.nan_to_num(height)]))[:, 2]
     return odm.classes()[rows, cols][keep], np.where(np.isfinite(height), on_odm - top[keep], np.nan)
 
