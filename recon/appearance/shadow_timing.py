@@ -154,7 +154,8 @@ def dark_mask(rgb8: np.ndarray, hit: np.ndarray) -> np.ndarray:
 def shadow_views(scene: Scene, photos: list[Photo], local_time_s: dict[str, float],
                  width: int = SCORE_WIDTH_PX) -> list[ShadowView]:
     """The views of ``photos`` (at most :data:`MAX_SCORED_PHOTOS`, evenly spread) at ``width`` pixels on the twin
-    ``scene`` (ENU, the photos' frame); ``local_time_s`` by photo name."""
+    ``scene`` (ENU, the photos' frame); ``local_time_s`` by photo name. A photo that sees none of the twin (a
+    registered photo beyond a subset's mesh) says nothing about its shadows and is left out."""
     step = max(1, math.ceil(len(photos) / MAX_SCORED_PHOTOS))
     views = []
     for photo in photos[::step]:
@@ -162,6 +163,8 @@ def shadow_views(scene: Scene, photos: list[Photo], local_time_s: dict[str, floa
         rays = camera_rays(camera, photo.T_world_cam)
         hits = intersect(scene, rays.origin, rays.directions)
         hit = hits.hit
+        if not hit.any():
+            continue
         points = rays.origin + hits.t[hit, None].astype(np.float64) * rays.directions[hit]
         image = cv2.resize(photo.image, (camera.width, camera.height), interpolation=cv2.INTER_AREA)
         mask = hit.reshape(camera.shape)

@@ -75,8 +75,10 @@ def map_blocks(function, n_rays: int, pool: Executor | None) -> None:
             future.result()
 
 
-def _as_rays32(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Recentred float32 origins and float32 directions, each ``(N, 3)`` or one shared ``(1, 3)`` row."""
+def _as_rays32(scene: Scene, origins_enu: np.ndarray,
+               directions: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
+    """Recentred float32 origins and float32 directions, each ``(N, 3)`` or one shared ``(1, 3)`` row, and the
+    number of rays ``N`` (0 where either side has no rows: a shared row with nothing to pair is no ray)."""
     origins = scene.to_local(origins_enu).reshape(-1, 3)
     dirs = np.asarray(directions).reshape(-1, 3)
     if not np.all(np.isfinite(dirs)):
@@ -84,7 +86,7 @@ def _as_rays32(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray) ->
     dirs = dirs.astype(np.float32, copy=False)
     if len(origins) != len(dirs) and 1 not in (len(origins), len(dirs)):
         raise ValueError(f"{len(origins)} ray origins do not match {len(dirs)} directions")
-    return origins, dirs
+    return origins, dirs, len(dirs) if len(origins) == 1 else len(origins)
 
 
 def _rows(array: np.ndarray, block: slice) -> np.ndarray:
@@ -99,8 +101,7 @@ def intersect(scene: Scene, origins_enu: np.ndarray, directions: np.ndarray, poo
 
     Normals are flipped to face back along the ray (meshes are two-sided).
     """
-    origins, dirs = _as_rays32(scene, origins_enu, directions)
-    n = max(len(origins), len(dirs))
+    origins, dirs, n = _as_rays32(scene, origins_enu, directions)
     t = np.empty(n, np.float32)
     tri = np.empty(n, np.int32)
     u = np.empty(n, np.float32)
@@ -189,8 +190,7 @@ def occluded(
     ``origins_enu`` and ``directions`` are ``(N, 3)`` or one shared ``(1, 3)`` row (e.g. towards the sun).
     embree's tnear is fixed at 0, so callers offset origins off the surface they start on.
     """
-    origins, dirs = _as_rays32(scene, origins_enu, directions)
-    n = max(len(origins), len(dirs))
+    origins, dirs, n = _as_rays32(scene, origins_enu, directions)
     limit = _EMBREE_MISS if max_distance is None else max_distance
     tfar = np.broadcast_to(np.asarray(limit, dtype=np.float32), (n,))
     blocked = np.empty(n, bool)

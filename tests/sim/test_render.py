@@ -74,6 +74,19 @@ def test_box_from_outside_and_from_inside():
     assert view.valid.all()  # inside: every ray hits a wall
 
 
+def test_no_rays_beside_a_shared_row_are_no_rays():
+    """A shared (1, 3) row with no rows to pair it with (every pixel of a view that saw nothing, towards the sun)
+    casts nothing: empty answers, not one ray or a broadcasting error; a shared row with N rows is N rays."""
+    scene = flat_scene()
+    none, down, up = np.empty((0, 3)), np.array([[0.0, 0.0, -1.0]]), np.array([[0.0, 0.0, 1.0]])
+    for origins, directions in ((none, down), (up, none), (none, none)):
+        assert occluded(scene, origins, directions).shape == (0,)
+        assert intersect(scene, origins, directions).t.shape == (0,)
+    origins = np.array([[0.0, 0.0, 10.0], [5.0, 5.0, 10.0], [1e4, 0.0, 10.0]])  # the last one beyond the plane
+    np.testing.assert_array_equal(occluded(scene, origins, down), [True, True, False])
+    np.testing.assert_array_equal(intersect(scene, up * 10.0, np.tile(down, (2, 1))).t, [10.0, 10.0])
+
+
 def test_from_above_finds_a_boxs_top_and_the_ground_in_the_world_frame_of_a_scaled_rotated_scene():
     """A 4 m box on a 100 m plane, seen straight down in world z: in its own frame, then placed in a world by a
     similarity (scale 2, 30 deg about z with a 5 deg tilt, shifted): heights come back in world metres, misses NaN."""
