@@ -10,7 +10,8 @@ import pytest
 
 from flightplan.geodesy import LocalFrame
 from recon.inputs.priors import exif_times
-from recon.appearance.shadow_timing import (dark_mask, edge_contrast, fit_utc_offset, mean_contrast, predicted_shadow,
+from recon.appearance.shadow_timing import (HALF_PEAK_TOLERANCE_H, dark_mask, edge_contrast, fit_utc_offset,
+                                            halves_agree, mean_contrast, mean_of_known, predicted_shadow,
                                             refine_capture_time, shadow_views, start_fit, sun_direction,
                                             untextured_scene)
 from recon.appearance.texture import Photo
@@ -119,6 +120,27 @@ def test_a_model_turned_6_degrees_gets_its_sun_turned_alike():
     fitted_sun = true_sun(UTC + dt.timedelta(minutes=fit.clock_correction_min))
     assert fitted_sun.azimuth_deg + fit.yaw_deg == pytest.approx(true_sun().azimuth_deg - 6.0, abs=2.5)
     assert fit.contrast > start.contrast + 0.05
+
+
+def test_a_peak_only_some_of_the_photos_show_is_not_a_fit():
+    """Contrast over ten offsets in eight views: where every view peaks at the same offset, every half agrees; where
+    the first four peak at 1 h and the last four (weaker) at 3 h, the whole set still peaks at 1 h but its second half
+    does not; halves one tolerance apart still agree; views with no contrast known are no half's evidence; three
+    views are not split."""
+    offsets = np.arange(10, dtype=float)
+
+    def peaked_at(hour, height=1.0):
+        return height * np.exp(-0.5 * (offsets - hour) ** 2)
+
+    assert halves_agree(np.column_stack([peaked_at(1.0)] * 8), offsets, 1)
+    some = np.column_stack([peaked_at(1.0)] * 4 + [peaked_at(3.0, 0.8)] * 4)
+    assert int(np.nanargmax(mean_of_known(some))) == 1 and not halves_agree(some, offsets, 1)
+    apart = np.column_stack([peaked_at(2.0)] * 4 + [peaked_at(3.0)] * 4)  # in steps of the tolerance: 1 step apart
+    assert halves_agree(apart, offsets * HALF_PEAK_TOLERANCE_H, 2)
+    assert not halves_agree(apart, offsets * HALF_PEAK_TOLERANCE_H * 1.01, 2)
+    some[:, 4:] = np.nan
+    assert not halves_agree(some, offsets, 1)
+    assert halves_agree(some[:, :3], offsets, 1)
 
 
 def test_an_overcast_capture_is_not_timed():
