@@ -108,13 +108,18 @@ def check_flown_over(truth: dict, truth_path: Path, world_dir: Path) -> None:
         raise ValueError(f"{truth_path}: the flight flew over {flown}, not over the --world {world_dir}")
 
 
+def read_truth(path: Path) -> dict:
+    """A flight's ``truth.json``, parsed; ValueError naming it where it is not UTF-8 JSON."""
+    try:
+        return json.loads(Path(path).read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as error:
+        raise ValueError(f"{path}: not UTF-8 JSON ({error})") from None
+
+
 def load_twins(args, world_dir: Path) -> tuple:
     """The true world (the scene folder ``world_dir``), each ``--scene``'s scene and frame (labelled), the observed
     area (world ENU) and the parsed ``--truth``."""
-    try:
-        truth = json.loads(args.truth.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as error:
-        raise ValueError(f"{args.truth}: not UTF-8 JSON ({error})") from None
+    truth = read_truth(args.truth)
     check_flown_over(truth, args.truth, world_dir)
     world = load_scene(world_dir)
     twins, registered = {}, set()
