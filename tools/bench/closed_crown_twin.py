@@ -1,19 +1,20 @@
-"""The best a closed-crown twin can be: the true world with every tree's crown replaced by its convex hull.
+"""A closed-crown ceiling: the true world with every tree's crown replaced by its exact convex hull.
 
     .venv/bin/python tools/bench/closed_crown_twin.py --truth FLY/truth.json --out DIR [--world demo|demo:small|DIR]
 
-Issue 39 allows a twin's crown to be "a closed volume" where that is what the photos support. This writes that
-volume at its best, with nothing else wrong: the world's mesh (a labelled demo world: its scene.json lists
+Issue 39 allows a twin's crown to be "a closed volume" where that is what the photos support. This writes the
+convex one exactly, with nothing else wrong: the world's mesh (a labelled demo world: its scene.json lists
 ``vegetation.trees`` and labels.npz gives each face its class and object) in which the parts of each tree above its
 crown base (the lowest of its points more than :data:`STEM_CLEARANCE_M` from its stem: branches and leaves, not the
-trunk; the 2nd percentile, so one drooping twig does not set it) become their convex hull, the trunk below kept, and
+trunk; :data:`CROWN_BASE_PERCENTILE`) become their convex hull, the trunk below kept, and
 the hull coloured with the tree's highest texel (one leaf colour). The cameras are the flight's true ones (truth.json,
 in the world's frame), so bench_trees and bench_twin_oblique score it with the identity as its alignment:
 
     .venv/bin/python tools/bench/bench_trees.py --truth FLY/truth.json --scene closed=DIR --scene twin=RECON
     .venv/bin/python tools/bench/bench_twin_oblique.py --truth FLY/truth.json --scene closed=DIR --scene twin=RECON
 
-Its scores are the ceiling of any twin whose crowns are closed: the true crowns' gaps are the part it cannot have.
+Its crown IoU is the ceiling of any twin whose crowns cover their outlines: the true crowns' gaps are what it
+cannot have (a tighter, non-convex crown may do better in depth).
 The output folder is written beside DIR and renamed into place when complete; an existing DIR is refused.
 """
 
@@ -49,6 +50,7 @@ STEM_CLEARANCE_M = 0.6
 """A tree's points farther than this from its stem axis are crown (branches, leaves); about twice the demo world's
 thickest trunk radius (0.06 + 0.018 x height: 0.42 m at 20 m)."""
 CROWN_BASE_PERCENTILE = 2.0
+"""The crown base is this percentile of the crown points' heights, so that one drooping twig does not set it."""
 
 
 def crown_base_z(points: np.ndarray, stem_xy: np.ndarray) -> float:
@@ -66,6 +68,7 @@ def close_crowns(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, face_c
     ``position_m``) above its crown base replaced by its convex hull, uv'd at the tree's highest vertex; the faces of a
     tree wholly below its crown base (the trunk) stay. Also the number of trees closed."""
     keep = np.ones(len(faces), bool)
+    face_top_z = vertices[faces][:, :, 2].max(axis=1)
     parts_v, parts_f, parts_uv, count = [vertices], [], [uv], len(vertices)
     closed = 0
     for tree in trees:
@@ -78,7 +81,7 @@ def close_crowns(vertices: np.ndarray, faces: np.ndarray, uv: np.ndarray, face_c
         if len(crown) < 4:
             continue
         hull = trimesh.convex.convex_hull(crown)
-        keep &= ~(own & (vertices[faces][:, :, 2].max(axis=1) > base + 1e-6))
+        keep &= ~(own & (face_top_z > base + 1e-6))
         top = used[np.argmax(vertices[used, 2])]
         parts_v.append(np.asarray(hull.vertices))
         parts_f.append(np.asarray(hull.faces) + count)
