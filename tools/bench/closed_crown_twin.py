@@ -15,16 +15,14 @@ in the world's frame), so bench_trees and bench_twin_oblique score it with the i
 
 Its crown IoU is the ceiling of any twin whose crowns cover their outlines: the true crowns' gaps are what it
 cannot have (a tighter, non-convex crown may do better in depth).
-The output folder is written beside DIR and renamed into place when complete; an existing DIR is refused.
+The output folder is written beside DIR and moved into place when complete; an existing DIR is refused.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import sys
-import tempfile
 from pathlib import Path
 
 import cv2
@@ -33,6 +31,7 @@ import trimesh
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
+from cliutil.atomic import staged_folder  # noqa: E402
 from cliutil.program import run_cli  # noqa: E402
 from flightplan.geodesy import LocalFrame  # noqa: E402
 from recon.measure.scene_cameras import truth_poses  # noqa: E402
@@ -127,7 +126,7 @@ def flight_cameras(truth_path: Path, world_dir: Path, world_origin: LocalFrame) 
 
 def build(world_dir: Path, truth_path: Path, out: Path) -> int:
     """Write the closed-crown twin of ``world_dir`` for the flight of ``truth_path`` into the new folder ``out``
-    (staged beside it, renamed when complete); the number of trees closed."""
+    (staged beside it, moved in when complete: :func:`cliutil.atomic.staged_folder`); the number of trees closed."""
     meta = read_scene_json(world_dir)
     cameras = flight_cameras(truth_path, world_dir, meta["origin_frame"])
     trees, vertices, faces, surface, labels = read_world(world_dir, meta)
@@ -139,16 +138,11 @@ def build(world_dir: Path, truth_path: Path, out: Path) -> int:
              **{key: meta[key] for key in ("valid_area_m", "ground_height_range_m") if key in meta},
              "provenance": {"generator": PROG, "world": str(world_dir), "truth": str(truth_path),
                             "trees_closed": closed}}
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with staged_folder(out) as staging:
         (staging / "terrain.glb").write_bytes(encode_textured_glb(merged_v, merged_f, merged_uv, jpeg.tobytes(),
                                                                   PROG, meta["origin_frame"]))
         write_cameras(staging / "cameras.json", cameras)
         (staging / "scene.json").write_text(json.dumps(scene, indent=1) + "\n", encoding="utf-8")
-        staging.rename(out)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
     return closed
 
 
