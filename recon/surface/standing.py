@@ -74,7 +74,10 @@ def standing_patches(surface: trimesh.Trimesh, points: np.ndarray, colors: np.nd
     rows, cols = field.z.shape
     r, c = np.meshgrid(np.arange(rows), np.arange(cols), indexing="ij")
     xy = np.column_stack([field.x0 + c.ravel() * cell_m, field.y0 + r.ravel() * cell_m])
-    heights = scene_from_mesh(surface).ground_height(xy[:, 0], xy[:, 1]) if len(surface.faces) else np.full(len(xy), np.nan)
+    if len(surface.faces):
+        heights = scene_from_mesh(surface).ground_height(xy[:, 0], xy[:, 1])
+    else:
+        heights = np.full(len(xy), np.nan)
     below = highest_around(heights.reshape(rows, cols))
     lost = lost_cells(field, observed_cells(field, points), below)
     if not lost.any():
