@@ -18,12 +18,13 @@ ENU metres for the mesh and undistorted pinhole photos (:class:`recon.appearance
    shared face centroids (:func:`recon.appearance.texture.solve_log_gains`) and applied to every sample.
 5. **Texels**: each texel inside a face (or in the gutter beside it) gets that face's 3-D point (barycentric,
    clamped to the triangle), projected into the face's candidate photos that see all three of its corners (its own
-   photo always) and sampled bilinearly in linear light, times each photo's gain; the texel is their mean weighted
-   by ``(quality / best quality)^blend_power`` (default 1: in proportion to the pixels each photo puts on the face).
+   photo always, where its image holds the point) and sampled bilinearly in linear light, times each photo's gain;
+   the texel is their mean weighted by ``(quality / best quality)^blend_power`` (default 1: in proportion to the
+   pixels each photo puts on the face).
    The best view weighs most, and the others average out the sensor noise and the view-dependent look that a new
    view would not share (held-out real photos: p4m_rtk 4.45 -> 4.14 % with power 4; brighton_beach, every third
-   photo held out, 5.06 -> 4.86 % with power 1; docs/recon.md). Texels of faces no photo sees take the nearest
-   coloured texel.
+   photo held out, 5.06 -> 4.86 % with power 1; docs/recon.md). Texels of faces no photo sees, and texels no photo
+   holds, take the nearest coloured texel.
 """
 
 from __future__ import annotations
@@ -396,11 +397,15 @@ def held_out_gains(scene: Scene, mesh: trimesh.Trimesh, labels: np.ndarray, blen
 
 
 def sample_photo(photo: Photo, linear: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Linear RGB (N, 3) of the photo (its :func:`sim.render.texture.linear_texture`) at world points (bilinear, clamped)."""
-    pixels, _ = project_world_points(photo.camera, photo.T_world_cam, points)
+    """Linear RGB (N, 3) of the photo (its :func:`sim.render.texture.linear_texture`) at world points (bilinear); NaN
+    where a point lies behind the photo or outside its image (a lookup there would wrap round to the image's other
+    side: the colour of something else)."""
+    pixels, depth = project_world_points(photo.camera, photo.T_world_cam, points)
     cam = photo.camera
     uv = np.column_stack([(pixels[:, 0] + 0.5) / cam.width, 1.0 - (pixels[:, 1] + 0.5) / cam.height])
-    return sample_linear(linear, np.nan_to_num(uv).astype(np.float32))
+    rgb = sample_linear(linear, np.nan_to_num(uv).astype(np.float32))
+    rgb[~in_image(cam, pixels, depth)] = np.nan
+    return rgb
 
 
 #: Blend weights below this share of the best are left out.
@@ -410,7 +415,9 @@ MIN_BLEND_WEIGHT = 0.02
 def blended_colour(views: FaceViews, face: np.ndarray, points: np.ndarray, label: np.ndarray, photos: list[Photo],
                    linear: list[np.ndarray], gains: np.ndarray, blend_power: float) -> np.ndarray:
     """Linear RGB (N, 3) at ``points`` on ``face``: the gain-balanced mean of the face's candidate photos weighted by
-    (quality / best quality)^``blend_power`` (inf: the face's ``label`` photo alone)."""
+    (quality / best quality)^``blend_power`` (inf: the face's ``label`` photo alone), over the photos whose image
+    holds the point; NaN where none does. A face's own photo need not see all of it (a long sliver of a flat roof or
+    a pond, chosen by its centroid)."""
     if not np.isfinite(blend_power):
         view = label[:, None]
         weight = np.ones((len(face), 1))
@@ -425,9 +432,11 @@ def blended_colour(views: FaceViews, face: np.ndarray, points: np.ndarray, label
     for k in np.unique(photo):
         own = photo == k
         weighted[own] = gains[k] * sample_photo(photos[k], linear[k], points[rows[own]])
-    weighted *= weight[rows, slots, None]
+    sample_weight = np.where(np.isfinite(weighted[:, 0]), weight[rows, slots], 0.0)
+    weighted = np.nan_to_num(weighted) * sample_weight[:, None]
     total = np.column_stack([np.bincount(rows, weights=weighted[:, c], minlength=len(face)) for c in range(3)])
-    return total / np.maximum(weight.sum(axis=1), 1e-30)[:, None]
+    weight_sum = np.bincount(rows, weights=sample_weight, minlength=len(face))
+    return np.where(weight_sum[:, None] > 0, total / np.maximum(weight_sum, 1e-30)[:, None], np.nan)
 
 
 def rasterise_faces(uv_px: np.ndarray, faces: np.ndarray, width: int, height: int, padding_px: int) -> np.ndarray:
@@ -479,11 +488,11 @@ def texel_points(chunk: np.ndarray, flat_ids: np.ndarray, uv_px: np.ndarray, fac
 def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
           photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray, blend: FaceViews, blend_power: float,
           capture: CaptureSetup | None = None) -> tuple[np.ndarray, np.ndarray | None, Delighting | None]:
-    """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face the blend of the face's ``blend`` views
-    (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). With ``capture`` (the capture
-    suns): the albedo instead, the capture light (H, W, 3) float32 it was divided by, and what was done
-    (:mod:`recon.appearance.delight`; its sun/sky ratio fitted on each face's own photo, whose shadow edges no blend
-    has softened)."""
+    """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face that a photo holds the blend of the face's
+    ``blend`` views (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). With
+    ``capture`` (the capture suns): the albedo instead, the capture light (H, W, 3) float32 it was divided by, and
+    what was done (:mod:`recon.appearance.delight`; its sun/sky ratio fitted on each face's own photo, whose shadow
+    edges no blend has softened)."""
     height, width = ids.shape
     colour = np.zeros((height * width, 3), np.float32)
     flat = ids.ravel()
@@ -495,19 +504,24 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
         colour[chunk] = blended_colour(blend, face, points, labels[face], photos, linear, gains, blend_power)
         if capture is not None:
             parts.append(capture.texel_light(face, weights, points, labels[face], photos))
+    photographed = np.isfinite(colour[texels, 0])
+    colour[texels[~photographed]] = 0.0
+    texels = texels[photographed]
 
     def own_photo_colour(wanted: np.ndarray) -> np.ndarray:
+        """The face's own photo's colour where it holds the texel, else the blend's."""
         own = np.empty((len(wanted), 3))
         for start in range(0, len(wanted), TEXEL_CHUNK):
             face, _, points = texel_points(wanted[start:start + TEXEL_CHUNK], flat, uv_px, faces, vertices, width)
             own[start:start + TEXEL_CHUNK] = blended_colour(blend, face, points, labels[face], photos, linear, gains,
                                                             np.inf)
-        return own
+        return np.where(np.isfinite(own), own, colour[wanted])
 
     light, result = None, None
     if capture is not None and len(texels):
-        light, result = delight_atlas(colour, texels, TexelLight.joined(parts), capture.chart[np.maximum(flat, 0)],
-                                      ids.shape, capture.sun_sky_ratio, own_photo_colour)
+        light, result = delight_atlas(colour, texels, TexelLight.joined(parts).subset(photographed),
+                                      capture.chart[np.maximum(flat, 0)], ids.shape, capture.sun_sky_ratio,
+                                      own_photo_colour)
     image = to_srgb8(colour).reshape(height, width, 3)
     if len(texels) == 0:
         return np.full_like(image, 128), None, result

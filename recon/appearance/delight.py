@@ -77,6 +77,10 @@ class TexelLight:
         """The texels of several parts, in order."""
         return cls(*(np.concatenate([getattr(part, name) for part in parts]) for name in ("cos", "sun_visible", "sky")))
 
+    def subset(self, keep: np.ndarray) -> "TexelLight":
+        """The texels where ``keep`` (a mask or indices) says, in order."""
+        return TexelLight(self.cos[keep], self.sun_visible[keep], self.sky[keep])
+
     def light(self, ratio: np.ndarray) -> np.ndarray:
         """The capture light ``(N, 3)`` per channel, ``E_sky (ratio cos sun_visible + sky)``, at least
         E_sky / MAX_GAIN."""

@@ -6,13 +6,14 @@ import pytest
 import trimesh
 
 from flightplan.geodesy import LocalFrame
-from recon.appearance.atlas import (AtlasOptions, FaceViews, corners_seen, face_neighbours, label_faces,
-                                   texture_atlas)
+from recon.appearance.atlas import (AtlasOptions, FaceViews, blended_colour, corners_seen, face_neighbours,
+                                   label_faces, texture_atlas)
 from recon.measure.evaluate import render_unlit
 from recon.run.scene_out import write_scene
 from recon.appearance.texture import Photo, orthophoto, textured_glb
 from recon.surface.mesh import scene_from_mesh
 from sim.render.camera import Rig, look_at
+from sim.render.texture import linear_texture
 from sim.evaluation.realism import photorealism_error_percent
 from sim.render.renderer import render
 from sim.render.scene import Scene, Surface, load_scene
@@ -214,3 +215,23 @@ def test_a_view_that_sees_a_face_only_in_part_may_not_colour_it():
     seen = corners_seen(scene_from_mesh(mesh), mesh, photos, views)
     assert seen[:2, 1].all()  # the high camera sees both ground triangles whole
     assert not seen[0, 0] and not seen[1, 0]  # both ground triangles have corner (4, 4): hidden from the low one
+
+
+def test_a_point_outside_a_photo_takes_no_colour_from_it():
+    """A 40 m sliver of ground (a decimated pond's or roof's) whose own photo, 20 m up over one end, holds only that
+    end, and a photo from 60 m that holds all of it: a point beyond the own photo's image takes the high photo's
+    colour alone (the own photo's lookup would wrap round to its other side), one inside both their blend, one that
+    no photo holds none (NaN)."""
+    near = look_at((5.0, -3.0, 20.0), (5.0, 2.0, 0.0))
+    high = look_at((20.0, -5.0, 60.0), (20.0, 2.0, 0.0))
+    red, green = (np.zeros((CAMERA.height, CAMERA.width, 3), np.uint8) for _ in range(2))
+    red[..., 0], green[..., 1] = 200, 200
+    photos = [Photo("near", red, CAMERA, near), Photo("high", green, CAMERA, high)]
+    views = FaceViews(np.array([[0, 1]]), np.array([[1.0, 0.5]]))
+    points = np.array([[2.0, 1.0, 0.0], [38.0, 0.5, 0.0], [500.0, 0.0, 0.0]])
+    colour = blended_colour(views, np.zeros(3, int), points, np.zeros(3, int), photos,
+                            [linear_texture(photo.image) for photo in photos], np.ones(2), 1.0)
+    level = linear_texture(np.array([[[200, 0, 0]]], np.uint8))[0, 0, 0]
+    np.testing.assert_allclose(colour[0], [level * 2 / 3, level / 3, 0.0], rtol=1e-5)
+    np.testing.assert_allclose(colour[1], [0.0, level, 0.0], rtol=1e-5)
+    assert np.isnan(colour[2]).all()
