@@ -99,7 +99,7 @@ class LoopConfig:
     speedup: float = 1.0
     seed: int = 0
     sfm_image_size: int = 800
-    dense_size: int = 640
+    dense_size: int | None = None        # None: recon's default, as a user gets it (depth maps at the photo size)
     mesh: str = "3d"
     grid_m: float | None = None
     decimate_error_m: float | None = None
@@ -358,8 +358,9 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
         add(skipped("geotag", "fly/record"))
     recon_dir = out / "recon"
     if "geotag" in ok:
-        options = ["--image-size", str(config.sfm_image_size), "--dense-size", str(config.dense_size),
-                   "--mesh", config.mesh, "--workers", str(config.workers)]
+        options = ["--image-size", str(config.sfm_image_size), "--mesh", config.mesh, "--workers", str(config.workers)]
+        if config.dense_size is not None:
+            options += ["--dense-size", str(config.dense_size)]
         if config.grid_m is not None:
             options += ["--grid", str(config.grid_m)]
         if config.decimate_error_m is not None:
