@@ -100,7 +100,8 @@ class FaceViews:
 class Atlas:
     """A textured mesh: ``vertices`` (M, 3) ENU metres (split where charts meet), ``faces`` (F, 3) in the input
     mesh's face order, ``uv`` (M, 2) with v up (OBJ/trimesh convention), ``image`` (H, W, 3) uint8 sRGB; per face its
-    photo ``labels`` (index into the photos, -1: none saw it); per photo name its exposure ``gains`` (texture =
+    photo ``labels`` (index into the photos, -1: none saw it) and ``face_seen``, whether photos hold most of its
+    texels (:func:`photographed_faces`); per photo name its exposure ``gains`` (texture =
     gain x photo, linear light; held-out photos included); ``coverage`` the fraction of the surface area some photo
     sees. With the capture suns: ``image`` is the albedo, ``capture_light`` (H, W, 3) float32 linear the light it was
     divided by (None: nothing was divided out), ``delighting`` what was done, and ``sky`` the sky visibility baked to
@@ -113,6 +114,7 @@ class Atlas:
     uv: np.ndarray
     image: np.ndarray
     labels: np.ndarray
+    face_seen: np.ndarray
     gains: dict[str, float]
     coverage: float
     texel_m: float
@@ -487,9 +489,11 @@ def texel_points(chunk: np.ndarray, flat_ids: np.ndarray, uv_px: np.ndarray, fac
 
 def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.ndarray, labels: np.ndarray,
           photos: list[Photo], linear: list[np.ndarray], gains: np.ndarray, blend: FaceViews, blend_power: float,
-          capture: CaptureSetup | None = None) -> tuple[np.ndarray, np.ndarray | None, Delighting | None]:
+          capture: CaptureSetup | None = None
+          ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, Delighting | None]:
     """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face that a photo holds the blend of the face's
-    ``blend`` views (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). With
+    ``blend`` views (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). Also which
+    faces photos hold most of (:func:`photographed_faces`). With
     ``capture`` (the capture suns): the albedo instead, the capture light (H, W, 3) float32 it was divided by, and
     what was done (:mod:`recon.appearance.delight`; its sun/sky ratio fitted on each face's own photo, whose shadow
     edges no blend has softened)."""
@@ -505,6 +509,7 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
         if capture is not None:
             parts.append(capture.texel_light(face, weights, points, labels[face], photos))
     photographed = np.isfinite(colour[texels, 0])
+    face_seen = photographed_faces(flat[texels], photographed, labels)
     colour[texels[~photographed]] = 0.0
     texels = texels[photographed]
 
@@ -524,9 +529,18 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
                                       own_photo_colour)
     image = to_srgb8(colour).reshape(height, width, 3)
     if len(texels) == 0:
-        return np.full_like(image, 128), None, result
+        return np.full_like(image, 128), face_seen, None, result
     nearest = _nearest_painted(texels, ids)
-    return image[nearest], None if light is None else light.reshape(height, width, 3)[nearest], result
+    return image[nearest], face_seen, None if light is None else light.reshape(height, width, 3)[nearest], result
+
+
+def photographed_faces(texel_face: np.ndarray, photographed: np.ndarray, labels: np.ndarray) -> np.ndarray:
+    """(F,) True for the faces a photo colours (``labels`` >= 0) whose texels (``texel_face``: the face of each texel,
+    ``photographed``: whether a photo held it) a photo held at least half of; the rest of their colour is copied from
+    the nearest painted texel. A face with no texel of its own counts as its label says."""
+    texels = np.bincount(texel_face, minlength=len(labels))
+    held = np.bincount(texel_face, weights=photographed, minlength=len(labels))
+    return (labels >= 0) & ((texels == 0) | (2 * held >= texels))
 
 
 def _nearest_painted(texels: np.ndarray, ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -568,8 +582,8 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     ids = rasterise_faces(uv_px, faces, width, height, options.padding_px)
     capture = None if sun_enu is None else CaptureSetup.of(packed_vertices, faces, sun_enu, patches(mesh, labels),
                                                            sun_sky_ratio)
-    image, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear, gains, blend,
-                                             options.blend_power, capture)
+    image, face_seen, capture_light, delighting = paint(ids, uv_px, faces, packed_vertices, labels, photos, linear,
+                                                        gains, blend, options.blend_power, capture)
     if delighting is not None:
         source = "as measured" if sun_sky_ratio is not None else f"from {delighting.blocks} shadow-edge blocks"
         log(f"capture light: sun/sky ratio {np.round(delighting.ratio, 2).tolist()} {source}; {delighting.relit} "
@@ -580,6 +594,7 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
         f"patches")
     held_gains = held_out_gains(scene, mesh, labels, blend, photos, linear, gains, list(held_out), options)
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
+                 face_seen,
                  {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}, coverage,
                  1.0 / texels_per_m, capture_light if delighting is not None and delighting.applied else None,
                  delighting, None if capture is None else capture.scene_bake())

@@ -464,7 +464,7 @@ class Recon:
                                          suns.for_names([photo.name for photo in photos]).directions_enu,
                                          sun_sky_ratio=self.options.capture_sun_sky_ratio)
                 encoded, texel_m, coverage = textured.glb(self.priors.origin), textured.texel_m, textured.coverage
-                face_seen, sky_bake = textured.labels >= 0, textured.sky
+                face_seen, sky_bake = textured.face_seen, textured.sky
             else:
                 suns, kept = None, "an orthophoto keeps the capture day's light (--texture atlas takes it out)"
                 textured = texturing.orthophoto(surface, photos, self.options.texture_options, count)

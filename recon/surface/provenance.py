@@ -10,9 +10,10 @@ What recon makes up, and how it is caught here (ENU metres throughout):
   :data:`~sim.render.provenance.FAR_M`. ``gap_m`` is :data:`GAP_CELLS` cells of the surface: the height field's cell,
   or two ground pixels of the depth maps for the 3-D and Poisson surfaces.
 - **Texture**: the atlas and the orthophoto give a face (a texel) no photo sees the colour of the nearest texel one
-  did see: ``texture_filled`` for the faces no photo colours (the atlas: no photo chosen; the orthophoto: the texel
-  under the face's centroid unseen). Without a texture (``--texture none``) the colours are the fused points' own,
-  interpolated with the surface, so a face's colour is made up exactly where its surface is.
+  did see: ``texture_filled`` for the faces no photo colours (the atlas: no photo chosen, or no photo holds half its
+  texels; the orthophoto: the texel under the face's centroid unseen). Without a texture (``--texture none``) the
+  colours are the fused points' own, interpolated with the surface, so a face's colour is made up exactly where its
+  surface is.
 - **Proxy**: open water whose surface recon made a plane at its level (:mod:`recon.surface.water`): the faces on
   the plane are ``proxy``.
 """

@@ -7,7 +7,7 @@ import trimesh
 
 from flightplan.geodesy import LocalFrame
 from recon.appearance.atlas import (AtlasOptions, FaceViews, blended_colour, corners_seen, face_neighbours,
-                                   label_faces, texture_atlas)
+                                   label_faces, photographed_faces, texture_atlas)
 from recon.measure.evaluate import render_unlit
 from recon.run.scene_out import write_scene
 from recon.appearance.texture import Photo, orthophoto, textured_glb
@@ -235,3 +235,12 @@ def test_a_point_outside_a_photo_takes_no_colour_from_it():
     np.testing.assert_allclose(colour[0], [level * 2 / 3, level / 3, 0.0], rtol=1e-5)
     np.testing.assert_allclose(colour[1], [0.0, level, 0.0], rtol=1e-5)
     assert np.isnan(colour[2]).all()
+
+
+def test_a_face_whose_texels_no_photo_mostly_holds_is_not_counted_photographed():
+    """Its texture is copied from the nearest painted texel, so the scene's provenance must call it filled: a face held
+    whole, one held in half (counted), one in a third (not), one no photo chose, one too small for a texel."""
+    texel_face = np.array([0, 0, 0, 1, 1, 2, 2, 2, 3])
+    photographed = np.array([True, True, True, True, False, True, False, False, False])
+    labels = np.array([0, 1, 0, -1, 1])
+    np.testing.assert_array_equal(photographed_faces(texel_face, photographed, labels), [True, True, False, False, True])
