@@ -18,7 +18,7 @@ from sim.render.renderer import render
 from sim.render import sky
 from sim.render.scene import Scene, Surface, load_scene
 from sim.render.shade import UNLIT, Lighting, Sun
-from sim.render.sky_file import SKY_FILE, read_sky_visibility, write_sky_visibility
+from sim.render.sky_file import write_sky_visibility
 import trimesh
 
 from tests.recon.test_atlas import oblique_poses, town
