@@ -14,8 +14,11 @@ from sim.drone.link import PHOTO_EVENT_ERROR_S
 from sim.drone.photos import camera_truth, photo_camera
 from sim.cli.render import build_parser
 from sim.render.scene import read_scene_json
+from recon.cli import build_parser as recon_parser
+from recon.surface.dense import DenseOptions
 from tools.loops.closed_loop import (LoopConfig, cli, fly_over_tcp, main, parse_sweep, photo_lens_options, plan_mission,
-                                     render_camera_options, run_loop, world_folder, write_true_cameras)
+                                     recon_options, render_camera_options, run_loop, world_folder,
+                                     write_true_cameras)
 from tools.geotag_csv import geotag_row, write_geotags
 from tools.loops.closed_loop_eval import (depth_rows, geotag_poses, markdown, own_gps_rows, sweep_table, total_wall_s,
                                           worst)
@@ -222,3 +225,12 @@ def test_the_report_names_the_worst_frames_and_photos_beyond_their_own_gps():
     rows = dict(depth_rows("twin vs true", depth))
     assert rows["twin vs true depth abs rel / RMSE (m) / delta<1.25, median over frames"] == "0.055 / 5.200 / 0.960"
     assert rows["twin vs true worst frames by depth abs rel"] == "DJI_0024.JPG 307.000"
+
+
+@pytest.mark.parametrize("config, dense_size", [(LoopConfig(), None), (LoopConfig.quick(), 320)])
+def test_recon_options_are_what_recon_parses(config, dense_size):
+    """The loop's and bench_two_times' recon options: a size the loop leaves to recon (None) is not passed at all
+    (bench_two_times once passed '--dense-size None', which recon refuses), a set one is passed as set."""
+    args = recon_parser().parse_args(["--photos", "p", "--out", "o", *recon_options(config)])
+    assert args.dense_size == (DenseOptions.max_image_size if dense_size is None else dense_size)
+    assert (args.image_size, args.mesh, args.workers) == (config.sfm_image_size, config.mesh, config.workers)

@@ -35,10 +35,11 @@ against the truth under the 08:00 sun (the texture's floor at those poses); the 
 ``--work`` is resumed: a finished stage (its output present and its time recorded in ``stages.json``) is not run again.
 
 Defaults: the closed loop's (``tools/loops/closed_loop.py``'s ``LoopConfig``): the demo world, the mission's full orbit
-(50 m radius, 30 m up), 800x600 photos, SfM at 800 px, depth maps at 640 px, a photo every :data:`DEFAULT_INTERVAL_S`
-s. The mission's own interval is 1 s (452 photos); 2 s (226 photos) keeps the run near 30 min on the 2-core machine
-(a 452-photo reconstruction alone takes 12-23 min there, tools/bench/bench_recon_orbit.py, and every photo is rendered
-six times). ``--quick``: the closed loop's reduced settings (demo:small, a 3-waypoint arc, 480x360 photos).
+(50 m radius, 30 m up), 800x600 photos, SfM at 800 px, depth maps at recon's default (the photos' 800 px), a photo every
+:data:`DEFAULT_INTERVAL_S` s. The mission's own interval is 1 s (452 photos); 2 s (226 photos) keeps the run near 30 min
+on the 2-core machine (a 452-photo reconstruction alone takes 12-23 min there, tools/bench/bench_recon_orbit.py, and
+every photo is rendered six times). ``--quick``: the closed loop's reduced settings (demo:small, a 3-waypoint arc,
+480x360 photos).
 """
 
 from __future__ import annotations
@@ -71,7 +72,8 @@ from sim.render.renderer import View, render  # noqa: E402
 from sim.render.scene import Scene, load_scene, read_scene_json  # noqa: E402
 from sim.render.shade import UNLIT, Lighting, Sun  # noqa: E402
 from sim.sampling.light import SunSetting, frame_light, real_sun, utc_text  # noqa: E402
-from tools.loops.closed_loop import LoopConfig, StageResult, cli, plan_mission, run, world_folder  # noqa: E402
+from tools.loops.closed_loop import (LoopConfig, StageResult, cli, plan_mission, recon_options, run,  # noqa: E402
+                                     world_folder)
 
 #: The day both flights are flown.
 FLIGHT_DATE = dt.date(2026, 5, 1)
@@ -193,9 +195,8 @@ def fly_and_reconstruct(config: LoopConfig, stages: Stages, world: Path, flown: 
         if keep_light and not (scene / "work").exists():
             shutil.copytree(work / "recon" / "work", scene / "work")  # only the texture stage is redone
         stages.command(f"recon ({label})", scene / "scene.json", cli("aerostereo-recon") + [
-            "--photos", str(own / "photos"), "--geotags", str(geotags), "--out", str(scene),
-            "--image-size", str(config.sfm_image_size), "--dense-size", str(config.dense_size), "--mesh", config.mesh,
-            "--workers", str(config.workers), *(["--keep-capture-light"] if keep_light else [])])
+            "--photos", str(own / "photos"), "--geotags", str(geotags), "--out", str(scene), *recon_options(config),
+            *(["--keep-capture-light"] if keep_light else [])])
         scenes[label] = scene
     return scenes
 

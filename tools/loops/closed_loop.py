@@ -60,6 +60,16 @@ from tools.loops.closed_loop_eval import evaluate, sweep_table, write_report  # 
 from tools.geotag_csv import geotag_row, write_geotags  # noqa: E402
 
 
+def recon_options(config: LoopConfig) -> list[str]:
+    """aerostereo-recon's size, mesh and worker options for ``config``; a size left None is recon's own default."""
+    options = ["--image-size", str(config.sfm_image_size), "--mesh", config.mesh, "--workers", str(config.workers)]
+    for flag, value in (("--dense-size", config.dense_size), ("--grid", config.grid_m),
+                        ("--decimate-error", config.decimate_error_m)):
+        if value is not None:
+            options += [flag, str(value)]
+    return options
+
+
 def capture_sun_option(sun: str) -> list[str]:
     """recon's ``--capture-sun AZ,EL`` for fly's fixed ``--sun AZ,EL,STRENGTH`` (the photos' sun is not the one of the
     geotags' UTC times: the live link runs on the host clock); nothing for the other forms (recon times the photos)."""
@@ -358,16 +368,9 @@ def run_loop(config: LoopConfig, out: Path) -> dict:
         add(skipped("geotag", "fly/record"))
     recon_dir = out / "recon"
     if "geotag" in ok:
-        options = ["--image-size", str(config.sfm_image_size), "--mesh", config.mesh, "--workers", str(config.workers)]
-        if config.dense_size is not None:
-            options += ["--dense-size", str(config.dense_size)]
-        if config.grid_m is not None:
-            options += ["--grid", str(config.grid_m)]
-        if config.decimate_error_m is not None:
-            options += ["--decimate-error", str(config.decimate_error_m)]
-        options += capture_sun_option(config.sun)
         add(run("recon", cli("aerostereo-recon") + ["--photos", str(fly_dir / "photos"), "--geotags", str(geotags),
-                                                   "--out", str(recon_dir), *options], log_dir))
+                                                   "--out", str(recon_dir), *recon_options(config),
+                                                   *capture_sun_option(config.sun)], log_dir))
     else:
         add(skipped("recon", "geotag"))
     # the twin and the true world at the geotags; the twin at its own cameras and the true world (its depth: unlit)
