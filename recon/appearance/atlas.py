@@ -98,16 +98,16 @@ class FaceViews:
 
 @dataclass(frozen=True)
 class Atlas:
-    """A textured mesh: ``vertices`` (M, 3) ENU metres (split where charts meet), ``faces`` (F, 3) in the input
-    mesh's face order, ``uv`` (M, 2) with v up (OBJ/trimesh convention), ``image`` (H, W, 3) uint8 sRGB; per face its
-    photo ``labels`` (index into the photos, -1: none saw it) and ``face_seen``, whether photos hold most of its
-    texels (:func:`photographed_faces`); per photo name its exposure ``gains`` (texture =
-    gain x photo, linear light; held-out photos included); ``coverage`` the fraction of the surface area some photo
-    sees. With the capture suns: ``image`` is the albedo, ``capture_light`` (H, W, 3) float32 linear the light it was
-    divided by (None: nothing was divided out), ``delighting`` what was done, and ``sky`` the sky visibility baked to
-    do it with what it was baked from: the bake of the scene this atlas's GLB makes
-    (:meth:`~recon.appearance.delight.CaptureSetup.scene_bake`), which the scene folder stores rather than bake it
-    again. The ``vertices`` are what the GLB stores (float32 values, sim.render.glb.stored_positions)."""
+    """A textured mesh: ``vertices`` (M, 3) ENU metres (split where charts meet), ``faces`` (F, 3) in the input mesh's
+    face order, ``uv`` (M, 2) with v up (OBJ/trimesh convention), ``image`` (H, W, 3) uint8 sRGB; per face its photo
+    ``labels`` (index into the photos, -1: none saw it) and ``face_seen``, whether photos hold most of its texels
+    (:func:`photographed_faces`); per photo name its exposure ``gains`` (texture = gain x photo, linear light; held-out
+    photos included); ``coverage`` the fraction of the surface area some photo sees. With the capture suns: ``image`` is
+    the albedo, ``capture_light`` (H, W, 3) float32 linear the light it was divided by (None: nothing was divided out),
+    ``delighting`` what was done, and ``sky`` the sky visibility baked to do it with what it was baked from: the bake of
+    the scene this atlas's GLB makes (:meth:`~recon.appearance.delight.CaptureSetup.scene_bake`), which the scene folder
+    stores rather than bake it again. The ``vertices`` are what the GLB stores (float32 values,
+    sim.render.glb.stored_positions)."""
 
     vertices: np.ndarray
     faces: np.ndarray
@@ -492,11 +492,10 @@ def paint(ids: np.ndarray, uv_px: np.ndarray, faces: np.ndarray, vertices: np.nd
           capture: CaptureSetup | None = None
           ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, Delighting | None]:
     """The atlas image (H, W, 3) uint8 sRGB: every texel of a seen face that a photo holds the blend of the face's
-    ``blend`` views (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). Also which
-    faces photos hold most of (:func:`photographed_faces`). With
-    ``capture`` (the capture suns): the albedo instead, the capture light (H, W, 3) float32 it was divided by, and
-    what was done (:mod:`recon.appearance.delight`; its sun/sky ratio fitted on each face's own photo, whose shadow
-    edges no blend has softened)."""
+    ``blend`` views (:func:`blended_colour`); the rest take the nearest painted texel (grey if none). Also which faces
+    photos hold most of (:func:`photographed_faces`). With ``capture`` (the capture suns): the albedo instead, the
+    capture light (H, W, 3) float32 it was divided by, and what was done (:mod:`recon.appearance.delight`; its sun/sky
+    ratio fitted on each face's own photo, whose shadow edges no blend has softened)."""
     height, width = ids.shape
     colour = np.zeros((height * width, 3), np.float32)
     flat = ids.ravel()
@@ -593,8 +592,8 @@ def texture_atlas(mesh: trimesh.Trimesh, photos: list[Photo], options: AtlasOpti
     log(f"{len(faces)} faces on {len(np.unique(labels[labels >= 0]))} photos in {patches(mesh, labels).max() + 1} "
         f"patches")
     held_gains = held_out_gains(scene, mesh, labels, blend, photos, linear, gains, list(held_out), options)
+    named_gains = {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}
     return Atlas(packed_vertices, faces, np.column_stack([packed_uv[:, 0], 1.0 - packed_uv[:, 1]]), image, labels,
-                 face_seen,
-                 {photo.name: float(g) for photo, g in zip([*photos, *held_out], [*gains, *held_gains])}, coverage,
+                 face_seen, named_gains, coverage,
                  1.0 / texels_per_m, capture_light if delighting is not None and delighting.applied else None,
                  delighting, None if capture is None else capture.scene_bake())

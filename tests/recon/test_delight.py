@@ -300,8 +300,8 @@ def test_only_a_gross_mismatch_turns_a_predicted_shadow_lit():
     albedo = 0.08 * np.exp(np.random.default_rng(11).normal(0.0, 0.05, ATLAS_SHAPE))  # 9.5 x stays an albedo below 1
     shadowed = rows % 40 < 16
     ratio, sky = SUN.intensity / SKY, np.where(shadowed, 0.3, 0.8)
-    mispredicted_lit = (ratio * GROUND_COS + 0.3) / 0.3
-    patches = {3.0: (columns >= 10) & (columns < 20), mispredicted_lit: (columns >= 40) & (columns < 50),
+    lit_over_shade = (ratio * GROUND_COS + 0.3) / 0.3  # the sun's light over the shade's, under a sky of 0.3
+    patches = {3.0: (columns >= 10) & (columns < 20), lit_over_shade: (columns >= 40) & (columns < 50),
                25.0: (columns >= 70) & (columns < 80)}
     strip = (rows >= 44) & (rows < 52)
     light_shade = CAPTURE_SKY * sky
@@ -315,5 +315,6 @@ def test_only_a_gross_mismatch_turns_a_predicted_shadow_lit():
     capture = capture[:, 0].reshape(ATLAS_SHAPE)
     for factor, patch in patches.items():
         inside = strip & patch
-        expected = light_shade[inside] * (mispredicted_lit if factor > mispredicted_lit else 1.0)
+        taken_for_lit = factor > lit_over_shade  # the occluder's patch only
+        expected = light_shade[inside] * (lit_over_shade if taken_for_lit else 1.0)
         np.testing.assert_allclose(capture[inside], expected, rtol=1e-4, err_msg=f"patch {factor:.1f} x")
